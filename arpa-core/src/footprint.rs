@@ -1,0 +1,328 @@
+//! Photon footprints: the ellipse a photon differential leaves on a diffuse surface, the
+//! filter-space transform `M_p⁻¹` (ARPA eq. 3, after Frisvad et al. 2014), the
+//! point-in-footprint test, the kernel weight and the acceleration-structure box.
+//!
+//! With `a = D_u/2` and `b = D_v/2` the footprint is the ellipse
+//! `{x_p + a cos θ + b sin θ}` in the surface's tangent plane (`a`, `b` are conjugate
+//! semi-diameters, not necessarily orthogonal). Its area is `π|a × b| = (π/4)|D_u × D_v|`.
+
+use crate::aabb::Aabb;
+use crate::differential::RayDifferential;
+use crate::kernel::Kernel;
+use core::f64::consts::PI;
+use glam::{DVec2, DVec3, Vec3};
+
+/// Which photon map a stored photon belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[repr(u32)]
+pub enum PhotonMap {
+    /// Paths `L S⁺ D`: at least one specular event and no diffuse event before this hit.
+    Caustic = 0,
+    /// Every other diffuse hit, including direct `L D` hits.
+    Global = 1,
+}
+
+impl PhotonMap {
+    /// Both maps, in index order.
+    pub const ALL: [PhotonMap; 2] = [PhotonMap::Caustic, PhotonMap::Global];
+
+    /// Index 0 (caustic) or 1 (global), for per-map arrays.
+    #[inline]
+    pub const fn index(self) -> usize {
+        self as usize
+    }
+
+    /// Inverse of [`PhotonMap::index`] (anything but 0 is global).
+    #[inline]
+    pub const fn from_index(i: u32) -> Self {
+        if i == 0 { PhotonMap::Caustic } else { PhotonMap::Global }
+    }
+}
+
+/// Why a footprint cannot be used as an ellipse.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum FootprintError {
+    /// `D_u` and `D_v` are parallel or zero (or not finite): `M_p⁻¹` does not exist.
+    #[error("footprint differentials are parallel, zero or not finite")]
+    Degenerate,
+    /// The surface normal is zero or not finite.
+    #[error("footprint normal is zero or not finite")]
+    InvalidNormal,
+    /// The ellipse cannot be resolved in `f32` storage: its minor semi-axis is below
+    /// [`MIN_RELATIVE_SEMI_AXIS`] times the magnitude of its centre, or a stored value
+    /// overflows `f32`.
+    #[error("footprint too small or too large for f32 storage")]
+    Unrepresentable,
+}
+
+/// Smallest minor semi-axis of a storable footprint relative to `max(|x_p|_∞, 1e-30)`
+/// (64 `f32` ulps): below it `q − x_p` computed in `f32` no longer resolves the ellipse.
+pub const MIN_RELATIVE_SEMI_AXIS: f64 = 64.0 * f32::EPSILON as f64;
+
+/// A photon footprint in double precision: what the heuristics operate on.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Footprint {
+    /// Centre `x_p` (metres, world space).
+    pub center: DVec3,
+    /// Unit surface normal `n_p`, oriented towards the side the photon arrived from.
+    pub normal: DVec3,
+    /// Positional differential `D_u` in the tangent plane (metres).
+    pub du: DVec3,
+    /// Positional differential `D_v` in the tangent plane (metres).
+    pub dv: DVec3,
+    /// Flux carried (W, linear RGB).
+    pub flux: DVec3,
+    /// Map the photon is stored in.
+    pub map: PhotonMap,
+}
+
+/// The first two rows of `M_p⁻¹` (1/metres): `y = M_p⁻¹ (q − x_p)` maps `D_u/2 ↦ (1,0)`,
+/// `D_v/2 ↦ (0,1)` and the normal to 0.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FilterTransform {
+    /// `2 (D_v × n) / (D_u · (D_v × n))`.
+    pub row_u: DVec3,
+    /// `2 (n × D_u) / (D_u · (D_v × n))`.
+    pub row_v: DVec3,
+}
+
+impl FilterTransform {
+    /// Filter-space coordinates of the offset `delta = q − x_p`.
+    #[inline]
+    pub fn apply(&self, delta: DVec3) -> DVec2 {
+        DVec2::new(self.row_u.dot(delta), self.row_v.dot(delta))
+    }
+
+    /// Jacobian of the map restricted to the tangent plane, `|row_u × row_v|`, which equals
+    /// `4/|D_u × D_v|` (1/m²): the factor that turns a unit-disc kernel into a density
+    /// over the ellipse.
+    #[inline]
+    pub fn determinant(&self) -> f64 {
+        self.row_u.cross(self.row_v).length()
+    }
+}
+
+impl Footprint {
+    /// The footprint of a photon whose differential has just been transferred onto a
+    /// surface with geometric normal `geometric_normal` (either orientation). The normal
+    /// is oriented towards the arriving photon and the differentials are projected into
+    /// the tangent plane.
+    pub fn from_hit(ray: &RayDifferential, geometric_normal: DVec3, flux: DVec3, map: PhotonMap) -> Result<Self, FootprintError> {
+        let n = geometric_normal.normalize_or_zero();
+        if n == DVec3::ZERO || !n.is_finite() {
+            return Err(FootprintError::InvalidNormal);
+        }
+        let n = if ray.d.dot(n) > 0.0 { -n } else { n };
+        let project = |v: DVec3| v - n * n.dot(v);
+        Ok(Self { center: ray.p, normal: n, du: project(ray.dp_du), dv: project(ray.dp_dv), flux, map })
+    }
+
+    /// Both differentials scaled by `s` (the smoothing factor `S`); the flux is unchanged.
+    #[inline]
+    pub fn scaled(mut self, s: f64) -> Self {
+        self.du *= s;
+        self.dv *= s;
+        self
+    }
+
+    /// `|D_u × D_v|`: area of the parallelogram spanned by the differentials (m²).
+    #[inline]
+    pub fn parallelogram_area(&self) -> f64 {
+        self.du.cross(self.dv).length()
+    }
+
+    /// Area of the footprint ellipse, `(π/4)|D_u × D_v|` (m²).
+    #[inline]
+    pub fn area(&self) -> f64 {
+        0.25 * PI * self.parallelogram_area()
+    }
+
+    /// Lengths `(|D_major|, |D_minor|)` of the longer and shorter differential (metres).
+    #[inline]
+    pub fn major_minor(&self) -> (f64, f64) {
+        let (a, b) = (self.du.length(), self.dv.length());
+        if a >= b { (a, b) } else { (b, a) }
+    }
+
+    /// Principal semi-axes `(σ₁, σ₂)` of the ellipse (metres), the square roots of the
+    /// eigenvalues of `a aᵀ + b bᵀ` with `a = D_u/2`, `b = D_v/2`; `σ₁σ₂ = |a × b|`.
+    pub fn semi_axes(&self) -> (f64, f64) {
+        let a = 0.5 * self.du;
+        let b = 0.5 * self.dv;
+        let (aa, bb, ab) = (a.length_squared(), b.length_squared(), a.dot(b));
+        let half = 0.5 * (aa - bb);
+        let s1 = libm::sqrt(0.5 * (aa + bb) + libm::sqrt(half * half + ab * ab));
+        let s2 = if s1 > 0.0 { a.cross(b).length() / s1 } else { 0.0 };
+        (s1, s2)
+    }
+
+    /// `M_p⁻¹` (ARPA eq. 3). Errors when `D_u`, `D_v` are parallel or zero.
+    pub fn filter_transform(&self) -> Result<FilterTransform, FootprintError> {
+        let dv_n = self.dv.cross(self.normal);
+        let den = self.du.dot(dv_n);
+        if !(den != 0.0) || !den.is_finite() {
+            return Err(FootprintError::Degenerate);
+        }
+        let s = 2.0 / den;
+        let t = FilterTransform { row_u: dv_n * s, row_v: self.normal.cross(self.du) * s };
+        if t.row_u.is_finite() && t.row_v.is_finite() { Ok(t) } else { Err(FootprintError::Degenerate) }
+    }
+
+    /// Half-thickness of the footprint along its normal: half the minor differential,
+    /// clamped to the current progressive `radius` (ARPA §4.2, fig. 3), in metres.
+    #[inline]
+    pub fn half_thickness(&self, radius: f64) -> f64 {
+        (0.5 * self.major_minor().1).min(radius)
+    }
+
+    /// `true` if `q` lies inside the ellipse (`|M_p⁻¹(q − x_p)| ≤ 1`) and within the
+    /// slab `|n·(q − x_p)| ≤ h` of [`Footprint::half_thickness`].
+    pub fn contains(&self, q: DVec3, radius: f64) -> bool {
+        let Ok(m) = self.filter_transform() else { return false };
+        let delta = q - self.center;
+        m.apply(delta).length_squared() <= 1.0 && self.normal.dot(delta).abs() <= self.half_thickness(radius)
+    }
+
+    /// The footprint's density at `q`: `W_p(q) = 4/|D_u × D_v| · K(|M_p⁻¹(q − x_p)|²)`
+    /// (1/m²), zero outside. Irradiance contributed is `Φ_p W_p(q)`.
+    pub fn weight(&self, q: DVec3, radius: f64, kernel: Kernel) -> f64 {
+        let Ok(m) = self.filter_transform() else { return 0.0 };
+        let delta = q - self.center;
+        if self.normal.dot(delta).abs() > self.half_thickness(radius) {
+            return 0.0;
+        }
+        m.determinant() * kernel.eval_f64(m.apply(delta).length_squared())
+    }
+
+    /// Bounding box for the acceleration structure: `x_p ± e` with
+    /// `e_k = √(a_k² + b_k² + h_k²)`, the exact box of the ellipsoid with conjugate
+    /// semi-diameters `a = D_u/2`, `b = D_v/2` and `h·n` (`h` = [`Footprint::half_thickness`]).
+    pub fn aabb(&self, radius: f64) -> Aabb {
+        let a = 0.5 * self.du;
+        let b = 0.5 * self.dv;
+        let h = self.normal * self.half_thickness(radius);
+        let e = (a * a + b * b + h * h).map(libm::sqrt);
+        Aabb::from_centre_half_extent(self.center, e)
+    }
+
+    /// The `f32` record the gather reads (see [`PackedFootprint`]), with the slab
+    /// half-thickness of the current progressive `radius`.
+    pub fn pack(&self, radius: f64) -> Result<PackedFootprint, FootprintError> {
+        let m = self.filter_transform()?;
+        let (_, s2) = self.semi_axes();
+        let scale = self.center.abs().max_element().max(1e-30);
+        if !(s2 >= MIN_RELATIVE_SEMI_AXIS * scale) {
+            return Err(FootprintError::Unrepresentable);
+        }
+        let h = self.half_thickness(radius);
+        if !(h > 0.0) {
+            return Err(FootprintError::Unrepresentable);
+        }
+        let density = self.flux * m.determinant();
+        let f = |v: DVec3| v.as_vec3().to_array();
+        let packed = PackedFootprint {
+            center: f(self.center),
+            map: self.map as u32,
+            row_u: f(m.row_u),
+            flux_density_r: density.x as f32,
+            row_v: f(m.row_v),
+            flux_density_g: density.y as f32,
+            row_n: f(self.normal / h),
+            flux_density_b: density.z as f32,
+        };
+        if bytemuck::cast_ref::<_, [f32; 16]>(&packed).iter().enumerate().all(|(i, x)| i == 3 || x.is_finite()) {
+            Ok(packed)
+        } else {
+            Err(FootprintError::Unrepresentable)
+        }
+    }
+}
+
+/// The 64-byte `f32` footprint record of the gather stage, laid out as four
+/// `vec4<f32>`-sized groups for GPU storage buffers (WGSL: `vec3<f32>` + scalar).
+///
+/// `y = (row_u·Δ, row_v·Δ, row_n·Δ)` with `Δ = q − x_p` is the full filter transform:
+/// `q` is inside iff `y.x² + y.y² ≤ 1` and `|y.z| ≤ 1` (the slab). `row_n = n/h` also
+/// carries the orientation: a query whose normal has `n_q·row_n ≤ 0` sees the back side.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct PackedFootprint {
+    /// Centre `x_p` (metres).
+    pub center: [f32; 3],
+    /// [`PhotonMap`] as `u32`.
+    pub map: u32,
+    /// First row of `M_p⁻¹` (1/m).
+    pub row_u: [f32; 3],
+    /// Red flux density `Φ · 4/|D_u × D_v|` (W/m²).
+    pub flux_density_r: f32,
+    /// Second row of `M_p⁻¹` (1/m).
+    pub row_v: [f32; 3],
+    /// Green flux density (W/m²).
+    pub flux_density_g: f32,
+    /// Normal over slab half-thickness, `n/h` (1/m).
+    pub row_n: [f32; 3],
+    /// Blue flux density (W/m²).
+    pub flux_density_b: f32,
+}
+
+impl PackedFootprint {
+    /// Filter-space coordinates `(row_u·Δ, row_v·Δ, row_n·Δ)` of `q` (dimensionless).
+    #[inline]
+    pub fn filter_coords(&self, q: Vec3) -> Vec3 {
+        let delta = q - Vec3::from_array(self.center);
+        Vec3::new(
+            Vec3::from_array(self.row_u).dot(delta),
+            Vec3::from_array(self.row_v).dot(delta),
+            Vec3::from_array(self.row_n).dot(delta),
+        )
+    }
+
+    /// Point-in-footprint test: inside the ellipse and within the slab.
+    #[inline]
+    pub fn contains(&self, q: Vec3) -> bool {
+        let y = self.filter_coords(q);
+        y.x * y.x + y.y * y.y <= 1.0 && y.z.abs() <= 1.0
+    }
+
+    /// `true` if a query whose (geometric) normal is `query_normal` sees the lit side.
+    #[inline]
+    pub fn faces(&self, query_normal: Vec3) -> bool {
+        Vec3::from_array(self.row_n).dot(query_normal) > 0.0
+    }
+
+    /// Flux density `Φ · 4/|D_u × D_v|` (W/m², RGB).
+    #[inline]
+    pub fn flux_density(&self) -> Vec3 {
+        Vec3::new(self.flux_density_r, self.flux_density_g, self.flux_density_b)
+    }
+
+    /// Map of this footprint.
+    #[inline]
+    pub fn photon_map(&self) -> PhotonMap {
+        PhotonMap::from_index(self.map)
+    }
+
+    /// Irradiance (W/m², RGB) this footprint contributes at query point `q` with
+    /// normal `query_normal`: `Φ_p W_p(q)` when `q` is inside and on the lit side, else 0.
+    #[inline]
+    pub fn irradiance(&self, q: Vec3, query_normal: Vec3, kernel: Kernel) -> Vec3 {
+        let y = self.filter_coords(q);
+        let r2 = y.x * y.x + y.y * y.y;
+        if r2 <= 1.0 && y.z.abs() <= 1.0 && self.faces(query_normal) {
+            self.flux_density() * kernel.eval(r2)
+        } else {
+            Vec3::ZERO
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn packed_is_64_bytes() {
+        assert_eq!(core::mem::size_of::<PackedFootprint>(), 64);
+        assert_eq!(core::mem::align_of::<PackedFootprint>(), 4);
+    }
+}

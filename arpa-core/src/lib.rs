@@ -1,0 +1,62 @@
+//! # arpa-core
+//!
+//! The `no_std` mathematical core of ARPA: photon mapping with *photon differentials*
+//! (De Barro, Bugeja & Spina), built on Igehy's ray differentials, Frisvad et al.'s
+//! filter-space transform, Fabianowski's absorb-and-re-emit trick and Knaus & Zwicker's
+//! progressive radius schedule.
+//!
+//! The modules follow the pipeline of one photon-mapping iteration:
+//!
+//! | stage | modules |
+//! |---|---|
+//! | random numbers | [`rng`], [`sampling`], [`frame`] |
+//! | emit | [`emission`] |
+//! | propagate | [`differential`], [`shading_normal`], [`reemission`], [`classify`] |
+//! | store footprints | [`footprint`], [`heuristics`], [`progressive_photon`], [`store`], [`aabb`] |
+//! | build AS | (backends; [`aabb`] gives the boxes) |
+//! | gather | [`kernel`], [`estimate`] |
+//! | accumulate | [`radius`], [`accumulate`] |
+//!
+//! ## Conventions
+//! * World space is right-handed, units are *scene units* (the scene's length unit, called
+//!   metres in doc comments for brevity). Directions are unit vectors.
+//! * Propagation math is done in `f64` ([`glam::DVec3`]) so that extreme differential
+//!   magnitudes (1e-30 … 1e30) neither overflow nor underflow; what is stored for the
+//!   gather ([`footprint::PackedFootprint`], [`progressive_photon::PackedPhoton`]) is `f32`,
+//!   laid out for GPU storage buffers.
+//! * Colours are linear RGB triples. Flux is in watts (W), irradiance in W/m²,
+//!   radiance in W/(m²·sr), intensity in W/sr.
+//! * No function panics on any input: functions return finite values, or an explicit
+//!   error/degenerate label.
+//!
+//! ## Features
+//! * `std` (default): implies `alloc`; uses the standard library.
+//! * `alloc`: heap-backed helpers such as [`accumulate::ImageAccumulator`].
+//! * neither: pure `no_std`, maths through `libm`.
+#![no_std]
+#![warn(missing_docs)]
+
+#[cfg(feature = "alloc")]
+extern crate alloc;
+#[cfg(feature = "std")]
+extern crate std;
+
+pub mod aabb;
+pub mod accumulate;
+pub mod classify;
+pub mod differential;
+pub mod emission;
+pub mod estimate;
+pub mod footprint;
+pub mod frame;
+pub mod heuristics;
+pub mod kernel;
+pub mod progressive_photon;
+pub mod radius;
+pub mod reemission;
+pub mod rng;
+pub mod sampling;
+pub mod shading_normal;
+pub mod store;
+
+pub use glam;

@@ -1,0 +1,77 @@
+//! Progressive (PPM) photons: the fallback for footprints the heuristics reject, and the
+//! only photon kind of the RTPM baseline. A progressive photon is a disc of the map's
+//! current progressive radius `r_i` with the constant kernel `1/(π r_i²)` (Knaus & Zwicker;
+//! RTPM's sphere test `|q − x_p|² < r_i²`).
+
+use crate::footprint::PhotonMap;
+use glam::{DVec3, Vec3};
+
+/// A progressive photon in double precision.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ProgressivePhoton {
+    /// Hit position (metres).
+    pub position: DVec3,
+    /// Unit surface normal oriented towards the side the photon arrived from.
+    pub normal: DVec3,
+    /// Flux (W, RGB).
+    pub flux: DVec3,
+    /// Map it belongs to.
+    pub map: PhotonMap,
+}
+
+impl ProgressivePhoton {
+    /// The 48-byte `f32` record (see [`PackedPhoton`]).
+    pub fn pack(&self) -> PackedPhoton {
+        PackedPhoton {
+            position: self.position.as_vec3().to_array(),
+            map: self.map as u32,
+            normal: self.normal.as_vec3().to_array(),
+            _pad0: 0,
+            flux: self.flux.as_vec3().to_array(),
+            _pad1: 0,
+        }
+    }
+}
+
+/// The 48-byte `f32` progressive-photon record, three `vec4`-sized groups.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct PackedPhoton {
+    /// Hit position (metres).
+    pub position: [f32; 3],
+    /// [`PhotonMap`] as `u32`.
+    pub map: u32,
+    /// Unit normal towards the arrival side.
+    pub normal: [f32; 3],
+    /// Padding (zero).
+    pub _pad0: u32,
+    /// Flux (W, RGB).
+    pub flux: [f32; 3],
+    /// Padding (zero).
+    pub _pad1: u32,
+}
+
+impl PackedPhoton {
+    /// Sphere test `|q − x_p|² < radius²`.
+    #[inline]
+    pub fn contains(&self, q: Vec3, radius: f32) -> bool {
+        (q - Vec3::from_array(self.position)).length_squared() < radius * radius
+    }
+
+    /// Irradiance (W/m², RGB) at `q` with normal `query_normal` for progressive radius
+    /// `radius` (metres): `Φ/(π r²)` inside the sphere and on the lit side, else 0.
+    #[inline]
+    pub fn irradiance(&self, q: Vec3, query_normal: Vec3, radius: f32) -> Vec3 {
+        if radius > 0.0 && self.contains(q, radius) && Vec3::from_array(self.normal).dot(query_normal) > 0.0 {
+            Vec3::from_array(self.flux) * (core::f32::consts::FRAC_1_PI / (radius * radius))
+        } else {
+            Vec3::ZERO
+        }
+    }
+
+    /// Map of this photon.
+    #[inline]
+    pub fn photon_map(&self) -> PhotonMap {
+        PhotonMap::from_index(self.map)
+    }
+}

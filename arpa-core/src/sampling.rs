@@ -1,0 +1,194 @@
+//! Warping of uniform unit-square samples to the distributions photon emission and
+//! scattering need. Every function takes a point `u` of the unit square (values outside
+//! `[0, 1]` or NaN are clamped into it) and returns a finite result. Directions are in the
+//! local frame of the distribution (axis = +z) unless stated otherwise.
+
+use core::f64::consts::{FRAC_PI_4, PI, TAU};
+use glam::{DVec2, DVec3};
+
+/// Clamps to `[0, 1]`, mapping NaN to 0.
+#[inline]
+fn unit(x: f64) -> f64 {
+    if x >= 0.0 { if x <= 1.0 { x } else { 1.0 } } else { 0.0 }
+}
+
+/// Uniform direction on the unit sphere (Archimedes' equal-area map: `z` uniform in
+/// `[-1, 1]`). Density `1 / (4π)` per steradian.
+#[inline]
+pub fn uniform_sphere(u: DVec2) -> DVec3 {
+    let z = 1.0 - 2.0 * unit(u.x);
+    let r = libm::sqrt((1.0 - z * z).max(0.0));
+    let phi = TAU * unit(u.y);
+    DVec3::new(r * libm::cos(phi), r * libm::sin(phi), z)
+}
+
+/// Uniform direction inside the cone of half-angle `acos(cos_max)` around +z
+/// (equal-area map). Density `1 / (2π (1 - cos_max))`. `cos_max` is clamped to `[-1, 1]`.
+#[inline]
+pub fn uniform_cone(u: DVec2, cos_max: f64) -> DVec3 {
+    let cos_max = if cos_max >= -1.0 { cos_max.min(1.0) } else { -1.0 };
+    let z = 1.0 - unit(u.x) * (1.0 - cos_max);
+    let r = libm::sqrt((1.0 - z * z).max(0.0));
+    let phi = TAU * unit(u.y);
+    DVec3::new(r * libm::cos(phi), r * libm::sin(phi), z)
+}
+
+/// Solid angle of a cone with half-angle `acos(cos_max)`, in steradians.
+#[inline]
+pub fn cone_solid_angle(cos_max: f64) -> f64 {
+    TAU * (1.0 - cos_max.clamp(-1.0, 1.0))
+}
+
+/// Uniform point on the unit disc (Shirley–Chiu concentric map, area-preserving and
+/// low-distortion).
+#[inline]
+pub fn uniform_disc(u: DVec2) -> DVec2 {
+    let a = 2.0 * unit(u.x) - 1.0;
+    let b = 2.0 * unit(u.y) - 1.0;
+    if a == 0.0 && b == 0.0 {
+        return DVec2::ZERO;
+    }
+    let (r, theta) = if a * a > b * b { (a, FRAC_PI_4 * (b / a)) } else { (b, 0.5 * PI - FRAC_PI_4 * (a / b)) };
+    DVec2::new(r * libm::cos(theta), r * libm::sin(theta))
+}
+
+/// Cosine-weighted direction in the hemisphere around +z (Malley's method on the
+/// concentric disc). Density `cos θ / π`.
+#[inline]
+pub fn cosine_hemisphere(u: DVec2) -> DVec3 {
+    let d = uniform_disc(u);
+    let z = libm::sqrt((1.0 - d.length_squared()).max(0.0));
+    DVec3::new(d.x, d.y, z)
+}
+
+/// Uniform point on a triangle as barycentric weights `(b0, b1, b2)` of its vertices
+/// (`b0 = 1 - √u₀`, `b1 = u₁ √u₀`). Density `1 / area`.
+#[inline]
+pub fn uniform_triangle(u: DVec2) -> DVec3 {
+    let s = libm::sqrt(unit(u.x));
+    let b1 = unit(u.y) * s;
+    DVec3::new(1.0 - s, b1, s - b1)
+}
+
+/// The golden-ratio conjugate `(√5 − 1) / 2` used by [`fibonacci_lattice`].
+pub const GOLDEN_RATIO_CONJUGATE: f64 = 0.618_033_988_749_894_9;
+
+/// Point `i` of an `n`-point Fibonacci (rank-1) lattice in the unit square, randomly
+/// shifted by `shift` (Cranley–Patterson rotation, one shift per iteration). The `n`
+/// points cover the square evenly, so emitted photons tile their emission domain and the
+/// footprints built from them overlap uniformly. `n = 0` is treated as 1.
+#[inline]
+pub fn fibonacci_lattice(i: u32, n: u32, shift: DVec2) -> DVec2 {
+    let n = n.max(1) as f64;
+    let x = (i as f64 + 0.5) / n + unit(shift.x);
+    let y = i as f64 * GOLDEN_RATIO_CONJUGATE + unit(shift.y);
+    DVec2::new(x - libm::floor(x), y - libm::floor(y))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::{Rng, StreamDomain};
+    use approx::assert_relative_eq;
+
+    fn samples(n: u32) -> impl Iterator<Item = DVec2> {
+        let mut rng = Rng::new(1, 0, 0, StreamDomain::User);
+        (0..n).map(move |_| rng.next_2d())
+    }
+
+    #[test]
+    fn sphere_is_unit_and_centred() {
+        let n = 200_000;
+        let mut mean = DVec3::ZERO;
+        let mut upper = 0;
+        for u in samples(n) {
+            let d = uniform_sphere(u);
+            assert_relative_eq!(d.length(), 1.0, epsilon = 1e-12);
+            mean += d;
+            if d.z > 0.5 {
+                upper += 1;
+            }
+        }
+        assert!((mean / n as f64).length() < 1e-2);
+        // Cap above z = 0.5 holds a quarter of the sphere's area.
+        assert_relative_eq!(upper as f64 / n as f64, 0.25, epsilon = 5e-3);
+    }
+
+    #[test]
+    fn cone_stays_inside_and_is_uniform() {
+        let cos_max = libm::cos(0.5);
+        let n = 200_000;
+        let mut inner = 0;
+        let cos_half = libm::cos(0.25);
+        for u in samples(n) {
+            let d = uniform_cone(u, cos_max);
+            assert!(d.z >= cos_max - 1e-12);
+            if d.z > cos_half {
+                inner += 1;
+            }
+        }
+        let expected = cone_solid_angle(cos_half) / cone_solid_angle(cos_max);
+        assert_relative_eq!(inner as f64 / n as f64, expected, epsilon = 5e-3);
+    }
+
+    #[test]
+    fn cosine_hemisphere_moments() {
+        // E[cos θ] under cos θ / π is 2/3.
+        let n = 200_000;
+        let mut sum = 0.0;
+        for u in samples(n) {
+            let d = cosine_hemisphere(u);
+            assert!(d.z >= 0.0);
+            assert_relative_eq!(d.length(), 1.0, epsilon = 1e-9);
+            sum += d.z;
+        }
+        assert_relative_eq!(sum / n as f64, 2.0 / 3.0, epsilon = 3e-3);
+    }
+
+    #[test]
+    fn disc_and_triangle_are_uniform() {
+        let n = 200_000;
+        let (mut inner, mut corner) = (0, 0);
+        for u in samples(n) {
+            let p = uniform_disc(u);
+            assert!(p.length() <= 1.0 + 1e-12);
+            if p.length() < 0.5 {
+                inner += 1;
+            }
+            let b = uniform_triangle(u);
+            assert!(b.min_element() >= 0.0);
+            assert_relative_eq!(b.element_sum(), 1.0, epsilon = 1e-12);
+            // Sub-triangle near vertex 0 with half the edge lengths holds a quarter of the area.
+            if b.x > 0.5 {
+                corner += 1;
+            }
+        }
+        assert_relative_eq!(inner as f64 / n as f64, 0.25, epsilon = 5e-3);
+        assert_relative_eq!(corner as f64 / n as f64, 0.25, epsilon = 5e-3);
+    }
+
+    #[test]
+    fn lattice_strata_are_each_hit_once() {
+        // A 1-D projection of the lattice puts exactly one point in each of n strata.
+        let n = 1000;
+        let mut hit = [false; 1000];
+        for i in 0..n {
+            let p = fibonacci_lattice(i, n, DVec2::new(0.37, 0.91));
+            let k = (p.x * n as f64) as usize;
+            assert!(!hit[k]);
+            hit[k] = true;
+        }
+    }
+
+    #[test]
+    fn out_of_range_and_nan_inputs_are_finite() {
+        for u in [DVec2::NAN, DVec2::new(-5.0, 7.0), DVec2::INFINITY, DVec2::NEG_INFINITY, DVec2::ONE] {
+            assert!(uniform_sphere(u).is_finite());
+            assert!(uniform_cone(u, f64::NAN).is_finite());
+            assert!(uniform_disc(u).is_finite());
+            assert!(cosine_hemisphere(u).is_finite());
+            assert!(uniform_triangle(u).is_finite());
+            assert!(fibonacci_lattice(3, 0, u).is_finite());
+        }
+    }
+}

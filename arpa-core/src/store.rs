@@ -1,0 +1,92 @@
+//! Storing a photon at a diffuse hit: smoothing, heuristics and packing, with the
+//! fallback to a progressive photon. This is the one function every backend's photon pass
+//! calls, so all backends make the same decisions.
+
+use crate::aabb::Aabb;
+use crate::classify::Smoothing;
+use crate::footprint::{Footprint, PackedFootprint, PhotonMap};
+use crate::heuristics::{HeuristicContext, Heuristics, Rejection};
+use crate::progressive_photon::{PackedPhoton, ProgressivePhoton};
+use glam::DVec3;
+
+/// Why a photon was stored as a progressive photon instead of a footprint.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ProgressiveReason {
+    /// Degenerate removal, or `D_u`, `D_v` parallel/zero.
+    Degenerate,
+    /// Bounding-box culling.
+    Culled,
+    /// The ellipse cannot be resolved in `f32` storage.
+    Unrepresentable,
+    /// The photon's differential was lost earlier on its path (grazing transfer,
+    /// near-critical refraction, non-finite values).
+    DifferentialLost,
+    /// The method stores only progressive photons (the RTPM baseline).
+    ProgressiveMethod,
+}
+
+impl From<Rejection> for ProgressiveReason {
+    fn from(r: Rejection) -> Self {
+        match r {
+            Rejection::Degenerate => ProgressiveReason::Degenerate,
+            Rejection::Culled => ProgressiveReason::Culled,
+        }
+    }
+}
+
+/// What a diffuse hit stores.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum StoredPhoton {
+    /// An elliptical footprint with its acceleration-structure box.
+    Footprint {
+        /// The gather record.
+        packed: PackedFootprint,
+        /// Its AABB (metres).
+        aabb: Aabb,
+    },
+    /// A progressive photon with the map's current radius.
+    Progressive {
+        /// The gather record.
+        photon: PackedPhoton,
+        /// Why it is not a footprint.
+        reason: ProgressiveReason,
+    },
+}
+
+impl StoredPhoton {
+    /// The map the photon went to.
+    pub fn map(&self) -> PhotonMap {
+        match self {
+            StoredPhoton::Footprint { packed, .. } => packed.photon_map(),
+            StoredPhoton::Progressive { photon, .. } => photon.photon_map(),
+        }
+    }
+}
+
+/// Progressive photon at the footprint's centre with the same flux, normal and map.
+fn fallback(fp: &Footprint, reason: ProgressiveReason) -> StoredPhoton {
+    let photon = ProgressivePhoton { position: fp.center, normal: fp.normal, flux: fp.flux, map: fp.map }.pack();
+    StoredPhoton::Progressive { photon, reason }
+}
+
+/// Stores footprint `fp` (unsmoothed, as built by [`Footprint::from_hit`]): applies the
+/// map's smoothing factor, then the heuristics, then packs it. Anything rejected becomes a
+/// progressive photon carrying the same flux, so energy is never lost or created.
+pub fn store_footprint(fp: Footprint, smoothing: &Smoothing, heuristics: &Heuristics, ctx: &HeuristicContext) -> StoredPhoton {
+    let fp = smoothing.apply(fp);
+    match heuristics.apply(fp, ctx) {
+        Ok((fp, aabb)) => match fp.pack(ctx.radius) {
+            Ok(packed) => StoredPhoton::Footprint { packed, aabb },
+            Err(_) => fallback(&fp, ProgressiveReason::Unrepresentable),
+        },
+        Err(rejection) => fallback(&fp, rejection.into()),
+    }
+}
+
+/// Stores a photon as a progressive photon (differential lost, or the RTPM method).
+/// `normal` is oriented towards `incoming` (the photon's direction of travel) internally.
+pub fn store_progressive(position: DVec3, normal: DVec3, incoming: DVec3, flux: DVec3, map: PhotonMap, reason: ProgressiveReason) -> StoredPhoton {
+    let n = normal.normalize_or(-incoming.normalize_or(DVec3::Z));
+    let n = if incoming.dot(n) > 0.0 { -n } else { n };
+    StoredPhoton::Progressive { photon: ProgressivePhoton { position, normal: n, flux, map }.pack(), reason }
+}

@@ -1,0 +1,1 @@
+pub use embree4_sys;

@@ -1,0 +1,525 @@
+//! [`SceneBuilder`] and the committed, query-only [`Scene`].
+
+use core::ffi::c_void;
+use std::any::Any;
+use std::panic::{AssertUnwindSafe, catch_unwind, resume_unwind};
+
+use embree4_sys as sys;
+
+use crate::device::Device;
+use crate::error::{EmbreeError, Result};
+use crate::ffi::{self, RTC_INVALID_GEOMETRY_ID, RTCPointQuery44, RTCPointQueryContext44, RTCRay44, RTCRayHit44};
+
+/// BVH build quality (`RTCBuildQuality`): a trade-off between build time and query speed.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum BuildQuality {
+    /// `RTC_BUILD_QUALITY_LOW`: fastest build, slowest queries.
+    Low,
+    /// `RTC_BUILD_QUALITY_MEDIUM`: Embree's default.
+    Medium,
+    /// `RTC_BUILD_QUALITY_HIGH`: spatial splits for triangles; best for static geometry
+    /// traced many times. The default of [`SceneBuilder`].
+    #[default]
+    High,
+}
+
+impl BuildQuality {
+    fn raw(self) -> sys::RTCBuildQuality {
+        match self {
+            Self::Low => sys::RTCBuildQuality::LOW,
+            Self::Medium => sys::RTCBuildQuality::MEDIUM,
+            Self::High => sys::RTCBuildQuality::HIGH,
+        }
+    }
+}
+
+/// An axis-aligned box `[lower, upper]` (closed), in the scene's world frame and units.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[repr(C)]
+pub struct Aabb {
+    /// Minimum corner (x, y, z).
+    pub lower: [f32; 3],
+    /// Maximum corner (x, y, z); each component must be `>=` the matching `lower` one.
+    pub upper: [f32; 3],
+}
+
+impl Aabb {
+    /// Whether `p` lies in the closed box (boundary included).
+    pub fn contains(&self, p: [f32; 3]) -> bool {
+        (0..3).all(|k| self.lower[k] <= p[k] && p[k] <= self.upper[k])
+    }
+
+    fn is_valid(&self) -> bool {
+        (0..3).all(|k| {
+            self.lower[k].is_finite() && self.upper[k].is_finite() && self.lower[k] <= self.upper[k]
+        })
+    }
+}
+
+/// The closest intersection of a ray with the scene's triangles (user boxes are never hit by
+/// rays; see [`SceneBuilder::add_boxes`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Ray parameter of the hit: the hit point is `origin + t * dir`, so `t` is measured in
+    /// units of `|dir|` (a distance in world units when `dir` is normalised).
+    pub t: f32,
+    /// Barycentric coordinate of the hit: `p = (1 - u - v) * v0 + u * v1 + v * v2` for the
+    /// triangle's vertices `v0, v1, v2` in index order.
+    pub u: f32,
+    /// Second barycentric coordinate (see [`Hit::u`]).
+    pub v: f32,
+    /// Index of the triangle within its mesh (position in the `indices` slice).
+    pub prim_id: u32,
+    /// Geometry id returned by [`SceneBuilder::add_triangle_mesh`].
+    pub geom_id: u32,
+    /// Unnormalised geometric normal in the world frame, `(v1 - v0) x (v2 - v0)` (length =
+    /// twice the triangle's area); it faces the side from which `v0, v1, v2` appear
+    /// counter-clockwise, whichever side the ray came from.
+    pub ng: [f32; 3],
+}
+
+/// A primitive whose bounds overlap a point query's sphere (see [`Scene::point_query`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct PointQueryCandidate {
+    /// Geometry id (from [`SceneBuilder::add_triangle_mesh`] or [`SceneBuilder::add_boxes`]).
+    pub geom_id: u32,
+    /// Primitive index within that geometry (triangle index, or index into the box slice).
+    pub prim_id: u32,
+}
+
+/// Scene under construction (`RTCScene` before `rtcCommitScene`). Add geometry, then
+/// [`commit`](Self::commit) to get a query-able [`Scene`]. Dropping it releases the scene.
+///
+/// `Send` (may be built on another thread) but not `Sync`: Embree forbids concurrent
+/// modification of a scene.
+pub struct SceneBuilder {
+    device: Device,
+    raw: sys::RTCScene,
+    box_sets: Vec<(u32, Box<[Aabb]>)>,
+    quality: BuildQuality,
+    robust: bool,
+}
+
+// SAFETY: the scene handle is only used through `&mut self`; Embree allows a scene to be
+// modified from any one thread at a time.
+unsafe impl Send for SceneBuilder {}
+
+impl Drop for SceneBuilder {
+    fn drop(&mut self) {
+        if !self.raw.is_null() {
+            // SAFETY: we own one reference on the scene.
+            unsafe { sys::rtcReleaseScene(self.raw) };
+        }
+    }
+}
+
+/// `rtcReleaseGeometry` on scope exit (the scene keeps its own reference once attached).
+struct GeometryGuard(sys::RTCGeometry);
+
+impl Drop for GeometryGuard {
+    fn drop(&mut self) {
+        // SAFETY: we own one reference on the geometry.
+        unsafe { sys::rtcReleaseGeometry(self.0) };
+    }
+}
+
+fn finite3(p: [f32; 3]) -> bool {
+    p.iter().all(|c| c.is_finite())
+}
+
+unsafe extern "C" fn boxes_bounds(args: *const sys::RTCBoundsFunctionArguments) {
+    // SAFETY: Embree passes valid arguments; `geometryUserPtr` is the `Box<[Aabb]>` data
+    // pointer registered in `add_boxes`, which the scene keeps alive, and its length is the
+    // user primitive count (so `primID < len`).
+    unsafe {
+        let args = &*args;
+        let boxes = args.geometryUserPtr as *const Aabb;
+        let b = &*boxes.add(args.primID as usize);
+        *args.bounds_o = sys::RTCBounds {
+            lower_x: b.lower[0],
+            lower_y: b.lower[1],
+            lower_z: b.lower[2],
+            align0: 0.0,
+            upper_x: b.upper[0],
+            upper_y: b.upper[1],
+            upper_z: b.upper[2],
+            align1: 0.0,
+        };
+    }
+}
+
+/// Rays pass through user boxes: they exist for point queries only.
+unsafe extern "C" fn boxes_intersect(_args: *const sys::RTCIntersectFunctionNArguments) {}
+unsafe extern "C" fn boxes_occluded(_args: *const sys::RTCOccludedFunctionNArguments) {}
+
+impl SceneBuilder {
+    /// Starts an empty scene on `device` (`rtcNewScene`), with [`BuildQuality::High`].
+    pub fn new(device: &Device) -> Result<Self> {
+        // SAFETY: valid device handle.
+        let raw = unsafe { sys::rtcNewScene(device.raw()) };
+        if raw.is_null() {
+            return Err(device.check().err().unwrap_or(EmbreeError::Unknown("rtcNewScene returned NULL".into())));
+        }
+        Ok(Self { device: device.clone(), raw, box_sets: Vec::new(), quality: BuildQuality::High, robust: false })
+    }
+
+    /// Sets the BVH build quality used by [`commit`](Self::commit).
+    pub fn build_quality(mut self, quality: BuildQuality) -> Self {
+        self.quality = quality;
+        self
+    }
+
+    /// Enables `RTC_SCENE_FLAG_ROBUST` (slower traversal that avoids optimisations which
+    /// can miss hits on edges/vertices of adjacent triangles).
+    pub fn robust(mut self, robust: bool) -> Self {
+        self.robust = robust;
+        self
+    }
+
+    /// Adds a triangle mesh; returns its geometry id (0, 1, 2, ... in call order).
+    ///
+    /// `vertices` are positions in the world frame (any consistent unit); each
+    /// `indices[i]` names the vertices `v0, v1, v2` of triangle `i` (its `prim_id`). The
+    /// data is copied into Embree-owned buffers, so the slices need not outlive the call.
+    ///
+    /// Fails with [`EmbreeError::InvalidInput`] if a vertex is not finite, an index is out
+    /// of range, the mesh is empty, or a count exceeds `u32::MAX`.
+    pub fn add_triangle_mesh(&mut self, vertices: &[[f32; 3]], indices: &[[u32; 3]]) -> Result<u32> {
+        if indices.is_empty() || vertices.is_empty() {
+            return Err(EmbreeError::InvalidInput("triangle mesh without vertices or triangles".into()));
+        }
+        if vertices.len() > u32::MAX as usize || indices.len() > u32::MAX as usize {
+            return Err(EmbreeError::InvalidInput("triangle mesh larger than 2^32-1 items".into()));
+        }
+        if let Some(i) = vertices.iter().position(|v| !finite3(*v)) {
+            return Err(EmbreeError::InvalidInput(format!("vertex {i} is not finite: {:?}", vertices[i])));
+        }
+        let nv = vertices.len() as u64;
+        if let Some(i) = indices.iter().position(|t| t.iter().any(|&k| u64::from(k) >= nv)) {
+            return Err(EmbreeError::InvalidInput(format!(
+                "triangle {i} has an index out of range (indices {:?}, {} vertices)",
+                indices[i], nv
+            )));
+        }
+
+        // SAFETY: valid device; the returned handle (checked) is released by the guard.
+        let geom = unsafe { sys::rtcNewGeometry(self.device.raw(), sys::RTCGeometryType::TRIANGLE) };
+        if geom.is_null() {
+            return Err(self.device.check().err().unwrap_or(EmbreeError::Unknown("rtcNewGeometry returned NULL".into())));
+        }
+        let geom = GeometryGuard(geom);
+        // SAFETY: the buffers Embree returns hold `count * stride` bytes (vertex buffers
+        // padded for SSE loads); we write exactly `len * 12` bytes into each after checking
+        // for NULL. `[f32; 3]` and `[u32; 3]` are 12 bytes, matching FLOAT3 / UINT3.
+        unsafe {
+            let vb = sys::rtcSetNewGeometryBuffer(
+                geom.0,
+                sys::RTCBufferType::VERTEX,
+                0,
+                sys::RTCFormat::FLOAT3,
+                12,
+                vertices.len(),
+            );
+            self.device.check()?;
+            if vb.is_null() {
+                return Err(EmbreeError::OutOfMemory("vertex buffer".into()));
+            }
+            core::ptr::copy_nonoverlapping(vertices.as_ptr().cast::<u8>(), vb.cast::<u8>(), vertices.len() * 12);
+
+            let ib = sys::rtcSetNewGeometryBuffer(
+                geom.0,
+                sys::RTCBufferType::INDEX,
+                0,
+                sys::RTCFormat::UINT3,
+                12,
+                indices.len(),
+            );
+            self.device.check()?;
+            if ib.is_null() {
+                return Err(EmbreeError::OutOfMemory("index buffer".into()));
+            }
+            core::ptr::copy_nonoverlapping(indices.as_ptr().cast::<u8>(), ib.cast::<u8>(), indices.len() * 12);
+        }
+        self.attach(geom)
+    }
+
+    /// Adds a set of axis-aligned boxes as one Embree user geometry
+    /// (`RTC_GEOMETRY_TYPE_USER`); returns its geometry id. Box `i` is primitive `i`.
+    ///
+    /// The boxes are found by [`Scene::point_query`] / [`Scene::boxes_containing`] (e.g.
+    /// photon footprints: the box bounds the footprint, the caller does the exact test).
+    /// Rays never hit them: the intersect/occluded callbacks report no hit.
+    ///
+    /// Fails with [`EmbreeError::InvalidInput`] if a box is not finite, has
+    /// `lower > upper` on some axis, the slice is empty, or has more than `u32::MAX` boxes.
+    pub fn add_boxes(&mut self, boxes: &[Aabb]) -> Result<u32> {
+        if boxes.is_empty() || boxes.len() > u32::MAX as usize {
+            return Err(EmbreeError::InvalidInput("box set must hold 1..=2^32-1 boxes".into()));
+        }
+        if let Some(i) = boxes.iter().position(|b| !b.is_valid()) {
+            return Err(EmbreeError::InvalidInput(format!("box {i} is not finite or inverted: {:?}", boxes[i])));
+        }
+        let data: Box<[Aabb]> = boxes.into();
+        // SAFETY: valid device; handle checked and released by the guard.
+        let geom = unsafe { sys::rtcNewGeometry(self.device.raw(), sys::RTCGeometryType::USER) };
+        if geom.is_null() {
+            return Err(self.device.check().err().unwrap_or(EmbreeError::Unknown("rtcNewGeometry returned NULL".into())));
+        }
+        let geom = GeometryGuard(geom);
+        // SAFETY: `data`'s heap allocation does not move when the Box is moved into
+        // `self.box_sets` below, and lives as long as the scene (Scene keeps it), so the
+        // user pointer stays valid for every callback. The callbacks have the C ABI
+        // signatures Embree expects.
+        unsafe {
+            sys::rtcSetGeometryUserPrimitiveCount(geom.0, data.len() as u32);
+            sys::rtcSetGeometryUserData(geom.0, data.as_ptr() as *mut c_void);
+            sys::rtcSetGeometryBoundsFunction(geom.0, Some(boxes_bounds), core::ptr::null_mut());
+            sys::rtcSetGeometryIntersectFunction(geom.0, Some(boxes_intersect));
+            sys::rtcSetGeometryOccludedFunction(geom.0, Some(boxes_occluded));
+        }
+        self.device.check()?;
+        let id = self.attach(geom)?;
+        self.box_sets.push((id, data));
+        Ok(id)
+    }
+
+    fn attach(&mut self, geom: GeometryGuard) -> Result<u32> {
+        // SAFETY: valid geometry and scene handles.
+        let id = unsafe {
+            sys::rtcCommitGeometry(geom.0);
+            sys::rtcAttachGeometry(self.raw, geom.0)
+        };
+        self.device.check()?;
+        if id == RTC_INVALID_GEOMETRY_ID {
+            return Err(EmbreeError::Unknown("rtcAttachGeometry returned RTC_INVALID_GEOMETRY_ID".into()));
+        }
+        Ok(id)
+    }
+
+    /// Builds the BVH (`rtcCommitScene`, using the device's worker threads) and returns the
+    /// immutable [`Scene`].
+    pub fn commit(mut self) -> Result<Scene> {
+        let flags = if self.robust {
+            sys::RTCSceneFlags::ROBUST
+        } else {
+            sys::RTCSceneFlags::NONE
+        };
+        // SAFETY: valid scene handle, not shared with any other thread.
+        unsafe {
+            sys::rtcSetSceneBuildQuality(self.raw, self.quality.raw());
+            sys::rtcSetSceneFlags(self.raw, flags);
+            sys::rtcCommitScene(self.raw);
+        }
+        self.device.check()?;
+        let raw = core::mem::replace(&mut self.raw, core::ptr::null_mut());
+        Ok(Scene { device: self.device.clone(), raw, box_sets: core::mem::take(&mut self.box_sets) })
+    }
+}
+
+/// A committed scene (`RTCScene` after `rtcCommitScene`): immutable and query-only.
+///
+/// `Send + Sync`: Embree guarantees that ray and point queries on a committed scene may run
+/// concurrently from any number of threads. Dropping it releases the scene (the device
+/// stays alive until its last user is gone).
+pub struct Scene {
+    device: Device,
+    raw: sys::RTCScene,
+    box_sets: Vec<(u32, Box<[Aabb]>)>,
+}
+
+// SAFETY: the scene is committed and never modified again; Embree allows concurrent
+// queries on committed scenes. The box data is immutable.
+unsafe impl Send for Scene {}
+unsafe impl Sync for Scene {}
+
+impl Drop for Scene {
+    fn drop(&mut self) {
+        // SAFETY: we own one reference on the scene.
+        unsafe { sys::rtcReleaseScene(self.raw) };
+    }
+}
+
+impl core::fmt::Debug for Scene {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Scene").field("box_sets", &self.box_sets.len()).finish_non_exhaustive()
+    }
+}
+
+fn check_ray(origin: [f32; 3], dir: [f32; 3], tnear: f32, tfar: f32) -> Result<()> {
+    if !finite3(origin) || !finite3(dir) {
+        return Err(EmbreeError::InvalidInput(format!("ray origin/direction not finite: {origin:?} {dir:?}")));
+    }
+    if dir == [0.0; 3] {
+        return Err(EmbreeError::InvalidInput("ray direction is zero".into()));
+    }
+    // `!(a <= b)` also rejects NaN.
+    if !(0.0 <= tnear && tnear.is_finite() && tnear <= tfar) {
+        return Err(EmbreeError::InvalidInput(format!(
+            "ray interval must satisfy 0 <= tnear <= tfar, tnear finite (got [{tnear}, {tfar}])"
+        )));
+    }
+    Ok(())
+}
+
+struct QueryState<F> {
+    f: F,
+    panic: Option<Box<dyn Any + Send>>,
+}
+
+unsafe extern "C" fn point_query_trampoline<F: FnMut(PointQueryCandidate)>(
+    args: *mut sys::RTCPointQueryFunctionArguments,
+) -> bool {
+    // SAFETY: `userPtr` is the `QueryState<F>` of the running `point_query` call on this
+    // thread (Embree calls back synchronously from rtcPointQuery).
+    let (state, cand) = unsafe {
+        let args = &*args;
+        (
+            &mut *(args.userPtr as *mut QueryState<F>),
+            PointQueryCandidate { geom_id: args.geomID, prim_id: args.primID },
+        )
+    };
+    if state.panic.is_none() {
+        let f = &mut state.f;
+        if let Err(p) = catch_unwind(AssertUnwindSafe(|| f(cand))) {
+            state.panic = Some(p);
+        }
+    }
+    false // the query radius was not changed
+}
+
+impl Scene {
+    /// Starts building a scene on `device`; same as [`SceneBuilder::new`].
+    pub fn builder(device: &Device) -> Result<SceneBuilder> {
+        SceneBuilder::new(device)
+    }
+
+    /// The device the scene lives on.
+    pub fn device(&self) -> &Device {
+        &self.device
+    }
+
+    /// The boxes of the box set with geometry id `geom_id`, or `None` if that id is not a
+    /// box set of this scene.
+    pub fn boxes(&self, geom_id: u32) -> Option<&[Aabb]> {
+        self.box_sets.iter().find(|(id, _)| *id == geom_id).map(|(_, b)| &b[..])
+    }
+
+    /// Closest hit of the ray `origin + t * dir`, `t` in `[tnear, tfar]`, with the scene's
+    /// triangles (`rtcIntersect1`); `Ok(None)` on a miss.
+    ///
+    /// `origin` and `dir` are in the world frame; `dir` need not be normalised (`t` is in
+    /// units of `|dir|`). `tfar` may be `f32::INFINITY`. Returns
+    /// [`EmbreeError::InvalidInput`] for a non-finite origin/direction, a zero direction,
+    /// or an interval violating `0 <= tnear <= tfar`.
+    pub fn intersect(&self, origin: [f32; 3], dir: [f32; 3], tnear: f32, tfar: f32) -> Result<Option<Hit>> {
+        check_ray(origin, dir, tnear, tfar)?;
+        let mut rh = RTCRayHit44 { ray: make_ray(origin, dir, tnear, tfar), hit: Default::default() };
+        // SAFETY: `rh` is a properly initialised 4.4-layout RTCRayHit.
+        unsafe { self.intersect_raw(&mut rh) };
+        if rh.hit.geomID == RTC_INVALID_GEOMETRY_ID {
+            return Ok(None);
+        }
+        Ok(Some(Hit {
+            t: rh.ray.tfar,
+            u: rh.hit.u,
+            v: rh.hit.v,
+            prim_id: rh.hit.primID,
+            geom_id: rh.hit.geomID,
+            ng: [rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z],
+        }))
+    }
+
+    /// `rtcIntersect1` on a caller-provided 4.4-layout ray/hit with default arguments.
+    ///
+    /// # Safety
+    /// `rayhit` must point to a valid, initialised [`RTCRayHit44`] (finite ray,
+    /// `hit.geomID == RTC_INVALID_GEOMETRY_ID`, `hit.instID[0] == RTC_INVALID_GEOMETRY_ID`).
+    pub(crate) unsafe fn intersect_raw(&self, rayhit: *mut RTCRayHit44) {
+        // The 4.2 binding's `RTCRayHit` is 16 bytes too small for the 4.4 library: pass our
+        // 96-byte mirror through a pointer cast (see `ffi.rs`).
+        unsafe { sys::rtcIntersect1(self.raw, rayhit.cast::<sys::RTCRayHit>(), core::ptr::null_mut()) };
+    }
+
+    /// Whether any triangle intersects the ray `origin + t * dir` for `t` in
+    /// `[tnear, tfar]` (`rtcOccluded1`; any hit, not the closest). Same frame, units and
+    /// errors as [`Scene::intersect`].
+    pub fn occluded(&self, origin: [f32; 3], dir: [f32; 3], tnear: f32, tfar: f32) -> Result<bool> {
+        check_ray(origin, dir, tnear, tfar)?;
+        let mut ray = make_ray(origin, dir, tnear, tfar);
+        // SAFETY: `ray` is an initialised 48-byte RTCRay (same layout in 4.2 and 4.4).
+        unsafe {
+            sys::rtcOccluded1(self.raw, (&mut ray as *mut RTCRay44).cast::<sys::RTCRay>(), core::ptr::null_mut())
+        };
+        // Embree sets tfar to -inf when the ray is occluded.
+        Ok(ray.tfar == f32::NEG_INFINITY)
+    }
+
+    /// Calls `f` for every primitive (triangle or box) whose bounds Embree's BVH finds
+    /// overlapping the closed ball of `radius` around `point` (`rtcPointQuery`).
+    ///
+    /// This is a conservative broad phase: `f` must do the exact test itself (e.g. point
+    /// in box, point in a footprint ellipse). `point` is in the world frame, `radius`
+    /// (world units) must be finite and `>= 0`; `0` queries the point itself. Calls happen
+    /// synchronously on the calling thread. A panic in `f` stops further calls to `f` and
+    /// is resumed once Embree has returned.
+    pub fn point_query<F: FnMut(PointQueryCandidate)>(&self, point: [f32; 3], radius: f32, f: F) -> Result<()> {
+        if !finite3(point) || !(radius.is_finite() && radius >= 0.0) {
+            return Err(EmbreeError::InvalidInput(format!(
+                "point query needs a finite point and a finite radius >= 0 (got {point:?}, {radius})"
+            )));
+        }
+        let mut query = RTCPointQuery44 { x: point[0], y: point[1], z: point[2], time: 0.0, radius };
+        let mut context = RTCPointQueryContext44::new();
+        let mut state = QueryState { f, panic: None };
+        // SAFETY: query and context are 16-byte aligned 4.4-layout structs (the context is
+        // cast from the 4.2 binding type, see ffi.rs); the trampoline matches F and `state`
+        // outlives the synchronous call.
+        unsafe {
+            sys::rtcPointQuery(
+                self.raw,
+                (&mut query as *mut RTCPointQuery44).cast::<sys::RTCPointQuery>(),
+                (&mut context as *mut RTCPointQueryContext44).cast::<sys::RTCPointQueryContext>(),
+                Some(point_query_trampoline::<F>),
+                (&mut state as *mut QueryState<F>).cast::<c_void>(),
+            );
+        }
+        if let Some(p) = state.panic {
+            resume_unwind(p);
+        }
+        self.device.check()
+    }
+
+    /// All boxes (of every box set added with [`SceneBuilder::add_boxes`]) that contain
+    /// `point` (closed boxes, world frame), sorted by `(geom_id, prim_id)`.
+    pub fn boxes_containing(&self, point: [f32; 3]) -> Result<Vec<PointQueryCandidate>> {
+        let mut out = Vec::new();
+        self.point_query(point, 0.0, |c| {
+            if let Some(b) = self.boxes(c.geom_id).and_then(|bs| bs.get(c.prim_id as usize)) {
+                if b.contains(point) {
+                    out.push(c);
+                }
+            }
+        })?;
+        out.sort_unstable();
+        out.dedup();
+        Ok(out)
+    }
+}
+
+fn make_ray(origin: [f32; 3], dir: [f32; 3], tnear: f32, tfar: f32) -> RTCRay44 {
+    RTCRay44 {
+        org_x: origin[0],
+        org_y: origin[1],
+        org_z: origin[2],
+        tnear,
+        dir_x: dir[0],
+        dir_y: dir[1],
+        dir_z: dir[2],
+        time: 0.0,
+        tfar,
+        mask: u32::MAX,
+        id: 0,
+        flags: 0,
+    }
+}
+

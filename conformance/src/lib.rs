@@ -1,0 +1,117 @@
+//! # arpa-conformance
+//!
+//! The one conformance suite of arpa: backend-agnostic cases that run against every
+//! backend compiled in and report a case × backend table. This module holds the report
+//! model; the cases arrive with the `Tracer` trait they drive.
+#![warn(missing_docs)]
+
+use std::fmt::Write as _;
+
+/// Outcome of one case on one backend.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Verdict {
+    /// The case's physical assertion held; `metric` is what was measured.
+    Pass {
+        /// Measured value, e.g. `relMSE 0.003`.
+        metric: String,
+    },
+    /// The assertion failed.
+    Fail {
+        /// What was measured and what was expected.
+        detail: String,
+    },
+    /// Failed as expected on this backend; an expectation needs a written reason.
+    ExpectedFail {
+        /// Why this backend cannot pass the case.
+        reason: String,
+    },
+}
+
+impl Verdict {
+    /// `true` unless the case failed unexpectedly.
+    pub fn is_ok(&self) -> bool {
+        !matches!(self, Verdict::Fail { .. })
+    }
+
+    fn cell(&self) -> String {
+        match self {
+            Verdict::Pass { metric } => format!("pass ({metric})"),
+            Verdict::Fail { detail } => format!("**FAIL** ({detail})"),
+            Verdict::ExpectedFail { reason } => format!("xfail ({reason})"),
+        }
+    }
+}
+
+/// A case × backend table of verdicts.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Report {
+    backends: Vec<String>,
+    rows: Vec<(String, Vec<Option<Verdict>>)>,
+}
+
+impl Report {
+    /// Records `verdict` for `case` on `backend`.
+    pub fn record(&mut self, case: &str, backend: &str, verdict: Verdict) {
+        let col = match self.backends.iter().position(|b| b == backend) {
+            Some(c) => c,
+            None => {
+                self.backends.push(backend.to_owned());
+                for (_, cells) in &mut self.rows {
+                    cells.push(None);
+                }
+                self.backends.len() - 1
+            }
+        };
+        let row = match self.rows.iter().position(|(c, _)| c == case) {
+            Some(r) => r,
+            None => {
+                self.rows.push((case.to_owned(), vec![None; self.backends.len()]));
+                self.rows.len() - 1
+            }
+        };
+        self.rows[row].1[col] = Some(verdict);
+    }
+
+    /// `true` when no verdict is an unexpected failure.
+    pub fn all_ok(&self) -> bool {
+        self.rows.iter().flat_map(|(_, cells)| cells.iter().flatten()).all(Verdict::is_ok)
+    }
+
+    /// The table as GitHub-flavoured Markdown (cells that did not run show `–`).
+    pub fn to_markdown(&self) -> String {
+        let mut s = String::from("| case |");
+        for b in &self.backends {
+            let _ = write!(s, " {b} |");
+        }
+        s.push_str("\n|---|");
+        s.push_str(&"---|".repeat(self.backends.len()));
+        s.push('\n');
+        for (case, cells) in &self.rows {
+            let _ = write!(s, "| {case} |");
+            for c in cells {
+                let _ = write!(s, " {} |", c.as_ref().map_or_else(|| "–".to_owned(), Verdict::cell));
+            }
+            s.push('\n');
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn markdown_table() {
+        let mut r = Report::default();
+        r.record("gather exactness", "cpu", Verdict::Pass { metric: "max rel 3e-7".into() });
+        r.record("determinism", "wgpu", Verdict::ExpectedFail { reason: "no adapter".into() });
+        assert!(r.all_ok());
+        let md = r.to_markdown();
+        assert_eq!(md.lines().count(), 4);
+        assert!(md.contains("| gather exactness | pass (max rel 3e-7) | – |"));
+        r.record("determinism", "cpu", Verdict::Fail { detail: "images differ".into() });
+        assert!(!r.all_ok());
+        assert!(r.to_markdown().contains("**FAIL**"));
+    }
+}

@@ -1,0 +1,215 @@
+#!/usr/bin/env bash
+# Installs what the `arpa-cpu` crate needs to build and link against Embree 4.4 on
+# Debian 12 (x86_64), and prints the environment to use it.  Idempotent: running it
+# again is a no-op once everything is in place.
+#
+#   scripts/install-embree4.sh [--prefix DIR]
+#
+# Environment:
+#   EMBREE_DIR            an existing Embree 4 install (with lib/libembree4.so*): used as
+#                         is, nothing is downloaded.
+#   ARPA_EMBREE_PREFIX    where to lay out the downloaded Embree (default
+#                         <repo>/.deps/embree4; the --prefix flag wins over it).
+#   ARPA_DEPS_CACHE       download cache (default <repo>/.deps/cache).
+#   ARPA_NO_APT=1         never call apt-get (fail instead if a package is missing).
+#
+# What it does
+# 1. libclang: embree4-sys 0.0.12 runs bindgen in its build.rs (it does NOT ship
+#    pre-generated bindings), so libclang and clang's builtin headers are needed at
+#    build time.  Debian package: libclang-dev (pulls libclang-14-dev and
+#    libclang-common-14-dev).  Skipped when LIBCLANG_PATH is set.
+# 2. Embree 4: Debian 12 only packages Embree 3, and nothing outside crates.io / PyPI /
+#    Debian is reachable, so the library comes from the PyPI wheel
+#    embreex==4.4.0.post1 (manylinux_2_28, x86_64).
+#    Why embreex and not pyembree2==1.0.1: embreex is Embree *4.4.0* exactly (the
+#    version whose ABI arpa-cpu mirrors by hand, see arpa-cpu/src/ffi.rs), it is an
+#    auditwheel-repaired wheel whose libembree4-<hash>.so.4 has RPATH=$ORIGIN and
+#    bundles the matching libtbb-<hash>.so.12, so the two files form a self-contained
+#    library with no other non-glibc/libstdc++ dependencies.  The hashed SONAME is
+#    harmless: we add a plain `libembree4.so` symlink for the linker (-lembree4), the
+#    executable records the SONAME, and finds it through its rpath.
+#    The wheel contains no C headers.  None are needed: embree4-sys generates its
+#    bindings from the Embree *4.2* headers it bundles (embree4-sys/lib/embree4/), and
+#    arpa-cpu overrides the structs whose layout changed between 4.2 and 4.4.
+#    Only the two shared libraries (and the licence) are used; the Python extension
+#    modules in the wheel are ignored, so the host Python version does not matter.
+#
+# Layout of the prefix (default <repo>/.deps/embree4, add `/.deps/` to .gitignore):
+#   lib/libembree4-4aef3270.so.4  lib/libtbb-dcf63f8c.so.12
+#   lib/libembree4.so.4 -> libembree4-4aef3270.so.4
+#   lib/libembree4.so   -> libembree4-4aef3270.so.4
+#   share/doc/embree4/LICENSE     env.sh     .installed (stamp)
+set -euo pipefail
+
+EMBREEX_VERSION="4.4.0.post1"
+EMBREEX_WHEEL="embreex-4.4.0.post1-cp311-cp311-manylinux_2_27_x86_64.manylinux_2_28_x86_64.whl"
+EMBREEX_SHA256="2cd0f7d5c6342e6247e31f700761689cae7829454d8c6de0c41e62124a023e1f"
+
+log() { printf '[install-embree4] %s\n' "$*" >&2; }
+die() { printf '[install-embree4] ERROR: %s\n' "$*" >&2; exit 1; }
+
+REPO="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+PREFIX="${ARPA_EMBREE_PREFIX:-$REPO/.deps/embree4}"
+CACHE="${ARPA_DEPS_CACHE:-$REPO/.deps/cache}"
+
+while [[ $# -gt 0 ]]; do
+    case "$1" in
+        --prefix) [[ $# -ge 2 ]] || die "--prefix needs a directory"; PREFIX="$2"; shift 2 ;;
+        --prefix=*) PREFIX="${1#--prefix=}"; shift ;;
+        -h|--help) sed -n '2,20p' "${BASH_SOURCE[0]}"; exit 0 ;;
+        *) die "unknown argument: $1" ;;
+    esac
+done
+mkdir -p "$(dirname "$PREFIX")"
+PREFIX="$(cd "$(dirname "$PREFIX")" && pwd)/$(basename "$PREFIX")"
+
+# ---------------------------------------------------------------------------- apt
+APT_UPDATED=0
+as_root() {
+    if [[ $(id -u) -eq 0 ]]; then "$@"
+    elif command -v sudo >/dev/null 2>&1; then sudo "$@"
+    else die "need root (or sudo) to run: $*"; fi
+}
+apt_install() {
+    [[ "${ARPA_NO_APT:-0}" == 1 ]] && die "missing Debian package(s) $*; ARPA_NO_APT=1 forbids installing them"
+    command -v apt-get >/dev/null 2>&1 || die "apt-get not found; install $* by hand"
+    if [[ $APT_UPDATED -eq 0 ]]; then
+        log "apt-get update"
+        as_root env DEBIAN_FRONTEND=noninteractive apt-get update -qq
+        APT_UPDATED=1
+    fi
+    log "apt-get install $*"
+    as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "$@" >/dev/null
+}
+deb_installed() { dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q "install ok installed"; }
+
+# ------------------------------------------------------------- 1. libclang (bindgen)
+if [[ -n "${LIBCLANG_PATH:-}" ]]; then
+    log "LIBCLANG_PATH=$LIBCLANG_PATH set; not installing libclang-dev"
+elif deb_installed libclang-dev; then
+    log "libclang-dev already installed"
+else
+    apt_install libclang-dev
+fi
+
+# ---------------------------------------------------------------- env reporting
+write_env() { # $1 = EMBREE_DIR, $2 = lib dir, $3 = file to write (optional)
+    local content
+    content="# Generated by scripts/install-embree4.sh; source it to use this Embree 4.
+export EMBREE_DIR='$1'
+export LD_LIBRARY_PATH='$2'\"\${LD_LIBRARY_PATH:+:\$LD_LIBRARY_PATH}\""
+    if [[ -n "${3:-}" ]]; then printf '%s\n' "$content" > "$3"; fi
+    echo "# Embree 4 environment (arpa-cpu's build.rs also sets an rpath, so LD_LIBRARY_PATH"
+    echo "# is only needed for binaries built outside arpa-cpu's own targets):"
+    printf '%s\n' "$content"
+    [[ -n "${3:-}" ]] && echo "# (also written to $3; use: source $3)"
+    return 0
+}
+
+# ------------------------------------------------------- 2a. an existing Embree 4?
+has_embree_lib() { compgen -G "$1/libembree4.so*" >/dev/null; }
+
+if [[ -n "${EMBREE_DIR:-}" ]]; then
+    for d in "$EMBREE_DIR/lib" "$EMBREE_DIR/lib64" "$EMBREE_DIR"; do
+        if has_embree_lib "$d"; then
+            log "using existing Embree 4 from EMBREE_DIR=$EMBREE_DIR ($d); installing nothing"
+            write_env "$EMBREE_DIR" "$d"
+            exit 0
+        fi
+    done
+    die "EMBREE_DIR=$EMBREE_DIR is set but contains no lib/libembree4.so*; unset it to download Embree 4.4"
+fi
+
+if command -v pkg-config >/dev/null 2>&1 && pkg-config --exists embree4; then
+    pc_libdir="$(pkg-config --variable=libdir embree4)"
+    pc_prefix="$(pkg-config --variable=prefix embree4)"
+    pc_version="$(pkg-config --modversion embree4)"
+    if has_embree_lib "$pc_libdir"; then
+        log "using system Embree $pc_version found by pkg-config ($pc_libdir); installing nothing"
+        case "$pc_version" in
+            4.4.*) ;;
+            *) log "WARNING: arpa-cpu mirrors the Embree 4.4 ray/hit layout; Embree $pc_version is untested" ;;
+        esac
+        write_env "$pc_prefix" "$pc_libdir"
+        exit 0
+    fi
+fi
+
+# ------------------------------------------------------- 2b. download the wheel
+STAMP="$PREFIX/.installed"
+if [[ -f "$STAMP" ]] && [[ "$(cat "$STAMP")" == "$EMBREEX_SHA256" ]] && [[ -e "$PREFIX/lib/libembree4.so" ]]; then
+    log "Embree 4.4 already installed in $PREFIX"
+    write_env "$PREFIX" "$PREFIX/lib" "$PREFIX/env.sh"
+    exit 0
+fi
+
+[[ "$(uname -s)" == Linux && "$(uname -m)" == x86_64 ]] \
+    || die "the pinned embreex wheel is for Linux x86_64 only (this is $(uname -s) $(uname -m)); set EMBREE_DIR to an Embree 4.4 install"
+glibc="$(getconf GNU_LIBC_VERSION 2>/dev/null | awk '{print $2}')"
+if [[ -n "$glibc" ]] && [[ "$(printf '%s\n2.28\n' "$glibc" | sort -V | head -n1)" != 2.28 ]]; then
+    die "the manylinux_2_28 wheel needs glibc >= 2.28 (found $glibc)"
+fi
+
+sha256_of() { sha256sum "$1" | awk '{print $1}'; }
+
+WHEEL="$CACHE/$EMBREEX_WHEEL"
+mkdir -p "$CACHE"
+if [[ -f "$WHEEL" ]] && [[ "$(sha256_of "$WHEEL")" == "$EMBREEX_SHA256" ]]; then
+    log "using cached $WHEEL"
+else
+    rm -f "$WHEEL"
+    PY="$(command -v python3 || true)"
+    [[ -n "$PY" ]] || { apt_install python3 python3-pip; PY="$(command -v python3)"; }
+    if ! "$PY" -m pip --version >/dev/null 2>&1; then apt_install python3-pip; fi
+    log "pip download embreex==$EMBREEX_VERSION ($EMBREEX_WHEEL)"
+    # --platform/--python-version/--abi pin the exact wheel independently of the host
+    # Python; --no-deps because only the shared libraries inside are wanted.
+    PIP_REQUIRE_VIRTUALENV=0 "$PY" -m pip download --no-deps --only-binary=:all: \
+        --platform manylinux_2_28_x86_64 --python-version 3.11 --implementation cp --abi cp311 \
+        --disable-pip-version-check --no-input --quiet \
+        --dest "$CACHE" "embreex==$EMBREEX_VERSION"
+    [[ -f "$WHEEL" ]] || die "pip did not produce $WHEEL (got: $(ls "$CACHE"))"
+fi
+actual="$(sha256_of "$WHEEL")"
+if [[ "$actual" != "$EMBREEX_SHA256" ]]; then
+    mv -f "$WHEEL" "$WHEEL.bad"
+    die "SHA-256 MISMATCH for $EMBREEX_WHEEL: expected $EMBREEX_SHA256, got $actual (moved to $WHEEL.bad)"
+fi
+log "sha256 OK ($actual)"
+
+# ------------------------------------------------------- 2c. lay out the prefix
+STAGE="$(mktemp -d "$(dirname "$PREFIX")/.embree4-stage.XXXXXX")"
+trap 'rm -rf "$STAGE"' EXIT
+mkdir -p "$STAGE/unpacked" "$STAGE/prefix/lib" "$STAGE/prefix/share/doc/embree4"
+if command -v unzip >/dev/null 2>&1; then
+    unzip -q "$WHEEL" -d "$STAGE/unpacked"
+else
+    python3 -m zipfile -e "$WHEEL" "$STAGE/unpacked"
+fi
+libs="$STAGE/unpacked/embreex.libs"
+shopt -s nullglob
+embree_so=("$libs"/libembree4*.so.4)
+tbb_so=("$libs"/libtbb*.so*)
+shopt -u nullglob
+[[ ${#embree_so[@]} -eq 1 ]] || die "expected exactly one libembree4*.so.4 in the wheel, found ${#embree_so[*]}"
+[[ ${#tbb_so[@]} -ge 1 ]] || die "no libtbb in the wheel"
+cp "${embree_so[@]}" "${tbb_so[@]}" "$STAGE/prefix/lib/"
+chmod 0755 "$STAGE/prefix/lib/"*.so*
+embree_name="$(basename "${embree_so[0]}")"
+ln -s "$embree_name" "$STAGE/prefix/lib/libembree4.so"
+[[ "$embree_name" == libembree4.so.4 ]] || ln -s "$embree_name" "$STAGE/prefix/lib/libembree4.so.4"
+cp "$STAGE/unpacked/embreex-$EMBREEX_VERSION.dist-info/licenses/LICENSE" "$STAGE/prefix/share/doc/embree4/LICENSE" 2>/dev/null || true
+
+# Every dependency of the library must resolve (libtbb via its RPATH=$ORIGIN).
+if command -v ldd >/dev/null 2>&1; then
+    if ldd "$STAGE/prefix/lib/libembree4.so" | grep -q "not found"; then
+        ldd "$STAGE/prefix/lib/libembree4.so" >&2
+        die "unresolved dependencies of libembree4"
+    fi
+fi
+
+rm -rf "$PREFIX"
+mv "$STAGE/prefix" "$PREFIX"
+printf '%s\n' "$EMBREEX_SHA256" > "$PREFIX/.installed"
+log "installed Embree 4.4 into $PREFIX"
+write_env "$PREFIX" "$PREFIX/lib" "$PREFIX/env.sh"
