@@ -1,0 +1,8 @@
+#!/usr/bin/env bash
+# Installs the system dependencies of the workspace on Debian 12. Idempotent; every step
+# checks first and installs only what is missing. Set ARPA_NO_APT=1 to never call apt-get.
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+
+# Embree 4 (arpa-cpu), with libclang for embree4-sys's bindgen.
+bash scripts/install-embree4.sh
