@@ -59,11 +59,14 @@ impl PackedPhoton {
     }
 
     /// Irradiance (W/m², RGB) at `q` with normal `query_normal` for progressive radius
-    /// `radius` (metres): `Φ/(π r²)` inside the sphere and on the lit side, else 0.
+    /// `radius` (metres): `Φ/(π r²)` inside the sphere and on the lit side, else 0 (also 0 when the
+    /// result would not be finite, e.g. for a zero or subnormal radius).
     #[inline]
     pub fn irradiance(&self, q: Vec3, query_normal: Vec3, radius: f32) -> Vec3 {
-        if radius > 0.0 && self.contains(q, radius) && Vec3::from_array(self.normal).dot(query_normal) > 0.0 {
-            Vec3::from_array(self.flux) * (core::f32::consts::FRAC_1_PI / (radius * radius))
+        let density = core::f32::consts::FRAC_1_PI / (radius * radius);
+        if density.is_finite() && self.contains(q, radius) && Vec3::from_array(self.normal).dot(query_normal) > 0.0 {
+            let e = Vec3::from_array(self.flux) * density;
+            if e.is_finite() { e } else { Vec3::ZERO }
         } else {
             Vec3::ZERO
         }

@@ -4,7 +4,8 @@
 
 use crate::differential::{DifferentialError, RayDifferential};
 use crate::frame::Frame;
-use glam::DVec3;
+use crate::sampling::cosine_hemisphere;
+use glam::{DVec2, DVec3};
 
 /// Virtual distance `v = √(|D_u × D_v| / |D_φω' × D_θω'|)` (ARPA eq. 2) with both new
 /// directional differentials of length `reemission_length` (so the denominator is
@@ -35,4 +36,31 @@ pub fn reemit(hit: DVec3, dp_du: DVec3, dp_dv: DVec3, direction: DVec3, reemissi
     }
     let (du, dv) = (f.t * reemission_length, f.b * reemission_length);
     RayDifferential::new(hit, direction, du * v, dv * v, du, dv)
+}
+
+/// A cosine-distributed direction for re-emission from a Lambertian surface, in the
+/// hemisphere of `normal` (unit, oriented towards the side the photon arrived from), from
+/// the unit-square sample `u`. Density `cos θ / π`, so the photon's flux is multiplied by
+/// the albedo only.
+pub fn diffuse_direction(normal: DVec3, u: DVec2) -> DVec3 {
+    let f = Frame::from_normal(normal);
+    f.to_world(cosine_hemisphere(u)).normalize_or(f.n)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn diffuse_direction_stays_on_the_lit_side() {
+        let n = DVec3::new(0.3, -1.0, 0.2).normalize();
+        let mut rng = crate::rng::Rng::new(0, 0, 0, crate::rng::StreamDomain::User);
+        let mut mean_cos = 0.0;
+        for _ in 0..10_000 {
+            let d = diffuse_direction(n, rng.next_2d());
+            assert!(d.dot(n) >= 0.0 && (d.length() - 1.0).abs() < 1e-12);
+            mean_cos += d.dot(n);
+        }
+        assert!((mean_cos / 10_000.0 - 2.0 / 3.0).abs() < 0.01);
+    }
 }
