@@ -30,7 +30,10 @@ fn main() {
     let workspace_root = manifest_dir.parent().unwrap_or(&manifest_dir).to_path_buf();
     let default_prefix = workspace_root.join(".deps").join("embree4");
     // Re-run when the default prefix gets (re)installed.
-    println!("cargo:rerun-if-changed={}", default_prefix.join(".installed").display());
+    println!(
+        "cargo:rerun-if-changed={}",
+        default_prefix.join(".installed").display()
+    );
 
     let mut tried: Vec<PathBuf> = Vec::new();
     let mut found: Option<PathBuf> = None;
@@ -51,36 +54,35 @@ fn main() {
         }
         tried.push(cand);
     }
-    if found.is_none() {
-        if let Ok(out) = Command::new("pkg-config")
+    if found.is_none()
+        && let Ok(out) = Command::new("pkg-config")
             .args(["--variable=libdir", "embree4"])
             .output()
-        {
-            if out.status.success() {
-                let cand = PathBuf::from(String::from_utf8_lossy(&out.stdout).trim());
-                if !cand.as_os_str().is_empty() {
-                    if has_embree(&cand) {
-                        found = Some(cand.clone());
-                    }
-                    tried.push(cand);
-                }
+        && out.status.success()
+    {
+        let cand = PathBuf::from(String::from_utf8_lossy(&out.stdout).trim());
+        if !cand.as_os_str().is_empty() {
+            if has_embree(&cand) {
+                found = Some(cand.clone());
             }
+            tried.push(cand);
         }
     }
 
     let Some(libdir) = found else {
-        let tried: Vec<String> = tried.iter().map(|p| format!("  {}", p.display())).collect();
-        eprintln!(
-            "\nerror: arpa-cpu: the Embree 4 shared library (libembree4.so) was not found.\n\
-             Looked in:\n{}\n\
-             Run `scripts/install-embree4.sh` from the workspace root (installs Embree 4.4 into\n\
-             {}), or set EMBREE_DIR to an existing Embree 4.4 install.\n",
-            tried.join("\n"),
+        let tried: Vec<String> = tried.iter().map(|p| p.display().to_string()).collect();
+        // `cargo::error` fails the build with this message after the script returns.
+        println!(
+            "cargo::error=arpa-cpu: the Embree 4 shared library (libembree4.so) was not found \
+             (looked in: {}).",
+            tried.join(", ")
+        );
+        println!(
+            "cargo::error=Run `scripts/install-embree4.sh` from the workspace root (installs \
+             Embree 4.4 into {}), or set EMBREE_DIR to an existing Embree 4.4 install.",
             default_prefix.display()
         );
-        panic!(
-            "arpa-cpu: libembree4.so not found; run scripts/install-embree4.sh (or set EMBREE_DIR)"
-        );
+        return;
     };
     let libdir = libdir.canonicalize().unwrap_or(libdir);
 

@@ -57,7 +57,9 @@ unsafe extern "C" fn error_callback(user_ptr: *mut c_void, _code: u32, message: 
         String::new()
     } else {
         // SAFETY: Embree passes a NUL-terminated string valid for the call.
-        unsafe { CStr::from_ptr(message) }.to_string_lossy().into_owned()
+        unsafe { CStr::from_ptr(message) }
+            .to_string_lossy()
+            .into_owned()
     };
     if let Ok(mut slot) = inner.last_message.lock() {
         *slot = Some(text);
@@ -91,7 +93,11 @@ impl Device {
         // SAFETY: valid device handle; VERSION is a read-only property.
         let version =
             unsafe { sys::rtcGetDeviceProperty(raw, sys::RTCDeviceProperty::VERSION) } as i64;
-        let inner = Arc::new(DeviceInner { raw, last_message: Mutex::new(None), version });
+        let inner = Arc::new(DeviceInner {
+            raw,
+            last_message: Mutex::new(None),
+            version,
+        });
         // SAFETY: the callback and its user pointer stay valid until `DeviceInner::drop`
         // unregisters them.
         unsafe {
@@ -139,6 +145,8 @@ impl Device {
 
 impl core::fmt::Debug for Device {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.debug_struct("Device").field("version", &self.inner.version).finish_non_exhaustive()
+        f.debug_struct("Device")
+            .field("version", &self.inner.version)
+            .finish_non_exhaustive()
     }
 }

@@ -8,7 +8,9 @@ use embree4_sys as sys;
 
 use crate::device::Device;
 use crate::error::{EmbreeError, Result};
-use crate::ffi::{self, RTC_INVALID_GEOMETRY_ID, RTCPointQuery44, RTCPointQueryContext44, RTCRay44, RTCRayHit44};
+use crate::ffi::{
+    RTC_INVALID_GEOMETRY_ID, RTCPointQuery44, RTCPointQueryContext44, RTCRay44, RTCRayHit44,
+};
 
 /// BVH build quality (`RTCBuildQuality`): a trade-off between build time and query speed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -158,9 +160,18 @@ impl SceneBuilder {
         // SAFETY: valid device handle.
         let raw = unsafe { sys::rtcNewScene(device.raw()) };
         if raw.is_null() {
-            return Err(device.check().err().unwrap_or(EmbreeError::Unknown("rtcNewScene returned NULL".into())));
+            return Err(device
+                .check()
+                .err()
+                .unwrap_or(EmbreeError::Unknown("rtcNewScene returned NULL".into())));
         }
-        Ok(Self { device: device.clone(), raw, box_sets: Vec::new(), quality: BuildQuality::High, robust: false })
+        Ok(Self {
+            device: device.clone(),
+            raw,
+            box_sets: Vec::new(),
+            quality: BuildQuality::High,
+            robust: false,
+        })
     }
 
     /// Sets the BVH build quality used by [`commit`](Self::commit).
@@ -184,18 +195,32 @@ impl SceneBuilder {
     ///
     /// Fails with [`EmbreeError::InvalidInput`] if a vertex is not finite, an index is out
     /// of range, the mesh is empty, or a count exceeds `u32::MAX`.
-    pub fn add_triangle_mesh(&mut self, vertices: &[[f32; 3]], indices: &[[u32; 3]]) -> Result<u32> {
+    pub fn add_triangle_mesh(
+        &mut self,
+        vertices: &[[f32; 3]],
+        indices: &[[u32; 3]],
+    ) -> Result<u32> {
         if indices.is_empty() || vertices.is_empty() {
-            return Err(EmbreeError::InvalidInput("triangle mesh without vertices or triangles".into()));
+            return Err(EmbreeError::InvalidInput(
+                "triangle mesh without vertices or triangles".into(),
+            ));
         }
         if vertices.len() > u32::MAX as usize || indices.len() > u32::MAX as usize {
-            return Err(EmbreeError::InvalidInput("triangle mesh larger than 2^32-1 items".into()));
+            return Err(EmbreeError::InvalidInput(
+                "triangle mesh larger than 2^32-1 items".into(),
+            ));
         }
         if let Some(i) = vertices.iter().position(|v| !finite3(*v)) {
-            return Err(EmbreeError::InvalidInput(format!("vertex {i} is not finite: {:?}", vertices[i])));
+            return Err(EmbreeError::InvalidInput(format!(
+                "vertex {i} is not finite: {:?}",
+                vertices[i]
+            )));
         }
         let nv = vertices.len() as u64;
-        if let Some(i) = indices.iter().position(|t| t.iter().any(|&k| u64::from(k) >= nv)) {
+        if let Some(i) = indices
+            .iter()
+            .position(|t| t.iter().any(|&k| u64::from(k) >= nv))
+        {
             return Err(EmbreeError::InvalidInput(format!(
                 "triangle {i} has an index out of range (indices {:?}, {} vertices)",
                 indices[i], nv
@@ -203,9 +228,14 @@ impl SceneBuilder {
         }
 
         // SAFETY: valid device; the returned handle (checked) is released by the guard.
-        let geom = unsafe { sys::rtcNewGeometry(self.device.raw(), sys::RTCGeometryType::TRIANGLE) };
+        let geom =
+            unsafe { sys::rtcNewGeometry(self.device.raw(), sys::RTCGeometryType::TRIANGLE) };
         if geom.is_null() {
-            return Err(self.device.check().err().unwrap_or(EmbreeError::Unknown("rtcNewGeometry returned NULL".into())));
+            return Err(self
+                .device
+                .check()
+                .err()
+                .unwrap_or(EmbreeError::Unknown("rtcNewGeometry returned NULL".into())));
         }
         let geom = GeometryGuard(geom);
         // SAFETY: the buffers Embree returns hold `count * stride` bytes (vertex buffers
@@ -224,7 +254,11 @@ impl SceneBuilder {
             if vb.is_null() {
                 return Err(EmbreeError::OutOfMemory("vertex buffer".into()));
             }
-            core::ptr::copy_nonoverlapping(vertices.as_ptr().cast::<u8>(), vb.cast::<u8>(), vertices.len() * 12);
+            core::ptr::copy_nonoverlapping(
+                vertices.as_ptr().cast::<u8>(),
+                vb.cast::<u8>(),
+                vertices.len() * 12,
+            );
 
             let ib = sys::rtcSetNewGeometryBuffer(
                 geom.0,
@@ -238,7 +272,11 @@ impl SceneBuilder {
             if ib.is_null() {
                 return Err(EmbreeError::OutOfMemory("index buffer".into()));
             }
-            core::ptr::copy_nonoverlapping(indices.as_ptr().cast::<u8>(), ib.cast::<u8>(), indices.len() * 12);
+            core::ptr::copy_nonoverlapping(
+                indices.as_ptr().cast::<u8>(),
+                ib.cast::<u8>(),
+                indices.len() * 12,
+            );
         }
         self.attach(geom)
     }
@@ -254,16 +292,25 @@ impl SceneBuilder {
     /// `lower > upper` on some axis, the slice is empty, or has more than `u32::MAX` boxes.
     pub fn add_boxes(&mut self, boxes: &[Aabb]) -> Result<u32> {
         if boxes.is_empty() || boxes.len() > u32::MAX as usize {
-            return Err(EmbreeError::InvalidInput("box set must hold 1..=2^32-1 boxes".into()));
+            return Err(EmbreeError::InvalidInput(
+                "box set must hold 1..=2^32-1 boxes".into(),
+            ));
         }
         if let Some(i) = boxes.iter().position(|b| !b.is_valid()) {
-            return Err(EmbreeError::InvalidInput(format!("box {i} is not finite or inverted: {:?}", boxes[i])));
+            return Err(EmbreeError::InvalidInput(format!(
+                "box {i} is not finite or inverted: {:?}",
+                boxes[i]
+            )));
         }
         let data: Box<[Aabb]> = boxes.into();
         // SAFETY: valid device; handle checked and released by the guard.
         let geom = unsafe { sys::rtcNewGeometry(self.device.raw(), sys::RTCGeometryType::USER) };
         if geom.is_null() {
-            return Err(self.device.check().err().unwrap_or(EmbreeError::Unknown("rtcNewGeometry returned NULL".into())));
+            return Err(self
+                .device
+                .check()
+                .err()
+                .unwrap_or(EmbreeError::Unknown("rtcNewGeometry returned NULL".into())));
         }
         let geom = GeometryGuard(geom);
         // SAFETY: `data`'s heap allocation does not move when the Box is moved into
@@ -291,7 +338,9 @@ impl SceneBuilder {
         };
         self.device.check()?;
         if id == RTC_INVALID_GEOMETRY_ID {
-            return Err(EmbreeError::Unknown("rtcAttachGeometry returned RTC_INVALID_GEOMETRY_ID".into()));
+            return Err(EmbreeError::Unknown(
+                "rtcAttachGeometry returned RTC_INVALID_GEOMETRY_ID".into(),
+            ));
         }
         Ok(id)
     }
@@ -312,7 +361,11 @@ impl SceneBuilder {
         }
         self.device.check()?;
         let raw = core::mem::replace(&mut self.raw, core::ptr::null_mut());
-        Ok(Scene { device: self.device.clone(), raw, box_sets: core::mem::take(&mut self.box_sets) })
+        Ok(Scene {
+            device: self.device.clone(),
+            raw,
+            box_sets: core::mem::take(&mut self.box_sets),
+        })
     }
 }
 
@@ -341,13 +394,17 @@ impl Drop for Scene {
 
 impl core::fmt::Debug for Scene {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.debug_struct("Scene").field("box_sets", &self.box_sets.len()).finish_non_exhaustive()
+        f.debug_struct("Scene")
+            .field("box_sets", &self.box_sets.len())
+            .finish_non_exhaustive()
     }
 }
 
 fn check_ray(origin: [f32; 3], dir: [f32; 3], tnear: f32, tfar: f32) -> Result<()> {
     if !finite3(origin) || !finite3(dir) {
-        return Err(EmbreeError::InvalidInput(format!("ray origin/direction not finite: {origin:?} {dir:?}")));
+        return Err(EmbreeError::InvalidInput(format!(
+            "ray origin/direction not finite: {origin:?} {dir:?}"
+        )));
     }
     if dir == [0.0; 3] {
         return Err(EmbreeError::InvalidInput("ray direction is zero".into()));
@@ -375,7 +432,10 @@ unsafe extern "C" fn point_query_trampoline<F: FnMut(PointQueryCandidate)>(
         let args = &*args;
         (
             &mut *(args.userPtr as *mut QueryState<F>),
-            PointQueryCandidate { geom_id: args.geomID, prim_id: args.primID },
+            PointQueryCandidate {
+                geom_id: args.geomID,
+                prim_id: args.primID,
+            },
         )
     };
     if state.panic.is_none() {
@@ -393,6 +453,11 @@ impl Scene {
         SceneBuilder::new(device)
     }
 
+    #[cfg(test)]
+    pub(crate) fn raw_for_tests(&self) -> sys::RTCScene {
+        self.raw
+    }
+
     /// The device the scene lives on.
     pub fn device(&self) -> &Device {
         &self.device
@@ -401,7 +466,10 @@ impl Scene {
     /// The boxes of the box set with geometry id `geom_id`, or `None` if that id is not a
     /// box set of this scene.
     pub fn boxes(&self, geom_id: u32) -> Option<&[Aabb]> {
-        self.box_sets.iter().find(|(id, _)| *id == geom_id).map(|(_, b)| &b[..])
+        self.box_sets
+            .iter()
+            .find(|(id, _)| *id == geom_id)
+            .map(|(_, b)| &b[..])
     }
 
     /// Closest hit of the ray `origin + t * dir`, `t` in `[tnear, tfar]`, with the scene's
@@ -411,9 +479,18 @@ impl Scene {
     /// units of `|dir|`). `tfar` may be `f32::INFINITY`. Returns
     /// [`EmbreeError::InvalidInput`] for a non-finite origin/direction, a zero direction,
     /// or an interval violating `0 <= tnear <= tfar`.
-    pub fn intersect(&self, origin: [f32; 3], dir: [f32; 3], tnear: f32, tfar: f32) -> Result<Option<Hit>> {
+    pub fn intersect(
+        &self,
+        origin: [f32; 3],
+        dir: [f32; 3],
+        tnear: f32,
+        tfar: f32,
+    ) -> Result<Option<Hit>> {
         check_ray(origin, dir, tnear, tfar)?;
-        let mut rh = RTCRayHit44 { ray: make_ray(origin, dir, tnear, tfar), hit: Default::default() };
+        let mut rh = RTCRayHit44 {
+            ray: make_ray(origin, dir, tnear, tfar),
+            hit: Default::default(),
+        };
         // SAFETY: `rh` is a properly initialised 4.4-layout RTCRayHit.
         unsafe { self.intersect_raw(&mut rh) };
         if rh.hit.geomID == RTC_INVALID_GEOMETRY_ID {
@@ -437,7 +514,13 @@ impl Scene {
     pub(crate) unsafe fn intersect_raw(&self, rayhit: *mut RTCRayHit44) {
         // The 4.2 binding's `RTCRayHit` is 16 bytes too small for the 4.4 library: pass our
         // 96-byte mirror through a pointer cast (see `ffi.rs`).
-        unsafe { sys::rtcIntersect1(self.raw, rayhit.cast::<sys::RTCRayHit>(), core::ptr::null_mut()) };
+        unsafe {
+            sys::rtcIntersect1(
+                self.raw,
+                rayhit.cast::<sys::RTCRayHit>(),
+                core::ptr::null_mut(),
+            )
+        };
     }
 
     /// Whether any triangle intersects the ray `origin + t * dir` for `t` in
@@ -448,7 +531,11 @@ impl Scene {
         let mut ray = make_ray(origin, dir, tnear, tfar);
         // SAFETY: `ray` is an initialised 48-byte RTCRay (same layout in 4.2 and 4.4).
         unsafe {
-            sys::rtcOccluded1(self.raw, (&mut ray as *mut RTCRay44).cast::<sys::RTCRay>(), core::ptr::null_mut())
+            sys::rtcOccluded1(
+                self.raw,
+                (&mut ray as *mut RTCRay44).cast::<sys::RTCRay>(),
+                core::ptr::null_mut(),
+            )
         };
         // Embree sets tfar to -inf when the ray is occluded.
         Ok(ray.tfar == f32::NEG_INFINITY)
@@ -462,13 +549,24 @@ impl Scene {
     /// (world units) must be finite and `>= 0`; `0` queries the point itself. Calls happen
     /// synchronously on the calling thread. A panic in `f` stops further calls to `f` and
     /// is resumed once Embree has returned.
-    pub fn point_query<F: FnMut(PointQueryCandidate)>(&self, point: [f32; 3], radius: f32, f: F) -> Result<()> {
-        if !finite3(point) || !(radius.is_finite() && radius >= 0.0) {
+    pub fn point_query<F: FnMut(PointQueryCandidate)>(
+        &self,
+        point: [f32; 3],
+        radius: f32,
+        f: F,
+    ) -> Result<()> {
+        if !(finite3(point) && radius.is_finite() && radius >= 0.0) {
             return Err(EmbreeError::InvalidInput(format!(
                 "point query needs a finite point and a finite radius >= 0 (got {point:?}, {radius})"
             )));
         }
-        let mut query = RTCPointQuery44 { x: point[0], y: point[1], z: point[2], time: 0.0, radius };
+        let mut query = RTCPointQuery44 {
+            x: point[0],
+            y: point[1],
+            z: point[2],
+            time: 0.0,
+            radius,
+        };
         let mut context = RTCPointQueryContext44::new();
         let mut state = QueryState { f, panic: None };
         // SAFETY: query and context are 16-byte aligned 4.4-layout structs (the context is
@@ -494,10 +592,12 @@ impl Scene {
     pub fn boxes_containing(&self, point: [f32; 3]) -> Result<Vec<PointQueryCandidate>> {
         let mut out = Vec::new();
         self.point_query(point, 0.0, |c| {
-            if let Some(b) = self.boxes(c.geom_id).and_then(|bs| bs.get(c.prim_id as usize)) {
-                if b.contains(point) {
-                    out.push(c);
-                }
+            if let Some(b) = self
+                .boxes(c.geom_id)
+                .and_then(|bs| bs.get(c.prim_id as usize))
+                && b.contains(point)
+            {
+                out.push(c);
             }
         })?;
         out.sort_unstable();
@@ -522,4 +622,3 @@ fn make_ray(origin: [f32; 3], dir: [f32; 3], tnear: f32, tfar: f32) -> RTCRay44 
         flags: 0,
     }
 }
-
