@@ -43,20 +43,33 @@ extern crate std;
 
 pub mod aabb;
 pub mod accumulate;
+#[cfg(feature = "alloc")]
+pub mod camera_path;
 pub mod classify;
 pub mod differential;
 pub mod emission;
 pub mod estimate;
 pub mod footprint;
 pub mod frame;
+pub mod fresnel;
 pub mod heuristics;
 pub mod kernel;
+#[cfg(feature = "alloc")]
+pub mod prepared_scene;
+#[cfg(feature = "alloc")]
+pub mod photon_path;
 pub mod progressive_photon;
 pub mod radius;
+#[cfg(feature = "alloc")]
+pub mod ray_cast;
 pub mod reemission;
 pub mod rng;
 pub mod sampling;
+#[cfg(feature = "alloc")]
+pub mod scene;
 pub mod shading_normal;
 pub mod store;
+#[cfg(feature = "alloc")]
+pub mod tracer;
 
 pub use glam;

@@ -1,0 +1,167 @@
+//! The camera pass of one pixel, as every backend must compute it: a jittered pinhole ray
+//! follows specular chains (mirrors, Fresnel-chosen reflection or refraction) to the first
+//! diffuse vertex, the *query point*. Emission seen along the way is added, and with
+//! direct lighting on, next-event estimation evaluates every delta light exactly and one
+//! area emitter chosen by power.
+//!
+//! Camera paths carry *radiance*: crossing an interface from index `n_i` into `n_t`
+//! scales it by `(n_i/n_t)²` (pbrt's radiance-mode transmission), so a floor seen through
+//! the water surface has the right brightness. Photons carry flux and need no such factor.
+
+use crate::differential::{refract_direction, reflect_direction, RefractionEvent};
+use crate::emission::Light;
+use crate::fresnel::dielectric_reflectance;
+use crate::prepared_scene::{offset_origin, PreparedScene, SurfacePoint};
+use crate::ray_cast::RayCaster;
+use crate::rng::{Rng, StreamDomain};
+use crate::sampling::uniform_triangle;
+use crate::scene::Scattering;
+use crate::tracer::{QueryRecord, RenderSettings};
+use core::f64::consts::{FRAC_1_PI, PI};
+use glam::{DVec2, DVec3, Vec3};
+
+/// Traces the camera path of `pixel` (row-major) in 0-based `iteration`.
+pub fn trace_camera_path(scene: &PreparedScene, caster: &impl RayCaster, settings: &RenderSettings, iteration: u32, pixel: u32) -> QueryRecord {
+    let cam = scene.scene().camera;
+    let frame = scene.camera();
+    let mut rng = Rng::new(settings.seed, iteration, pixel, StreamDomain::Camera);
+    let (px, py) = (pixel % cam.width, pixel / cam.width);
+    let jitter = rng.next_2d();
+    let mut dir = frame.direction(px as f32 + jitter.x as f32, py as f32 + jitter.y as f32, cam.width, cam.height).as_dvec3();
+    let mut origin = cam.position;
+    let mut throughput = DVec3::ONE;
+    let mut radiance = DVec3::ZERO;
+    let mut record = QueryRecord { pixel, ..QueryRecord::default() };
+    for _ in 0..settings.max_depth {
+        let Some(hit) = caster.intersect(origin, dir.as_vec3(), f32::INFINITY) else { break };
+        let s = scene.surface(&hit);
+        let front = if dir.dot(s.geometric_normal) < 0.0 { s.geometric_normal } else { -s.geometric_normal };
+        if let Some(e) = s.emission {
+            if dir.dot(s.geometric_normal) < 0.0 {
+                radiance += throughput * e.as_dvec3();
+            }
+        }
+        match s.scattering {
+            Scattering::Diffuse(albedo) => {
+                let weight = throughput * albedo.as_dvec3() * FRAC_1_PI;
+                if settings.direct_lighting {
+                    radiance += weight * direct_irradiance(scene, caster, &s, front, &mut rng);
+                }
+                record.position = s.position.as_vec3().to_array();
+                record.normal = front.as_vec3().to_array();
+                record.weight = weight.as_vec3().to_array();
+                record.valid = 1;
+                break;
+            }
+            Scattering::Mirror(reflectance) => {
+                throughput *= reflectance.as_dvec3();
+                let n = shading_normal(scene, &s);
+                dir = reflect_direction(dir, n).normalize_or(dir);
+                origin = offset_origin(s.position, front);
+            }
+            Scattering::Refractive(ior, transmittance) => {
+                let ior = ior as f64;
+                let n = shading_normal(scene, &s);
+                let fresnel = dielectric_reflectance(dir.dot(n), ior);
+                if rng.next_f64() < fresnel {
+                    dir = reflect_direction(dir, n).normalize_or(dir);
+                    origin = offset_origin(s.position, front);
+                } else {
+                    let (t, event, eta) = refract_direction(dir, n, ior);
+                    if event == RefractionEvent::Transmitted {
+                        throughput *= transmittance.as_dvec3() * (eta * eta);
+                        origin = offset_origin(s.position, -front);
+                    } else {
+                        origin = offset_origin(s.position, front);
+                    }
+                    dir = t;
+                }
+            }
+        }
+        if !(throughput.max_element() > 0.0) {
+            break;
+        }
+    }
+    let radiance = DVec3::select(radiance.is_finite_mask(), radiance, DVec3::ZERO);
+    record.radiance = radiance.as_vec3().to_array();
+    record
+}
+
+fn shading_normal(scene: &PreparedScene, s: &SurfacePoint) -> DVec3 {
+    scene.shading_normal(s, DVec3::ZERO, DVec3::ZERO).map(|n| n.n).unwrap_or(s.geometric_normal)
+}
+
+/// Direct irradiance (W/m², RGB) at a diffuse point with unit normal `front` (towards the
+/// viewer): every delta light exactly, plus one area emitter picked by power with one
+/// uniformly sampled point (unbiased; one-sided emitters).
+pub fn direct_irradiance(scene: &PreparedScene, caster: &impl RayCaster, s: &SurfacePoint, front: DVec3, rng: &mut Rng) -> DVec3 {
+    let p = s.position;
+    let from = offset_origin(p, front);
+    let mut e = DVec3::ZERO;
+    let visible = |to: DVec3| {
+        let d = to - from.as_dvec3();
+        let dist = d.length();
+        dist > 0.0 && !caster.occluded(from, (d / dist).as_vec3(), (dist * (1.0 - 1e-4)) as f32)
+    };
+    for light in scene.emitters() {
+        match light {
+            Light::Point(l) => {
+                let d = l.position - p;
+                let r2 = d.length_squared();
+                let cos = front.dot(d) / libm::sqrt(r2);
+                if cos > 0.0 && visible(l.position) {
+                    e += l.intensity * (cos / r2);
+                }
+            }
+            Light::Spot(l) => {
+                let d = l.position - p;
+                let r2 = d.length_squared();
+                let r = libm::sqrt(r2);
+                let cos = front.dot(d) / r;
+                let axis = l.direction.normalize_or(DVec3::Z);
+                let theta = libm::acos((-d / r).dot(axis).clamp(-1.0, 1.0));
+                let falloff = l.falloff_at(theta);
+                if cos > 0.0 && falloff > 0.0 && visible(l.position) {
+                    e += l.intensity * (falloff * cos / r2);
+                }
+            }
+            Light::Directional(l) => {
+                let to_light = -l.direction.normalize_or(DVec3::Z);
+                let cos = front.dot(to_light);
+                let far = p + to_light * (4.0 * scene.bounding_sphere().1 + 1.0);
+                if cos > 0.0 && visible(far) {
+                    e += l.irradiance * cos;
+                }
+            }
+            Light::Triangle(_) | Light::Quad(_) => {}
+        }
+    }
+    let u = rng.next_f64();
+    let sample = rng.next_2d();
+    if let Some((i, prob)) = scene.pick_area_emitter(u) {
+        let (point, normal, area, radiance) = match scene.emitters()[i] {
+            Light::Triangle(l) => {
+                let b = uniform_triangle(sample);
+                let n = (l.p[1] - l.p[0]).cross(l.p[2] - l.p[0]);
+                (l.p[0] * b.x + l.p[1] * b.y + l.p[2] * b.z, n.normalize_or(DVec3::Y), 0.5 * n.length(), l.radiance)
+            }
+            Light::Quad(l) => {
+                let n = l.edge_u.cross(l.edge_v);
+                (l.origin + l.edge_u * sample.x + l.edge_v * sample.y, n.normalize_or(DVec3::Y), n.length(), l.radiance)
+            }
+            _ => (DVec3::ZERO, DVec3::Y, 0.0, DVec3::ZERO),
+        };
+        let d = point - p;
+        let r2 = d.length_squared();
+        let r = libm::sqrt(r2);
+        if r > 0.0 {
+            let cos_q = front.dot(d) / r;
+            let cos_l = -normal.dot(d) / r;
+            if cos_q > 0.0 && cos_l > 0.0 && prob > 0.0 && visible(point) {
+                e += radiance * (cos_q * cos_l * area / (r2 * prob));
+            }
+        }
+    }
+    let _ = (PI, DVec2::ZERO, Vec3::ZERO);
+    e
+}

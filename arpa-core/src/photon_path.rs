@@ -1,0 +1,229 @@
+//! The photon pass of one photon, as every backend must compute it: emit with
+//! differentials, propagate through specular chains (reflection, refraction with
+//! Fresnel-weighted choice and total internal reflection), store at diffuse hits
+//! (footprint or progressive photon), absorb and re-emit with the virtual distance, and
+//! end by Russian roulette or after `max_depth` interactions.
+//!
+//! This is the reference the conformance suite compares backends with, and the CPU
+//! backend's implementation.
+
+use crate::classify::{PathClassifier, SurfaceInteraction};
+use crate::differential::{refract_direction, reflect_direction, RayDifferential, RefractionEvent};
+use crate::emission::{EmissionParams, Light};
+use crate::footprint::{Footprint, PhotonMap};
+use crate::fresnel::dielectric_reflectance;
+use crate::heuristics::HeuristicContext;
+use crate::prepared_scene::{offset_origin, PreparedScene};
+use crate::ray_cast::RayCaster;
+use crate::reemission::{diffuse_direction, reemit};
+use crate::rng::{Rng, StreamDomain};
+use crate::scene::Scattering;
+use crate::store::{store_footprint, store_progressive, ProgressiveReason, StoredPhoton};
+use crate::tracer::{Method, RenderSettings};
+use alloc::vec::Vec;
+use glam::DVec3;
+
+/// Per-iteration inputs of the photon pass, shared by all photons.
+#[derive(Clone, Debug)]
+pub struct PhotonPassSetup {
+    /// Photons per emitter this iteration ([`PreparedScene::photon_allocation`]).
+    pub allocation: Vec<u32>,
+    /// First global photon index of each emitter (prefix sums of `allocation`).
+    pub first_index: Vec<u32>,
+    /// Emission parameters per emitter (lattice shift drawn per iteration).
+    pub params: Vec<EmissionParams>,
+    /// Progressive radii `[caustic, global]` of this iteration (metres).
+    pub radii: [f64; 2],
+    /// 0-based iteration number.
+    pub iteration: u32,
+}
+
+impl PhotonPassSetup {
+    /// The setup of iteration `iteration` (0-based) under `settings`.
+    pub fn new(scene: &PreparedScene, settings: &RenderSettings, iteration: u32) -> Self {
+        let allocation = scene.photon_allocation(settings.photons_per_iteration);
+        let mut first_index = Vec::with_capacity(allocation.len());
+        let mut acc = 0u32;
+        for &n in &allocation {
+            first_index.push(acc);
+            acc += n;
+        }
+        let params = allocation
+            .iter()
+            .enumerate()
+            .map(|(i, &n)| {
+                let mut r = Rng::new(settings.seed, iteration, i as u32, StreamDomain::Iteration);
+                EmissionParams { photon_count: n.max(1), scale: 1.0, scene_sphere: scene.bounding_sphere(), lattice_shift: r.next_2d() }
+            })
+            .collect();
+        let radii = settings.radii.radii(&scene.bounds(), iteration + 1);
+        Self { allocation, first_index, params, radii, iteration }
+    }
+
+    /// Total photons of the iteration.
+    pub fn photon_count(&self) -> u32 {
+        self.allocation.iter().sum()
+    }
+
+    /// Emitter and index within it of global photon `index`.
+    pub fn locate(&self, index: u32) -> Option<(usize, u32)> {
+        let e = self.first_index.partition_point(|&f| f <= index).checked_sub(1)?;
+        let local = index - self.first_index[e];
+        (local < self.allocation[e]).then_some((e, local))
+    }
+}
+
+/// Counts of one photon's path.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PhotonPathStats {
+    /// Ray segments cast.
+    pub segments: u32,
+    /// Photons stored.
+    pub stored: u32,
+}
+
+/// The part of the photon that does not depend on its differential.
+struct PathState {
+    ray: RayDifferential,
+    differential_valid: bool,
+    flux: DVec3,
+    classifier: PathClassifier,
+}
+
+/// Traces global photon `index` of the iteration and hands every stored photon to
+/// `sink`. Deterministic: the photon's random stream depends only on
+/// `(seed, iteration, index)`.
+pub fn trace_photon(
+    scene: &PreparedScene,
+    caster: &impl RayCaster,
+    settings: &RenderSettings,
+    setup: &PhotonPassSetup,
+    index: u32,
+    sink: &mut impl FnMut(StoredPhoton),
+) -> PhotonPathStats {
+    let mut stats = PhotonPathStats::default();
+    let Some((emitter, local)) = setup.locate(index) else { return stats };
+    let light: &Light = &scene.emitters()[emitter];
+    let mut rng = Rng::new(settings.seed, setup.iteration, index, StreamDomain::Photon);
+    let Ok(emitted) = light.emit(local, &setup.params[emitter], &mut rng) else { return stats };
+    let reemission_length = emitted.reemission_length;
+    let mut st = PathState { ray: emitted.ray, differential_valid: true, flux: emitted.flux, classifier: PathClassifier::new() };
+    let scene_bounds = scene.bounds();
+    let mut origin = st.ray.p.as_vec3();
+    for _ in 0..settings.max_depth {
+        let d = st.ray.d;
+        stats.segments += 1;
+        let Some(hit) = caster.intersect(origin, d.as_vec3(), f32::INFINITY) else { break };
+        let s = scene.surface(&hit);
+        // Distance from the differential's origin to the hit, along the direction.
+        let t = (s.position - st.ray.p).dot(d).max(0.0);
+        let moved = if st.differential_valid { st.ray.transfer(t, s.geometric_normal).ok() } else { None };
+        let ray_at_hit = match moved {
+            Some(r) => r,
+            None => {
+                st.differential_valid = false;
+                lost_differential(s.position, d)
+            }
+        };
+        // Side the photon arrives from.
+        let front = if d.dot(s.geometric_normal) < 0.0 { s.geometric_normal } else { -s.geometric_normal };
+        match s.scattering {
+            Scattering::Diffuse(albedo) => {
+                let map = st.classifier.record(SurfaceInteraction::Diffuse).unwrap_or(PhotonMap::Global);
+                let first_interaction = st.classifier.diffuse_events() == 1 && st.classifier.specular_events() == 0;
+                if !(settings.direct_lighting && first_interaction) {
+                    sink(store(&ray_at_hit, &s.geometric_normal, st.flux, map, st.differential_valid, settings, setup, &scene_bounds));
+                    stats.stored += 1;
+                }
+                let albedo = albedo.as_dvec3();
+                let survive = albedo.max_element().min(1.0);
+                if !(rng.next_f64() < survive) {
+                    break;
+                }
+                st.flux *= albedo / survive;
+                let dir = diffuse_direction(front, rng.next_2d());
+                st.ray = match (st.differential_valid, reemit(s.position, ray_at_hit.dp_du, ray_at_hit.dp_dv, dir, reemission_length)) {
+                    (true, Ok(r)) => r,
+                    _ => {
+                        st.differential_valid = false;
+                        lost_differential(s.position, dir)
+                    }
+                };
+                origin = offset_origin(s.position, front);
+            }
+            Scattering::Mirror(reflectance) => {
+                st.classifier.record(SurfaceInteraction::Specular);
+                st.flux *= reflectance.as_dvec3();
+                let nd = scene.shading_normal(&s, ray_at_hit.dp_du, ray_at_hit.dp_dv);
+                let n = nd.map(|n| n.n).unwrap_or(s.geometric_normal);
+                st.ray = match (st.differential_valid, nd.and_then(|nd| ray_at_hit.reflect(&nd))) {
+                    (true, Ok(r)) => r,
+                    _ => {
+                        st.differential_valid = false;
+                        lost_differential(s.position, reflect_direction(d, n))
+                    }
+                };
+                origin = offset_origin(s.position, front);
+            }
+            Scattering::Refractive(ior, transmittance) => {
+                st.classifier.record(SurfaceInteraction::Specular);
+                let ior = ior as f64;
+                let nd = scene.shading_normal(&s, ray_at_hit.dp_du, ray_at_hit.dp_dv);
+                let n = nd.map(|n| n.n).unwrap_or(s.geometric_normal);
+                let fresnel = dielectric_reflectance(d.dot(n), ior);
+                let reflect = rng.next_f64() < fresnel;
+                if reflect {
+                    st.ray = match (st.differential_valid, nd.and_then(|nd| ray_at_hit.reflect(&nd))) {
+                        (true, Ok(r)) => r,
+                        _ => {
+                            st.differential_valid = false;
+                            lost_differential(s.position, reflect_direction(d, n))
+                        }
+                    };
+                    origin = offset_origin(s.position, front);
+                } else {
+                    st.flux *= transmittance.as_dvec3();
+                    let (dir, event, _) = refract_direction(d, n, ior);
+                    st.ray = match (st.differential_valid, nd.and_then(|nd| ray_at_hit.refract(&nd, ior))) {
+                        (true, Ok((r, e))) if e == event => r,
+                        _ => {
+                            st.differential_valid = false;
+                            lost_differential(s.position, dir)
+                        }
+                    };
+                    let side = if event == RefractionEvent::Transmitted { -front } else { front };
+                    origin = offset_origin(s.position, side);
+                }
+            }
+        }
+        if !(st.flux.max_element() > 0.0) || !st.flux.is_finite() {
+            break;
+        }
+    }
+    stats
+}
+
+/// A ray without a usable differential (all derivatives zero).
+fn lost_differential(p: DVec3, d: DVec3) -> RayDifferential {
+    let d = d.normalize_or(DVec3::Z);
+    RayDifferential { p, d, dp_du: DVec3::ZERO, dp_dv: DVec3::ZERO, dd_du: DVec3::ZERO, dd_dv: DVec3::ZERO }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn store(ray: &RayDifferential, normal: &DVec3, flux: DVec3, map: PhotonMap, differential_valid: bool, settings: &RenderSettings, setup: &PhotonPassSetup, scene_bounds: &crate::aabb::Aabb) -> StoredPhoton {
+    let reason = match (settings.method, differential_valid) {
+        (Method::Rtpm, _) => Some(ProgressiveReason::ProgressiveMethod),
+        (Method::Arpa, false) => Some(ProgressiveReason::DifferentialLost),
+        (Method::Arpa, true) => None,
+    };
+    if let Some(reason) = reason {
+        return store_progressive(ray.p, *normal, ray.d, flux, map, reason);
+    }
+    match Footprint::from_hit(ray, *normal, flux, map) {
+        Ok(fp) => {
+            let ctx = HeuristicContext { radius: setup.radii[map.index()], scene_bounds: *scene_bounds };
+            store_footprint(fp, &settings.smoothing, &settings.heuristics, &ctx)
+        }
+        Err(_) => store_progressive(ray.p, *normal, ray.d, flux, map, ProgressiveReason::DifferentialLost),
+    }
+}

@@ -1,0 +1,195 @@
+//! A validated scene with what the paths need precomputed: the emitters and how the
+//! photons of an iteration are shared among them, scene bounds, the camera frame, and
+//! surface lookups (positions, geometric and shading normals with their derivatives).
+
+use crate::aabb::Aabb;
+use crate::differential::{DifferentialError, NormalDifferential};
+use crate::emission::Light;
+use crate::ray_cast::RayHit;
+use crate::scene::{CameraFrame, Scattering, Scene, SceneError};
+use crate::shading_normal::ShadedTriangle;
+use alloc::vec::Vec;
+use glam::{DVec3, Vec3};
+
+/// Luminance weights used to compare light powers.
+const LUMINANCE: DVec3 = DVec3::new(0.2126, 0.7152, 0.0722);
+
+/// A validated, render-ready scene.
+#[derive(Clone, Debug)]
+pub struct PreparedScene {
+    scene: Scene,
+    emitters: Vec<Light>,
+    emitter_power: Vec<f64>,
+    area_emitters: Vec<usize>,
+    area_cdf: Vec<f64>,
+    bounds: Aabb,
+    sphere: (DVec3, f64),
+    camera: CameraFrame,
+    scattering: Vec<Scattering>,
+}
+
+/// A point on a surface hit by a ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfacePoint {
+    /// Position interpolated from the vertices (metres).
+    pub position: DVec3,
+    /// Unit geometric normal `(p1 − p0) × (p2 − p0)` normalised (not oriented).
+    pub geometric_normal: DVec3,
+    /// Barycentric weights of the three vertices.
+    pub barycentric: DVec3,
+    /// How the surface scatters.
+    pub scattering: Scattering,
+    /// Emitted radiance on the geometric-normal side, if the mesh emits.
+    pub emission: Option<Vec3>,
+    /// Mesh index.
+    pub mesh: u32,
+    /// Triangle index.
+    pub triangle: u32,
+}
+
+impl PreparedScene {
+    /// Validates `scene` and precomputes its lookups.
+    pub fn new(scene: Scene) -> Result<Self, SceneError> {
+        scene.validate()?;
+        let emitters = scene.emitters();
+        let radius = scene.bounding_sphere().1;
+        let emitter_power: Vec<f64> = emitters.iter().map(|l| l.power(radius).dot(LUMINANCE).max(0.0)).collect();
+        let area_emitters: Vec<usize> = (0..emitters.len()).filter(|&i| matches!(emitters[i], Light::Triangle(_) | Light::Quad(_))).collect();
+        let mut area_cdf = Vec::with_capacity(area_emitters.len());
+        let mut acc = 0.0;
+        for &i in &area_emitters {
+            acc += emitter_power[i];
+            area_cdf.push(acc);
+        }
+        let scattering = scene.materials.iter().map(|m| m.scattering(scene.roughness_cutoff)).collect();
+        Ok(Self {
+            bounds: scene.bounds(),
+            sphere: scene.bounding_sphere(),
+            camera: scene.camera.frame()?,
+            scene,
+            emitters,
+            emitter_power,
+            area_emitters,
+            area_cdf,
+            scattering,
+        })
+    }
+
+    /// The scene.
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// Every emitter (analytic lights, then emissive triangles).
+    pub fn emitters(&self) -> &[Light] {
+        &self.emitters
+    }
+
+    /// Bounds of the geometry.
+    pub fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    /// Bounding sphere `(centre, radius)`.
+    pub fn bounding_sphere(&self) -> (DVec3, f64) {
+        self.sphere
+    }
+
+    /// The camera basis.
+    pub fn camera(&self) -> CameraFrame {
+        self.camera
+    }
+
+    /// Photons each emitter gets out of `total`: proportional to its power (luminance),
+    /// by largest remainders, at least one per emitter with power while `total` allows.
+    /// The counts sum to `total`.
+    pub fn photon_allocation(&self, total: u32) -> Vec<u32> {
+        let n = self.emitters.len();
+        let sum: f64 = self.emitter_power.iter().sum();
+        if n == 0 || total == 0 || !(sum > 0.0) {
+            return alloc::vec![0; n];
+        }
+        let mut counts: Vec<u32> = Vec::with_capacity(n);
+        let mut remainders: Vec<(f64, usize)> = Vec::with_capacity(n);
+        for (i, p) in self.emitter_power.iter().enumerate() {
+            let exact = total as f64 * p / sum;
+            let floor = libm::floor(exact);
+            counts.push(floor as u32);
+            remainders.push((exact - floor, i));
+        }
+        let mut left = total.saturating_sub(counts.iter().sum());
+        // Emitters that would get nothing come first, then the largest remainders.
+        remainders.sort_by(|a, b| {
+            let za = counts[a.1] == 0 && self.emitter_power[a.1] > 0.0;
+            let zb = counts[b.1] == 0 && self.emitter_power[b.1] > 0.0;
+            zb.cmp(&za).then(b.0.total_cmp(&a.0)).then(a.1.cmp(&b.1))
+        });
+        for &(_, i) in &remainders {
+            if left == 0 {
+                break;
+            }
+            counts[i] += 1;
+            left -= 1;
+        }
+        counts
+    }
+
+    /// Vertices of a triangle in `f64`.
+    pub fn triangle(&self, mesh: u32, triangle: u32) -> [DVec3; 3] {
+        let m = &self.scene.meshes[mesh as usize];
+        m.indices[triangle as usize].map(|i| m.positions[i as usize].as_dvec3())
+    }
+
+    /// The surface point of a hit.
+    pub fn surface(&self, hit: &RayHit) -> SurfacePoint {
+        let m = &self.scene.meshes[hit.mesh as usize];
+        let p = self.triangle(hit.mesh, hit.triangle);
+        let (b1, b2) = (hit.b1 as f64, hit.b2 as f64);
+        let b = DVec3::new(1.0 - b1 - b2, b1, b2);
+        let ng = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or(DVec3::Y);
+        SurfacePoint {
+            position: p[0] * b.x + p[1] * b.y + p[2] * b.z,
+            geometric_normal: ng,
+            barycentric: b,
+            scattering: self.scattering[m.material as usize],
+            emission: m.emission,
+            mesh: hit.mesh,
+            triangle: hit.triangle,
+        }
+    }
+
+    /// The shading normal at `s` and its derivatives along the positional differentials
+    /// `dp_du`, `dp_dv` (zero for meshes without vertex normals), oriented like the
+    /// geometric normal.
+    pub fn shading_normal(&self, s: &SurfacePoint, dp_du: DVec3, dp_dv: DVec3) -> Result<NormalDifferential, DifferentialError> {
+        let m = &self.scene.meshes[s.mesh as usize];
+        let Some(normals) = &m.normals else { return Ok(NormalDifferential::flat(s.geometric_normal)) };
+        let idx = m.indices[s.triangle as usize];
+        let tri = ShadedTriangle { p: self.triangle(s.mesh, s.triangle), n: idx.map(|i| normals[i as usize].as_dvec3()) };
+        let mut nd = tri.normal_differential(s.barycentric, dp_du, dp_dv)?;
+        if nd.n.dot(s.geometric_normal) < 0.0 {
+            nd = NormalDifferential { n: -nd.n, dn_du: -nd.dn_du, dn_dv: -nd.dn_dv };
+        }
+        Ok(nd)
+    }
+
+    /// Picks an area emitter for next-event estimation with probability proportional to
+    /// its power from the uniform number `u`: `(emitter index, probability)`.
+    pub fn pick_area_emitter(&self, u: f64) -> Option<(usize, f64)> {
+        let total = *self.area_cdf.last()?;
+        if !(total > 0.0) {
+            return None;
+        }
+        let x = u * total;
+        let k = self.area_cdf.partition_point(|&c| c <= x).min(self.area_cdf.len() - 1);
+        let i = self.area_emitters[k];
+        Some((i, self.emitter_power[i] / total))
+    }
+}
+
+/// Offsets a ray origin off a surface along `normal` (oriented to the side the ray
+/// leaves towards) to avoid self-intersection in `f32`.
+pub fn offset_origin(p: DVec3, normal: DVec3) -> Vec3 {
+    let scale = 1e-5 * (1.0 + p.abs().max_element());
+    (p + normal * scale).as_vec3()
+}
