@@ -1,0 +1,206 @@
+//! The reference camera and photon paths on analytic scenes, with the brute-force ray
+//! caster and a brute-force gather: what every backend must reproduce.
+
+use arpa_core::camera_path::trace_camera_path;
+use arpa_core::emission::{Light, PointLight};
+use arpa_core::estimate::{gather_brute_force, QueryPoint};
+use arpa_core::footprint::PackedFootprint;
+use arpa_core::kernel::Kernel;
+use arpa_core::photon_path::{trace_photon, PhotonPassSetup};
+use arpa_core::prepared_scene::PreparedScene;
+use arpa_core::progressive_photon::PackedPhoton;
+use arpa_core::ray_cast::BruteForceCaster;
+use arpa_core::scene::{Camera, Material, Scene, TriangleMesh};
+use arpa_core::store::StoredPhoton;
+use arpa_core::tracer::{Method, QueryRecord, RenderSettings};
+use glam::{DVec3, Vec3};
+use std::f64::consts::PI;
+
+const ALBEDO: f32 = 0.5;
+const INTENSITY: f64 = 3.0;
+
+fn plane_scene(size: u32) -> Scene {
+    let h = 4.0;
+    Scene {
+        meshes: vec![TriangleMesh {
+            name: "floor".into(),
+            positions: vec![Vec3::new(-h, 0.0, -h), Vec3::new(h, 0.0, -h), Vec3::new(h, 0.0, h), Vec3::new(-h, 0.0, h)],
+            normals: None,
+            indices: vec![[0, 2, 1], [0, 3, 2]],
+            material: 0,
+            emission: None,
+        }],
+        materials: vec![Material::Diffuse { albedo: Vec3::splat(ALBEDO) }],
+        lights: vec![Light::Point(PointLight { position: DVec3::new(0.0, 1.0, 0.0), intensity: DVec3::splat(INTENSITY) })],
+        camera: Camera { position: Vec3::new(0.0, 3.0, 0.0), target: Vec3::ZERO, up: Vec3::Z, vertical_fov: 60f32.to_radians(), width: size, height: size },
+        roughness_cutoff: 0.5,
+    }
+}
+
+/// Renders `iterations` iterations with the reference paths; returns per-pixel mean
+/// radiance (red channel) and the last iteration's query records.
+fn render(scene: &PreparedScene, settings: &RenderSettings, iterations: u32) -> (Vec<f64>, Vec<QueryRecord>) {
+    let caster = BruteForceCaster::new(scene);
+    let cam = scene.scene().camera;
+    let pixels = cam.width * cam.height;
+    let mut sum = vec![0.0; pixels as usize];
+    let mut records = vec![];
+    for it in 0..iterations {
+        records = (0..pixels).map(|p| trace_camera_path(scene, &caster, settings, it, p)).collect();
+        let setup = PhotonPassSetup::new(scene, settings, it);
+        let (mut fps, mut phs): (Vec<PackedFootprint>, Vec<PackedPhoton>) = (vec![], vec![]);
+        for i in 0..setup.photon_count() {
+            trace_photon(scene, &caster, settings, &setup, i, &mut |s| match s {
+                StoredPhoton::Footprint { packed, .. } => fps.push(packed),
+                StoredPhoton::Progressive { photon, .. } => phs.push(photon),
+            });
+        }
+        let radii = setup.radii.map(|r| r as f32);
+        for (r, acc) in records.iter().zip(&mut sum) {
+            let mut l = r.radiance[0] as f64;
+            if r.valid == 1 {
+                let q = QueryPoint { position: Vec3::from_array(r.position), normal: Vec3::from_array(r.normal) };
+                l += r.weight[0] as f64 * gather_brute_force(&q, &fps, &phs, radii, Kernel::Silverman).irradiance().x;
+            }
+            *acc += l;
+        }
+    }
+    (sum.iter().map(|s| s / iterations as f64).collect(), records)
+}
+
+fn analytic(q: [f32; 3]) -> f64 {
+    let d = DVec3::new(0.0, 1.0, 0.0) - Vec3::from_array(q).as_dvec3();
+    let r2 = d.length_squared();
+    ALBEDO as f64 / PI * INTENSITY * (d.y / r2.sqrt()) / r2
+}
+
+/// Mean relative error over the image (pixels whose query point is within 1.5 of the
+/// foot of the light; the mean over many pixels averages the per-pixel noise).
+fn mean_error(img: &[f64], records: &[QueryRecord]) -> f64 {
+    let (mut est, mut exact) = (0.0, 0.0);
+    for (l, r) in img.iter().zip(records) {
+        assert_eq!(r.valid, 1);
+        if (r.position[0].powi(2) + r.position[2].powi(2)).sqrt() < 1.5 {
+            est += l;
+            exact += analytic(r.position);
+        }
+    }
+    est / exact - 1.0
+}
+
+#[test]
+fn point_light_over_plane_by_photons_only() {
+    let scene = PreparedScene::new(plane_scene(24)).unwrap();
+    for method in [Method::Arpa, Method::Rtpm] {
+        let settings = RenderSettings { method, photons_per_iteration: 20_000, direct_lighting: false, max_depth: 1, ..RenderSettings::default() };
+        let (img, records) = render(&scene, &settings, 8);
+        let err = mean_error(&img, &records);
+        eprintln!("{method:?}, photons only: mean relative error {:+.3}%", err * 100.0);
+        assert!(err.abs() < 0.02, "{method:?}: {err}");
+    }
+}
+
+#[test]
+fn point_light_over_plane_by_next_event_estimation() {
+    let scene = PreparedScene::new(plane_scene(16)).unwrap();
+    let settings = RenderSettings { photons_per_iteration: 1000, direct_lighting: true, max_depth: 1, ..RenderSettings::default() };
+    let (img, records) = render(&scene, &settings, 1);
+    // Exact per pixel (no photons contribute: direct photons are not stored).
+    for (l, r) in img.iter().zip(&records) {
+        let a = analytic(r.position);
+        assert!((l / a - 1.0).abs() < 1e-4, "{l} vs {a}");
+    }
+}
+
+/// Irradiance on the floor below a glass slab (thickness `d`, index `n`, top at height
+/// `h − a` under a point light at height `h`) at distance `rho` from the foot of the light:
+/// `E = I T(θ)² sin θ / (ρ dρ/dθ)` with `ρ(θ) = (h − d) tan θ + d tan θ_t`, `sin θ_t = sin θ/n`
+/// and `T = 1 − R` the Fresnel transmittance of each face (equal by reciprocity).
+fn slab_irradiance(rho: f64, h: f64, d: f64, n: f64) -> f64 {
+    let x = |theta: f64| (h - d) * theta.tan() + d * (theta.sin() / n).asin().tan();
+    let (mut lo, mut hi) = (0.0, 1.5);
+    for _ in 0..100 {
+        let mid = 0.5 * (lo + hi);
+        if x(mid) < rho { lo = mid } else { hi = mid }
+    }
+    let theta = 0.5 * (lo + hi);
+    let t = 1.0 - arpa_core::fresnel::dielectric_reflectance(-theta.cos(), n);
+    if rho < 1e-9 {
+        return t * t * INTENSITY / (h - d + d / n).powi(2);
+    }
+    let eps = 1e-6;
+    let dx = (x(theta + eps) - x(theta - eps)) / (2.0 * eps);
+    INTENSITY * t * t * theta.sin() / (rho * dx)
+}
+
+/// A glass slab (IOR 1.5, thickness 0.2) between a point light and the floor: the caustic
+/// map's irradiance matches the exact two-interface optics (refraction and Fresnel
+/// transmittance at both faces) within 2%, for both methods. ARPA's footprints got there
+/// with differentials propagated through two refractions.
+#[test]
+fn glass_slab_caustic_matches_optics() {
+    let (h, d, n) = (1.0f64, 0.2f64, 1.5f64);
+    let mut scene = plane_scene(8);
+    let s = 4.0f32;
+    let (top, bottom) = (0.6f32, 0.4f32);
+    // Top face (normal +y) and bottom face (normal −y) of a wide slab.
+    let quad = |y: f32, up: bool| -> ([Vec3; 4], [[u32; 3]; 2]) {
+        let p = [Vec3::new(-s, y, -s), Vec3::new(s, y, -s), Vec3::new(s, y, s), Vec3::new(-s, y, s)];
+        (p, if up { [[0, 2, 1], [0, 3, 2]] } else { [[0, 1, 2], [0, 2, 3]] })
+    };
+    let (pt, it) = quad(top, true);
+    let (pb, ib) = quad(bottom, false);
+    let mut positions = pt.to_vec();
+    positions.extend_from_slice(&pb);
+    let mut indices = it.to_vec();
+    indices.extend(ib.iter().map(|t| t.map(|i| i + 4)));
+    scene.materials.push(Material::Dielectric { ior: n as f32, transmittance: Vec3::ONE, roughness: 0.0 });
+    scene.meshes.push(TriangleMesh { name: "slab".into(), positions, normals: None, indices, material: 1, emission: None });
+    let scene = PreparedScene::new(scene).unwrap();
+    let caster = BruteForceCaster::new(&scene);
+    let radii = [0.05f64, 0.25, 0.5];
+    let rings: Vec<Vec<QueryPoint>> = radii
+        .iter()
+        .map(|&rho| {
+            (0..256)
+                .map(|i| {
+                    let phi = i as f32 * std::f32::consts::TAU / 256.0;
+                    let r = if rho == 0.05 { 0.05 * ((i % 8) as f32 + 1.0) / 8.0 } else { rho as f32 };
+                    QueryPoint { position: Vec3::new(r * phi.cos(), 0.0, r * phi.sin()), normal: Vec3::Y }
+                })
+                .collect()
+        })
+        .collect();
+    for method in [Method::Arpa, Method::Rtpm] {
+        let settings = RenderSettings { method, photons_per_iteration: 50_000, direct_lighting: true, max_depth: 4, ..RenderSettings::default() };
+        let iterations = 24;
+        let mut sums = vec![0.0; rings.len()];
+        let mut caustic_footprints = 0usize;
+        for iteration in 0..iterations {
+            let setup = PhotonPassSetup::new(&scene, &settings, iteration);
+            let (mut fps, mut phs) = (vec![], vec![]);
+            for i in 0..setup.photon_count() {
+                trace_photon(&scene, &caster, &settings, &setup, i, &mut |s| match s {
+                    StoredPhoton::Footprint { packed, .. } => fps.push(packed),
+                    StoredPhoton::Progressive { photon, .. } => phs.push(photon),
+                });
+            }
+            caustic_footprints += fps.iter().filter(|f| f.photon_map() == arpa_core::footprint::PhotonMap::Caustic).count();
+            let r = setup.radii.map(|r| r as f32);
+            for (ring, sum) in rings.iter().zip(&mut sums) {
+                for q in ring {
+                    *sum += gather_brute_force(q, &fps, &phs, r, Kernel::Silverman).map(arpa_core::footprint::PhotonMap::Caustic).x;
+                }
+            }
+        }
+        if method == Method::Arpa {
+            assert!(caustic_footprints > 100_000, "{caustic_footprints} caustic footprints");
+        }
+        for ((ring, sum), rho) in rings.iter().zip(&sums).zip(radii) {
+            let estimate = sum / (iterations as usize * ring.len()) as f64;
+            let exact = ring.iter().map(|q| slab_irradiance(q.position.length() as f64, h, d, n)).sum::<f64>() / ring.len() as f64;
+            eprintln!("{method:?} slab caustic at ρ ≈ {rho}: {estimate:.4} vs optics {exact:.4} ({:+.2}%)", (estimate / exact - 1.0) * 100.0);
+            assert!((estimate / exact - 1.0).abs() < 0.02, "{method:?} at ρ ≈ {rho}");
+        }
+    }
+}
