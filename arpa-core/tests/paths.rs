@@ -172,8 +172,8 @@ fn glass_slab_caustic_matches_optics() {
         })
         .collect();
     for method in [Method::Arpa, Method::Rtpm] {
-        let settings = RenderSettings { method, photons_per_iteration: 50_000, direct_lighting: true, max_depth: 4, ..RenderSettings::default() };
-        let iterations = 24;
+        let settings = RenderSettings { method, photons_per_iteration: 200_000, direct_lighting: true, max_depth: 4, ..RenderSettings::default() };
+        let iterations = 16;
         let mut sums = vec![0.0; rings.len()];
         let mut caustic_footprints = 0usize;
         for iteration in 0..iterations {
