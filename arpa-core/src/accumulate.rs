@@ -141,7 +141,7 @@ mod tests {
             m.add(DVec3::splat(x));
             naive += x as f32;
         }
-        let exact = (0.1 + 1e4 / 2.0 + 0.0) as f64; // mean of {0.1, 1e4 + 0.1}
+        let exact = 0.1 + 1e4 / 2.0; // mean of {0.1, 1e4 + 0.1}
         assert!((m.mean().x - exact).abs() <= 1e-12 * exact, "{}", m.mean().x);
         let naive_mean = naive as f64 / n as f64;
         assert!((naive_mean - exact).abs() > 1e-6 * exact, "f32 sum unexpectedly exact: the test proves nothing");

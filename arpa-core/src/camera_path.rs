@@ -36,10 +36,8 @@ pub fn trace_camera_path(scene: &PreparedScene, caster: &impl RayCaster, setting
         let Some(hit) = caster.intersect(origin, dir.as_vec3(), f32::INFINITY) else { break };
         let s = scene.surface(&hit);
         let front = if dir.dot(s.geometric_normal) < 0.0 { s.geometric_normal } else { -s.geometric_normal };
-        if let Some(e) = s.emission {
-            if dir.dot(s.geometric_normal) < 0.0 {
-                radiance += throughput * e.as_dvec3();
-            }
+        if let Some(e) = s.emission.filter(|_| dir.dot(s.geometric_normal) < 0.0) {
+            radiance += throughput * e.as_dvec3();
         }
         match s.scattering {
             Scattering::Diffuse(albedo) => {

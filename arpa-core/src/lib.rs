@@ -35,6 +35,8 @@
 //! * neither: pure `no_std`, maths through `libm`.
 #![no_std]
 #![warn(missing_docs)]
+// `!(x > 0.0)` is used on purpose throughout: it is true for NaN, which must be rejected.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 #[cfg(feature = "alloc")]
 extern crate alloc;

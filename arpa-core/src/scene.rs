@@ -270,7 +270,7 @@ impl Scene {
                 Material::Conductor { reflectance, roughness } if !finite_rgb_in(reflectance, 0.0, 1.0) || !(roughness >= 0.0) => {
                     Some("conductor reflectance outside [0, 1] or negative roughness")
                 }
-                Material::Dielectric { ior, transmittance, roughness } if !(ior > 0.0 && ior.is_finite()) || !finite_rgb_in(transmittance, 0.0, 1.0) || !(roughness >= 0.0) => {
+                Material::Dielectric { ior, transmittance, roughness } if !(ior > 0.0 && ior.is_finite() && finite_rgb_in(transmittance, 0.0, 1.0) && roughness >= 0.0) => {
                     Some("dielectric IOR not positive, transmittance outside [0, 1] or negative roughness")
                 }
                 _ => None,

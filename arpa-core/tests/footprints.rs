@@ -17,7 +17,7 @@ fn unit() -> impl Strategy<Value = DVec3> {
 
 /// A random non-degenerate footprint in the tangent plane of a random normal.
 fn footprint() -> impl Strategy<Value = Footprint> {
-    (unit(), -1e3f64..1e3, -1e3f64..1e3, -1e3f64..1e3, 1e-3f64..10.0, 1e-3f64..10.0, 0.05f64..3.09, 0.0f64..6.28).prop_map(
+    (unit(), -1e3f64..1e3, -1e3f64..1e3, -1e3f64..1e3, 1e-3f64..10.0, 1e-3f64..10.0, 0.05f64..3.09, 0.0f64..std::f64::consts::TAU).prop_map(
         |(n, x, y, z, la, lb, angle, rot)| {
             let f = arpa_core::frame::Frame::from_normal(n);
             let dir = |t: f64| f.t * t.cos() + f.b * t.sin();
@@ -61,7 +61,7 @@ proptest! {
     }
 
     #[test]
-    fn point_in_footprint_matches_parametric_test(fp in footprint(), s in 0.0f64..2.0, t in 0.0f64..6.2832, off in -1.0f64..1.0) {
+    fn point_in_footprint_matches_parametric_test(fp in footprint(), s in 0.0f64..2.0, t in 0.0f64..std::f64::consts::TAU, off in -1.0f64..1.0) {
         // Points along rays from the centre, in the plane, at parametric radius s, plus a
         // normal offset inside or outside the slab.
         let radius = 0.01;
