@@ -55,8 +55,9 @@ pub enum FootprintError {
     Unrepresentable,
 }
 
-/// Smallest minor semi-axis of a storable footprint relative to `max(|x_p|_∞, 1e-30)`
-/// (64 `f32` ulps): below it `q − x_p` computed in `f32` no longer resolves the ellipse.
+/// Smallest minor semi-axis (its lower bound [`Footprint::minor_semi_axis_bound`]) of a
+/// storable footprint relative to `max(|x_p|_∞, 1e-30)` (64 `f32` ulps): below it
+/// `q − x_p` computed in `f32` no longer resolves the ellipse.
 pub const MIN_RELATIVE_SEMI_AXIS: f64 = 64.0 * f32::EPSILON as f64;
 
 /// A photon footprint in double precision: what the heuristics operate on.
@@ -107,6 +108,7 @@ impl Footprint {
     /// surface with geometric normal `geometric_normal` (either orientation). The normal
     /// is oriented towards the arriving photon and the differentials are projected into
     /// the tangent plane.
+    #[inline]
     pub fn from_hit(ray: &RayDifferential, geometric_normal: DVec3, flux: DVec3, map: PhotonMap) -> Result<Self, FootprintError> {
         let n = geometric_normal.normalize_or_zero();
         if n == DVec3::ZERO || !n.is_finite() {
@@ -205,36 +207,67 @@ impl Footprint {
         Aabb::from_centre_half_extent(self.center, e)
     }
 
+    /// A lower bound of the minor semi-axis `σ₂`: `|a × b| / √(|a|² + |b|²)` with
+    /// `a = D_u/2`, `b = D_v/2` (metres). `σ₂` lies between it and `√2` times it; it needs
+    /// no eigen-decomposition, so the storage check stays cheap.
+    #[inline]
+    pub fn minor_semi_axis_bound(&self) -> f64 {
+        let norm2 = 0.25 * (self.du.length_squared() + self.dv.length_squared());
+        if !(norm2 > 0.0) {
+            return 0.0;
+        }
+        0.25 * self.du.cross(self.dv).length() / libm::sqrt(norm2)
+    }
+
     /// The `f32` record the gather reads (see [`PackedFootprint`]), with the slab
-    /// half-thickness of the current progressive `radius`.
+    /// half-thickness of the current progressive `radius`. Fails when `M_p⁻¹` does not
+    /// exist, or when `f32` cannot resolve the ellipse: [`Footprint::minor_semi_axis_bound`]
+    /// below [`MIN_RELATIVE_SEMI_AXIS`] times the largest centre coordinate, or a stored
+    /// value overflows.
     pub fn pack(&self, radius: f64) -> Result<PackedFootprint, FootprintError> {
-        let m = self.filter_transform()?;
-        let (_, s2) = self.semi_axes();
-        let scale = self.center.abs().max_element().max(1e-30);
-        if !(s2 >= MIN_RELATIVE_SEMI_AXIS * scale) {
-            return Err(FootprintError::Unrepresentable);
-        }
-        let h = self.half_thickness(radius);
-        if !(h > 0.0) {
-            return Err(FootprintError::Unrepresentable);
-        }
-        let density = self.flux * m.determinant();
-        let f = |v: DVec3| v.as_vec3().to_array();
-        let packed = PackedFootprint {
-            center: f(self.center),
-            map: self.map as u32,
-            row_u: f(m.row_u),
-            flux_density_r: density.x as f32,
-            row_v: f(m.row_v),
-            flux_density_g: density.y as f32,
-            row_n: f(self.normal / h),
-            flux_density_b: density.z as f32,
-        };
-        if bytemuck::cast_ref::<_, [f32; 16]>(&packed).iter().enumerate().all(|(i, x)| i == 3 || x.is_finite()) {
-            Ok(packed)
-        } else {
-            Err(FootprintError::Unrepresentable)
-        }
+        let la2 = self.du.length_squared();
+        let lb2 = self.dv.length_squared();
+        pack_parts(self, la2, lb2, self.du.cross(self.dv), radius)
+    }
+}
+
+/// [`Footprint::pack`] with the squared differential lengths and `D_u × D_v` already known.
+#[inline]
+pub(crate) fn pack_parts(fp: &Footprint, la2: f64, lb2: f64, cross: DVec3, radius: f64) -> Result<PackedFootprint, FootprintError> {
+    // (D_u × D_v)·n = D_u·(D_v × n): the denominator of M_p⁻¹; |den| = |D_u × D_v| in-plane.
+    let den = cross.dot(fp.normal);
+    if !(den != 0.0) || !den.is_finite() {
+        return Err(FootprintError::Degenerate);
+    }
+    // σ₂ ≥ |a × b|/√(|a|² + |b|²) ≥ k·scale, compared in squares:
+    // |D_u × D_v|² ≥ 4 (|D_u|² + |D_v|²) (k·scale)².
+    let scale = fp.center.abs().max_element().max(1e-30) * MIN_RELATIVE_SEMI_AXIS;
+    if !(cross.length_squared() >= 4.0 * (la2 + lb2) * scale * scale) {
+        return Err(FootprintError::Unrepresentable);
+    }
+    let h = (0.5 * libm::sqrt(la2.min(lb2))).min(radius);
+    if !(h > 0.0) {
+        return Err(FootprintError::Unrepresentable);
+    }
+    let inv = 2.0 / den;
+    let row_u = fp.dv.cross(fp.normal) * inv;
+    let row_v = fp.normal.cross(fp.du) * inv;
+    let density = fp.flux * (2.0 * inv.abs());
+    let f = |v: DVec3| v.as_vec3().to_array();
+    let packed = PackedFootprint {
+        center: f(fp.center),
+        map: fp.map as u32,
+        row_u: f(row_u),
+        flux_density_r: density.x as f32,
+        row_v: f(row_v),
+        flux_density_g: density.y as f32,
+        row_n: f(fp.normal / h),
+        flux_density_b: density.z as f32,
+    };
+    if bytemuck::cast_ref::<_, [f32; 16]>(&packed).iter().enumerate().all(|(i, x)| i == 3 || x.is_finite()) {
+        Ok(packed)
+    } else {
+        Err(FootprintError::Unrepresentable)
     }
 }
 

@@ -36,7 +36,8 @@
 //!   or AABB surface area against the scene AABB's surface area.
 
 use crate::aabb::Aabb;
-use crate::footprint::Footprint;
+use crate::footprint::{pack_parts, Footprint, PackedFootprint};
+use glam::DVec3;
 
 /// A length given in scene units or relative to the scene's bounding-box diagonal.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -241,5 +242,143 @@ impl Heuristics {
             return Err(Rejection::Culled);
         }
         Ok((fp, bounds))
+    }
+}
+
+/// [`Heuristics`] with every scene-dependent quantity resolved once per scene (h_max
+/// in metres, culling thresholds), and a fused [`ResolvedHeuristics::store`] that runs the
+/// whole chain with each length, cross product and square root computed once. This is
+/// the per-photon hot path; it makes exactly the decisions of [`Heuristics::apply`]
+/// followed by [`Footprint::pack`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ResolvedHeuristics {
+    dampening: Option<Dampening>,
+    h_max: Option<(f64, HMaxMode)>,
+    degenerate: Option<f64>,
+    cull: Option<(CullMetric, f64)>,
+}
+
+/// Why [`ResolvedHeuristics::store`] did not produce a footprint record.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum StoreRejection {
+    /// Rejected by a heuristic.
+    Heuristic(Rejection),
+    /// The ellipse cannot be resolved in `f32` storage.
+    Unrepresentable,
+}
+
+#[inline]
+fn dampen_ratio(major: f64, reference: f64, exponent: f64) -> f64 {
+    // ℓ'/ℓ = (ℓ/ℓ_ref)^(γ−1); γ = 1/4 (ARPA) needs only square roots.
+    let x = major / reference;
+    if exponent == 0.25 {
+        let s = libm::sqrt(x);
+        1.0 / (s * libm::sqrt(s))
+    } else {
+        libm::exp((exponent - 1.0) * libm::log(x))
+    }
+}
+
+impl Heuristics {
+    /// Resolves the scene-dependent quantities for a scene with bounds `scene_bounds`.
+    pub fn resolve(&self, scene_bounds: &Aabb) -> ResolvedHeuristics {
+        ResolvedHeuristics {
+            dampening: self.dampening,
+            h_max: self.h_max.map(|h| (h.length.resolve(scene_bounds), h.mode)),
+            degenerate: self.degenerate.map(|d| d.fraction),
+            cull: self.culling.map(|c| {
+                let scene = match c.metric {
+                    CullMetric::LargestExtent => scene_bounds.largest_extent(),
+                    CullMetric::Diagonal => scene_bounds.diagonal(),
+                    CullMetric::SurfaceArea => scene_bounds.surface_area(),
+                };
+                (c.metric, c.fraction * scene)
+            }),
+        }
+    }
+}
+
+impl ResolvedHeuristics {
+    /// Runs dampening, H-max, degenerate removal, the AABB and culling (the documented
+    /// order) and packs the footprint for progressive radius `radius` (metres). Returns
+    /// the final footprint, its record and its box, or why it must become a progressive
+    /// photon.
+    #[inline]
+    pub fn store(&self, mut fp: Footprint, radius: f64) -> Result<(Footprint, PackedFootprint, Aabb), StoreRejection> {
+        let mut la2 = fp.du.length_squared();
+        let mut lb2 = fp.dv.length_squared();
+        if let Some(d) = self.dampening {
+            let major = libm::sqrt(la2.max(lb2));
+            let reference = match d.reference {
+                DampenReference::Absolute(l) => l,
+                DampenReference::ProgressiveDiameter => 2.0 * radius,
+            };
+            if major > 0.0 && major.is_finite() && reference > 0.0 && reference.is_finite() {
+                let ratio = dampen_ratio(major, reference, d.exponent);
+                if ratio.is_finite() && ratio > 0.0 {
+                    fp.du *= ratio;
+                    fp.dv *= ratio;
+                    la2 = fp.du.length_squared();
+                    lb2 = fp.dv.length_squared();
+                }
+            }
+        }
+        if let Some((h, mode)) = self.h_max.filter(|(h, _)| *h > 0.0) {
+            let h2 = h * h;
+            match mode {
+                HMaxMode::EachDifferential => {
+                    if la2 > h2 {
+                        fp.du *= h / libm::sqrt(la2);
+                        la2 = fp.du.length_squared();
+                    }
+                    if lb2 > h2 {
+                        fp.dv *= h / libm::sqrt(lb2);
+                        lb2 = fp.dv.length_squared();
+                    }
+                }
+                HMaxMode::PreserveAspect => {
+                    let major2 = la2.max(lb2);
+                    if major2 > h2 {
+                        let s = h / libm::sqrt(major2);
+                        fp.du *= s;
+                        fp.dv *= s;
+                        la2 = fp.du.length_squared();
+                        lb2 = fp.dv.length_squared();
+                    }
+                }
+            }
+        }
+        let cross = fp.du.cross(fp.dv);
+        let major2 = la2.max(lb2);
+        if let Some(f) = self.degenerate {
+            // |D_u × D_v| < f |D_major|², in squares.
+            if !(major2 > 0.0) || !(cross.length_squared() >= f * f * major2 * major2) {
+                return Err(StoreRejection::Heuristic(Rejection::Degenerate));
+            }
+        }
+        let den = cross.dot(fp.normal);
+        if !(den != 0.0) || !den.is_finite() {
+            return Err(StoreRejection::Heuristic(Rejection::Degenerate));
+        }
+        let h = (0.5 * libm::sqrt(la2.min(lb2))).min(radius);
+        let n = fp.normal * h;
+        let e2 = 0.25 * (fp.du * fp.du + fp.dv * fp.dv) + n * n;
+        let e = DVec3::new(libm::sqrt(e2.x), libm::sqrt(e2.y), libm::sqrt(e2.z));
+        let bounds = Aabb::from_centre_half_extent(fp.center, e);
+        if let Some((metric, threshold)) = self.cull {
+            let mine = match metric {
+                CullMetric::LargestExtent => 2.0 * e.max_element(),
+                CullMetric::Diagonal => 2.0 * e.length(),
+                CullMetric::SurfaceArea => 8.0 * (e.x * e.y + e.y * e.z + e.z * e.x),
+            };
+            if !(mine <= threshold) {
+                return Err(StoreRejection::Heuristic(Rejection::Culled));
+            }
+        }
+        match pack_parts(&fp, la2, lb2, cross, radius) {
+            Ok(packed) => Ok((fp, packed, bounds)),
+            Err(crate::footprint::FootprintError::Degenerate) => Err(StoreRejection::Heuristic(Rejection::Degenerate)),
+            Err(_) => Err(StoreRejection::Unrepresentable),
+        }
     }
 }

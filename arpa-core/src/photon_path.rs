@@ -12,13 +12,13 @@ use crate::differential::{refract_direction, reflect_direction, RayDifferential,
 use crate::emission::{EmissionParams, Light};
 use crate::footprint::{Footprint, PhotonMap};
 use crate::fresnel::dielectric_reflectance;
-use crate::heuristics::HeuristicContext;
+use crate::heuristics::ResolvedHeuristics;
 use crate::prepared_scene::{offset_origin, PreparedScene};
 use crate::ray_cast::RayCaster;
 use crate::reemission::{diffuse_direction, reemit};
 use crate::rng::{Rng, StreamDomain};
 use crate::scene::Scattering;
-use crate::store::{store_footprint, store_progressive, ProgressiveReason, StoredPhoton};
+use crate::store::{store_footprint_resolved, store_progressive, ProgressiveReason, StoredPhoton};
 use crate::tracer::{Method, RenderSettings};
 use alloc::vec::Vec;
 use glam::DVec3;
@@ -36,6 +36,8 @@ pub struct PhotonPassSetup {
     pub radii: [f64; 2],
     /// 0-based iteration number.
     pub iteration: u32,
+    /// The settings' heuristics resolved for the scene.
+    pub heuristics: ResolvedHeuristics,
 }
 
 impl PhotonPassSetup {
@@ -57,7 +59,7 @@ impl PhotonPassSetup {
             })
             .collect();
         let radii = settings.radii.radii(&scene.bounds(), iteration + 1);
-        Self { allocation, first_index, params, radii, iteration }
+        Self { allocation, first_index, params, radii, iteration, heuristics: settings.heuristics.resolve(&scene.bounds()) }
     }
 
     /// Total photons of the iteration.
@@ -108,7 +110,6 @@ pub fn trace_photon(
     let Ok(emitted) = light.emit(local, &setup.params[emitter], &mut rng) else { return stats };
     let reemission_length = emitted.reemission_length;
     let mut st = PathState { ray: emitted.ray, differential_valid: true, flux: emitted.flux, classifier: PathClassifier::new() };
-    let scene_bounds = scene.bounds();
     let mut origin = st.ray.p.as_vec3();
     for _ in 0..settings.max_depth {
         let d = st.ray.d;
@@ -132,7 +133,7 @@ pub fn trace_photon(
                 let map = st.classifier.record(SurfaceInteraction::Diffuse).unwrap_or(PhotonMap::Global);
                 let first_interaction = st.classifier.diffuse_events() == 1 && st.classifier.specular_events() == 0;
                 if !(settings.direct_lighting && first_interaction) {
-                    sink(store(&ray_at_hit, &s.geometric_normal, st.flux, map, st.differential_valid, settings, setup, &scene_bounds));
+                    sink(store(&ray_at_hit, &s.geometric_normal, st.flux, map, st.differential_valid, settings, setup));
                     stats.stored += 1;
                 }
                 let albedo = albedo.as_dvec3();
@@ -210,7 +211,7 @@ fn lost_differential(p: DVec3, d: DVec3) -> RayDifferential {
 }
 
 #[allow(clippy::too_many_arguments)]
-fn store(ray: &RayDifferential, normal: &DVec3, flux: DVec3, map: PhotonMap, differential_valid: bool, settings: &RenderSettings, setup: &PhotonPassSetup, scene_bounds: &crate::aabb::Aabb) -> StoredPhoton {
+fn store(ray: &RayDifferential, normal: &DVec3, flux: DVec3, map: PhotonMap, differential_valid: bool, settings: &RenderSettings, setup: &PhotonPassSetup) -> StoredPhoton {
     let reason = match (settings.method, differential_valid) {
         (Method::Rtpm, _) => Some(ProgressiveReason::ProgressiveMethod),
         (Method::Arpa, false) => Some(ProgressiveReason::DifferentialLost),
@@ -220,10 +221,7 @@ fn store(ray: &RayDifferential, normal: &DVec3, flux: DVec3, map: PhotonMap, dif
         return store_progressive(ray.p, *normal, ray.d, flux, map, reason);
     }
     match Footprint::from_hit(ray, *normal, flux, map) {
-        Ok(fp) => {
-            let ctx = HeuristicContext { radius: setup.radii[map.index()], scene_bounds: *scene_bounds };
-            store_footprint(fp, &settings.smoothing, &settings.heuristics, &ctx)
-        }
+        Ok(fp) => store_footprint_resolved(fp, &settings.smoothing, &setup.heuristics, setup.radii[map.index()]),
         Err(_) => store_progressive(ray.p, *normal, ray.d, flux, map, ProgressiveReason::DifferentialLost),
     }
 }

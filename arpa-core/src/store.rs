@@ -5,7 +5,7 @@
 use crate::aabb::Aabb;
 use crate::classify::Smoothing;
 use crate::footprint::{Footprint, PackedFootprint, PhotonMap};
-use crate::heuristics::{HeuristicContext, Heuristics, Rejection};
+use crate::heuristics::{HeuristicContext, Heuristics, Rejection, ResolvedHeuristics, StoreRejection};
 use crate::progressive_photon::{PackedPhoton, ProgressivePhoton};
 use glam::DVec3;
 
@@ -72,14 +72,22 @@ fn fallback(fp: &Footprint, reason: ProgressiveReason) -> StoredPhoton {
 /// Stores footprint `fp` (unsmoothed, as built by [`Footprint::from_hit`]): applies the
 /// map's smoothing factor, then the heuristics, then packs it. Anything rejected becomes a
 /// progressive photon carrying the same flux, so energy is never lost or created.
+///
+/// Resolves the heuristics for `ctx.scene_bounds` on every call; a photon pass should
+/// resolve once ([`Heuristics::resolve`]) and call [`store_footprint_resolved`].
 pub fn store_footprint(fp: Footprint, smoothing: &Smoothing, heuristics: &Heuristics, ctx: &HeuristicContext) -> StoredPhoton {
+    store_footprint_resolved(fp, smoothing, &heuristics.resolve(&ctx.scene_bounds), ctx.radius)
+}
+
+/// [`store_footprint`] with heuristics resolved for the scene and the footprint map's
+/// progressive `radius` (metres): the per-photon hot path.
+#[inline]
+pub fn store_footprint_resolved(fp: Footprint, smoothing: &Smoothing, heuristics: &ResolvedHeuristics, radius: f64) -> StoredPhoton {
     let fp = smoothing.apply(fp);
-    match heuristics.apply(fp, ctx) {
-        Ok((fp, aabb)) => match fp.pack(ctx.radius) {
-            Ok(packed) => StoredPhoton::Footprint { packed, aabb },
-            Err(_) => fallback(&fp, ProgressiveReason::Unrepresentable),
-        },
-        Err(rejection) => fallback(&fp, rejection.into()),
+    match heuristics.store(fp, radius) {
+        Ok((_, packed, aabb)) => StoredPhoton::Footprint { packed, aabb },
+        Err(StoreRejection::Heuristic(r)) => fallback(&fp, r.into()),
+        Err(StoreRejection::Unrepresentable) => fallback(&fp, ProgressiveReason::Unrepresentable),
     }
 }
 

@@ -85,7 +85,8 @@ proptest! {
             }
             Err(e) => {
                 prop_assert_eq!(e, arpa_core::footprint::FootprintError::Unrepresentable);
-                prop_assert!(s2 < arpa_core::footprint::MIN_RELATIVE_SEMI_AXIS * scale);
+                prop_assert!(fp.minor_semi_axis_bound() < arpa_core::footprint::MIN_RELATIVE_SEMI_AXIS * scale);
+                prop_assert!(s2 < std::f64::consts::SQRT_2 * arpa_core::footprint::MIN_RELATIVE_SEMI_AXIS * scale);
             }
         }
     }
