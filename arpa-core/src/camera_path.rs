@@ -17,8 +17,8 @@ use crate::rng::{Rng, StreamDomain};
 use crate::sampling::uniform_triangle;
 use crate::scene::Scattering;
 use crate::tracer::{QueryRecord, RenderSettings};
-use core::f64::consts::{FRAC_1_PI, PI};
-use glam::{DVec2, DVec3, Vec3};
+use core::f64::consts::FRAC_1_PI;
+use glam::DVec3;
 
 /// Traces the camera path of `pixel` (row-major) in 0-based `iteration`.
 pub fn trace_camera_path(scene: &PreparedScene, caster: &impl RayCaster, settings: &RenderSettings, iteration: u32, pixel: u32) -> QueryRecord {
@@ -160,6 +160,5 @@ pub fn direct_irradiance(scene: &PreparedScene, caster: &impl RayCaster, s: &Sur
             }
         }
     }
-    let _ = (PI, DVec2::ZERO, Vec3::ZERO);
     e
 }

@@ -178,6 +178,9 @@ pub struct EmittedPhoton {
     pub flux: DVec3,
     /// Directional length for re-emission at diffuse bounces (radians).
     pub reemission_length: f64,
+    /// Unit normal of the emitting surface for area lights (the side emitted into), so
+    /// the first ray can leave the emitter without hitting it; `None` for delta lights.
+    pub surface_normal: Option<DVec3>,
 }
 
 fn finite3(v: &[DVec3]) -> bool {
@@ -348,12 +351,12 @@ impl Light {
         let lengths = self.emission_lengths(n, params.scale, radius);
         let u = crate::sampling::fibonacci_lattice(index, n, params.lattice_shift);
         let per_photon = 1.0 / n as f64;
-        let (ray, flux) = match self {
+        let (ray, flux, surface_normal) = match self {
             Light::Point(l) => {
                 let d = uniform_sphere(u);
                 let f = Frame::from_normal(d);
                 let w = lengths.directional;
-                (RayDifferential::new(l.position, d, DVec3::ZERO, DVec3::ZERO, f.t * w, f.b * w)?, l.intensity * (4.0 * PI * per_photon))
+                (RayDifferential::new(l.position, d, DVec3::ZERO, DVec3::ZERO, f.t * w, f.b * w)?, l.intensity * (4.0 * PI * per_photon), None)
             }
             Light::Spot(l) => {
                 let axis = Frame::from_normal(l.direction);
@@ -364,7 +367,7 @@ impl Light {
                 let f = Frame::from_normal(d);
                 let w = lengths.directional;
                 let flux = l.intensity * (l.falloff_at(theta) * cone_solid_angle(cos_c) * per_photon);
-                (RayDifferential::new(l.position, d, DVec3::ZERO, DVec3::ZERO, f.t * w, f.b * w)?, flux)
+                (RayDifferential::new(l.position, d, DVec3::ZERO, DVec3::ZERO, f.t * w, f.b * w)?, flux, None)
             }
             Light::Directional(l) => {
                 let d = l.direction.normalize();
@@ -372,7 +375,7 @@ impl Light {
                 let disc = uniform_disc(u) * radius;
                 let origin = centre - d * radius + f.t * disc.x + f.b * disc.y;
                 let x = lengths.positional;
-                (RayDifferential::new(origin, d, f.t * x, f.b * x, DVec3::ZERO, DVec3::ZERO)?, l.irradiance * (PI * radius * radius * per_photon))
+                (RayDifferential::new(origin, d, f.t * x, f.b * x, DVec3::ZERO, DVec3::ZERO)?, l.irradiance * (PI * radius * radius * per_photon), None)
             }
             Light::Triangle(l) => {
                 let b = uniform_triangle(u);
@@ -386,11 +389,11 @@ impl Light {
                 self.area_photon(p, normal, l.edge_u, l.radiance, &lengths, per_photon, rng)?
             }
         };
-        Ok(EmittedPhoton { ray, flux, reemission_length: lengths.reemission })
+        Ok(EmittedPhoton { ray, flux, reemission_length: lengths.reemission, surface_normal })
     }
 
     #[allow(clippy::too_many_arguments)]
-    fn area_photon(&self, p: DVec3, normal: DVec3, edge: DVec3, radiance: DVec3, lengths: &EmissionLengths, per_photon: f64, rng: &mut Rng) -> Result<(RayDifferential, DVec3), EmissionError> {
+    fn area_photon(&self, p: DVec3, normal: DVec3, edge: DVec3, radiance: DVec3, lengths: &EmissionLengths, per_photon: f64, rng: &mut Rng) -> Result<(RayDifferential, DVec3, Option<DVec3>), EmissionError> {
         let light_frame = Frame::from_normal_and_hint(normal, edge);
         let d = light_frame.to_world(cosine_hemisphere(rng.next_2d())).normalize_or(light_frame.n);
         // Directional frame aligned with the positional one so the two spreads add up
@@ -398,7 +401,7 @@ impl Light {
         let dir_frame = Frame::from_normal_and_hint(d, light_frame.t);
         let (x, w) = (lengths.positional, lengths.directional);
         let ray = RayDifferential::new(p, d, light_frame.t * x, light_frame.b * x, dir_frame.t * w, dir_frame.b * w)?;
-        Ok((ray, radiance * (PI * self.area() * per_photon)))
+        Ok((ray, radiance * (PI * self.area() * per_photon), Some(light_frame.n)))
     }
 }
 

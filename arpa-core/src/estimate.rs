@@ -33,30 +33,33 @@ pub struct IrradianceEstimate {
 }
 
 impl IrradianceEstimate {
+    /// Adds an already evaluated contribution `e` (W/m²) of `map`; zero or non-finite
+    /// contributions are skipped. Returns `true` when it counted.
+    #[inline]
+    pub fn add(&mut self, map: PhotonMap, e: Vec3) -> bool {
+        if e == Vec3::ZERO || !e.is_finite() {
+            return false;
+        }
+        self.per_map[map.index()] += e.as_dvec3();
+        true
+    }
+
     /// Adds a footprint's contribution if it contains `q` (exact ellipse + slab test)
     /// and faces it. Returns `true` when it contributed.
     #[inline]
     pub fn add_footprint(&mut self, fp: &PackedFootprint, q: &QueryPoint, kernel: Kernel) -> bool {
-        let e = fp.irradiance(q.position, q.normal, kernel);
-        if e == Vec3::ZERO || !e.is_finite() {
-            return false;
-        }
-        self.per_map[fp.photon_map().index()] += e.as_dvec3();
-        self.footprints += 1;
-        true
+        let counted = self.add(fp.photon_map(), fp.irradiance(q.position, q.normal, kernel));
+        self.footprints += counted as u32;
+        counted
     }
 
     /// Adds a progressive photon's contribution for its map's radius `radii[map]`.
     #[inline]
     pub fn add_photon(&mut self, ph: &PackedPhoton, q: &QueryPoint, radii: [f32; 2]) -> bool {
         let map = ph.photon_map();
-        let e = ph.irradiance(q.position, q.normal, radii[map.index()]);
-        if e == Vec3::ZERO || !e.is_finite() {
-            return false;
-        }
-        self.per_map[map.index()] += e.as_dvec3();
-        self.photons += 1;
-        true
+        let counted = self.add(map, ph.irradiance(q.position, q.normal, radii[map.index()]));
+        self.photons += counted as u32;
+        counted
     }
 
     /// Total irradiance of both maps (W/m²).

@@ -197,13 +197,15 @@ impl Footprint {
     }
 
     /// Bounding box for the acceleration structure: `x_p ± e` with
-    /// `e_k = √(a_k² + b_k² + h_k²)`, the exact box of the ellipsoid with conjugate
-    /// semi-diameters `a = D_u/2`, `b = D_v/2` and `h·n` (`h` = [`Footprint::half_thickness`]).
+    /// `e_k = √(a_k² + b_k²) + |h n_k|`, the exact box of the elliptic slab the
+    /// point-in-footprint test accepts (ellipse with conjugate semi-diameters
+    /// `a = D_u/2`, `b = D_v/2`, extruded by `±h n`, `h` = [`Footprint::half_thickness`]).
+    #[inline]
     pub fn aabb(&self, radius: f64) -> Aabb {
         let a = 0.5 * self.du;
         let b = 0.5 * self.dv;
         let h = self.normal * self.half_thickness(radius);
-        let e = (a * a + b * b + h * h).map(libm::sqrt);
+        let e = (a * a + b * b).map(libm::sqrt) + h.abs();
         Aabb::from_centre_half_extent(self.center, e)
     }
 

@@ -361,9 +361,9 @@ impl ResolvedHeuristics {
             return Err(StoreRejection::Heuristic(Rejection::Degenerate));
         }
         let h = (0.5 * libm::sqrt(la2.min(lb2))).min(radius);
-        let n = fp.normal * h;
-        let e2 = 0.25 * (fp.du * fp.du + fp.dv * fp.dv) + n * n;
-        let e = DVec3::new(libm::sqrt(e2.x), libm::sqrt(e2.y), libm::sqrt(e2.z));
+        // The box of the elliptic slab (see `Footprint::aabb`).
+        let e2 = 0.25 * (fp.du * fp.du + fp.dv * fp.dv);
+        let e = DVec3::new(libm::sqrt(e2.x), libm::sqrt(e2.y), libm::sqrt(e2.z)) + (fp.normal * h).abs();
         let bounds = Aabb::from_centre_half_extent(fp.center, e);
         if let Some((metric, threshold)) = self.cull {
             let mine = match metric {

@@ -58,7 +58,7 @@ impl PhotonPassSetup {
                 EmissionParams { photon_count: n.max(1), scale: 1.0, scene_sphere: scene.bounding_sphere(), lattice_shift: r.next_2d() }
             })
             .collect();
-        let radii = settings.radii.radii(&scene.bounds(), iteration + 1);
+        let radii = settings.radii.radii(&scene.bounds(), iteration.saturating_add(1));
         Self { allocation, first_index, params, radii, iteration, heuristics: settings.heuristics.resolve(&scene.bounds()) }
     }
 
@@ -110,7 +110,11 @@ pub fn trace_photon(
     let Ok(emitted) = light.emit(local, &setup.params[emitter], &mut rng) else { return stats };
     let reemission_length = emitted.reemission_length;
     let mut st = PathState { ray: emitted.ray, differential_valid: true, flux: emitted.flux, classifier: PathClassifier::new() };
-    let mut origin = st.ray.p.as_vec3();
+    // Area-light photons start on the emitter: leave it along its normal.
+    let mut origin = match emitted.surface_normal {
+        Some(n) => offset_origin(st.ray.p, n),
+        None => st.ray.p.as_vec3(),
+    };
     for _ in 0..settings.max_depth {
         let d = st.ray.d;
         stats.segments += 1;

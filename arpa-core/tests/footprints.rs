@@ -97,14 +97,17 @@ proptest! {
         let h = fp.half_thickness(radius);
         let eps = 1e-9 * (1.0 + fp.center.abs().max_element());
         let grown = arpa_core::aabb::Aabb { min: bb.min - DVec3::splat(eps), max: bb.max + DVec3::splat(eps) };
+        // Everything the point-in-footprint test accepts: the ellipse extruded by ±h n
+        // (rim points on both faces of the slab).
         for k in 0..256 {
             let t = k as f64 / 256.0 * std::f64::consts::TAU;
             let p = fp.center + fp.du * 0.5 * t.cos() + fp.dv * 0.5 * t.sin();
-            prop_assert!(grown.contains(p));
-            prop_assert!(grown.contains(fp.center + fp.normal * h));
-            prop_assert!(grown.contains(fp.center - fp.normal * h));
+            for side in [-1.0, 0.0, 1.0] {
+                let q = p + fp.normal * (side * h);
+                prop_assert!(grown.contains(q));
+            }
         }
-        // Tight along each axis: no more than the ellipsoid's own extent.
+        // Tight along each axis: no more than the slab's parallelogram bound.
         let ext_max = (fp.du.abs() + fp.dv.abs()) * 0.5 + fp.normal.abs() * h;
         prop_assert!(bb.extent().cmple(ext_max * 2.0 + DVec3::splat(eps)).all());
     }

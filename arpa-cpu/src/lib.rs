@@ -8,6 +8,10 @@
 //!   [`Scene::occluded`] (any hit) and [`Scene::point_query`] / [`Scene::boxes_containing`]
 //!   (boxes around a point) can be called from many threads at once.
 //!
+//! * [`CpuTracer`] is the CPU backend of [`arpa_core::tracer::Tracer`]: the whole
+//!   photon-mapping iteration on Embree (rays through [`EmbreeCaster`], footprint and photon
+//!   boxes through point queries) and rayon, deterministic for any thread count.
+//!
 //! All coordinates are `f32` in one world frame chosen by the caller (the same frame and
 //! unit for vertices, boxes, ray origins and query points); ray parameters `t` are in units
 //! of the ray direction's length. Errors come back as [`EmbreeError`]; nothing panics
@@ -23,14 +27,19 @@
 
 #![warn(missing_docs)]
 
+mod caster;
 mod device;
 mod error;
 mod ffi;
+mod photon_store;
 mod scene;
+mod tracer;
 
+pub use caster::EmbreeCaster;
 pub use device::Device;
 pub use error::{EmbreeError, Result};
 pub use scene::{Aabb, BuildQuality, Hit, PointQueryCandidate, Scene, SceneBuilder};
+pub use tracer::{validate_settings, CpuError, CpuTracer, PHOTON_CHUNK};
 
 #[cfg(test)]
 mod tests {

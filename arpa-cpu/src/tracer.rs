@@ -1,0 +1,701 @@
+//! [`CpuTracer`]: the CPU backend of [`arpa_core::tracer::Tracer`] on Embree 4 and rayon.
+
+use core::sync::atomic::{AtomicU64, Ordering};
+use std::time::Instant;
+
+use arpa_core::accumulate::ImageAccumulator;
+use arpa_core::camera_path::trace_camera_path;
+use arpa_core::estimate::IrradianceEstimate;
+use arpa_core::footprint::PackedFootprint;
+use arpa_core::footprint::PhotonMap;
+use arpa_core::glam::{DVec3, Vec3};
+use arpa_core::heuristics::DampenReference;
+use arpa_core::kernel::Kernel;
+use arpa_core::photon_path::{PhotonPassSetup, trace_photon};
+use arpa_core::prepared_scene::PreparedScene;
+use arpa_core::progressive_photon::PackedPhoton;
+use arpa_core::radius::RadiusSpec;
+use arpa_core::scene::{Scene as CoreScene, SceneError};
+use arpa_core::tracer::{
+    Capabilities, Image, IterationStats, Method, QueryRecord, RenderSettings, Tracer,
+};
+use rayon::prelude::*;
+
+use crate::caster::EmbreeCaster;
+use crate::device::Device;
+use crate::error::EmbreeError;
+use crate::photon_store::{PhotonStore, photon_box};
+use crate::scene::{Aabb, BuildQuality, Scene, SceneBuilder};
+
+/// Photon indices traced by one task of the photon pass. The stored photons of each chunk
+/// are concatenated in chunk order, so the buffers do not depend on the thread count.
+pub const PHOTON_CHUNK: u32 = 4096;
+
+/// Errors of the CPU backend.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum CpuError {
+    /// The scene failed validation.
+    #[error("invalid scene: {0}")]
+    Scene(#[from] SceneError),
+    /// A render setting is out of range.
+    #[error("invalid render settings: {0}")]
+    Settings(String),
+    /// The image has more pixels than the `u32` pixel index can address.
+    #[error("image of {width}×{height} pixels is too large (at most 2^32 − 1 pixels)")]
+    ImageTooLarge {
+        /// Width in pixels.
+        width: u32,
+        /// Height in pixels.
+        height: u32,
+    },
+    /// Embree failed (device creation, BVH build).
+    #[error(transparent)]
+    Embree(#[from] EmbreeError),
+    /// A stage was called before the stage it depends on (in this iteration).
+    #[error("{stage} called before {needs}")]
+    StageOrder {
+        /// The stage called.
+        stage: &'static str,
+        /// What has to run first.
+        needs: &'static str,
+    },
+    /// `u32::MAX − 1` iterations have been accumulated: the iteration index of the random
+    /// streams and the radius schedule cannot go further.
+    #[error("iteration limit reached ({0} iterations)")]
+    IterationLimit(u32),
+    /// A buffer could not be allocated.
+    #[error("out of memory allocating {0}")]
+    OutOfMemory(&'static str),
+}
+
+/// The photon-mapping pipeline on the CPU: Embree 4 for rays and box queries, rayon for
+/// parallelism.
+///
+/// Shaped like a GPU backend: the tracer owns every buffer (scene BVH, query records,
+/// footprints, progressive photons, their box BVH, the iteration image and the running
+/// mean); the stages only read and write those buffers, and the host sees them only
+/// through the `read_*` calls.
+///
+/// | stage | what it does on the CPU |
+/// |---|---|
+/// | [`upload_scene`](Tracer::upload_scene) | validates scene and settings ([`PreparedScene`]), builds the triangle BVH ([`EmbreeCaster`]), resets the accumulation |
+/// | [`camera_pass`](Tracer::camera_pass) | [`trace_camera_path`] for every pixel, in parallel |
+/// | [`photon_pass`](Tracer::photon_pass) | [`trace_photon`] for every photon, in chunks of [`PHOTON_CHUNK`] photon indices |
+/// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | one Embree box geometry for the footprints (the box of the elliptic cylinder each packed record's test accepts), one for the progressive photons' cubes `x ± r_map` ([`BuildQuality::Low`]); boxes padded a little beyond `f32` rounding |
+/// | [`gather`](Tracer::gather) | per query point: the boxes containing it (Embree point query), the exact test of each, and the `f64` sum of the contributions in `(kind, index)` order: bit for bit what [`arpa_core::estimate::gather_brute_force`] gives over the same records |
+/// | [`accumulate`](Tracer::accumulate) | adds the iteration's image to the compensated running mean |
+///
+/// # Determinism
+/// Images are bit-identical for the same scene, settings and seed whatever the number of
+/// threads: every random stream depends only on `(seed, iteration, index)`; photons are
+/// traced in fixed chunks whose outputs are concatenated in photon-index order; every
+/// pixel is computed by one task; and the gather sorts the contributions a query point gets
+/// from the BVH by `(kind, index)` before summing, so the summation order does not depend
+/// on the BVH's traversal order either.
+///
+/// # Stage order
+/// The stages of an iteration must run in the order above (camera and photon pass in
+/// either order); a stage whose input is missing or stale returns
+/// [`CpuError::StageOrder`]. Re-running a stage within an iteration is allowed and
+/// recomputes the same result; it invalidates the outputs of the stages after it.
+#[derive(Debug)]
+pub struct CpuTracer {
+    device: Device,
+    state: Option<Box<Loaded>>,
+}
+
+/// The box BVH of an iteration.
+#[derive(Debug)]
+enum Accel {
+    /// Nothing was stored: every query gathers nothing.
+    Empty,
+    /// Embree scene with up to two box geometries.
+    Boxes {
+        scene: Scene,
+        /// Geometry id of the footprint boxes (box `i` bounds footprint `i`).
+        footprints: Option<u32>,
+        /// Geometry id of the photon cubes (box `i` bounds photon `i`).
+        photons: Option<u32>,
+    },
+}
+
+/// Everything that exists once a scene is uploaded.
+#[derive(Debug)]
+struct Loaded {
+    prepared: PreparedScene,
+    settings: RenderSettings,
+    caster: EmbreeCaster,
+    width: u32,
+    height: u32,
+    accumulator: ImageAccumulator,
+    /// Iterations accumulated; also the 0-based index of the iteration in progress.
+    completed: u32,
+    stats: IterationStats,
+    /// Iteration whose counts `stats` holds.
+    stats_for: Option<u32>,
+    queries: Vec<QueryRecord>,
+    queries_for: Option<u32>,
+    store: PhotonStore,
+    /// Progressive radii `[caustic, global]` of the photons in `store`.
+    radii: [f32; 2],
+    store_for: Option<u32>,
+    accel: Accel,
+    accel_for: Option<u32>,
+    image: Vec<Vec3>,
+    image_for: Option<u32>,
+    /// Failed point queries of the gather (answered as "nothing found").
+    gather_errors: AtomicU64,
+}
+
+impl Loaded {
+    /// Refuses to start an iteration whose index the core cannot represent
+    /// (`PhotonPassSetup::new` computes the 1-based `iteration + 1`).
+    fn check_iteration_limit(&self) -> Result<(), CpuError> {
+        if self.completed >= u32::MAX - 1 {
+            Err(CpuError::IterationLimit(self.completed))
+        } else {
+            Ok(())
+        }
+    }
+
+    /// Starts (or continues) the counts of the iteration in progress.
+    fn begin_stage(&mut self) {
+        if self.stats_for != Some(self.completed) {
+            self.stats = IterationStats {
+                iteration: self.completed,
+                radii: self.stats.radii,
+                ..IterationStats::default()
+            };
+            self.stats_for = Some(self.completed);
+        }
+    }
+
+    fn require(
+        &self,
+        have: Option<u32>,
+        stage: &'static str,
+        needs: &'static str,
+    ) -> Result<(), CpuError> {
+        if have == Some(self.completed) {
+            Ok(())
+        } else {
+            Err(CpuError::StageOrder { stage, needs })
+        }
+    }
+}
+
+impl CpuTracer {
+    /// A tracer on a new Embree device (all hardware threads for BVH builds).
+    pub fn new() -> Result<Self, CpuError> {
+        Ok(Self::with_device(Device::new()?))
+    }
+
+    /// A tracer on an existing Embree device.
+    pub fn with_device(device: Device) -> Self {
+        Self {
+            device,
+            state: None,
+        }
+    }
+
+    /// The Embree device.
+    pub fn device(&self) -> &Device {
+        &self.device
+    }
+
+    /// The uploaded scene, validated and prepared.
+    pub fn prepared_scene(&self) -> Option<&PreparedScene> {
+        self.state.as_ref().map(|s| &s.prepared)
+    }
+
+    /// The settings of the uploaded scene.
+    pub fn settings(&self) -> Option<&RenderSettings> {
+        self.state.as_ref().map(|s| &s.settings)
+    }
+
+    /// Embree queries that failed since the upload (answered as misses / nothing found).
+    /// Always 0 unless something is wrong.
+    pub fn embree_errors(&self) -> u64 {
+        self.state.as_ref().map_or(0, |s| {
+            s.caster.errors() + s.gather_errors.load(Ordering::Relaxed)
+        })
+    }
+
+    fn loaded(&self, stage: &'static str) -> Result<&Loaded, CpuError> {
+        self.state.as_deref().ok_or(CpuError::StageOrder {
+            stage,
+            needs: "upload_scene",
+        })
+    }
+
+    fn loaded_mut(&mut self, stage: &'static str) -> Result<&mut Loaded, CpuError> {
+        self.state.as_deref_mut().ok_or(CpuError::StageOrder {
+            stage,
+            needs: "upload_scene",
+        })
+    }
+}
+
+/// Rejects settings no render can use.
+pub fn validate_settings(s: &RenderSettings) -> Result<(), CpuError> {
+    let bad = |why: String| Err(CpuError::Settings(why));
+    let positive = |x: f64| x > 0.0 && x.is_finite();
+    if s.photons_per_iteration == 0 {
+        return bad("photons_per_iteration must be at least 1".into());
+    }
+    if s.max_depth == 0 {
+        return bad("max_depth must be at least 1".into());
+    }
+    for (name, f) in [
+        ("smoothing.caustic", s.smoothing.caustic),
+        ("smoothing.global", s.smoothing.global),
+    ] {
+        if !positive(f) {
+            return bad(format!("{name} must be positive and finite (got {f})"));
+        }
+    }
+    for (name, spec) in [
+        ("radii.caustic", s.radii.caustic),
+        ("radii.global", s.radii.global),
+    ] {
+        let (RadiusSpec::Absolute(v) | RadiusSpec::RelativeToDiagonal(v)) = spec;
+        if !positive(v) {
+            return bad(format!("{name} must be positive and finite (got {v})"));
+        }
+    }
+    if !(s.radii.alpha > 0.0 && s.radii.alpha <= 1.0) {
+        return bad(format!(
+            "radii.alpha must lie in (0, 1] (got {})",
+            s.radii.alpha
+        ));
+    }
+    let h = &s.heuristics;
+    if let Some(d) = h.dampening {
+        if !(d.exponent > 0.0 && d.exponent <= 1.0) {
+            return bad(format!(
+                "dampening exponent must lie in (0, 1] (got {})",
+                d.exponent
+            ));
+        }
+        if let DampenReference::Absolute(l) = d.reference
+            && !positive(l)
+        {
+            return bad(format!(
+                "dampening reference length must be positive and finite (got {l})"
+            ));
+        }
+    }
+    if let Some(m) = h.h_max {
+        let (arpa_core::heuristics::LengthSpec::Absolute(v)
+        | arpa_core::heuristics::LengthSpec::RelativeToDiagonal(v)) = m.length;
+        if !positive(v) {
+            return bad(format!(
+                "h_max length must be positive and finite (got {v})"
+            ));
+        }
+    }
+    if let Some(d) = h.degenerate
+        && !(d.fraction >= 0.0 && d.fraction.is_finite())
+    {
+        return bad(format!(
+            "degenerate-removal fraction must be finite and >= 0 (got {})",
+            d.fraction
+        ));
+    }
+    if let Some(c) = h.culling
+        && !positive(c.fraction)
+    {
+        return bad(format!(
+            "culling fraction must be positive and finite (got {})",
+            c.fraction
+        ));
+    }
+    Ok(())
+}
+
+fn cpu_description() -> String {
+    let model = std::fs::read_to_string("/proc/cpuinfo").ok().and_then(|s| {
+        s.lines()
+            .find(|l| l.starts_with("model name"))
+            .and_then(|l| l.split_once(':'))
+            .map(|(_, v)| v.trim().to_string())
+            .filter(|v| !v.is_empty())
+    });
+    format!(
+        "{} ({} threads)",
+        model.as_deref().unwrap_or("CPU"),
+        rayon::current_num_threads()
+    )
+}
+
+/// Replaces non-finite components by 0.
+fn finite_or_zero(v: DVec3) -> DVec3 {
+    DVec3::select(v.is_finite_mask(), v, DVec3::ZERO)
+}
+
+/// One contribution found by the gather: `key` orders footprints (`index`) before
+/// progressive photons (`2³² + index`), as [`arpa_core::estimate::gather_brute_force`] sums.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Contribution {
+    key: u64,
+    irradiance: Vec3,
+    map: u32,
+}
+
+/// The gather of one query record: its pixel's radiance and the number of contributions.
+///
+/// The Embree point query reports every box containing the query point (and possibly a
+/// few more); each is tested exactly on the spot (the same tests as
+/// [`IrradianceEstimate::add_footprint`] / [`IrradianceEstimate::add_photon`]), and the
+/// non-zero contributions are summed in `f64` in `(kind, index)` order, so the sum is
+/// bit-identical to a brute-force gather over the same records, whatever order the BVH
+/// reported them in.
+#[allow(clippy::too_many_arguments)]
+fn gather_one(
+    rec: &QueryRecord,
+    accel: &Accel,
+    store: &PhotonStore,
+    kernel: Kernel,
+    radii: [f32; 2],
+    scratch: &mut Vec<Contribution>,
+    errors: &AtomicU64,
+) -> (Vec3, u32) {
+    let known = Vec3::from_array(rec.radiance).as_dvec3();
+    if rec.valid == 0 {
+        return (finite_or_zero(known).as_vec3(), 0);
+    }
+    let mut estimate = IrradianceEstimate::default();
+    if let Accel::Boxes {
+        scene,
+        footprints,
+        photons,
+    } = accel
+    {
+        let (q, n) = (Vec3::from_array(rec.position), Vec3::from_array(rec.normal));
+        scratch.clear();
+        let found = scene.point_query(rec.position, 0.0, |c| {
+            let i = c.prim_id as usize;
+            let (key, e, map) = if Some(c.geom_id) == *footprints {
+                let Some(fp) = store.footprints.get(i) else {
+                    return;
+                };
+                (i as u64, fp.irradiance(q, n, kernel), fp.photon_map())
+            } else if Some(c.geom_id) == *photons {
+                let Some(ph) = store.photons.get(i) else {
+                    return;
+                };
+                let map = ph.photon_map();
+                (
+                    (1 << 32) | i as u64,
+                    ph.irradiance(q, n, radii[map.index()]),
+                    map,
+                )
+            } else {
+                return;
+            };
+            // What IrradianceEstimate::add_footprint/add_photon skip.
+            if e != Vec3::ZERO && e.is_finite() {
+                scratch.push(Contribution {
+                    key,
+                    irradiance: e,
+                    map: map as u32,
+                });
+            }
+        });
+        if found.is_err() {
+            errors.fetch_add(1, Ordering::Relaxed);
+        }
+        scratch.sort_unstable_by_key(|c| c.key);
+        scratch.dedup_by_key(|c| c.key);
+        for c in scratch.iter() {
+            estimate.per_map[PhotonMap::from_index(c.map).index()] += c.irradiance.as_dvec3();
+            if c.key >> 32 == 0 {
+                estimate.footprints += 1;
+            } else {
+                estimate.photons += 1;
+            }
+        }
+    }
+    let weight = Vec3::from_array(rec.weight).as_dvec3();
+    let radiance = known + weight * estimate.irradiance();
+    (
+        finite_or_zero(radiance).as_vec3(),
+        estimate.footprints + estimate.photons,
+    )
+}
+
+impl Tracer for CpuTracer {
+    type Error = CpuError;
+
+    fn capabilities(&self) -> Capabilities {
+        Capabilities {
+            backend: "cpu",
+            device: cpu_description(),
+            methods: vec![Method::Arpa, Method::Rtpm],
+            max_photons_per_iteration: None,
+            deterministic: true,
+        }
+    }
+
+    fn upload_scene(
+        &mut self,
+        scene: &CoreScene,
+        settings: &RenderSettings,
+    ) -> Result<(), CpuError> {
+        // A failed upload leaves no scene behind.
+        self.state = None;
+        validate_settings(settings)?;
+        let prepared = PreparedScene::new(scene.clone())?;
+        let (width, height) = (scene.camera.width, scene.camera.height);
+        let pixels = width as u64 * height as u64;
+        if pixels > u32::MAX as u64 {
+            return Err(CpuError::ImageTooLarge { width, height });
+        }
+        // Probe the per-pixel allocations before making them (ImageAccumulator aborts on
+        // allocation failure).
+        let mut probe: Vec<[u8; 64]> = Vec::new();
+        probe
+            .try_reserve_exact(pixels as usize)
+            .map_err(|_| CpuError::OutOfMemory("the image buffers"))?;
+        drop(probe);
+        let caster = EmbreeCaster::new(&self.device, &prepared)?;
+        self.state = Some(Box::new(Loaded {
+            prepared,
+            settings: *settings,
+            caster,
+            width,
+            height,
+            accumulator: ImageAccumulator::new(width, height),
+            completed: 0,
+            stats: IterationStats::default(),
+            stats_for: Some(0),
+            queries: Vec::new(),
+            queries_for: None,
+            store: PhotonStore::default(),
+            radii: [0.0; 2],
+            store_for: None,
+            accel: Accel::Empty,
+            accel_for: None,
+            image: Vec::new(),
+            image_for: None,
+            gather_errors: AtomicU64::new(0),
+        }));
+        Ok(())
+    }
+
+    fn camera_pass(&mut self) -> Result<(), CpuError> {
+        let st = self.loaded_mut("camera_pass")?;
+        st.check_iteration_limit()?;
+        st.begin_stage();
+        let start = Instant::now();
+        let iteration = st.completed;
+        let pixels = st.width * st.height;
+        let mut queries = core::mem::take(&mut st.queries);
+        (0..pixels)
+            .into_par_iter()
+            .map(|pixel| {
+                trace_camera_path(&st.prepared, &st.caster, &st.settings, iteration, pixel)
+            })
+            .collect_into_vec(&mut queries);
+        st.stats.query_points = queries.iter().filter(|q| q.valid != 0).count() as u64;
+        st.queries = queries;
+        st.queries_for = Some(iteration);
+        st.image_for = None;
+        st.stats.times.camera = start.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    fn photon_pass(&mut self) -> Result<(), CpuError> {
+        let st = self.loaded_mut("photon_pass")?;
+        st.check_iteration_limit()?;
+        st.begin_stage();
+        let start = Instant::now();
+        let iteration = st.completed;
+        let setup = PhotonPassSetup::new(&st.prepared, &st.settings, iteration);
+        let count = setup.photon_count();
+        let chunks = count.div_ceil(PHOTON_CHUNK);
+        let (prepared, caster, settings) = (&st.prepared, &st.caster, &st.settings);
+        let parts: Vec<(PhotonStore, u64)> = (0..chunks)
+            .into_par_iter()
+            .map(|chunk| {
+                let first = chunk * PHOTON_CHUNK;
+                let end = first.saturating_add(PHOTON_CHUNK).min(count);
+                let mut part = PhotonStore::default();
+                let mut segments = 0u64;
+                for index in first..end {
+                    let path = trace_photon(prepared, caster, settings, &setup, index, &mut |p| {
+                        part.push(p)
+                    });
+                    segments += path.segments as u64;
+                }
+                (part, segments)
+            })
+            .collect();
+        let segments = parts.iter().map(|(_, s)| s).sum();
+        let parts: Vec<PhotonStore> = parts.into_iter().map(|(p, _)| p).collect();
+        st.store.clear();
+        st.store.extend_from_parts(&parts);
+        drop(parts);
+        let c = st.store.counts;
+        let stats = &mut st.stats;
+        stats.photons_emitted = count as u64;
+        stats.photon_segments = segments;
+        stats.footprints = c.footprints;
+        stats.progressive = c.progressive;
+        stats.degenerate = c.degenerate;
+        stats.culled = c.culled;
+        stats.unrepresentable = c.unrepresentable;
+        stats.differential_lost = c.differential_lost;
+        stats.overflowed = 0;
+        stats.radii = setup.radii;
+        st.radii = setup.radii.map(|r| r as f32);
+        st.store_for = Some(iteration);
+        st.accel_for = None;
+        st.image_for = None;
+        st.stats.times.photon = start.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    fn build_acceleration_structure(&mut self) -> Result<(), CpuError> {
+        let device = self.device.clone();
+        let st = self.loaded_mut("build_acceleration_structure")?;
+        st.require(st.store_for, "build_acceleration_structure", "photon_pass")?;
+        st.begin_stage();
+        let start = Instant::now();
+        // Drop the previous BVH first: only one lives at a time.
+        st.accel = Accel::Empty;
+        st.accel_for = None;
+        let radii = st.radii;
+        let photon_boxes: Vec<Aabb> = st
+            .store
+            .photons
+            .par_iter()
+            .map(|p| photon_box(p, radii[p.photon_map().index()]))
+            .collect();
+        let accel = if st.store.footprint_boxes.is_empty() && photon_boxes.is_empty() {
+            Accel::Empty
+        } else {
+            let mut builder = SceneBuilder::new(&device)?.build_quality(BuildQuality::Low);
+            let footprints = if st.store.footprint_boxes.is_empty() {
+                None
+            } else {
+                Some(builder.add_boxes(&st.store.footprint_boxes)?)
+            };
+            let photons = if photon_boxes.is_empty() {
+                None
+            } else {
+                Some(builder.add_boxes(&photon_boxes)?)
+            };
+            Accel::Boxes {
+                scene: builder.commit()?,
+                footprints,
+                photons,
+            }
+        };
+        st.accel = accel;
+        st.accel_for = Some(st.completed);
+        st.image_for = None;
+        st.stats.times.build = start.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    fn gather(&mut self) -> Result<(), CpuError> {
+        let st = self.loaded_mut("gather")?;
+        st.require(st.queries_for, "gather", "camera_pass")?;
+        st.require(st.accel_for, "gather", "build_acceleration_structure")?;
+        st.begin_stage();
+        let start = Instant::now();
+        let gathered = AtomicU64::new(0);
+        let (kernel, radii) = (st.settings.kernel, st.radii);
+        let mut image = core::mem::take(&mut st.image);
+        st.queries
+            .par_iter()
+            .map_init(Vec::new, |scratch, rec| {
+                let (l, n) = gather_one(
+                    rec,
+                    &st.accel,
+                    &st.store,
+                    kernel,
+                    radii,
+                    scratch,
+                    &st.gather_errors,
+                );
+                gathered.fetch_add(n as u64, Ordering::Relaxed);
+                l
+            })
+            .collect_into_vec(&mut image);
+        st.image = image;
+        st.stats.gathered = gathered.into_inner();
+        st.image_for = Some(st.completed);
+        st.stats.times.gather = start.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    fn accumulate(&mut self) -> Result<(), CpuError> {
+        let st = self.loaded_mut("accumulate")?;
+        st.require(st.image_for, "accumulate", "gather")?;
+        st.begin_stage();
+        let start = Instant::now();
+        st.accumulator
+            .add_iteration(&st.image)
+            .map_err(|_| CpuError::StageOrder {
+                stage: "accumulate",
+                needs: "an image of the scene's size",
+            })?;
+        st.completed += 1;
+        st.image_for = None;
+        st.stats.iteration = st.completed;
+        st.stats.times.accumulate = start.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    fn iterations(&self) -> u32 {
+        self.state.as_ref().map_or(0, |s| s.completed)
+    }
+
+    fn read_image(&self) -> Result<Image, CpuError> {
+        let st = self.loaded("read_image")?;
+        Ok(Image {
+            width: st.width,
+            height: st.height,
+            pixels: st.accumulator.mean(),
+        })
+    }
+
+    fn read_query_points(&self) -> Result<Vec<QueryRecord>, CpuError> {
+        let st = self.loaded("read_query_points")?;
+        if st.queries_for.is_none() {
+            return Err(CpuError::StageOrder {
+                stage: "read_query_points",
+                needs: "camera_pass",
+            });
+        }
+        Ok(st.queries.clone())
+    }
+
+    fn read_footprints(&self) -> Result<Vec<PackedFootprint>, CpuError> {
+        let st = self.loaded("read_footprints")?;
+        if st.store_for.is_none() {
+            return Err(CpuError::StageOrder {
+                stage: "read_footprints",
+                needs: "photon_pass",
+            });
+        }
+        Ok(st.store.footprints.clone())
+    }
+
+    fn read_photons(&self) -> Result<Vec<PackedPhoton>, CpuError> {
+        let st = self.loaded("read_photons")?;
+        if st.store_for.is_none() {
+            return Err(CpuError::StageOrder {
+                stage: "read_photons",
+                needs: "photon_pass",
+            });
+        }
+        Ok(st.store.photons.clone())
+    }
+
+    fn read_stats(&self) -> Result<IterationStats, CpuError> {
+        Ok(self.loaded("read_stats")?.stats)
+    }
+}
