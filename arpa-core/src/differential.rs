@@ -126,6 +126,10 @@ pub fn reflect_direction(d: DVec3, n: DVec3) -> DVec3 {
 #[inline]
 pub fn refract_direction(d: DVec3, n: DVec3, ior: f64) -> (DVec3, RefractionEvent, f64) {
     let (n, eta) = if d.dot(n) > 0.0 { (-n, ior) } else { (n, 1.0 / ior) };
+    if !(eta > 0.0) || !eta.is_finite() {
+        // No meaningful interface (ior 0 or non-finite): pass straight through.
+        return (d, RefractionEvent::Transmitted, 1.0);
+    }
     let cos_i = d.dot(n);
     let k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
     if k < 0.0 {

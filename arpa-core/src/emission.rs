@@ -28,7 +28,7 @@
 use crate::differential::{DifferentialError, RayDifferential};
 use crate::frame::Frame;
 use crate::rng::Rng;
-use crate::sampling::{cone_solid_angle, cosine_hemisphere, uniform_cone, uniform_disc, uniform_sphere, uniform_triangle};
+use crate::sampling::{cone_solid_angle_from_angle, cosine_hemisphere, uniform_cone, uniform_disc, uniform_sphere, uniform_triangle};
 use core::f64::consts::{PI, TAU};
 use glam::{DVec2, DVec3};
 
@@ -215,16 +215,24 @@ impl SpotLight {
         }
     }
 
-    /// `∫ f(θ) dω` over the sphere (steradians).
+    /// `∫ f(θ) dω` over the sphere (steradians). Written without `1 − cos` cancellation
+    /// so that very narrow spots keep their power.
     pub fn falloff_solid_angle(&self) -> f64 {
         let (tb, tc) = (self.beam_width, self.cutoff);
-        let full = TAU * (1.0 - libm::cos(tb));
-        if tc - tb <= 1e-12 {
-            return TAU * (1.0 - libm::cos(tc));
-        }
+        let full = cone_solid_angle_from_angle(tb);
         let band = match self.falloff {
-            // ∫_{θb}^{θc} (θc − θ)/(θc − θb) sin θ dθ = cos θb − (sin θc − sin θb)/(θc − θb)
-            SpotFalloff::LinearAngle => libm::cos(tb) - (libm::sin(tc) - libm::sin(tb)) / (tc - tb),
+            // ∫_{θb}^{θc} (θc − θ)/(θc − θb) sin θ dθ = cos θb − (sin θc − sin θb)/(θc − θb);
+            // with h = (θc − θb)/2: 2 sin(θb + h/2) sin(h/2) + cos(θb + h)(1 − sin h / h).
+            SpotFalloff::LinearAngle => {
+                let h = 0.5 * (tc - tb);
+                let one_minus_sinc = if h < 1e-3 {
+                    let h2 = h * h;
+                    h2 / 6.0 * (1.0 - h2 / 20.0 * (1.0 - h2 / 42.0))
+                } else {
+                    1.0 - libm::sin(h) / h
+                };
+                2.0 * libm::sin(tb + 0.5 * h) * libm::sin(0.5 * h) + libm::cos(tb + h) * one_minus_sinc
+            }
             SpotFalloff::SmoothstepAngle => {
                 // Composite Simpson, 256 intervals: exact to ~1e-12 for this smooth integrand.
                 let n = 256;
@@ -237,7 +245,7 @@ impl SpotLight {
                 s * h / 3.0
             }
         };
-        full + TAU * band
+        full + TAU * band.max(0.0)
     }
 }
 
@@ -324,7 +332,7 @@ impl Light {
                 EmissionLengths { positional: 0.0, directional: w, reemission: w }
             }
             Light::Spot(l) => {
-                let w = tile(cone_solid_angle(libm::cos(l.cutoff)));
+                let w = tile(cone_solid_angle_from_angle(l.cutoff));
                 EmissionLengths { positional: 0.0, directional: w, reemission: w }
             }
             Light::Directional(_) => EmissionLengths {
@@ -366,7 +374,7 @@ impl Light {
                 let theta = libm::acos(local.z.clamp(-1.0, 1.0));
                 let f = Frame::from_normal(d);
                 let w = lengths.directional;
-                let flux = l.intensity * (l.falloff_at(theta) * cone_solid_angle(cos_c) * per_photon);
+                let flux = l.intensity * (l.falloff_at(theta) * cone_solid_angle_from_angle(l.cutoff) * per_photon);
                 (RayDifferential::new(l.position, d, DVec3::ZERO, DVec3::ZERO, f.t * w, f.b * w)?, flux, None)
             }
             Light::Directional(l) => {

@@ -161,8 +161,8 @@ impl Footprint {
     /// `M_p⁻¹` (ARPA eq. 3). Errors when `D_u`, `D_v` are parallel or zero.
     pub fn filter_transform(&self) -> Result<FilterTransform, FootprintError> {
         let dv_n = self.dv.cross(self.normal);
-        let den = self.du.dot(dv_n);
-        if !(den != 0.0) || !den.is_finite() {
+        let den = self.du.cross(self.dv).dot(self.normal);
+        if degenerate_denominator(den, self.du.length_squared(), self.dv.length_squared()) {
             return Err(FootprintError::Degenerate);
         }
         let s = 2.0 / den;
@@ -171,10 +171,12 @@ impl Footprint {
     }
 
     /// Half-thickness of the footprint along its normal: half the minor differential,
-    /// clamped to the current progressive `radius` (ARPA §4.2, fig. 3), in metres.
+    /// clamped to the current progressive `radius` (ARPA §4.2, fig. 3), but never thinner
+    /// than `f32` can resolve at the footprint's position ([`half_thickness`]), in metres.
     #[inline]
     pub fn half_thickness(&self, radius: f64) -> f64 {
-        (0.5 * self.major_minor().1).min(radius)
+        let (major, minor) = self.major_minor();
+        half_thickness(self.center, major, minor, radius)
     }
 
     /// `true` if `q` lies inside the ellipse (`|M_p⁻¹(q − x_p)| ≤ 1`) and within the
@@ -233,12 +235,28 @@ impl Footprint {
     }
 }
 
+/// `true` when `M_p⁻¹`'s denominator `(D_u × D_v)·n` is zero up to rounding: below
+/// `16 ε |D_u||D_v|` (parallel or zero differentials), or not finite.
+#[inline]
+pub(crate) fn degenerate_denominator(den: f64, la2: f64, lb2: f64) -> bool {
+    !(den.abs() > 16.0 * f64::EPSILON * libm::sqrt(la2) * libm::sqrt(lb2)) || !den.is_finite()
+}
+
+/// Slab half-thickness (metres): `min(minor/2, radius)`, but at least
+/// `8 ε₃₂ (|x_p|_∞ + major)` so that the `f32` record still accepts points in its own
+/// plane.
+#[inline]
+pub fn half_thickness(center: DVec3, major: f64, minor: f64, radius: f64) -> f64 {
+    let floor = 8.0 * f32::EPSILON as f64 * (center.abs().max_element() + major);
+    (0.5 * minor).min(radius).max(floor)
+}
+
 /// [`Footprint::pack`] with the squared differential lengths and `D_u × D_v` already known.
 #[inline]
 pub(crate) fn pack_parts(fp: &Footprint, la2: f64, lb2: f64, cross: DVec3, radius: f64) -> Result<PackedFootprint, FootprintError> {
     // (D_u × D_v)·n = D_u·(D_v × n): the denominator of M_p⁻¹; |den| = |D_u × D_v| in-plane.
     let den = cross.dot(fp.normal);
-    if !(den != 0.0) || !den.is_finite() {
+    if degenerate_denominator(den, la2, lb2) {
         return Err(FootprintError::Degenerate);
     }
     // σ₂ ≥ |a × b|/√(|a|² + |b|²) ≥ k·scale, compared in squares:
@@ -247,7 +265,7 @@ pub(crate) fn pack_parts(fp: &Footprint, la2: f64, lb2: f64, cross: DVec3, radiu
     if !(cross.length_squared() >= 4.0 * (la2 + lb2) * scale * scale) {
         return Err(FootprintError::Unrepresentable);
     }
-    let h = (0.5 * libm::sqrt(la2.min(lb2))).min(radius);
+    let h = half_thickness(fp.center, libm::sqrt(la2.max(lb2)), libm::sqrt(la2.min(lb2)), radius);
     if !(h > 0.0) {
         return Err(FootprintError::Unrepresentable);
     }
@@ -255,6 +273,11 @@ pub(crate) fn pack_parts(fp: &Footprint, la2: f64, lb2: f64, cross: DVec3, radiu
     let row_u = fp.dv.cross(fp.normal) * inv;
     let row_v = fp.normal.cross(fp.du) * inv;
     let density = fp.flux * (2.0 * inv.abs());
+    // A density that underflows f32 would silently drop the photon's flux.
+    let d32 = density.as_vec3();
+    if (0..3).any(|c| fp.flux[c] != 0.0 && !(d32[c].abs() >= f32::MIN_POSITIVE)) {
+        return Err(FootprintError::Unrepresentable);
+    }
     let f = |v: DVec3| v.as_vec3().to_array();
     let packed = PackedFootprint {
         center: f(fp.center),
@@ -305,11 +328,14 @@ impl PackedFootprint {
     #[inline]
     pub fn filter_coords(&self, q: Vec3) -> Vec3 {
         let delta = q - Vec3::from_array(self.center);
+        // Far queries can overflow to ±∞ or NaN (∞ − ∞); clamping keeps them finite and
+        // outside (f32::max maps NaN to the other operand).
         Vec3::new(
             Vec3::from_array(self.row_u).dot(delta),
             Vec3::from_array(self.row_v).dot(delta),
             Vec3::from_array(self.row_n).dot(delta),
         )
+        .clamp(Vec3::splat(-f32::MAX), Vec3::splat(f32::MAX))
     }
 
     /// Point-in-footprint test: inside the ellipse and within the slab.

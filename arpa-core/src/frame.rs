@@ -40,6 +40,12 @@ impl Frame {
             return Self::from_normal(n);
         }
         let t = t / libm::sqrt(len2);
+        // Second Gram–Schmidt pass: a hint nearly parallel to n leaves a residue along n
+        // after the first one.
+        let t = (t - n * n.dot(t)).normalize_or_zero();
+        if t == DVec3::ZERO || !t.is_finite() {
+            return Self::from_normal(n);
+        }
         Self { t, b: n.cross(t), n }
     }
 

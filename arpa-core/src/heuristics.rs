@@ -36,7 +36,7 @@
 //!   or AABB surface area against the scene AABB's surface area.
 
 use crate::aabb::Aabb;
-use crate::footprint::{pack_parts, Footprint, PackedFootprint};
+use crate::footprint::{degenerate_denominator, half_thickness, pack_parts, Footprint, PackedFootprint};
 use glam::DVec3;
 
 /// A length given in scene units or relative to the scene's bounding-box diagonal.
@@ -357,10 +357,10 @@ impl ResolvedHeuristics {
             }
         }
         let den = cross.dot(fp.normal);
-        if !(den != 0.0) || !den.is_finite() {
+        if degenerate_denominator(den, la2, lb2) {
             return Err(StoreRejection::Heuristic(Rejection::Degenerate));
         }
-        let h = (0.5 * libm::sqrt(la2.min(lb2))).min(radius);
+        let h = half_thickness(fp.center, libm::sqrt(major2), libm::sqrt(la2.min(lb2)), radius);
         // The box of the elliptic slab (see `Footprint::aabb`).
         let e2 = 0.25 * (fp.du * fp.du + fp.dv * fp.dv);
         let e = DVec3::new(libm::sqrt(e2.x), libm::sqrt(e2.y), libm::sqrt(e2.z)) + (fp.normal * h).abs();

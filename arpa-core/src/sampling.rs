@@ -39,6 +39,14 @@ pub fn cone_solid_angle(cos_max: f64) -> f64 {
     TAU * (1.0 - cos_max.clamp(-1.0, 1.0))
 }
 
+/// Solid angle of a cone of half-angle `theta` (radians), `4π sin²(θ/2)`: exact also for
+/// tiny cones, where `2π(1 − cos θ)` cancels to 0.
+#[inline]
+pub fn cone_solid_angle_from_angle(theta: f64) -> f64 {
+    let s = libm::sin(0.5 * theta.clamp(0.0, PI));
+    2.0 * TAU * s * s
+}
+
 /// Uniform point on the unit disc (Shirley–Chiu concentric map, area-preserving and
 /// low-distortion).
 #[inline]
