@@ -1,0 +1,730 @@
+//! The `arpa` command line: argument parsing (clap) and the `render` command.
+//!
+//! ```text
+//! arpa render [SCENE] [--backend cpu] [--method arpa|rtpm] [--photons N]
+//!             [--iterations N | --time SECONDS] [--resolution WxH] [--seed S]
+//!             [--out PATH] [--no-direct] [--smoothing-caustic S_c] [--smoothing-global S_g]
+//!             [--max-depth D] [--exposure E]
+//! ```
+//!
+//! The render loop ([`render`]) is generic over [`Tracer`]; the backend is picked from
+//! those compiled in with cargo features ([`COMPILED_BACKENDS`]). Every failure is an
+//! error naming the problem (never a panic); `main` prints it and exits non-zero.
+
+use crate::default_scene::default_scene;
+use crate::image_io;
+use anyhow::{Context, bail};
+use arpa_core::classify::Smoothing;
+use arpa_core::scene::Scene;
+use arpa_core::tracer::{Capabilities, Image, IterationStats, Method, RenderSettings, Tracer};
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// Every backend name the project knows (some may not be compiled in).
+pub const KNOWN_BACKENDS: &[&str] = &["cpu", "wgpu", "vk"];
+
+/// The backends compiled into this build (cargo features).
+pub const COMPILED_BACKENDS: &[&str] = &[
+    #[cfg(feature = "cpu")]
+    "cpu",
+];
+
+/// Default number of iterations when neither `--iterations` nor `--time` is given.
+pub const DEFAULT_ITERATIONS: u32 = 64;
+
+/// Largest accepted image side (pixels).
+pub const MAX_RESOLUTION: u32 = 16384;
+
+/// `arpa`: progressive photon mapping with photon differentials.
+#[derive(Debug, Parser)]
+#[command(name = "arpa", version, about = "ARPA: progressive photon mapping with photon differentials", long_about = None)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Render a scene (the embedded Cornell box by default) to OpenEXR and PNG.
+    Render(RenderArgs),
+}
+
+/// A rendering backend.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Backend {
+    /// CPU backend on Embree 4 (`arpa-cpu`, cargo feature `cpu`).
+    Cpu,
+}
+
+impl Backend {
+    /// Name as used on the command line.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Backend::Cpu => "cpu",
+        }
+    }
+}
+
+fn compiled_list() -> String {
+    if COMPILED_BACKENDS.is_empty() { "none (rebuild with `--features cpu`)".to_string() } else { COMPILED_BACKENDS.join(", ") }
+}
+
+/// Parses `--backend`: only backends compiled into this build are accepted.
+pub fn parse_backend(s: &str) -> Result<Backend, String> {
+    let name = s.trim().to_ascii_lowercase();
+    if COMPILED_BACKENDS.contains(&name.as_str()) {
+        return match name.as_str() {
+            "cpu" => Ok(Backend::Cpu),
+            _ => Err(format!("backend '{s}' is not implemented; compiled backends: {}", compiled_list())),
+        };
+    }
+    if KNOWN_BACKENDS.contains(&name.as_str()) {
+        Err(format!("backend '{s}' is not compiled into this build; compiled backends: {}", compiled_list()))
+    } else {
+        Err(format!("unknown backend '{s}'; compiled backends: {}", compiled_list()))
+    }
+}
+
+/// Density-estimation method on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum MethodArg {
+    /// Photon differentials with the progressive-photon fallback (ARPA).
+    Arpa,
+    /// Progressive photon mapping with spherical photons (RTPM baseline).
+    Rtpm,
+}
+
+impl From<MethodArg> for Method {
+    fn from(m: MethodArg) -> Self {
+        match m {
+            MethodArg::Arpa => Method::Arpa,
+            MethodArg::Rtpm => Method::Rtpm,
+        }
+    }
+}
+
+/// An image size in pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Resolution {
+    /// Width.
+    pub width: u32,
+    /// Height.
+    pub height: u32,
+}
+
+/// Parses `WxH` (e.g. `512x512`); both sides in `1..=16384`.
+pub fn parse_resolution(s: &str) -> Result<Resolution, String> {
+    let bad = |why: &str| Err(format!("invalid resolution '{s}': {why}"));
+    let Some((w, h)) = s.trim().split_once(['x', 'X']) else {
+        return bad("expected WIDTHxHEIGHT, e.g. 512x512");
+    };
+    let (Ok(width), Ok(height)) = (w.trim().parse::<u32>(), h.trim().parse::<u32>()) else {
+        return bad("width and height must be whole numbers, e.g. 512x512");
+    };
+    if width == 0 || height == 0 {
+        return bad("width and height must be at least 1");
+    }
+    if width > MAX_RESOLUTION || height > MAX_RESOLUTION {
+        return bad(&format!("width and height must be at most {MAX_RESOLUTION}"));
+    }
+    Ok(Resolution { width, height })
+}
+
+fn parse_positive_u32(s: &str) -> Result<u32, String> {
+    match s.trim().parse::<u32>() {
+        Ok(v) if v >= 1 => Ok(v),
+        Ok(_) => Err(format!("'{s}' must be at least 1")),
+        Err(_) => Err(format!("'{s}' is not a whole number between 1 and {}", u32::MAX)),
+    }
+}
+
+fn parse_max_depth(s: &str) -> Result<u32, String> {
+    match parse_positive_u32(s) {
+        Ok(v) if v <= 1024 => Ok(v),
+        Ok(_) => Err(format!("'{s}' is too deep (at most 1024)")),
+        Err(e) => Err(e),
+    }
+}
+
+fn parse_positive_f64(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("'{s}' is not a positive finite number")),
+    }
+}
+
+fn parse_seconds(s: &str) -> Result<f64, String> {
+    match parse_positive_f64(s) {
+        Ok(v) if v <= 1e7 => Ok(v),
+        Ok(_) => Err(format!("'{s}' seconds is too long a time budget (at most 1e7)")),
+        Err(e) => Err(e),
+    }
+}
+
+fn parse_exposure(s: &str) -> Result<f32, String> {
+    match s.trim().parse::<f32>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        _ => Err(format!("'{s}' is not a finite non-negative number")),
+    }
+}
+
+/// Arguments of `arpa render`.
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    /// Scene file to render (not supported yet: without it the embedded Cornell box with a
+    /// glass sphere and a mirror block is rendered).
+    #[arg(value_name = "SCENE")]
+    pub scene: Option<PathBuf>,
+
+    /// Rendering backend (only those compiled in are accepted).
+    #[arg(long, value_name = "NAME", default_value = "cpu", value_parser = parse_backend)]
+    pub backend: Backend,
+
+    /// Density-estimation method.
+    #[arg(long, value_enum, default_value_t = MethodArg::Arpa)]
+    pub method: MethodArg,
+
+    /// Photons emitted per iteration.
+    #[arg(long, allow_negative_numbers = true, value_name = "N", default_value_t = 250_000, value_parser = parse_positive_u32)]
+    pub photons: u32,
+
+    /// Number of iterations [default: 64].
+    #[arg(long, allow_negative_numbers = true, value_name = "N", conflicts_with = "time", value_parser = parse_positive_u32)]
+    pub iterations: Option<u32>,
+
+    /// Time budget in seconds instead of an iteration count: iterations run until it is
+    /// spent (at least one; the last may overrun it).
+    #[arg(long, allow_negative_numbers = true, value_name = "SECONDS", value_parser = parse_seconds)]
+    pub time: Option<f64>,
+
+    /// Image size WIDTHxHEIGHT [default: the scene's, 512x512].
+    #[arg(long, value_name = "WxH", value_parser = parse_resolution)]
+    pub resolution: Option<Resolution>,
+
+    /// Seed of every random stream.
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0)]
+    pub seed: u32,
+
+    /// Output path: PATH.exr (linear radiance) and PATH.png (sRGB) are written; a .exr or
+    /// .png extension given here is replaced.
+    #[arg(long, value_name = "PATH", default_value = "out/render")]
+    pub out: PathBuf,
+
+    /// Disable next-event estimation (direct light then comes from the photon maps).
+    #[arg(long)]
+    pub no_direct: bool,
+
+    /// Smoothing factor S_c of caustic footprints.
+    #[arg(long, allow_negative_numbers = true, value_name = "S_C", default_value_t = 1.0, value_parser = parse_positive_f64)]
+    pub smoothing_caustic: f64,
+
+    /// Smoothing factor S_g of global footprints.
+    #[arg(long, allow_negative_numbers = true, value_name = "S_G", default_value_t = 1.0, value_parser = parse_positive_f64)]
+    pub smoothing_global: f64,
+
+    /// Maximum number of surface interactions of photon and camera paths.
+    #[arg(long, allow_negative_numbers = true, value_name = "N", default_value_t = 10, value_parser = parse_max_depth)]
+    pub max_depth: u32,
+
+    /// Multiplier applied to the radiance before the PNG's sRGB encoding (the EXR is
+    /// written unscaled).
+    #[arg(long, allow_negative_numbers = true, value_name = "E", default_value_t = 1.0, value_parser = parse_exposure)]
+    pub exposure: f32,
+}
+
+impl RenderArgs {
+    /// The render settings these arguments select.
+    pub fn settings(&self) -> RenderSettings {
+        RenderSettings {
+            method: self.method.into(),
+            photons_per_iteration: self.photons,
+            seed: self.seed,
+            max_depth: self.max_depth,
+            direct_lighting: !self.no_direct,
+            smoothing: Smoothing { caustic: self.smoothing_caustic, global: self.smoothing_global },
+            ..RenderSettings::default()
+        }
+    }
+
+    /// The iteration or time budget.
+    pub fn budget(&self) -> Budget {
+        match (self.iterations, self.time) {
+            (_, Some(t)) => Budget::Time(Duration::from_secs_f64(t)),
+            (Some(n), None) => Budget::Iterations(n),
+            (None, None) => Budget::Iterations(DEFAULT_ITERATIONS),
+        }
+    }
+}
+
+/// How long to render.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Budget {
+    /// Exactly this many iterations.
+    Iterations(u32),
+    /// Iterations until this much wall-clock time has passed (at least one).
+    Time(Duration),
+}
+
+/// The files written for output path `out`: `(PATH.exr, PATH.png)`. A `.exr`/`.png`
+/// extension on `out` is dropped first; any other extension is kept (`a.b` -> `a.b.exr`).
+pub fn output_paths(out: &Path) -> anyhow::Result<(PathBuf, PathBuf)> {
+    let s = out.as_os_str().to_string_lossy();
+    if s.is_empty() || s.ends_with(std::path::MAIN_SEPARATOR) || s.ends_with('/') || out.is_dir() || out.file_name().is_none() {
+        bail!("--out '{}' must name a file (without extension), not a directory", out.display());
+    }
+    let base = match out.extension().and_then(|e| e.to_str()) {
+        Some(e) if e.eq_ignore_ascii_case("exr") || e.eq_ignore_ascii_case("png") => out.with_extension(""),
+        _ => out.to_path_buf(),
+    };
+    let with = |ext: &str| {
+        let mut p = base.clone().into_os_string();
+        p.push(ext);
+        PathBuf::from(p)
+    };
+    Ok((with(".exr"), with(".png")))
+}
+
+/// Sums of the per-iteration statistics.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StatTotals {
+    /// Iterations summed.
+    pub iterations: u32,
+    /// Photons emitted.
+    pub photons_emitted: u64,
+    /// Photon ray segments.
+    pub photon_segments: u64,
+    /// Footprints `[caustic, global]`.
+    pub footprints: [u64; 2],
+    /// Progressive photons `[caustic, global]`.
+    pub progressive: [u64; 2],
+    /// Footprints replaced as degenerate.
+    pub degenerate: u64,
+    /// Footprints replaced by bounding-box culling.
+    pub culled: u64,
+    /// Footprints replaced because `f32` cannot resolve them.
+    pub unrepresentable: u64,
+    /// Photons whose differential was lost.
+    pub differential_lost: u64,
+    /// Photons or footprints dropped by full buffers.
+    pub overflowed: u64,
+    /// Valid query points.
+    pub query_points: u64,
+    /// Containments found by the gather.
+    pub gathered: u64,
+    /// Stage times (seconds): camera, photon, build, gather, accumulate.
+    pub times: [f64; 5],
+}
+
+impl StatTotals {
+    /// Adds one iteration's statistics.
+    pub fn add(&mut self, s: &IterationStats) {
+        self.iterations += 1;
+        self.photons_emitted += s.photons_emitted;
+        self.photon_segments += s.photon_segments;
+        for m in 0..2 {
+            self.footprints[m] += s.footprints[m];
+            self.progressive[m] += s.progressive[m];
+        }
+        self.degenerate += s.degenerate;
+        self.culled += s.culled;
+        self.unrepresentable += s.unrepresentable;
+        self.differential_lost += s.differential_lost;
+        self.overflowed += s.overflowed;
+        self.query_points += s.query_points;
+        self.gathered += s.gathered;
+        let t = &s.times;
+        for (acc, v) in self.times.iter_mut().zip([t.camera, t.photon, t.build, t.gather, t.accumulate]) {
+            if v.is_finite() {
+                *acc += v;
+            }
+        }
+    }
+
+    /// Per-iteration mean of a count.
+    pub fn mean(&self, total: u64) -> f64 {
+        total as f64 / self.iterations.max(1) as f64
+    }
+}
+
+/// What a render produced.
+#[derive(Clone, Debug)]
+pub struct Rendered {
+    /// The accumulated image.
+    pub image: Image,
+    /// Iterations run.
+    pub iterations: u32,
+    /// Summed statistics.
+    pub totals: StatTotals,
+    /// Statistics of the last iteration.
+    pub last: IterationStats,
+    /// The backend's capabilities.
+    pub capabilities: Capabilities,
+    /// Wall-clock time of the iterations (excluding upload and read-back).
+    pub render_time: Duration,
+    /// Wall-clock time of upload, iterations and read-back.
+    pub total_time: Duration,
+}
+
+/// Progress reporting of [`render`]: an indicatif bar on a terminal, nothing otherwise.
+pub struct Progress {
+    bar: ProgressBar,
+}
+
+impl Progress {
+    /// A bar for `budget`, drawn on stderr if `visible`.
+    pub fn new(budget: Budget, visible: bool) -> Self {
+        let (len, template) = match budget {
+            Budget::Iterations(n) => (n as u64, "{spinner} [{elapsed_precise}] {wide_bar} {pos}/{len} it  {msg}"),
+            Budget::Time(t) => (t.as_millis().max(1) as u64, "{spinner} [{elapsed_precise}] {wide_bar} {msg}"),
+        };
+        let bar = ProgressBar::with_draw_target(Some(len), if visible { ProgressDrawTarget::stderr() } else { ProgressDrawTarget::hidden() });
+        if let Ok(style) = ProgressStyle::with_template(template) {
+            bar.set_style(style.progress_chars("=> "));
+        }
+        Self { bar }
+    }
+
+    /// A progress reporter that never draws.
+    pub fn hidden() -> Self {
+        Self::new(Budget::Iterations(1), false)
+    }
+
+    fn update(&self, budget: Budget, iterations: u32, elapsed: Duration, photons: u64) {
+        let secs = elapsed.as_secs_f64().max(1e-9);
+        let msg = format!("{:.2} it/s, {}photons/s", iterations as f64 / secs, si(photons as f64 / secs));
+        match budget {
+            Budget::Iterations(_) => self.bar.set_position(iterations as u64),
+            Budget::Time(_) => {
+                self.bar.set_position((elapsed.as_millis() as u64).min(self.bar.length().unwrap_or(u64::MAX)));
+                self.bar.set_message(format!("{iterations} it, {msg}"));
+                return;
+            }
+        }
+        self.bar.set_message(msg);
+    }
+
+    fn finish(&self) {
+        self.bar.finish_and_clear();
+    }
+}
+
+/// `1234567.0` -> `"1.23 M"`.
+fn si(v: f64) -> String {
+    let (v, p) = if v >= 1e9 {
+        (v / 1e9, "G")
+    } else if v >= 1e6 {
+        (v / 1e6, "M")
+    } else if v >= 1e3 {
+        (v / 1e3, "k")
+    } else {
+        (v, "")
+    };
+    format!("{v:.2} {p}")
+}
+
+/// Uploads `scene` to `tracer` and runs iterations within `budget`; returns the image and
+/// statistics. Backend errors are returned with the stage and iteration that failed.
+pub fn render<T: Tracer>(tracer: &mut T, scene: &Scene, settings: &RenderSettings, budget: Budget, progress: &Progress) -> anyhow::Result<Rendered> {
+    let start = Instant::now();
+    let capabilities = tracer.capabilities();
+    if !capabilities.methods.contains(&settings.method) {
+        bail!("backend '{}' does not implement method '{}'", capabilities.backend, settings.method.name());
+    }
+    if let Some(max) = capabilities.max_photons_per_iteration
+        && settings.photons_per_iteration > max
+    {
+        bail!("backend '{}' accepts at most {max} photons per iteration, {} requested", capabilities.backend, settings.photons_per_iteration);
+    }
+    tracer.upload_scene(scene, settings).with_context(|| format!("backend '{}' could not load the scene", capabilities.backend))?;
+
+    let render_start = Instant::now();
+    let mut totals = StatTotals::default();
+    let mut last = IterationStats::default();
+    let mut iterations = 0u32;
+    loop {
+        let more = match budget {
+            Budget::Iterations(n) => iterations < n,
+            Budget::Time(t) => iterations == 0 || render_start.elapsed() < t,
+        };
+        if !more {
+            break;
+        }
+        let i = iterations + 1;
+        tracer.iterate().with_context(|| format!("iteration {i} failed"))?;
+        last = tracer.read_stats().with_context(|| format!("cannot read the statistics of iteration {i}"))?;
+        totals.add(&last);
+        iterations = i;
+        progress.update(budget, iterations, render_start.elapsed(), totals.photons_emitted);
+    }
+    let render_time = render_start.elapsed();
+    progress.finish();
+    let image = tracer.read_image().context("cannot read back the image")?;
+    let expected = image.width as u64 * image.height as u64;
+    if image.pixels.len() as u64 != expected {
+        bail!("backend '{}' returned a {}x{} image with {} pixels", capabilities.backend, image.width, image.height, image.pixels.len());
+    }
+    Ok(Rendered { image, iterations, totals, last, capabilities, render_time, total_time: start.elapsed() })
+}
+
+/// The human-readable statistics summary printed at the end of a render.
+pub fn summary(r: &Rendered, settings: &RenderSettings) -> String {
+    let t = &r.totals;
+    let secs = r.render_time.as_secs_f64().max(1e-9);
+    let ms = |total: f64| 1e3 * total / t.iterations.max(1) as f64;
+    let m = |v: u64| format!("{:.0}", t.mean(v));
+    let mut s = String::new();
+    s += &format!(
+        "rendered {} iterations in {:.2} s ({:.2} it/s, {}photons/s) on backend '{}' ({}), method {}\n",
+        r.iterations,
+        secs,
+        r.iterations as f64 / secs,
+        si(t.photons_emitted as f64 / secs),
+        r.capabilities.backend,
+        r.capabilities.device,
+        settings.method.name()
+    );
+    s += &format!("  photons emitted     {} per iteration, {} in total ({} segments per iteration)\n", m(t.photons_emitted), t.photons_emitted, m(t.photon_segments));
+    s += &format!("  caustic map         {} footprints + {} progressive photons per iteration\n", m(t.footprints[0]), m(t.progressive[0]));
+    s += &format!("  global map          {} footprints + {} progressive photons per iteration\n", m(t.footprints[1]), m(t.progressive[1]));
+    s += &format!(
+        "  fallbacks           {} degenerate, {} culled, {} unrepresentable per iteration; {} differentials lost, {} overflowed\n",
+        m(t.degenerate),
+        m(t.culled),
+        m(t.unrepresentable),
+        m(t.differential_lost),
+        m(t.overflowed)
+    );
+    s += &format!("  query points        {} per iteration, {} containments gathered per iteration\n", m(t.query_points), m(t.gathered));
+    s += &format!("  radii (last)        caustic {:.3e}, global {:.3e}\n", r.last.radii[0], r.last.radii[1]);
+    s += &format!(
+        "  mean per iteration  camera {:.2} ms, photons {:.2} ms, AS build {:.2} ms, gather {:.2} ms, accumulate {:.2} ms\n",
+        ms(t.times[0]),
+        ms(t.times[1]),
+        ms(t.times[2]),
+        ms(t.times[3]),
+        ms(t.times[4])
+    );
+    s += &format!("  total time          {:.2} s (render {:.2} s)", r.total_time.as_secs_f64(), secs);
+    s
+}
+
+/// Runs a backend on `scene`.
+fn render_on_backend(backend: Backend, scene: &Scene, settings: &RenderSettings, budget: Budget, progress: &Progress) -> anyhow::Result<Rendered> {
+    // One arm per backend; each compiles without its feature and then reports it missing.
+    match backend {
+        Backend::Cpu => {
+            #[cfg(feature = "cpu")]
+            {
+                let mut tracer = arpa_cpu::CpuTracer::new().context("cannot start the CPU backend (Embree 4)")?;
+                render(&mut tracer, scene, settings, budget, progress)
+            }
+            #[cfg(not(feature = "cpu"))]
+            {
+                let _ = (scene, settings, budget, progress);
+                bail!("backend 'cpu' is not compiled into this build (rebuild with `--features cpu`)");
+            }
+        }
+    }
+}
+
+/// Runs the CLI.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Render(args) => run_render(&args),
+    }
+}
+
+/// `arpa render`.
+pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
+    if let Some(path) = &args.scene {
+        bail!("scene files are not supported yet: {}", path.display());
+    }
+    let mut scene = default_scene();
+    if let Some(r) = args.resolution {
+        scene.camera.width = r.width;
+        scene.camera.height = r.height;
+    }
+    scene.validate().context("the embedded default scene is invalid")?;
+    let settings = args.settings();
+    let budget = args.budget();
+    let (exr_path, png_path) = output_paths(&args.out)?;
+    if let Some(dir) = exr_path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create output directory '{}'", dir.display()))?;
+    }
+
+    let progress = Progress::new(budget, std::io::stderr().is_terminal());
+    let rendered = render_on_backend(args.backend, &scene, &settings, budget, &progress)?;
+
+    let exr = image_io::write_exr(&exr_path, &rendered.image)?;
+    let png = image_io::write_png(&png_path, &rendered.image, args.exposure)?;
+    eprintln!("{}", summary(&rendered, &settings));
+    if exr.non_finite_replaced > 0 || png.non_finite_replaced > 0 {
+        eprintln!("warning: {} non-finite channel values were written as 0", exr.non_finite_replaced.max(png.non_finite_replaced));
+    }
+    eprintln!("wrote {} and {}", exr_path.display(), png_path.display());
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use arpa_core::footprint::PackedFootprint;
+    use arpa_core::glam::Vec3;
+    use arpa_core::progressive_photon::PackedPhoton;
+    use arpa_core::tracer::QueryRecord;
+
+    #[derive(Debug, thiserror::Error)]
+    #[error("mock failure")]
+    struct MockError;
+
+    #[derive(Default)]
+    struct Mock {
+        size: (u32, u32),
+        photons: u32,
+        iterations: u32,
+        fail_at: Option<u32>,
+        sleep: Duration,
+    }
+
+    impl Tracer for Mock {
+        type Error = MockError;
+        fn capabilities(&self) -> Capabilities {
+            Capabilities { backend: "mock", device: "test".into(), methods: vec![Method::Arpa], max_photons_per_iteration: None, deterministic: true }
+        }
+        fn upload_scene(&mut self, scene: &Scene, settings: &RenderSettings) -> Result<(), MockError> {
+            self.size = (scene.camera.width, scene.camera.height);
+            self.photons = settings.photons_per_iteration;
+            self.iterations = 0;
+            Ok(())
+        }
+        fn camera_pass(&mut self) -> Result<(), MockError> {
+            Ok(())
+        }
+        fn photon_pass(&mut self) -> Result<(), MockError> {
+            std::thread::sleep(self.sleep);
+            Ok(())
+        }
+        fn build_acceleration_structure(&mut self) -> Result<(), MockError> {
+            Ok(())
+        }
+        fn gather(&mut self) -> Result<(), MockError> {
+            if self.fail_at == Some(self.iterations + 1) { Err(MockError) } else { Ok(()) }
+        }
+        fn accumulate(&mut self) -> Result<(), MockError> {
+            self.iterations += 1;
+            Ok(())
+        }
+        fn iterations(&self) -> u32 {
+            self.iterations
+        }
+        fn read_image(&self) -> Result<Image, MockError> {
+            Ok(Image { width: self.size.0, height: self.size.1, pixels: vec![Vec3::splat(0.5); (self.size.0 * self.size.1) as usize] })
+        }
+        fn read_query_points(&self) -> Result<Vec<QueryRecord>, MockError> {
+            Ok(vec![])
+        }
+        fn read_footprints(&self) -> Result<Vec<PackedFootprint>, MockError> {
+            Ok(vec![])
+        }
+        fn read_photons(&self) -> Result<Vec<PackedPhoton>, MockError> {
+            Ok(vec![])
+        }
+        fn read_stats(&self) -> Result<IterationStats, MockError> {
+            let mut s = IterationStats { iteration: self.iterations, photons_emitted: self.photons as u64, footprints: [10, 20], progressive: [1, 2], degenerate: 3, ..Default::default() };
+            s.times.gather = 0.002;
+            Ok(s)
+        }
+    }
+
+    fn small_scene() -> Scene {
+        let mut s = default_scene();
+        s.camera.width = 8;
+        s.camera.height = 4;
+        s
+    }
+
+    #[test]
+    fn renders_the_requested_iterations_and_sums_statistics() {
+        let mut t = Mock::default();
+        let settings = RenderSettings { photons_per_iteration: 1000, ..Default::default() };
+        let r = render(&mut t, &small_scene(), &settings, Budget::Iterations(5), &Progress::hidden()).unwrap();
+        assert_eq!(r.iterations, 5);
+        assert_eq!((r.image.width, r.image.height, r.image.pixels.len()), (8, 4, 32));
+        assert_eq!(r.totals.photons_emitted, 5000);
+        assert_eq!(r.totals.footprints, [50, 100]);
+        assert_eq!(r.totals.mean(r.totals.degenerate), 3.0);
+        assert!((r.totals.times[3] - 0.01).abs() < 1e-12);
+        let text = summary(&r, &settings);
+        assert!(text.contains("rendered 5 iterations") && text.contains("10 footprints") && text.contains("gather 2.00 ms"), "{text}");
+    }
+
+    #[test]
+    fn time_budget_runs_at_least_one_iteration_and_stops() {
+        let mut t = Mock { sleep: Duration::from_millis(20), ..Default::default() };
+        let r = render(&mut t, &small_scene(), &RenderSettings::default(), Budget::Time(Duration::from_millis(1)), &Progress::hidden()).unwrap();
+        assert_eq!(r.iterations, 1);
+        let mut t = Mock { sleep: Duration::from_millis(5), ..Default::default() };
+        let r = render(&mut t, &small_scene(), &RenderSettings::default(), Budget::Time(Duration::from_millis(60)), &Progress::hidden()).unwrap();
+        assert!(r.iterations >= 2 && r.iterations < 40, "{}", r.iterations);
+    }
+
+    #[test]
+    fn backend_errors_name_the_iteration_and_unsupported_methods_fail() {
+        let mut t = Mock { fail_at: Some(3), ..Default::default() };
+        let e = render(&mut t, &small_scene(), &RenderSettings::default(), Budget::Iterations(5), &Progress::hidden()).unwrap_err();
+        assert_eq!(format!("{e:#}"), "iteration 3 failed: mock failure");
+        let settings = RenderSettings { method: Method::Rtpm, ..Default::default() };
+        let e = render(&mut Mock::default(), &small_scene(), &settings, Budget::Iterations(1), &Progress::hidden()).unwrap_err();
+        assert!(e.to_string().contains("does not implement method 'rtpm'"), "{e}");
+    }
+
+    #[test]
+    fn argument_parsers() {
+        assert_eq!(parse_resolution("640x480"), Ok(Resolution { width: 640, height: 480 }));
+        assert_eq!(parse_resolution(" 3X2 "), Ok(Resolution { width: 3, height: 2 }));
+        for bad in ["0x5", "5x0", "x", "12", "axb", "-1x4", "20000x1"] {
+            let e = parse_resolution(bad).unwrap_err();
+            assert!(e.contains(bad.trim()), "{e}");
+        }
+        assert!(parse_backend("nope").unwrap_err().contains("unknown backend 'nope'"));
+        assert!(parse_backend("vk").unwrap_err().contains("not compiled"));
+        #[cfg(feature = "cpu")]
+        assert_eq!(parse_backend("cpu"), Ok(Backend::Cpu));
+        assert!(parse_positive_f64("0").is_err() && parse_positive_f64("nan").is_err() && parse_positive_f64("2.5") == Ok(2.5));
+        assert!(parse_exposure("-1").is_err() && parse_exposure("inf").is_err() && parse_exposure("0") == Ok(0.0));
+    }
+
+    #[test]
+    fn output_paths_append_extensions() {
+        let p = |s: &str| output_paths(Path::new(s)).map(|(a, b)| (a.display().to_string(), b.display().to_string()));
+        assert_eq!(p("out/render").unwrap(), ("out/render.exr".into(), "out/render.png".into()));
+        assert_eq!(p("out/render.exr").unwrap(), ("out/render.exr".into(), "out/render.png".into()));
+        assert_eq!(p("a.v2").unwrap(), ("a.v2.exr".into(), "a.v2.png".into()));
+        assert!(p("").is_err());
+        assert!(p("out/").is_err());
+    }
+
+    #[test]
+    #[cfg(feature = "cpu")] // the default backend must be compiled in
+    fn cli_parses_defaults_and_rejects_conflicts() {
+        let cli = Cli::try_parse_from(["arpa", "render"]).unwrap();
+        let Command::Render(a) = cli.command;
+        assert_eq!(a.budget(), Budget::Iterations(DEFAULT_ITERATIONS));
+        assert_eq!(a.photons, 250_000);
+        assert_eq!(a.out, PathBuf::from("out/render"));
+        let s = a.settings();
+        assert!(s.direct_lighting && s.method == Method::Arpa);
+        assert!(Cli::try_parse_from(["arpa", "render", "--iterations", "1", "--time", "1"]).is_err());
+        assert!(Cli::try_parse_from(["arpa", "render", "--photons", "0"]).is_err());
+        let cli = Cli::try_parse_from(["arpa", "render", "--time", "2.5", "--no-direct", "--method", "rtpm", "--smoothing-caustic", "2"]).unwrap();
+        let Command::Render(a) = cli.command;
+        assert_eq!(a.budget(), Budget::Time(Duration::from_secs_f64(2.5)));
+        let s = a.settings();
+        assert!(!s.direct_lighting && s.method == Method::Rtpm && s.smoothing.caustic == 2.0);
+    }
+}
