@@ -131,6 +131,7 @@ struct Pools {
     smoothing: Smoothing,
     heuristics: Heuristics,
     resolved: ResolvedHeuristics,
+    resolved_none: ResolvedHeuristics,
     ctx: [HeuristicContext; 2],
     point_light: Light,
     quad_light: Light,
@@ -347,6 +348,7 @@ fn build_pools() -> Pools {
         rngs,
         smoothing,
         resolved: heuristics.resolve(&scene),
+        resolved_none: Heuristics::NONE.resolve(&scene),
         heuristics,
         ctx,
         point_light,
@@ -407,6 +409,27 @@ fn transfer_refract(p: &mut Pools) -> usize {
 /// once per iteration, then `from_hit` + smoothing + heuristics + AABB + packing per photon.
 fn footprint_heuristics(p: &mut Pools) -> usize {
     let (s, h, ctx) = black_box((&p.smoothing, &p.resolved, &p.ctx));
+    for x in black_box(&p.stores).iter() {
+        let x = black_box(x);
+        if let Ok(fp) = Footprint::from_hit(&x.ray, x.n_geo, x.flux, x.map) {
+            black_box(store_footprint_resolved(fp, s, h, ctx[fp.map.index()].radius));
+        }
+    }
+    p.stores.len()
+}
+
+/// `Footprint::from_hit` alone (orientation and projection of the differentials).
+fn footprint_from_hit(p: &mut Pools) -> usize {
+    for x in black_box(&p.stores).iter() {
+        let x = black_box(x);
+        black_box(Footprint::from_hit(&x.ray, x.n_geo, x.flux, x.map)).ok();
+    }
+    p.stores.len()
+}
+
+/// The store path with every heuristic switched off (box and packing only).
+fn footprint_no_heuristics(p: &mut Pools) -> usize {
+    let (s, h, ctx) = black_box((&p.smoothing, &p.resolved_none, &p.ctx));
     for x in black_box(&p.stores).iter() {
         let x = black_box(x);
         if let Ok(fp) = Footprint::from_hit(&x.ray, x.n_geo, x.flux, x.map) {
@@ -504,6 +527,8 @@ const BENCHES: &[(&str, &str, Pass)] = &[
     ("propagate", "transfer + refract", transfer_refract),
     ("store", "footprint + heuristics", footprint_heuristics),
     ("store", "footprint + heuristics (resolving per call)", footprint_heuristics_unresolved),
+    ("store", "footprint, heuristics off", footprint_no_heuristics),
+    ("store", "Footprint::from_hit", footprint_from_hit),
     ("store", "Heuristics::apply", heuristics_apply),
     ("store", "Footprint::pack", footprint_pack),
     ("gather", "point-in-footprint", contains),

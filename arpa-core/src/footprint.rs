@@ -231,7 +231,13 @@ impl Footprint {
     pub fn pack(&self, radius: f64) -> Result<PackedFootprint, FootprintError> {
         let la2 = self.du.length_squared();
         let lb2 = self.dv.length_squared();
-        pack_parts(self, la2, lb2, self.du.cross(self.dv), radius)
+        let cross = self.du.cross(self.dv);
+        let den = cross.dot(self.normal);
+        if degenerate_denominator(den, la2, lb2) {
+            return Err(FootprintError::Degenerate);
+        }
+        let h = half_thickness(self.center, libm::sqrt(la2.max(lb2)), libm::sqrt(la2.min(lb2)), radius);
+        pack_parts(self, la2, lb2, cross, den, h)
     }
 }
 
@@ -239,7 +245,9 @@ impl Footprint {
 /// `16 ε |D_u||D_v|` (parallel or zero differentials), or not finite.
 #[inline]
 pub(crate) fn degenerate_denominator(den: f64, la2: f64, lb2: f64) -> bool {
-    !(den.abs() > 16.0 * f64::EPSILON * libm::sqrt(la2) * libm::sqrt(lb2)) || !den.is_finite()
+    // Compared in squares: den² > (16 ε)² |D_u|² |D_v|².
+    const K2: f64 = 256.0 * f64::EPSILON * f64::EPSILON;
+    !(den * den > K2 * la2 * lb2) || !den.is_finite()
 }
 
 /// Slab half-thickness (metres): `min(minor/2, radius)`, but at least
@@ -251,22 +259,15 @@ pub fn half_thickness(center: DVec3, major: f64, minor: f64, radius: f64) -> f64
     (0.5 * minor).min(radius).max(floor)
 }
 
-/// [`Footprint::pack`] with the squared differential lengths and `D_u × D_v` already known.
+/// [`Footprint::pack`] with the squared differential lengths, `D_u × D_v`, the
+/// denominator `den = (D_u × D_v)·n` (already checked with [`degenerate_denominator`]) and
+/// the slab half-thickness `h` already known.
 #[inline]
-pub(crate) fn pack_parts(fp: &Footprint, la2: f64, lb2: f64, cross: DVec3, radius: f64) -> Result<PackedFootprint, FootprintError> {
-    // (D_u × D_v)·n = D_u·(D_v × n): the denominator of M_p⁻¹; |den| = |D_u × D_v| in-plane.
-    let den = cross.dot(fp.normal);
-    if degenerate_denominator(den, la2, lb2) {
-        return Err(FootprintError::Degenerate);
-    }
+pub(crate) fn pack_parts(fp: &Footprint, la2: f64, lb2: f64, cross: DVec3, den: f64, h: f64) -> Result<PackedFootprint, FootprintError> {
     // σ₂ ≥ |a × b|/√(|a|² + |b|²) ≥ k·scale, compared in squares:
     // |D_u × D_v|² ≥ 4 (|D_u|² + |D_v|²) (k·scale)².
     let scale = fp.center.abs().max_element().max(1e-30) * MIN_RELATIVE_SEMI_AXIS;
-    if !(cross.length_squared() >= 4.0 * (la2 + lb2) * scale * scale) {
-        return Err(FootprintError::Unrepresentable);
-    }
-    let h = half_thickness(fp.center, libm::sqrt(la2.max(lb2)), libm::sqrt(la2.min(lb2)), radius);
-    if !(h > 0.0) {
+    if !(cross.length_squared() >= 4.0 * (la2 + lb2) * scale * scale) || !(h > 0.0) {
         return Err(FootprintError::Unrepresentable);
     }
     let inv = 2.0 / den;
@@ -286,7 +287,7 @@ pub(crate) fn pack_parts(fp: &Footprint, la2: f64, lb2: f64, cross: DVec3, radiu
         flux_density_r: density.x as f32,
         row_v: f(row_v),
         flux_density_g: density.y as f32,
-        row_n: f(fp.normal / h),
+        row_n: f(fp.normal * (1.0 / h)),
         flux_density_b: density.z as f32,
     };
     if bytemuck::cast_ref::<_, [f32; 16]>(&packed).iter().enumerate().all(|(i, x)| i == 3 || x.is_finite()) {

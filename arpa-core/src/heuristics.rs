@@ -267,15 +267,16 @@ pub enum StoreRejection {
     Unrepresentable,
 }
 
+/// `ℓ'/ℓ = (ℓ/ℓ_ref)^(γ−1)` from `major2 = ℓ²` and `reference = ℓ_ref`.
 #[inline]
-fn dampen_ratio(major: f64, reference: f64, exponent: f64) -> f64 {
-    // ℓ'/ℓ = (ℓ/ℓ_ref)^(γ−1); γ = 1/4 (ARPA) needs only square roots.
-    let x = major / reference;
+fn dampen_ratio(major2: f64, reference: f64, exponent: f64) -> f64 {
     if exponent == 0.25 {
-        let s = libm::sqrt(x);
-        1.0 / (s * libm::sqrt(s))
+        // γ = 1/4 (ARPA): (ℓ_ref²/ℓ²)^(3/8) with one division and three square roots.
+        let a = libm::sqrt(reference * reference / major2); // (ℓ_ref/ℓ)
+        let b = libm::sqrt(a); // (ℓ_ref/ℓ)^(1/2)
+        b * libm::sqrt(b) // (ℓ_ref/ℓ)^(3/4)
     } else {
-        libm::exp((exponent - 1.0) * libm::log(x))
+        libm::exp(0.5 * (exponent - 1.0) * libm::log(major2 / (reference * reference)))
     }
 }
 
@@ -308,18 +309,19 @@ impl ResolvedHeuristics {
         let mut la2 = fp.du.length_squared();
         let mut lb2 = fp.dv.length_squared();
         if let Some(d) = self.dampening {
-            let major = libm::sqrt(la2.max(lb2));
+            let major2 = la2.max(lb2);
             let reference = match d.reference {
                 DampenReference::Absolute(l) => l,
                 DampenReference::ProgressiveDiameter => 2.0 * radius,
             };
-            if major > 0.0 && major.is_finite() && reference > 0.0 && reference.is_finite() {
-                let ratio = dampen_ratio(major, reference, d.exponent);
+            if major2 > 0.0 && major2.is_finite() && reference > 0.0 && reference.is_finite() {
+                let ratio = dampen_ratio(major2, reference, d.exponent);
                 if ratio.is_finite() && ratio > 0.0 {
                     fp.du *= ratio;
                     fp.dv *= ratio;
-                    la2 = fp.du.length_squared();
-                    lb2 = fp.dv.length_squared();
+                    let r2 = ratio * ratio;
+                    la2 *= r2;
+                    lb2 *= r2;
                 }
             }
         }
@@ -375,7 +377,7 @@ impl ResolvedHeuristics {
                 return Err(StoreRejection::Heuristic(Rejection::Culled));
             }
         }
-        match pack_parts(&fp, la2, lb2, cross, radius) {
+        match pack_parts(&fp, la2, lb2, cross, den, h) {
             Ok(packed) => Ok((fp, packed, bounds)),
             Err(crate::footprint::FootprintError::Degenerate) => Err(StoreRejection::Heuristic(Rejection::Degenerate)),
             Err(_) => Err(StoreRejection::Unrepresentable),
