@@ -485,8 +485,21 @@ fn irradiance(p: &mut Pools) -> usize {
     p.queries.len()
 }
 
+/// Emission as the photon pass runs it: the light prepared once per iteration
+/// (`Light::prepare`), then `PreparedLight::emit` per photon.
 fn emit_with(p: &Pools, light: &Light) -> usize {
-    let params = black_box(&p.emission);
+    let prepared = black_box(light.prepare(black_box(&p.emission)).expect("valid light"));
+    for x in black_box(&p.emits).iter() {
+        let x = black_box(x);
+        let mut rng = x.rng;
+        black_box(prepared.emit(x.index, &mut rng)).ok();
+    }
+    p.emits.len()
+}
+
+/// `Light::emit`, which validates and prepares the light on every call.
+fn emit_point_unprepared(p: &mut Pools) -> usize {
+    let (params, light) = black_box((&p.emission, &p.point_light));
     for x in black_box(&p.emits).iter() {
         let x = black_box(x);
         let mut rng = x.rng;
@@ -534,6 +547,7 @@ const BENCHES: &[(&str, &str, Pass)] = &[
     ("gather", "point-in-footprint", contains),
     ("gather", "irradiance Silverman", irradiance),
     ("emit", "Light::emit point", emit_point),
+    ("emit", "Light::emit point (preparing per call)", emit_point_unprepared),
     ("emit", "Light::emit quad", emit_quad),
     ("emit", "reemission::reemit", reemission),
     ("emit", "Rng::next_u32", rng_next_u32),

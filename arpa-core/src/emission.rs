@@ -348,68 +348,104 @@ impl Light {
 
     /// Emits photon `index` of `params.photon_count`. The primary two dimensions (direction
     /// for point/spot, position for area/directional lights) come from the shifted
-    /// Fibonacci lattice; the others from `rng`. Validates the light first.
+    /// Fibonacci lattice; the others from `rng`. Validates the light first; a photon pass
+    /// should [`Light::prepare`] once per iteration and call [`PreparedLight::emit`].
     pub fn emit(&self, index: u32, params: &EmissionParams, rng: &mut Rng) -> Result<EmittedPhoton, EmissionError> {
-        let (centre, radius) = params.scene_sphere;
+        self.prepare(params)?.emit(index, rng)
+    }
+
+    /// Validates the light and computes everything that does not depend on the photon:
+    /// differential lengths, frames and flux per photon.
+    pub fn prepare(&self, params: &EmissionParams) -> Result<PreparedLight, EmissionError> {
+        let radius = params.scene_sphere.1;
         self.validate(radius)?;
         if params.photon_count == 0 {
             return Err(LightError::NoPhotons.into());
         }
         let n = params.photon_count;
-        let lengths = self.emission_lengths(n, params.scale, radius);
-        let u = crate::sampling::fibonacci_lattice(index, n, params.lattice_shift);
         let per_photon = 1.0 / n as f64;
-        let (ray, flux, surface_normal) = match self {
+        let (flux, frame) = match self {
+            Light::Point(l) => (l.intensity * (4.0 * PI * per_photon), Frame::from_normal(DVec3::Z)),
+            Light::Spot(l) => (l.intensity * (cone_solid_angle_from_angle(l.cutoff) * per_photon), Frame::from_normal(l.direction)),
+            Light::Directional(l) => (l.irradiance * (PI * radius * radius * per_photon), Frame::from_normal(l.direction.normalize())),
+            Light::Triangle(l) => (l.radiance * (PI * self.area() * per_photon), Frame::from_normal_and_hint((l.p[1] - l.p[0]).cross(l.p[2] - l.p[0]), l.p[1] - l.p[0])),
+            Light::Quad(l) => (l.radiance * (PI * self.area() * per_photon), Frame::from_normal_and_hint(l.edge_u.cross(l.edge_v), l.edge_u)),
+        };
+        let cos_cutoff = if let Light::Spot(l) = self { libm::cos(l.cutoff) } else { -1.0 };
+        Ok(PreparedLight { light: *self, params: *params, lengths: self.emission_lengths(n, params.scale, radius), flux, frame, cos_cutoff })
+    }
+}
+
+/// A light prepared for one iteration ([`Light::prepare`]): validated, with its
+/// differential lengths, frame (spot axis, directional beam, area-light plane) and flux per
+/// photon computed once.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PreparedLight {
+    light: Light,
+    params: EmissionParams,
+    lengths: EmissionLengths,
+    flux: DVec3,
+    frame: Frame,
+    cos_cutoff: f64,
+}
+
+impl PreparedLight {
+    /// The differential lengths of this iteration's photons.
+    pub fn lengths(&self) -> EmissionLengths {
+        self.lengths
+    }
+
+    /// The light.
+    pub fn light(&self) -> &Light {
+        &self.light
+    }
+
+    /// Emits photon `index` (see [`Light::emit`]).
+    pub fn emit(&self, index: u32, rng: &mut Rng) -> Result<EmittedPhoton, EmissionError> {
+        let params = &self.params;
+        let (centre, radius) = params.scene_sphere;
+        let lengths = &self.lengths;
+        let u = crate::sampling::fibonacci_lattice(index, params.photon_count, params.lattice_shift);
+        let (ray, flux, surface_normal) = match &self.light {
             Light::Point(l) => {
                 let d = uniform_sphere(u);
                 let f = Frame::from_normal(d);
                 let w = lengths.directional;
-                (RayDifferential::new(l.position, d, DVec3::ZERO, DVec3::ZERO, f.t * w, f.b * w)?, l.intensity * (4.0 * PI * per_photon), None)
+                (RayDifferential::new(l.position, d, DVec3::ZERO, DVec3::ZERO, f.t * w, f.b * w)?, self.flux, None)
             }
             Light::Spot(l) => {
-                let axis = Frame::from_normal(l.direction);
-                let cos_c = libm::cos(l.cutoff);
-                let local = uniform_cone(u, cos_c);
-                let d = axis.to_world(local);
+                let local = uniform_cone(u, self.cos_cutoff);
+                let d = self.frame.to_world(local);
                 let theta = libm::acos(local.z.clamp(-1.0, 1.0));
                 let f = Frame::from_normal(d);
                 let w = lengths.directional;
-                let flux = l.intensity * (l.falloff_at(theta) * cone_solid_angle_from_angle(l.cutoff) * per_photon);
-                (RayDifferential::new(l.position, d, DVec3::ZERO, DVec3::ZERO, f.t * w, f.b * w)?, flux, None)
+                (RayDifferential::new(l.position, d, DVec3::ZERO, DVec3::ZERO, f.t * w, f.b * w)?, self.flux * l.falloff_at(theta), None)
             }
-            Light::Directional(l) => {
-                let d = l.direction.normalize();
-                let f = Frame::from_normal(d);
+            Light::Directional(_) => {
+                let f = &self.frame;
                 let disc = uniform_disc(u) * radius;
-                let origin = centre - d * radius + f.t * disc.x + f.b * disc.y;
+                let origin = centre - f.n * radius + f.t * disc.x + f.b * disc.y;
                 let x = lengths.positional;
-                (RayDifferential::new(origin, d, f.t * x, f.b * x, DVec3::ZERO, DVec3::ZERO)?, l.irradiance * (PI * radius * radius * per_photon), None)
+                (RayDifferential::new(origin, f.n, f.t * x, f.b * x, DVec3::ZERO, DVec3::ZERO)?, self.flux, None)
             }
             Light::Triangle(l) => {
                 let b = uniform_triangle(u);
-                let p = l.p[0] * b.x + l.p[1] * b.y + l.p[2] * b.z;
-                let normal = (l.p[1] - l.p[0]).cross(l.p[2] - l.p[0]);
-                self.area_photon(p, normal, l.p[1] - l.p[0], l.radiance, &lengths, per_photon, rng)?
+                self.area_photon(l.p[0] * b.x + l.p[1] * b.y + l.p[2] * b.z, rng)?
             }
-            Light::Quad(l) => {
-                let p = l.origin + l.edge_u * u.x + l.edge_v * u.y;
-                let normal = l.edge_u.cross(l.edge_v);
-                self.area_photon(p, normal, l.edge_u, l.radiance, &lengths, per_photon, rng)?
-            }
+            Light::Quad(l) => self.area_photon(l.origin + l.edge_u * u.x + l.edge_v * u.y, rng)?,
         };
         Ok(EmittedPhoton { ray, flux, reemission_length: lengths.reemission, surface_normal })
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn area_photon(&self, p: DVec3, normal: DVec3, edge: DVec3, radiance: DVec3, lengths: &EmissionLengths, per_photon: f64, rng: &mut Rng) -> Result<(RayDifferential, DVec3, Option<DVec3>), EmissionError> {
-        let light_frame = Frame::from_normal_and_hint(normal, edge);
+    fn area_photon(&self, p: DVec3, rng: &mut Rng) -> Result<(RayDifferential, DVec3, Option<DVec3>), EmissionError> {
+        let light_frame = &self.frame;
         let d = light_frame.to_world(cosine_hemisphere(rng.next_2d())).normalize_or(light_frame.n);
         // Directional frame aligned with the positional one so the two spreads add up
         // instead of shearing the footprint.
         let dir_frame = Frame::from_normal_and_hint(d, light_frame.t);
-        let (x, w) = (lengths.positional, lengths.directional);
+        let (x, w) = (self.lengths.positional, self.lengths.directional);
         let ray = RayDifferential::new(p, d, light_frame.t * x, light_frame.b * x, dir_frame.t * w, dir_frame.b * w)?;
-        Ok((ray, radiance * (PI * self.area() * per_photon), Some(light_frame.n)))
+        Ok((ray, self.flux, Some(light_frame.n)))
     }
 }
 

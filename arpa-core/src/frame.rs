@@ -39,12 +39,14 @@ impl Frame {
         if !(len2 > 1e-24 * hint.length_squared().max(f64::MIN_POSITIVE)) || !len2.is_finite() {
             return Self::from_normal(n);
         }
-        let t = t / libm::sqrt(len2);
-        // Second Gram–Schmidt pass: a hint nearly parallel to n leaves a residue along n
-        // after the first one.
-        let t = (t - n * n.dot(t)).normalize_or_zero();
-        if t == DVec3::ZERO || !t.is_finite() {
-            return Self::from_normal(n);
+        let mut t = t / libm::sqrt(len2);
+        // Second Gram–Schmidt pass: a hint nearly parallel to n (the projection lost more
+        // than half its length) leaves a residue along n after the first one.
+        if len2 < 0.25 * hint.length_squared() {
+            t = (t - n * n.dot(t)).normalize_or_zero();
+            if t == DVec3::ZERO || !t.is_finite() {
+                return Self::from_normal(n);
+            }
         }
         Self { t, b: n.cross(t), n }
     }

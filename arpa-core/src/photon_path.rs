@@ -9,7 +9,7 @@
 
 use crate::classify::{PathClassifier, SurfaceInteraction};
 use crate::differential::{refract_direction, reflect_direction, RayDifferential, RefractionEvent};
-use crate::emission::{EmissionParams, Light};
+use crate::emission::{EmissionParams, PreparedLight};
 use crate::footprint::{Footprint, PhotonMap};
 use crate::fresnel::dielectric_reflectance;
 use crate::heuristics::ResolvedHeuristics;
@@ -30,8 +30,9 @@ pub struct PhotonPassSetup {
     pub allocation: Vec<u32>,
     /// First global photon index of each emitter (prefix sums of `allocation`).
     pub first_index: Vec<u32>,
-    /// Emission parameters per emitter (lattice shift drawn per iteration).
-    pub params: Vec<EmissionParams>,
+    /// Each emitter prepared for this iteration (lattice shift drawn per iteration);
+    /// `None` for an emitter that cannot emit (never for a validated scene).
+    pub lights: Vec<Option<PreparedLight>>,
     /// Progressive radii `[caustic, global]` of this iteration (metres).
     pub radii: [f64; 2],
     /// 0-based iteration number.
@@ -50,16 +51,18 @@ impl PhotonPassSetup {
             first_index.push(acc);
             acc += n;
         }
-        let params = allocation
+        let lights = allocation
             .iter()
+            .zip(scene.emitters())
             .enumerate()
-            .map(|(i, &n)| {
+            .map(|(i, (&n, light))| {
                 let mut r = Rng::new(settings.seed, iteration, i as u32, StreamDomain::Iteration);
-                EmissionParams { photon_count: n.max(1), scale: 1.0, scene_sphere: scene.bounding_sphere(), lattice_shift: r.next_2d() }
+                let params = EmissionParams { photon_count: n.max(1), scale: 1.0, scene_sphere: scene.bounding_sphere(), lattice_shift: r.next_2d() };
+                light.prepare(&params).ok()
             })
             .collect();
         let radii = settings.radii.radii(&scene.bounds(), iteration.saturating_add(1));
-        Self { allocation, first_index, params, radii, iteration, heuristics: settings.heuristics.resolve(&scene.bounds()) }
+        Self { allocation, first_index, lights, radii, iteration, heuristics: settings.heuristics.resolve(&scene.bounds()) }
     }
 
     /// Total photons of the iteration.
@@ -105,9 +108,9 @@ pub fn trace_photon(
 ) -> PhotonPathStats {
     let mut stats = PhotonPathStats::default();
     let Some((emitter, local)) = setup.locate(index) else { return stats };
-    let light: &Light = &scene.emitters()[emitter];
+    let Some(light) = &setup.lights[emitter] else { return stats };
     let mut rng = Rng::new(settings.seed, setup.iteration, index, StreamDomain::Photon);
-    let Ok(emitted) = light.emit(local, &setup.params[emitter], &mut rng) else { return stats };
+    let Ok(emitted) = light.emit(local, &mut rng) else { return stats };
     let reemission_length = emitted.reemission_length;
     let mut st = PathState { ray: emitted.ray, differential_valid: true, flux: emitted.flux, classifier: PathClassifier::new() };
     // Area-light photons start on the emitter: leave it along its normal.

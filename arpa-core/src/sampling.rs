@@ -18,8 +18,8 @@ fn unit(x: f64) -> f64 {
 pub fn uniform_sphere(u: DVec2) -> DVec3 {
     let z = 1.0 - 2.0 * unit(u.x);
     let r = libm::sqrt((1.0 - z * z).max(0.0));
-    let phi = TAU * unit(u.y);
-    DVec3::new(r * libm::cos(phi), r * libm::sin(phi), z)
+    let (sin, cos) = libm::sincos(TAU * unit(u.y));
+    DVec3::new(r * cos, r * sin, z)
 }
 
 /// Uniform direction inside the cone of half-angle `acos(cos_max)` around +z
@@ -29,8 +29,8 @@ pub fn uniform_cone(u: DVec2, cos_max: f64) -> DVec3 {
     let cos_max = if cos_max >= -1.0 { cos_max.min(1.0) } else { -1.0 };
     let z = 1.0 - unit(u.x) * (1.0 - cos_max);
     let r = libm::sqrt((1.0 - z * z).max(0.0));
-    let phi = TAU * unit(u.y);
-    DVec3::new(r * libm::cos(phi), r * libm::sin(phi), z)
+    let (sin, cos) = libm::sincos(TAU * unit(u.y));
+    DVec3::new(r * cos, r * sin, z)
 }
 
 /// Solid angle of a cone with half-angle `acos(cos_max)`, in steradians.
@@ -57,7 +57,8 @@ pub fn uniform_disc(u: DVec2) -> DVec2 {
         return DVec2::ZERO;
     }
     let (r, theta) = if a * a > b * b { (a, FRAC_PI_4 * (b / a)) } else { (b, 0.5 * PI - FRAC_PI_4 * (a / b)) };
-    DVec2::new(r * libm::cos(theta), r * libm::sin(theta))
+    let (sin, cos) = libm::sincos(theta);
+    DVec2::new(r * cos, r * sin)
 }
 
 /// Cosine-weighted direction in the hemisphere around +z (Malley's method on the
