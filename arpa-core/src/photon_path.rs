@@ -8,7 +8,7 @@
 //! backend's implementation.
 
 use crate::classify::{PathClassifier, SurfaceInteraction};
-use crate::differential::{refract_direction, reflect_direction, RayDifferential, RefractionEvent};
+use crate::differential::{refract_direction, reflect_direction, DifferentialError, NormalDifferential, RayDifferential, RefractionEvent};
 use crate::emission::{EmissionParams, PreparedLight};
 use crate::footprint::{Footprint, PhotonMap};
 use crate::fresnel::dielectric_reflectance;
@@ -164,13 +164,7 @@ pub fn trace_photon(
                 st.flux *= reflectance.as_dvec3();
                 let nd = scene.shading_normal(&s, ray_at_hit.dp_du, ray_at_hit.dp_dv);
                 let n = nd.map(|n| n.n).unwrap_or(s.geometric_normal);
-                st.ray = match (st.differential_valid, nd.and_then(|nd| ray_at_hit.reflect(&nd))) {
-                    (true, Ok(r)) => r,
-                    _ => {
-                        st.differential_valid = false;
-                        lost_differential(s.position, reflect_direction(d, n))
-                    }
-                };
+                st.reflect(&ray_at_hit, nd, n);
                 origin = offset_origin(s.position, front);
             }
             Scattering::Refractive(ior, transmittance) => {
@@ -181,13 +175,7 @@ pub fn trace_photon(
                 let fresnel = dielectric_reflectance(d.dot(n), ior);
                 let reflect = rng.next_f64() < fresnel;
                 if reflect {
-                    st.ray = match (st.differential_valid, nd.and_then(|nd| ray_at_hit.reflect(&nd))) {
-                        (true, Ok(r)) => r,
-                        _ => {
-                            st.differential_valid = false;
-                            lost_differential(s.position, reflect_direction(d, n))
-                        }
-                    };
+                    st.reflect(&ray_at_hit, nd, n);
                     origin = offset_origin(s.position, front);
                 } else {
                     st.flux *= transmittance.as_dvec3();
@@ -209,6 +197,20 @@ pub fn trace_photon(
         }
     }
     stats
+}
+
+impl PathState {
+    /// Specular reflection at the hit `at` about the shading normal `nd` (or `n` when its
+    /// derivative could not be formed); the differential is lost if it cannot follow.
+    fn reflect(&mut self, at: &RayDifferential, nd: Result<NormalDifferential, DifferentialError>, n: DVec3) {
+        self.ray = match (self.differential_valid, nd.and_then(|nd| at.reflect(&nd))) {
+            (true, Ok(r)) => r,
+            _ => {
+                self.differential_valid = false;
+                lost_differential(at.p, reflect_direction(at.d, n))
+            }
+        };
+    }
 }
 
 /// A ray without a usable differential (all derivatives zero).
