@@ -18,9 +18,10 @@
 //! 2. `photon_pass.*`: [`CpuTracer::photon_pass`] segments/s (`photon_segments` / stage
 //!    time) on the same thread counts, and its ratio to (1).
 //! 3. `gather.*`: gather queries/s and footprints + photons per query.
-//! 4. `memory.*`: bytes per footprint: `size_of::<PackedFootprint>()`, the backend's own box
-//!    copy, and the Embree box BVH measured as the RSS delta of building the box scene over
-//!    the boxes of a real 1M-photon pass (in a fresh child process, after `malloc_trim`).
+//! 4. `memory.*`: bytes per footprint: `size_of::<PackedFootprint>()`, the box (held from the
+//!    photon pass until the build, handed to Embree without a copy and freed after it), and
+//!    the Embree box BVH measured as the RSS delta of building the box scene over the boxes
+//!    of a real 1M-photon pass (in a fresh child process, after `malloc_trim`).
 //! 5. `peak_rss.*`: `VmHWM` of a fresh child process during two iterations at 1,000,000
 //!    photons, per stage (peak reset through `/proc/self/clear_refs` before each stage).
 //! 6. `breakdown.*`: stage times for E-50K, E-250K (in-process) and E-1000K (from the
@@ -48,7 +49,7 @@ use std::time::{Duration, Instant};
 
 use arpa_core::emission::{Light, QuadLight};
 use arpa_core::footprint::PackedFootprint;
-use arpa_core::glam::{DMat3, DVec3, Vec3};
+use arpa_core::glam::{DVec3, Vec3};
 use arpa_core::photon_path::{PhotonPassSetup, trace_photon};
 use arpa_core::prepared_scene::PreparedScene;
 use arpa_core::progressive_photon::PackedPhoton;
@@ -768,14 +769,11 @@ fn bench_gather(cfg: &Config, scene: &Scene) {
         let photons = (stats.progressive[0] + stats.progressive[1]) as f64;
         println!("gather.{name}.stored: {stored} footprints, {photons} photons");
         // Broad phase: how many boxes the BVH hands to the exact test per query (own box
-        // scene over the same records; boxes without the tracer's 1e-4 padding).
+        // scene over the same records, the same iteration-0 photon pass traced again;
+        // boxes without the tracer's 1e-4 padding).
         let r = stats.radii.map(|r| r as f32);
-        let mut boxes: Vec<Aabb> = tr
-            .read_footprints()
-            .unwrap()
-            .iter()
-            .filter_map(footprint_box)
-            .collect();
+        let mut boxes = footprint_boxes(scene, &settings(method, cfg.photons));
+        assert_eq!(boxes.len() as f64, stored);
         boxes.extend(tr.read_photons().unwrap().iter().map(|p| {
             let (c, r) = (Vec3::from_array(p.position), r[p.photon_map().index()]);
             Aabb {
@@ -819,35 +817,37 @@ fn bench_gather(cfg: &Config, scene: &Scene) {
 // 4. Memory per footprint (child process)
 // ---------------------------------------------------------------------------------------
 
-/// The box `CpuTracer` gives Embree for a footprint (arpa-cpu's `footprint_box` without
-/// its padding, which does not change the size).
-fn footprint_box(fp: &PackedFootprint) -> Option<Aabb> {
-    let row = |r: [f32; 3]| Vec3::from_array(r).as_dvec3();
-    let m = DMat3::from_cols(row(fp.row_u), row(fp.row_v), row(fp.row_n)).transpose();
-    let det = m.determinant();
-    if !(det != 0.0 && det.is_finite()) {
-        return None;
-    }
-    let inv = m.inverse();
-    let (cu, cv, cn) = (inv.x_axis, inv.y_axis, inv.z_axis);
-    let half = (cu * cu + cv * cv).map(f64::sqrt) + cn.abs();
-    let c = row(fp.center);
-    let (lo, hi) = ((c - half).as_vec3(), (c + half).as_vec3());
-    (lo.is_finite() && hi.is_finite()).then(|| Aabb {
-        lower: lo.to_array(),
-        upper: hi.to_array(),
-    })
+/// The footprint boxes of a real photon pass as `CpuTracer` makes them: the core's box
+/// of each footprint's slab ([`StoredPhoton::Footprint`]'s `aabb`) rounded outwards to
+/// `f32` (the tracer's small padding does not change the size).
+fn footprint_boxes(scene: &Scene, settings: &RenderSettings) -> Vec<Aabb> {
+    let prepared = PreparedScene::new(scene.clone()).expect("scene");
+    let device = Device::new().expect("device");
+    let caster = EmbreeCaster::new(&device, &prepared).expect("BVH");
+    let setup = PhotonPassSetup::new(&prepared, settings, 0);
+    let count = setup.photon_count();
+    let chunks: Vec<Vec<Aabb>> = (0..count.div_ceil(4096))
+        .into_par_iter()
+        .map(|c| {
+            let mut out = Vec::new();
+            for index in c * 4096..(c * 4096 + 4096).min(count) {
+                trace_photon(&prepared, &caster, settings, &setup, index, &mut |p| {
+                    if let StoredPhoton::Footprint { aabb, .. } = p {
+                        let (lower, upper) = aabb.to_f32_conservative();
+                        out.push(Aabb { lower, upper });
+                    }
+                });
+            }
+            out
+        })
+        .collect();
+    chunks.concat()
 }
 
 fn child_memory(cfg: &Config) {
     let scene = build_scene(cfg.size, cfg.subdivisions);
-    let (boxes, kind) = {
-        let mut tr = tracer(&scene, &settings(Method::Arpa, cfg.memory_photons));
-        tr.photon_pass().unwrap();
-        let fps = tr.read_footprints().unwrap();
-        let boxes: Vec<Aabb> = fps.iter().filter_map(footprint_box).collect();
-        (boxes, "footprint")
-    };
+    let boxes = footprint_boxes(&scene, &settings(Method::Arpa, cfg.memory_photons));
+    let kind = "footprint";
     let photon_boxes: Vec<Aabb> = {
         let mut tr = tracer(&scene, &settings(Method::Rtpm, cfg.memory_photons));
         tr.photon_pass().unwrap();
@@ -874,50 +874,61 @@ fn child_memory(cfg: &Config) {
         size_of::<PackedPhoton>()
     );
     println!(
-        "memory.size_of_aabb: {} bytes (PhotonStore::footprint_boxes, and again in the Embree scene's box copy)",
+        "memory.size_of_aabb: {} bytes (PhotonStore::footprint_boxes from the photon pass until the build; moved into the Embree scene, freed after the build)",
         size_of::<Aabb>()
     );
-    for (kind, boxes) in [(kind, &boxes), ("photon", &photon_boxes)] {
+    for (kind, boxes) in [(kind, boxes), ("photon", photon_boxes)] {
         let n = boxes.len() as f64;
+        println!("memory.{kind}_boxes: {} boxes", boxes.len());
         trim();
-        let r0 = rss();
+        let r_boxes = rss();
+        // As CpuTracer builds: the boxes move into the scene (no copy) ...
         let mut b = SceneBuilder::new(&device)
             .unwrap()
             .build_quality(BuildQuality::Low);
-        b.add_boxes(boxes).unwrap();
-        let r1 = rss();
+        b.add_boxes_owned(boxes).unwrap();
+        let r0 = rss();
         let reset = reset_hwm();
         let built = Instant::now();
-        let scene = b.commit().unwrap();
+        let mut scene = b.commit().unwrap();
         let t = built.elapsed().as_secs_f64();
-        let (r2, h2) = (rss(), hwm());
+        let (r1, h1) = (rss(), hwm());
+        // ... and are freed once the BVH is built.
+        drop(scene.release_boxes());
+        trim();
+        let r2 = rss();
         black_box(&scene);
-        println!("memory.{kind}_boxes: {} boxes", boxes.len());
         println!(
-            "memory.{kind}.box_copy_per_record: {:.1} bytes (RSS delta of add_boxes)",
-            (r1 as f64 - r0 as f64) / n
+            "memory.{kind}.box_copy_per_record: {:.1} bytes (RSS delta of add_boxes_owned)",
+            (r0 as f64 - r_boxes as f64) / n
         );
         println!(
             "memory.{kind}.embree_bvh_per_record: {:.1} bytes (RSS delta of commit)",
-            (r2 as f64 - r1 as f64) / n
+            (r1 as f64 - r0 as f64) / n
         );
-        if reset {
-            println!(
-                "memory.{kind}.embree_build_peak_per_record: {:.1} bytes (VmHWM delta of commit)",
-                (h2 as f64 - r1 as f64) / n
-            );
-        }
-        println!("memory.{kind}.bvh_build_time: {:.4} s", t);
+        println!(
+            "memory.{kind}.boxes_freed_per_record: {:.1} bytes (RSS delta of release_boxes)",
+            (r1 as f64 - r2 as f64) / n
+        );
         let record = if kind == "footprint" {
             size_of::<PackedFootprint>()
         } else {
             size_of::<PackedPhoton>()
         };
-        let total = record as f64
-            + size_of::<Aabb>() as f64 * if kind == "footprint" { 1.0 } else { 0.0 }
-            + (r2 as f64 - r0 as f64) / n;
+        if reset {
+            println!(
+                "memory.{kind}.embree_build_peak_per_record: {:.1} bytes (VmHWM delta of commit)",
+                (h1 as f64 - r0 as f64) / n
+            );
+            println!(
+                "memory.{kind}.build_peak_total_per_record: {:.1} bytes (record + box + VmHWM delta of commit)",
+                record as f64 + size_of::<Aabb>() as f64 + (h1 as f64 - r0 as f64) / n
+            );
+        }
+        println!("memory.{kind}.bvh_build_time: {:.4} s", t);
+        let total = record as f64 + (r2 as f64 - r_boxes as f64) / n + size_of::<Aabb>() as f64;
         println!(
-            "memory.{kind}.total_per_record: {total:.1} bytes (record + store box + Embree copy + BVH)"
+            "memory.{kind}.total_per_record: {total:.1} bytes (steady state after the build: record + BVH; boxes freed)"
         );
         drop(scene);
     }
@@ -1043,7 +1054,8 @@ fn bench_breakdown(cfg: &Config, scene: &Scene) {
 
 /// `ARPA_CPU_BENCH_PROFILE=<stage>[:method[:threads]]`: repeats one stage (`photon`,
 /// `gather`, `build`, `camera`) for about 5 s (0 in smoke mode) and exits; for profilers
-/// (`perf record -g -- <bench binary> --bench`).
+/// (`perf record -g -- <bench binary> --bench`). `build` runs a photon pass before each
+/// build (a tracer does not rebuild a BVH that is current).
 fn profile_loop(cfg: &Config, spec: &str) {
     let mut it = spec.split(':');
     let stage = it.next().unwrap_or("photon");
@@ -1064,7 +1076,10 @@ fn profile_loop(cfg: &Config, spec: &str) {
         p.install(|| match stage {
             "photon" => tr.photon_pass(),
             "gather" => tr.gather(),
-            "build" => tr.build_acceleration_structure(),
+            // The tracer keeps a BVH that is current: give it new buffers each time.
+            "build" => tr
+                .photon_pass()
+                .and_then(|()| tr.build_acceleration_structure()),
             "camera" => tr.camera_pass(),
             other => panic!("unknown stage {other}"),
         })

@@ -3,7 +3,7 @@
 
 use arpa_core::aabb::Aabb as CoreAabb;
 use arpa_core::footprint::PackedFootprint;
-use arpa_core::glam::{DMat3, DVec3, Vec3};
+use arpa_core::glam::{DVec3, Vec3};
 use arpa_core::progressive_photon::PackedPhoton;
 use arpa_core::store::{ProgressiveReason, StoredPhoton};
 
@@ -12,55 +12,37 @@ use crate::scene::Aabb;
 /// Relative padding of the boxes handed to Embree, on top of `f32` outward rounding.
 ///
 /// The gather's exact tests run in `f32` ([`PackedFootprint::irradiance`],
-/// [`PackedPhoton::irradiance`]) and may accept a point a few ulps outside the exact
-/// (`f64`) shape; the padding keeps every such point inside the box, so the acceleration
-/// structure finds exactly what a brute-force gather over the same records finds.
+/// [`PackedPhoton::irradiance`]) on records rounded from `f64`, and may accept a point a
+/// few ulps outside the exact (`f64`) shape the core's box bounds; the padding keeps every
+/// such point inside the box, so the acceleration structure finds exactly what a
+/// brute-force gather over the same records finds.
 const RELATIVE_PAD: f64 = 1e-4;
-/// Absolute padding in units of the box centre's magnitude (`f32` ulps of the position).
-const POSITION_PAD: f64 = 8.0 * f32::EPSILON as f64;
+/// Absolute padding in units of the box's largest coordinate magnitude (`f32` ulps of the
+/// position: covers the rounding of the record's centre and rows), plus one more to cover
+/// the round-to-nearest conversion of the padded box to `f32`.
+const POSITION_PAD: f64 = 9.0 * f32::EPSILON as f64;
+/// Absolute floor of the padding (covers rounding in `f32`'s subnormal range).
+const PAD_FLOOR: f64 = f32::MIN_POSITIVE as f64;
 
-/// `box` grown by the padding above and rounded outwards to `f32`.
+/// `box` grown by the padding above, in `f32`.
+///
+/// The conversion rounds to nearest (cheap, vectorisable), which is conservative here: it
+/// moves a bound by at most half an `f32` ulp, `2⁻²⁴ |x|` (or `2⁻¹⁵⁰` among subnormals),
+/// where every bound has `|x| ≤ (1 + 10⁻⁴ + 9ε₃₂) s` with `s = |centre|_∞ + |half|_∞`,
+/// and the padding holds `ε₃₂ s` (`≥ 2⁻²⁴ |x|` with room to spare) plus [`PAD_FLOOR`]
+/// beyond the `8 ε₃₂ s` and relative padding the gather's `f32` tests need. So the result
+/// contains what [`CoreAabb::to_f32_conservative`] of the box grown by that padding
+/// contains.
+#[inline]
 pub(crate) fn padded_box(b: &CoreAabb) -> Aabb {
-    let centre = b.centre();
+    let centre = 0.5 * (b.min + b.max);
     let half = 0.5 * (b.max - b.min);
-    let pad = half * RELATIVE_PAD
-        + DVec3::splat(POSITION_PAD * (centre.abs().max_element() + half.max_element()));
-    let grown = CoreAabb {
-        min: b.min - pad,
-        max: b.max + pad,
-    };
-    let (lower, upper) = grown.to_f32_conservative();
-    Aabb { lower, upper }
-}
-
-/// The box of everything [`PackedFootprint::contains`] accepts, padded.
-///
-/// The packed rows map `Δ = q − x_p` to `y = M Δ`; the footprint is the elliptic cylinder
-/// `y.x² + y.y² ≤ 1, |y.z| ≤ 1`, i.e. `Δ = c_u y.x + c_v y.y + c_n y.z` with the columns
-/// `c_u, c_v, c_n` of `M⁻¹` (the conjugate semi-diameters `D_u/2`, `D_v/2` and `h n`). Its
-/// box has half-extents `e_k = √(c_u,k² + c_v,k²) + |c_n,k|`. Computed from the `f32` rows
-/// themselves, so it bounds the region the gather's test really accepts. `None` if the rows
-/// are singular (a valid packed footprint never is).
-///
-/// (The core's [`arpa_core::footprint::Footprint::aabb`] bounds the *ellipsoid*
-/// `|y| ≤ 1`, which the cylinder overhangs near the ellipse's rim off its plane, so it is
-/// not used here.)
-pub(crate) fn footprint_box(fp: &PackedFootprint) -> Option<Aabb> {
-    let row = |r: [f32; 3]| Vec3::from_array(r).as_dvec3();
-    let m = DMat3::from_cols(row(fp.row_u), row(fp.row_v), row(fp.row_n)).transpose();
-    let det = m.determinant();
-    if !(det != 0.0 && det.is_finite()) {
-        return None;
+    let scale = centre.abs().max_element() + half.max_element();
+    let pad = half * RELATIVE_PAD + DVec3::splat(POSITION_PAD * scale + PAD_FLOOR);
+    Aabb {
+        lower: (b.min - pad).as_vec3().to_array(),
+        upper: (b.max + pad).as_vec3().to_array(),
     }
-    let inv = m.inverse();
-    if !inv.is_finite() {
-        return None;
-    }
-    let (cu, cv, cn) = (inv.x_axis, inv.y_axis, inv.z_axis);
-    let half = (cu * cu + cv * cv).map(f64::sqrt) + cn.abs();
-    let centre = row(fp.center);
-    let b = CoreAabb::from_centre_half_extent(centre, half);
-    (b.min.is_finite() && b.max.is_finite()).then(|| padded_box(&b))
 }
 
 /// The box of a progressive photon of radius `radius`: `position ± radius`, padded.
@@ -83,7 +65,34 @@ pub(crate) struct StoreCounts {
     pub differential_lost: u64,
 }
 
+impl StoreCounts {
+    fn add(&mut self, b: &StoreCounts) {
+        for m in 0..2 {
+            self.footprints[m] += b.footprints[m];
+            self.progressive[m] += b.progressive[m];
+        }
+        self.degenerate += b.degenerate;
+        self.culled += b.culled;
+        self.unrepresentable += b.unrepresentable;
+        self.differential_lost += b.differential_lost;
+    }
+
+    /// Footprints of both maps.
+    pub fn footprint_total(&self) -> u64 {
+        self.footprints[0] + self.footprints[1]
+    }
+
+    /// Progressive photons of both maps.
+    pub fn progressive_total(&self) -> u64 {
+        self.progressive[0] + self.progressive[1]
+    }
+}
+
 /// Footprints (with boxes) and progressive photons, in photon-index order.
+///
+/// `footprint_boxes[i]` bounds `footprints[i]` from the photon pass until the acceleration
+/// structure is built; the build moves the boxes into Embree's scene (and frees them once
+/// the BVH exists), so afterwards `footprint_boxes` is empty.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct PhotonStore {
     pub footprints: Vec<PackedFootprint>,
@@ -101,41 +110,40 @@ impl PhotonStore {
         self.counts = StoreCounts::default();
     }
 
-    /// Appends the photons of `parts` in order (the chunks of a photon pass).
-    pub fn extend_from_parts(&mut self, parts: &[PhotonStore]) {
+    /// Makes room for at least `footprints` footprints (and boxes) and `photons` progressive
+    /// photons in total.
+    pub fn reserve_total(&mut self, footprints: usize, photons: usize) {
+        let more = |len: usize, want: usize| want.saturating_sub(len);
         self.footprints
-            .reserve(parts.iter().map(|p| p.footprints.len()).sum());
+            .reserve(more(self.footprints.len(), footprints));
         self.footprint_boxes
-            .reserve(parts.iter().map(|p| p.footprint_boxes.len()).sum());
-        self.photons
-            .reserve(parts.iter().map(|p| p.photons.len()).sum());
-        for p in parts {
-            self.footprints.extend_from_slice(&p.footprints);
-            self.footprint_boxes.extend_from_slice(&p.footprint_boxes);
-            self.photons.extend_from_slice(&p.photons);
-            let (a, b) = (&mut self.counts, &p.counts);
-            for m in 0..2 {
-                a.footprints[m] += b.footprints[m];
-                a.progressive[m] += b.progressive[m];
-            }
-            a.degenerate += b.degenerate;
-            a.culled += b.culled;
-            a.unrepresentable += b.unrepresentable;
-            a.differential_lost += b.differential_lost;
-        }
+            .reserve(more(self.footprint_boxes.len(), footprints));
+        self.photons.reserve(more(self.photons.len(), photons));
     }
 
-    /// Appends one stored photon.
+    /// Appends the photons of `part` in order (one chunk of a photon pass).
+    pub fn append(&mut self, part: &PhotonStore) {
+        self.footprints.extend_from_slice(&part.footprints);
+        self.footprint_boxes
+            .extend_from_slice(&part.footprint_boxes);
+        self.photons.extend_from_slice(&part.photons);
+        self.counts.add(&part.counts);
+    }
+
+    /// Appends one stored photon. A footprint's box is the core's box of its elliptic slab
+    /// ([`StoredPhoton::Footprint::aabb`]), padded and rounded outwards to `f32`
+    /// ([`padded_box`]).
+    #[inline]
     pub fn push(&mut self, stored: StoredPhoton) {
-        let map = stored.map().index();
         match stored {
             StoredPhoton::Footprint { packed, aabb } => {
+                let map = packed.photon_map().index();
                 self.footprints.push(packed);
-                self.footprint_boxes
-                    .push(footprint_box(&packed).unwrap_or_else(|| padded_box(&aabb)));
+                self.footprint_boxes.push(padded_box(&aabb));
                 self.counts.footprints[map] += 1;
             }
             StoredPhoton::Progressive { photon, reason } => {
+                let map = photon.photon_map().index();
                 self.photons.push(photon);
                 self.counts.progressive[map] += 1;
                 match reason {
@@ -154,20 +162,55 @@ impl PhotonStore {
 mod tests {
     use super::*;
 
+    /// The padded box contains the box grown by the padding the `f32` tests need, rounded
+    /// outwards (so the round-to-nearest conversion is conservative), and stays tight; for
+    /// boxes near and far from the origin, large and tiny, straddling zero or not.
     #[test]
     fn padded_box_contains_the_exact_box_and_is_tight() {
-        let b = CoreAabb {
-            min: DVec3::new(0.1, -2.0, 1e-9),
-            max: DVec3::new(0.3, -1.9, 2e-9),
-        };
-        let p = padded_box(&b);
-        for k in 0..3 {
-            assert!((p.lower[k] as f64) <= b.min[k] && (p.upper[k] as f64) >= b.max[k]);
-            let size = b.max[k] - b.min[k];
-            assert!(
-                (p.upper[k] - p.lower[k]) as f64 <= size * 1.001 + 1e-5,
-                "{p:?}"
-            );
+        let mut boxes = vec![
+            CoreAabb {
+                min: DVec3::new(0.1, -2.0, 1e-9),
+                max: DVec3::new(0.3, -1.9, 2e-9),
+            },
+            CoreAabb {
+                min: DVec3::splat(-1e-40),
+                max: DVec3::splat(1e-40),
+            },
+        ];
+        let mut rng = Rng(11);
+        for i in 0..20_000 {
+            let scale = 10f64.powf(8.0 * rng.f());
+            let centre = rng.v() * scale * if i % 4 == 0 { 1e-3 } else { 1.0 };
+            let half =
+                (rng.v().abs() + DVec3::splat(1e-12)) * scale * 10f64.powf(-4.0 * rng.f().abs());
+            boxes.push(CoreAabb::from_centre_half_extent(centre, half));
+        }
+        for b in &boxes {
+            let p = padded_box(b);
+            let centre = 0.5 * (b.min + b.max);
+            let half = 0.5 * (b.max - b.min);
+            let need = half * RELATIVE_PAD
+                + DVec3::splat(
+                    8.0 * f32::EPSILON as f64 * (centre.abs().max_element() + half.max_element()),
+                );
+            let (lo, hi) = CoreAabb {
+                min: b.min - need,
+                max: b.max + need,
+            }
+            .to_f32_conservative();
+            for k in 0..3 {
+                assert!(
+                    p.lower[k] <= lo[k] && p.upper[k] >= hi[k],
+                    "{b:?}: {p:?} vs {lo:?} {hi:?}"
+                );
+                let size = b.max[k] - b.min[k];
+                let slack =
+                    20.0 * f32::EPSILON as f64 * (centre.abs().max_element() + half.max_element());
+                assert!(
+                    (p.upper[k] - p.lower[k]) as f64 <= size * 1.001 + 2.0 * slack + 1e-37,
+                    "{b:?}: {p:?}"
+                );
+            }
         }
     }
 
@@ -186,56 +229,78 @@ mod tests {
         }
     }
 
-    /// Every point the packed test accepts lies in the box, including the rim of the
-    /// elliptic cylinder off the footprint's plane, where the ellipsoid's box (the core's
-    /// `Footprint::aabb`) falls short; and the box is tight there.
+    /// The box a stored footprint gets (the core's `aabb` from the store path, padded)
+    /// holds every point the packed `f32` test accepts, including the rim of the elliptic
+    /// slab off the footprint's plane, for round and very elongated ellipses, near the
+    /// origin and far from it; and it is tight there.
     #[test]
-    fn footprint_box_covers_the_packed_test() {
+    fn core_box_covers_the_packed_test() {
+        use arpa_core::aabb::Aabb as SceneBounds;
+        use arpa_core::classify::Smoothing;
         use arpa_core::footprint::{Footprint, PhotonMap};
+        use arpa_core::heuristics::Heuristics;
+        use arpa_core::store::store_footprint_resolved;
+        let heuristics = Heuristics::NONE.resolve(&SceneBounds {
+            min: DVec3::splat(-1e3),
+            max: DVec3::splat(1e3),
+        });
         let mut rng = Rng(3);
-        let mut outside_core_box = 0;
-        for _ in 0..200 {
+        let mut stored = 0;
+        for case in 0..600 {
             let n = rng.v().normalize_or(DVec3::Z);
             let project = |v: DVec3| v - n * n.dot(v);
+            // Elongation up to 1:1000 in a third of the cases.
+            let squash = if case % 3 == 2 {
+                10f64.powf(-3.0 * (0.5 + 0.5 * rng.f()))
+            } else {
+                1.0
+            };
+            let offset = if case % 2 == 0 { 10.0 } else { 300.0 };
             let fp = Footprint {
-                center: rng.v() * 10.0,
+                center: rng.v() * offset,
                 normal: n,
                 du: project(rng.v()) * 0.1,
-                dv: project(rng.v()) * 0.1,
+                dv: project(rng.v()) * 0.1 * squash,
                 flux: DVec3::ONE,
                 map: PhotonMap::Global,
             };
             let radius = 0.02;
-            let Ok(packed) = fp.pack(radius) else {
+            let StoredPhoton::Footprint { packed, aabb } =
+                store_footprint_resolved(fp, &Smoothing::default(), &heuristics, radius)
+            else {
                 continue;
             };
-            let b = footprint_box(&packed).expect("regular rows");
-            let (a, bb, h) = (0.5 * fp.du, 0.5 * fp.dv, n * fp.half_thickness(radius));
+            stored += 1;
+            let b = padded_box(&aabb);
+            let (a, bb) = (0.5 * fp.du, 0.5 * fp.dv);
+            let h = n * fp.half_thickness(radius);
             let mut reach = DVec3::ZERO;
             for k in 0..720 {
                 let t = k as f64 * core::f64::consts::TAU / 720.0;
                 for z in [-1.0, 1.0] {
-                    // Just inside the rim, on the slab's faces.
-                    let d = (a * t.cos() + bb * t.sin()) * 0.999_99 + h * z * 0.999_99;
-                    let q = (fp.center + d).as_vec3();
-                    if packed.contains(q) {
-                        assert!(b.contains(q.to_array()), "{q:?} outside {b:?}");
-                        outside_core_box += usize::from(!fp.aabb(radius).contains(q.as_dvec3()));
+                    // On the slab's faces at the rim, just outside it and just inside it:
+                    // whatever the f32 test accepts must be in the box.
+                    for s in [0.999_99, 1.000_01, 1.0] {
+                        let d = (a * t.cos() + bb * t.sin()) * s + h * z * s;
+                        let q = (fp.center + d).as_vec3();
+                        if packed.contains(q) {
+                            assert!(b.contains(q.to_array()), "case {case}: {q:?} outside {b:?}");
+                        }
                     }
-                    reach = reach.max(d.abs());
+                    reach = reach.max((a * t.cos() + bb * t.sin() + h * z).abs());
                 }
             }
             for k in 0..3 {
                 let half = 0.5 * (b.upper[k] - b.lower[k]) as f64;
+                let slack = 8.0 * f32::EPSILON as f64 * (fp.center.abs().max_element() + 0.2);
                 assert!(
-                    half <= reach[k] * 1.001 + 1e-4,
-                    "box not tight: {half} vs {}",
+                    half <= reach[k] * 1.001 + 2.0 * slack + 1e-9,
+                    "case {case}: box not tight: {half} vs {}",
                     reach[k]
                 );
             }
         }
-        // Points the core's ellipsoid box misses (0 once the core bounds the cylinder).
-        eprintln!("{outside_core_box} rim points outside Footprint::aabb");
+        assert!(stored > 300, "{stored} footprints stored");
     }
 
     #[test]

@@ -97,7 +97,7 @@ pub struct PointQueryCandidate {
 pub struct SceneBuilder {
     device: Device,
     raw: sys::RTCScene,
-    box_sets: Vec<(u32, Box<[Aabb]>)>,
+    box_sets: Vec<(u32, Vec<Aabb>)>,
     quality: BuildQuality,
     robust: bool,
 }
@@ -130,9 +130,11 @@ fn finite3(p: [f32; 3]) -> bool {
 }
 
 unsafe extern "C" fn boxes_bounds(args: *const sys::RTCBoundsFunctionArguments) {
-    // SAFETY: Embree passes valid arguments; `geometryUserPtr` is the `Box<[Aabb]>` data
-    // pointer registered in `add_boxes`, which the scene keeps alive, and its length is the
-    // user primitive count (so `primID < len`).
+    // SAFETY: Embree passes valid arguments; `geometryUserPtr` is the `Vec<Aabb>` data
+    // pointer registered in `add_boxes_owned`, which the builder keeps alive until the
+    // build is done (Embree calls this only while building: there is no motion blur and a
+    // committed scene is never modified), and its length is the user primitive count (so
+    // `primID < len`).
     unsafe {
         let args = &*args;
         let boxes = args.geometryUserPtr as *const Aabb;
@@ -291,6 +293,19 @@ impl SceneBuilder {
     /// Fails with [`EmbreeError::InvalidInput`] if a box is not finite, has
     /// `lower > upper` on some axis, the slice is empty, or has more than `u32::MAX` boxes.
     pub fn add_boxes(&mut self, boxes: &[Aabb]) -> Result<u32> {
+        Self::check_boxes(boxes)?;
+        self.add_checked_boxes(boxes.to_vec())
+    }
+
+    /// [`add_boxes`](Self::add_boxes) without copying: the builder (then the [`Scene`])
+    /// takes `boxes` as they are. [`Scene::release_boxes`] hands them back once the BVH is
+    /// built, so that only the BVH stays.
+    pub fn add_boxes_owned(&mut self, boxes: Vec<Aabb>) -> Result<u32> {
+        Self::check_boxes(&boxes)?;
+        self.add_checked_boxes(boxes)
+    }
+
+    fn check_boxes(boxes: &[Aabb]) -> Result<()> {
         if boxes.is_empty() || boxes.len() > u32::MAX as usize {
             return Err(EmbreeError::InvalidInput(
                 "box set must hold 1..=2^32-1 boxes".into(),
@@ -302,7 +317,10 @@ impl SceneBuilder {
                 boxes[i]
             )));
         }
-        let data: Box<[Aabb]> = boxes.into();
+        Ok(())
+    }
+
+    fn add_checked_boxes(&mut self, data: Vec<Aabb>) -> Result<u32> {
         // SAFETY: valid device; handle checked and released by the guard.
         let geom = unsafe { sys::rtcNewGeometry(self.device.raw(), sys::RTCGeometryType::USER) };
         if geom.is_null() {
@@ -313,10 +331,11 @@ impl SceneBuilder {
                 .unwrap_or(EmbreeError::Unknown("rtcNewGeometry returned NULL".into())));
         }
         let geom = GeometryGuard(geom);
-        // SAFETY: `data`'s heap allocation does not move when the Box is moved into
-        // `self.box_sets` below, and lives as long as the scene (Scene keeps it), so the
-        // user pointer stays valid for every callback. The callbacks have the C ABI
-        // signatures Embree expects.
+        // SAFETY: `data`'s heap allocation does not move when the Vec is moved into
+        // `self.box_sets` below (it is never pushed to again), and lives until the BVH is
+        // built (the Scene keeps it until `release_boxes`), so the user pointer stays
+        // valid for every bounds callback. The callbacks have the C ABI signatures Embree
+        // expects.
         unsafe {
             sys::rtcSetGeometryUserPrimitiveCount(geom.0, data.len() as u32);
             sys::rtcSetGeometryUserData(geom.0, data.as_ptr() as *mut c_void);
@@ -377,7 +396,7 @@ impl SceneBuilder {
 pub struct Scene {
     device: Device,
     raw: sys::RTCScene,
-    box_sets: Vec<(u32, Box<[Aabb]>)>,
+    box_sets: Vec<(u32, Vec<Aabb>)>,
 }
 
 // SAFETY: the scene is committed and never modified again; Embree allows concurrent
@@ -400,22 +419,34 @@ impl core::fmt::Debug for Scene {
     }
 }
 
+#[inline]
 fn check_ray(origin: [f32; 3], dir: [f32; 3], tnear: f32, tfar: f32) -> Result<()> {
+    // `c * 0` is ±0 for finite `c` and NaN otherwise: one branch for all six components.
+    let zero = origin
+        .iter()
+        .chain(&dir)
+        .fold(0.0f32, |acc, &c| acc + c * 0.0);
+    // `!(a <= b)` also rejects NaN.
+    if zero == 0.0 && dir != [0.0; 3] && 0.0 <= tnear && tnear.is_finite() && tnear <= tfar {
+        Ok(())
+    } else {
+        Err(bad_ray(origin, dir, tnear, tfar))
+    }
+}
+
+#[cold]
+fn bad_ray(origin: [f32; 3], dir: [f32; 3], tnear: f32, tfar: f32) -> EmbreeError {
     if !finite3(origin) || !finite3(dir) {
-        return Err(EmbreeError::InvalidInput(format!(
+        return EmbreeError::InvalidInput(format!(
             "ray origin/direction not finite: {origin:?} {dir:?}"
-        )));
+        ));
     }
     if dir == [0.0; 3] {
-        return Err(EmbreeError::InvalidInput("ray direction is zero".into()));
+        return EmbreeError::InvalidInput("ray direction is zero".into());
     }
-    // `!(a <= b)` also rejects NaN.
-    if !(0.0 <= tnear && tnear.is_finite() && tnear <= tfar) {
-        return Err(EmbreeError::InvalidInput(format!(
-            "ray interval must satisfy 0 <= tnear <= tfar, tnear finite (got [{tnear}, {tfar}])"
-        )));
-    }
-    Ok(())
+    EmbreeError::InvalidInput(format!(
+        "ray interval must satisfy 0 <= tnear <= tfar, tnear finite (got [{tnear}, {tfar}])"
+    ))
 }
 
 struct QueryState<F> {
@@ -461,6 +492,15 @@ impl Scene {
     /// The device the scene lives on.
     pub fn device(&self) -> &Device {
         &self.device
+    }
+
+    /// Hands back the boxes of every box set, `(geometry id, boxes)` in the order they were
+    /// added. The BVH keeps working: Embree reads the boxes only while building (the bounds
+    /// callback), and a committed scene is never rebuilt. Afterwards [`Scene::boxes`]
+    /// returns `None` and [`Scene::boxes_containing`] finds nothing; point queries still
+    /// report the boxes' primitives.
+    pub fn release_boxes(&mut self) -> Vec<(u32, Vec<Aabb>)> {
+        core::mem::take(&mut self.box_sets)
     }
 
     /// The boxes of the box set with geometry id `geom_id`, or `None` if that id is not a

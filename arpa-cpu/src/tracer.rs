@@ -1,6 +1,7 @@
 //! [`CpuTracer`]: the CPU backend of [`arpa_core::tracer::Tracer`] on Embree 4 and rayon.
 
-use core::sync::atomic::{AtomicU64, Ordering};
+use core::sync::atomic::{AtomicU32, AtomicU64, Ordering};
+use std::sync::Mutex;
 use std::time::Instant;
 
 use arpa_core::accumulate::ImageAccumulator;
@@ -30,6 +31,36 @@ use crate::scene::{Aabb, BuildQuality, Scene, SceneBuilder};
 /// Photon indices traced by one task of the photon pass. The stored photons of each chunk
 /// are concatenated in chunk order, so the buffers do not depend on the thread count.
 pub const PHOTON_CHUNK: u32 = 4096;
+
+/// Headroom of the buffer sizes estimated from the previous iteration's store rate.
+const CAPACITY_HEADROOM: f64 = 1.25;
+
+/// The ordered merge of the photon pass: chunks finish in any order, and each is appended
+/// to the store as soon as every chunk before it has been (by whichever worker completes
+/// the next chunk in order), so only the few chunks in flight are held twice. Chunk
+/// buffers are recycled through `free`.
+struct ChunkMerge<'a> {
+    out: &'a mut PhotonStore,
+    /// Finished chunks waiting for an earlier one, by chunk index.
+    pending: Vec<Option<PhotonStore>>,
+    /// Next chunk to append.
+    next: usize,
+    free: Vec<PhotonStore>,
+    segments: u64,
+}
+
+impl ChunkMerge<'_> {
+    /// Files chunk `chunk` and appends every chunk that is now next in order.
+    fn finish(&mut self, chunk: usize, part: PhotonStore, segments: u64) {
+        self.segments += segments;
+        self.pending[chunk] = Some(part);
+        while let Some(ready) = self.pending.get_mut(self.next).and_then(Option::take) {
+            self.out.append(&ready);
+            self.free.push(ready);
+            self.next += 1;
+        }
+    }
+}
 
 /// Errors of the CPU backend.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -80,8 +111,8 @@ pub enum CpuError {
 /// |---|---|
 /// | [`upload_scene`](Tracer::upload_scene) | validates scene and settings ([`PreparedScene`]), builds the triangle BVH ([`EmbreeCaster`]), resets the accumulation |
 /// | [`camera_pass`](Tracer::camera_pass) | [`trace_camera_path`] for every pixel, in parallel |
-/// | [`photon_pass`](Tracer::photon_pass) | [`trace_photon`] for every photon, in chunks of [`PHOTON_CHUNK`] photon indices |
-/// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | one Embree box geometry for the footprints (the box of the elliptic cylinder each packed record's test accepts), one for the progressive photons' cubes `x ± r_map` ([`BuildQuality::Low`]); boxes padded a little beyond `f32` rounding |
+/// | [`photon_pass`](Tracer::photon_pass) | frees the previous box BVH, then [`trace_photon`] for every photon, in chunks of [`PHOTON_CHUNK`] photon indices taken in order by one loop per thread; each finished chunk is appended to the buffers (reused from the last iteration, sized from its store rate) as soon as the chunks before it are |
+/// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | one Embree box geometry for the footprints (the core's box of each footprint's elliptic slab, made in the photon pass), one for the progressive photons' cubes `x ± r_map` ([`BuildQuality::Low`]); boxes padded a little beyond `f32` rounding, handed to Embree without a copy and freed once the BVH is built |
 /// | [`gather`](Tracer::gather) | per query point: the boxes containing it (Embree point query), the exact test of each, and the `f64` sum of the contributions in `(kind, index)` order: bit for bit what [`arpa_core::estimate::gather_brute_force`] gives over the same records |
 /// | [`accumulate`](Tracer::accumulate) | adds the iteration's image to the compensated running mean |
 ///
@@ -97,7 +128,9 @@ pub enum CpuError {
 /// The stages of an iteration must run in the order above (camera and photon pass in
 /// either order); a stage whose input is missing or stale returns
 /// [`CpuError::StageOrder`]. Re-running a stage within an iteration is allowed and
-/// recomputes the same result; it invalidates the outputs of the stages after it.
+/// gives the same result; it invalidates the outputs of the stages after it. (Re-running
+/// the build on unchanged buffers keeps the BVH already built: the boxes it was built from
+/// are freed after the build.)
 #[derive(Debug)]
 pub struct CpuTracer {
     device: Device,
@@ -136,6 +169,11 @@ struct Loaded {
     queries: Vec<QueryRecord>,
     queries_for: Option<u32>,
     store: PhotonStore,
+    /// Photons traced for `store` (with its counts: the store rate that sizes the next
+    /// pass's buffers).
+    store_emitted: u32,
+    /// Chunk buffers of the photon pass, kept for the next pass.
+    spare_parts: Vec<PhotonStore>,
     /// Progressive radii `[caustic, global]` of the photons in `store`.
     radii: [f32; 2],
     store_for: Option<u32>,
@@ -472,6 +510,8 @@ impl Tracer for CpuTracer {
             queries: Vec::new(),
             queries_for: None,
             store: PhotonStore::default(),
+            store_emitted: 0,
+            spare_parts: Vec::new(),
             radii: [0.0; 2],
             store_for: None,
             accel: Accel::Empty,
@@ -510,32 +550,79 @@ impl Tracer for CpuTracer {
         st.check_iteration_limit()?;
         st.begin_stage();
         let start = Instant::now();
+        // The box BVH is rebuilt after this pass anyway: free it (and the previous
+        // iteration's buffers it refers to) before the new buffers fill.
+        st.accel = Accel::Empty;
+        st.accel_for = None;
+        st.store_for = None;
+        st.image_for = None;
         let iteration = st.completed;
         let setup = PhotonPassSetup::new(&st.prepared, &st.settings, iteration);
         let count = setup.photon_count();
         let chunks = count.div_ceil(PHOTON_CHUNK);
+        // Buffer sizes from the previous pass's store rate (records per photon traced).
+        let (fp_rate, ph_rate) = match st.store_emitted {
+            0 => (0.0, 0.0),
+            n => {
+                let c = &st.store.counts;
+                (
+                    c.footprint_total() as f64 / n as f64,
+                    c.progressive_total() as f64 / n as f64,
+                )
+            }
+        };
+        let expect = |rate: f64, photons: u32| (rate * photons as f64 * CAPACITY_HEADROOM) as usize;
+        st.store.clear();
+        st.store
+            .reserve_total(expect(fp_rate, count), expect(ph_rate, count));
+        let (part_fp, part_ph) = (
+            expect(fp_rate, PHOTON_CHUNK) + 64,
+            expect(ph_rate, PHOTON_CHUNK) + 64,
+        );
         let (prepared, caster, settings) = (&st.prepared, &st.caster, &st.settings);
-        let parts: Vec<(PhotonStore, u64)> = (0..chunks)
-            .into_par_iter()
-            .map(|chunk| {
+        let merge = Mutex::new(ChunkMerge {
+            out: &mut st.store,
+            pending: (0..chunks).map(|_| None).collect(),
+            next: 0,
+            free: core::mem::take(&mut st.spare_parts),
+            segments: 0,
+        });
+        let lock = || merge.lock().unwrap_or_else(|e| e.into_inner());
+        // One loop per thread, taking chunks in index order.
+        let next_chunk = AtomicU32::new(0);
+        let workers = rayon::current_num_threads().clamp(1, chunks.max(1) as usize);
+        (0..workers).into_par_iter().for_each(|_| {
+            let mut part: Option<PhotonStore> = None;
+            loop {
+                let chunk = next_chunk.fetch_add(1, Ordering::Relaxed);
+                if chunk >= chunks {
+                    break;
+                }
+                let mut p = part.take().unwrap_or_default();
+                p.clear();
+                p.reserve_total(part_fp, part_ph);
                 let first = chunk * PHOTON_CHUNK;
                 let end = first.saturating_add(PHOTON_CHUNK).min(count);
-                let mut part = PhotonStore::default();
                 let mut segments = 0u64;
                 for index in first..end {
-                    let path = trace_photon(prepared, caster, settings, &setup, index, &mut |p| {
-                        part.push(p)
+                    let path = trace_photon(prepared, caster, settings, &setup, index, &mut |s| {
+                        p.push(s)
                     });
                     segments += path.segments as u64;
                 }
-                (part, segments)
-            })
-            .collect();
-        let segments = parts.iter().map(|(_, s)| s).sum();
-        let parts: Vec<PhotonStore> = parts.into_iter().map(|(p, _)| p).collect();
-        st.store.clear();
-        st.store.extend_from_parts(&parts);
-        drop(parts);
+                let mut m = lock();
+                m.finish(chunk as usize, p, segments);
+                part = m.free.pop();
+            }
+            if let Some(p) = part {
+                lock().free.push(p);
+            }
+        });
+        let merge = merge.into_inner().unwrap_or_else(|e| e.into_inner());
+        debug_assert_eq!(merge.next, chunks as usize);
+        let segments = merge.segments;
+        st.spare_parts = merge.free;
+        st.store_emitted = count;
         let c = st.store.counts;
         let stats = &mut st.stats;
         stats.photons_emitted = count as u64;
@@ -562,32 +649,51 @@ impl Tracer for CpuTracer {
         st.require(st.store_for, "build_acceleration_structure", "photon_pass")?;
         st.begin_stage();
         let start = Instant::now();
+        if st.accel_for == Some(st.completed) {
+            // Built from the same buffers in this iteration: the BVH is current (the boxes
+            // it was built from are gone, see below).
+            st.image_for = None;
+            st.stats.times.build = start.elapsed().as_secs_f64();
+            return Ok(());
+        }
         // Drop the previous BVH first: only one lives at a time.
         st.accel = Accel::Empty;
         st.accel_for = None;
+        if st.store.footprint_boxes.len() != st.store.footprints.len() {
+            // A failed build consumed the boxes: the photon pass has to make them again.
+            return Err(CpuError::StageOrder {
+                stage: "build_acceleration_structure",
+                needs: "photon_pass",
+            });
+        }
         let radii = st.radii;
+        // The boxes move into Embree's scene (no copy) and are freed once the BVH is
+        // built, so only the BVH stays next to the records.
+        let footprint_boxes = core::mem::take(&mut st.store.footprint_boxes);
         let photon_boxes: Vec<Aabb> = st
             .store
             .photons
             .par_iter()
             .map(|p| photon_box(p, radii[p.photon_map().index()]))
             .collect();
-        let accel = if st.store.footprint_boxes.is_empty() && photon_boxes.is_empty() {
+        let accel = if footprint_boxes.is_empty() && photon_boxes.is_empty() {
             Accel::Empty
         } else {
             let mut builder = SceneBuilder::new(&device)?.build_quality(BuildQuality::Low);
-            let footprints = if st.store.footprint_boxes.is_empty() {
+            let footprints = if footprint_boxes.is_empty() {
                 None
             } else {
-                Some(builder.add_boxes(&st.store.footprint_boxes)?)
+                Some(builder.add_boxes_owned(footprint_boxes)?)
             };
             let photons = if photon_boxes.is_empty() {
                 None
             } else {
-                Some(builder.add_boxes(&photon_boxes)?)
+                Some(builder.add_boxes_owned(photon_boxes)?)
             };
+            let mut scene = builder.commit()?;
+            drop(scene.release_boxes());
             Accel::Boxes {
-                scene: builder.commit()?,
+                scene,
                 footprints,
                 photons,
             }
