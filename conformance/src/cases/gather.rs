@@ -1,0 +1,233 @@
+//! Gather exactness: the backend's per-pixel radiance equals
+//! [`gather_brute_force`] over the very records the backend stored and the query points
+//! it found, within [`GATHER_REL_TOL`].
+//!
+//! The `Tracer` trait has no call to upload arbitrary footprints, so the footprints and
+//! query points come from one iteration of the backend on a scene built to produce the
+//! hard cases: its own `read_footprints`, `read_photons` and `read_query_points` are read
+//! back after the iteration, and the expected pixel is rebuilt on the host as
+//! `record.radiance + record.weight · E` with `E` the brute-force irradiance (radii from
+//! `read_stats`). Query points exactly on an ellipse boundary cannot be placed through a
+//! scene; the case counts how many pairs lie within 1e-3 of the boundary (in `r²`), inside
+//! the footprint's box but outside the ellipse, and inside but back-facing (query points
+//! on a shelf's underside against footprints on its lit top), and fails if the scene
+//! produced none of any kind.
+
+use arpa_core::estimate::{QueryPoint, gather_brute_force};
+use arpa_core::footprint::PackedFootprint;
+use arpa_core::glam::{DMat3, DVec3, Vec3};
+use arpa_core::kernel::Kernel;
+use arpa_core::tracer::{Method, RenderSettings};
+
+use crate::dyn_tracer::DynTracer;
+use crate::scenes;
+use crate::suite::{CaseResult, Context};
+
+/// Largest relative difference of a pixel component from the brute-force value.
+pub const GATHER_REL_TOL: f64 = 1e-5;
+
+/// Half-extents of the box around footprint `fp`'s elliptic slab (from the inverse of its
+/// filter transform: `Δ = M y`, ellipse axes `M e_x`, `M e_y`, slab axis `M e_z`).
+fn half_extent(fp: &PackedFootprint) -> Option<DVec3> {
+    let rows = DMat3::from_cols(
+        Vec3::from_array(fp.row_u).as_dvec3(),
+        Vec3::from_array(fp.row_v).as_dvec3(),
+        Vec3::from_array(fp.row_n).as_dvec3(),
+    )
+    .transpose();
+    let det = rows.determinant();
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    let m = rows.inverse();
+    let (a, b, c) = (m.x_axis, m.y_axis, m.z_axis);
+    Some(DVec3::new(
+        (a.x * a.x + b.x * b.x).sqrt() + c.x.abs(),
+        (a.y * a.y + b.y * b.y).sqrt() + c.y.abs(),
+        (a.z * a.z + b.z * b.z).sqrt() + c.z.abs(),
+    ))
+}
+
+#[derive(Default)]
+struct Coverage {
+    contributing: u64,
+    near_boundary: u64,
+    box_not_ellipse: u64,
+    back_facing: u64,
+    photon_near_sphere: u64,
+}
+
+/// Iterations compared (the image is their mean, so the accumulation is checked too).
+pub const GATHER_ITERATIONS: u32 = 3;
+
+fn check(
+    t: &mut dyn DynTracer,
+    method: Method,
+    kernel: Kernel,
+    direct_lighting: bool,
+    photons: u32,
+) -> CaseResult {
+    let scene = scenes::shelf_room(32);
+    let settings = RenderSettings {
+        method,
+        photons_per_iteration: photons,
+        seed: 5,
+        max_depth: 6,
+        direct_lighting,
+        kernel,
+        ..RenderSettings::default()
+    };
+    t.upload_scene(&scene, &settings).ctx("upload_scene")?;
+    let pixels = (scene.camera.width * scene.camera.height) as usize;
+    // Sum over iterations of each pixel's expected value (f64).
+    let mut expected_sum = vec![DVec3::ZERO; pixels];
+    let mut cov = Coverage::default();
+    let (mut found, mut reported, mut records) = (0u64, 0u64, [0usize; 2]);
+    for _ in 0..GATHER_ITERATIONS {
+        t.iterate().ctx("iterate")?;
+        let queries = t.read_query_points().ctx("read_query_points")?;
+        let fps = t.read_footprints().ctx("read_footprints")?;
+        let phs = t.read_photons().ctx("read_photons")?;
+        let stats = t.read_stats().ctx("read_stats")?;
+        let radii = stats.radii.map(|r| r as f32);
+        reported += stats.gathered;
+        records[0] += fps.len();
+        records[1] += phs.len();
+        if queries.len() != pixels {
+            return Err(format!(
+                "{} query records for {pixels} pixels",
+                queries.len()
+            ));
+        }
+        let boxes: Vec<Option<(DVec3, DVec3)>> = fps
+            .iter()
+            .map(|f| half_extent(f).map(|h| (Vec3::from_array(f.center).as_dvec3(), h)))
+            .collect();
+        for rec in &queries {
+            let Some(sum) = expected_sum.get_mut(rec.pixel as usize) else {
+                return Err(format!(
+                    "query record for pixel {} outside the image",
+                    rec.pixel
+                ));
+            };
+            let known = Vec3::from_array(rec.radiance).as_dvec3();
+            let expected = if rec.valid == 0 {
+                known
+            } else {
+                let q = QueryPoint {
+                    position: Vec3::from_array(rec.position),
+                    normal: Vec3::from_array(rec.normal),
+                };
+                let e = gather_brute_force(&q, &fps, &phs, radii, kernel);
+                found += (e.footprints + e.photons) as u64;
+                cov.contributing += e.footprints as u64;
+                for (fp, b) in fps.iter().zip(&boxes) {
+                    let y = fp.filter_coords(q.position);
+                    let r2 = y.x * y.x + y.y * y.y;
+                    let in_slab = y.z.abs() <= 1.0;
+                    cov.near_boundary += (in_slab && (r2 - 1.0).abs() <= 1e-3) as u64;
+                    cov.back_facing += (in_slab && r2 < 1.0 && !fp.faces(q.normal)) as u64;
+                    if let Some((c, h)) = b {
+                        let d = (q.position.as_dvec3() - *c).abs();
+                        cov.box_not_ellipse +=
+                            (d.cmple(*h).all() && !(r2 <= 1.0 && in_slab)) as u64;
+                    }
+                }
+                for ph in &phs {
+                    let r = radii[ph.photon_map().index()];
+                    let d = (q.position - Vec3::from_array(ph.position)).length();
+                    cov.photon_near_sphere += ((d / r - 1.0).abs() <= 1e-3) as u64;
+                }
+                known + Vec3::from_array(rec.weight).as_dvec3() * e.irradiance()
+            };
+            // What the backend stores for the iteration: finite, in f32.
+            *sum += DVec3::select(expected.is_finite_mask(), expected, DVec3::ZERO)
+                .as_vec3()
+                .as_dvec3();
+        }
+    }
+    let image = t.read_image().ctx("read_image")?;
+    if image.pixels.len() != pixels {
+        return Err(format!(
+            "image has {} pixels, expected {pixels}",
+            image.pixels.len()
+        ));
+    }
+    let (mut worst, mut nonzero) = (0.0f64, 0usize);
+    for (i, (got, sum)) in image.pixels.iter().zip(&expected_sum).enumerate() {
+        let expected = *sum / GATHER_ITERATIONS as f64;
+        let got = got.as_dvec3();
+        nonzero += (expected != DVec3::ZERO) as usize;
+        for k in 0..3 {
+            let (g, x) = (got[k], expected[k]);
+            let err = if x == 0.0 {
+                if g == 0.0 { 0.0 } else { f64::INFINITY }
+            } else {
+                (g - x).abs() / x.abs()
+            };
+            if err.is_nan() || err > GATHER_REL_TOL {
+                return Err(format!(
+                    "pixel {i} channel {k}: backend {g:e}, brute force {x:e} (rel {err:.1e} > {GATHER_REL_TOL:e})"
+                ));
+            }
+            worst = worst.max(err);
+        }
+    }
+    let gathered = if reported == found {
+        "= brute force".to_owned()
+    } else {
+        format!("(backend reports {reported})")
+    };
+    let arpa = method == Method::Arpa;
+    let lacking: Vec<&str> = [
+        (nonzero * 4 < pixels, "lit pixels"),
+        (records[0] == 0 && arpa, "footprints"),
+        (cov.near_boundary == 0 && arpa, "ellipse-boundary pairs"),
+        (
+            cov.box_not_ellipse == 0 && arpa,
+            "box-but-not-ellipse pairs",
+        ),
+        (cov.back_facing == 0 && arpa, "back-facing pairs"),
+        (records[1] == 0, "progressive photons"),
+        (
+            cov.photon_near_sphere == 0 && !arpa,
+            "sphere-boundary pairs",
+        ),
+    ]
+    .iter()
+    .filter(|(missing, _)| *missing)
+    .map(|(_, what)| *what)
+    .collect();
+    if !lacking.is_empty() {
+        return Err(format!(
+            "the scene did not exercise: {}",
+            lacking.join(", ")
+        ));
+    }
+    Ok(format!(
+        "{pixels} px × {GATHER_ITERATIONS} it, max rel {worst:.1e}; {} footprints, {} photons; {found} contributions {gathered}; pairs: {} near ellipse boundary, {} in box outside ellipse, {} back-facing, {} near sphere boundary",
+        records[0],
+        records[1],
+        cov.near_boundary,
+        cov.box_not_ellipse,
+        cov.back_facing,
+        cov.photon_near_sphere
+    ))
+}
+
+/// ARPA with the default biweight kernel, photons only (direct lighting off).
+pub fn arpa_biweight(t: &mut dyn DynTracer) -> CaseResult {
+    check(t, Method::Arpa, Kernel::Silverman, false, 20_000)
+}
+
+/// ARPA with the constant kernel (a jump at the ellipse boundary: the strictest test of
+/// the containment decision), photons only.
+pub fn arpa_constant(t: &mut dyn DynTracer) -> CaseResult {
+    check(t, Method::Arpa, Kernel::Constant, false, 20_000)
+}
+
+/// RTPM (progressive photons only) with next-event estimation, so `record.radiance` is
+/// non-zero and enters the expected pixel.
+pub fn rtpm(t: &mut dyn DynTracer) -> CaseResult {
+    check(t, Method::Rtpm, Kernel::Silverman, true, 20_000)
+}

@@ -1,0 +1,357 @@
+//! The small analytic and test scenes of the suite (a few large triangles each, so every
+//! backend builds them in microseconds and the core's brute-force caster can trace them).
+
+use arpa_core::emission::{Light, PointLight, TriangleLight};
+use arpa_core::glam::{DVec3, Vec3};
+use arpa_core::scene::{Camera, Material, Scene, TriangleMesh};
+
+/// The parallelogram `origin + s·u + t·v`, `s, t ∈ [0, 1]`, as two triangles with
+/// geometric normal `u × v`.
+pub fn quad(name: &str, origin: Vec3, u: Vec3, v: Vec3, material: u32) -> TriangleMesh {
+    TriangleMesh {
+        name: name.into(),
+        positions: vec![origin, origin + u, origin + u + v, origin + v],
+        normals: None,
+        indices: vec![[0, 1, 2], [0, 2, 3]],
+        material,
+        emission: None,
+    }
+}
+
+/// The axis-aligned box `[lo, hi]` as one closed mesh of 12 triangles, normals outwards
+/// (the interior of a dielectric is on the side opposite the normal).
+pub fn cuboid(name: &str, lo: Vec3, hi: Vec3, material: u32) -> TriangleMesh {
+    let d = hi - lo;
+    let (dx, dy, dz) = (Vec3::X * d.x, Vec3::Y * d.y, Vec3::Z * d.z);
+    let faces = [
+        (lo, dx, dz),                          // -Y
+        (Vec3::new(lo.x, hi.y, lo.z), dz, dx), // +Y
+        (lo, dy, dx),                          // -Z
+        (Vec3::new(lo.x, lo.y, hi.z), dx, dy), // +Z
+        (lo, dz, dy),                          // -X
+        (Vec3::new(hi.x, lo.y, lo.z), dy, dz), // +X
+    ];
+    let mut mesh = TriangleMesh {
+        name: name.into(),
+        positions: Vec::new(),
+        normals: None,
+        indices: Vec::new(),
+        material,
+        emission: None,
+    };
+    for (o, u, v) in faces {
+        let k = mesh.positions.len() as u32;
+        mesh.positions.extend([o, o + u, o + u + v, o + v]);
+        mesh.indices.extend([[k, k + 1, k + 2], [k, k + 2, k + 3]]);
+    }
+    mesh
+}
+
+/// A grey Lambertian material.
+pub fn diffuse(albedo: f32) -> Material {
+    Material::Diffuse {
+        albedo: Vec3::splat(albedo),
+    }
+}
+
+/// Smooth glass (IOR 1.5, clear).
+pub fn glass() -> Material {
+    Material::Dielectric {
+        ior: 1.5,
+        transmittance: Vec3::ONE,
+        roughness: 0.0,
+    }
+}
+
+/// A perfect mirror of reflectance 0.9.
+pub fn mirror() -> Material {
+    Material::Conductor {
+        reflectance: Vec3::splat(0.9),
+        roughness: 0.0,
+    }
+}
+
+/// An isotropic point light of intensity `intensity` (W/sr, grey).
+pub fn point_light(position: DVec3, intensity: f64) -> Light {
+    Light::Point(PointLight {
+        position,
+        intensity: DVec3::splat(intensity),
+    })
+}
+
+/// A square pinhole camera.
+pub fn camera(
+    position: Vec3,
+    target: Vec3,
+    up: Vec3,
+    vertical_fov_degrees: f32,
+    size: u32,
+) -> Camera {
+    Camera {
+        position,
+        target,
+        up,
+        vertical_fov: vertical_fov_degrees.to_radians(),
+        width: size,
+        height: size,
+    }
+}
+
+fn scene(
+    meshes: Vec<TriangleMesh>,
+    materials: Vec<Material>,
+    lights: Vec<Light>,
+    camera: Camera,
+) -> Scene {
+    Scene {
+        meshes,
+        materials,
+        lights,
+        camera,
+        roughness_cutoff: 0.5,
+    }
+}
+
+/// Floor (4 × 4), back wall, a glass slab floating above the floor and a mirror at the
+/// side, lit by a point light above the slab: every photon-path event (diffuse storage,
+/// Fresnel reflection, refraction in and out, mirror reflection, diffuse bounce) occurs,
+/// and both maps receive footprints.
+pub fn glass_mirror_room(size: u32) -> Scene {
+    let floor = quad(
+        "floor",
+        Vec3::new(-2.0, 0.0, -2.0),
+        Vec3::new(0.0, 0.0, 4.0),
+        Vec3::new(4.0, 0.0, 0.0),
+        0,
+    );
+    let wall = quad(
+        "back wall",
+        Vec3::new(-2.0, 0.0, -2.0),
+        Vec3::new(4.0, 0.0, 0.0),
+        Vec3::new(0.0, 3.0, 0.0),
+        0,
+    );
+    let slab = cuboid(
+        "glass slab",
+        Vec3::new(-0.6, 0.5, -0.6),
+        Vec3::new(0.6, 0.7, 0.6),
+        1,
+    );
+    let mirror_quad = quad(
+        "mirror",
+        Vec3::new(1.6, 0.0, -1.0),
+        Vec3::new(0.0, 0.0, 2.0),
+        Vec3::new(-0.3, 1.5, 0.0),
+        2,
+    );
+    scene(
+        vec![floor, wall, slab, mirror_quad],
+        vec![diffuse(0.6), glass(), mirror()],
+        vec![point_light(DVec3::new(0.2, 1.6, 0.1), 3.0)],
+        camera(
+            Vec3::new(0.0, 1.2, 3.5),
+            Vec3::new(0.0, 0.4, 0.0),
+            Vec3::Y,
+            50.0,
+            size,
+        ),
+    )
+}
+
+/// Floor, back wall, a thin one-sided-geometry shelf (a single quad) above the floor, a
+/// small glass block on the floor and a point light above the shelf. The camera sits
+/// below the shelf's height, so it sees the shelf's underside, where query points lie in
+/// the very plane of the footprints stored on the shelf's lit top: inside their slabs but
+/// back-facing, so they must contribute nothing.
+pub fn shelf_room(size: u32) -> Scene {
+    let floor = quad(
+        "floor",
+        Vec3::new(-2.0, 0.0, -2.0),
+        Vec3::new(0.0, 0.0, 4.0),
+        Vec3::new(4.0, 0.0, 0.0),
+        0,
+    );
+    let wall = quad(
+        "back wall",
+        Vec3::new(-2.0, 0.0, -2.0),
+        Vec3::new(4.0, 0.0, 0.0),
+        Vec3::new(0.0, 3.0, 0.0),
+        0,
+    );
+    let shelf = quad(
+        "shelf",
+        Vec3::new(-0.6, 0.6, -0.6),
+        Vec3::new(0.0, 0.0, 1.2),
+        Vec3::new(1.2, 0.0, 0.0),
+        0,
+    );
+    let block = cuboid(
+        "glass block",
+        Vec3::new(0.7, 0.0, -0.2),
+        Vec3::new(1.2, 0.4, 0.3),
+        1,
+    );
+    scene(
+        vec![floor, wall, shelf, block],
+        vec![diffuse(0.7), glass()],
+        vec![point_light(DVec3::new(0.25, 1.3, 0.15), 3.0)],
+        camera(
+            Vec3::new(0.0, 0.35, 2.8),
+            Vec3::new(0.0, 0.45, 0.0),
+            Vec3::Y,
+            55.0,
+            size,
+        ),
+    )
+}
+
+/// Height of the plane scene's point light above the plane (m).
+pub const PLANE_LIGHT_HEIGHT: f64 = 1.0;
+/// Intensity of the plane scene's point light (W/sr).
+pub const PLANE_INTENSITY: f64 = 2.0;
+/// Albedo of the plane.
+pub const PLANE_ALBEDO: f64 = 0.5;
+
+/// A point light at height 1 over a 20 × 20 diffuse plane of albedo 0.5; the camera looks
+/// straight down from height 3 and sees the square `|x|, |z| ≤ 1.5`. Nothing is above the
+/// plane, so photons reflected by it leave the scene: with direct lighting off the radiance
+/// is exactly `ρ/π · I cos θ / d²`.
+pub fn lit_plane(size: u32) -> Scene {
+    let floor = quad(
+        "plane",
+        Vec3::new(-10.0, 0.0, -10.0),
+        Vec3::new(0.0, 0.0, 20.0),
+        Vec3::new(20.0, 0.0, 0.0),
+        0,
+    );
+    scene(
+        vec![floor],
+        vec![diffuse(PLANE_ALBEDO as f32)],
+        vec![point_light(
+            DVec3::new(0.0, PLANE_LIGHT_HEIGHT, 0.0),
+            PLANE_INTENSITY,
+        )],
+        Camera {
+            position: Vec3::new(0.0, 3.0, 0.0),
+            target: Vec3::ZERO,
+            up: Vec3::new(0.0, 0.0, -1.0),
+            vertical_fov: 2.0 * 0.5f32.atan(),
+            width: size,
+            height: size,
+        },
+    )
+}
+
+/// A triangle light whose three corners are collinear (zero area).
+pub fn zero_area_triangle_light() -> Light {
+    Light::Triangle(TriangleLight {
+        p: [
+            DVec3::new(0.0, 1.0, 0.0),
+            DVec3::new(1.0, 1.0, 0.0),
+            DVec3::new(2.0, 1.0, 0.0),
+        ],
+        radiance: DVec3::splat(5.0),
+    })
+}
+
+/// An icosphere of radius `radius` around `centre`: the icosahedron subdivided
+/// `subdivisions` times (20·4^k triangles), vertices on the sphere, normals outwards.
+pub fn icosphere(centre: Vec3, radius: f32, subdivisions: u32, material: u32) -> TriangleMesh {
+    let t = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut v: Vec<DVec3> = [
+        (-1.0, t, 0.0),
+        (1.0, t, 0.0),
+        (-1.0, -t, 0.0),
+        (1.0, -t, 0.0),
+        (0.0, -1.0, t),
+        (0.0, 1.0, t),
+        (0.0, -1.0, -t),
+        (0.0, 1.0, -t),
+        (t, 0.0, -1.0),
+        (t, 0.0, 1.0),
+        (-t, 0.0, -1.0),
+        (-t, 0.0, 1.0),
+    ]
+    .iter()
+    .map(|&(x, y, z)| DVec3::new(x, y, z).normalize())
+    .collect();
+    let mut f: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..subdivisions {
+        let mut mid = std::collections::HashMap::new();
+        let mut midpoint = |a: u32, b: u32, v: &mut Vec<DVec3>| {
+            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                v.push((v[a as usize] + v[b as usize]).normalize());
+                (v.len() - 1) as u32
+            })
+        };
+        let mut next = Vec::with_capacity(f.len() * 4);
+        for [a, b, c] in f {
+            let (ab, bc, ca) = (
+                midpoint(a, b, &mut v),
+                midpoint(b, c, &mut v),
+                midpoint(c, a, &mut v),
+            );
+            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        f = next;
+    }
+    TriangleMesh {
+        name: "icosphere".into(),
+        positions: v
+            .iter()
+            .map(|p| centre + (*p * radius as f64).as_vec3())
+            .collect(),
+        normals: None,
+        indices: f,
+        material,
+        emission: None,
+    }
+}
+
+/// Total area of a mesh (m²), in `f64`.
+pub fn mesh_area(m: &TriangleMesh) -> f64 {
+    m.indices
+        .iter()
+        .map(|t| {
+            let p = t.map(|i| m.positions[i as usize].as_dvec3());
+            0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length()
+        })
+        .sum()
+}
+
+/// Intensity of the furnace's point light (W/sr).
+pub const FURNACE_INTENSITY: f64 = 1.5;
+/// Albedo of the furnace's wall.
+pub const FURNACE_ALBEDO: f64 = 0.5;
+
+/// A point light at the centre of a closed unit icosphere (1280 triangles) of albedo 0.5,
+/// seen from the centre: a closed furnace with all bounces.
+pub fn furnace(size: u32) -> Scene {
+    scene(
+        vec![icosphere(Vec3::ZERO, 1.0, 3, 0)],
+        vec![diffuse(FURNACE_ALBEDO as f32)],
+        vec![point_light(DVec3::ZERO, FURNACE_INTENSITY)],
+        camera(Vec3::ZERO, Vec3::new(0.3, 0.2, 1.0), Vec3::Y, 60.0, size),
+    )
+}

@@ -1,0 +1,334 @@
+//! The runner: every case on every backend compiled in, expectations applied, the
+//! backends required by `ARPA_REQUIRE_BACKENDS` enforced.
+
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::time::Instant;
+
+use crate::backends::{Backend, KNOWN_BACKENDS};
+use crate::dyn_tracer::{BoxError, DynTracer};
+use crate::{Report, Verdict};
+
+/// What a case body returns: the measured metric when its assertion held, else what was
+/// measured and what was expected.
+pub type CaseResult = Result<String, String>;
+
+/// A backend-agnostic case: one body for every backend.
+#[derive(Clone, Copy)]
+pub struct Case {
+    /// Stable identifier (what expectations and `--case` filters name).
+    pub id: &'static str,
+    /// Row label of the report.
+    pub title: &'static str,
+    /// The case. It uploads its own scene (which resets the tracer) and must not assume
+    /// anything about the tracer's state.
+    pub run: fn(&mut dyn DynTracer) -> CaseResult,
+}
+
+impl core::fmt::Debug for Case {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.debug_struct("Case")
+            .field("id", &self.id)
+            .field("title", &self.title)
+            .finish()
+    }
+}
+
+/// Row of the report that says whether each backend is present and initialises.
+pub const AVAILABILITY_ROW: &str = "backend compiled in and initialises";
+
+/// Environment variable listing the backends that must be compiled in and initialise.
+pub const REQUIRE_ENV: &str = "ARPA_REQUIRE_BACKENDS";
+
+/// Environment variable restricting the run to cases whose id contains one of its
+/// comma-separated parts.
+pub const CASES_ENV: &str = "ARPA_CONFORMANCE_CASES";
+
+/// How to run the suite.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct SuiteOptions {
+    /// Backends that must be compiled in and initialise (`ARPA_REQUIRE_BACKENDS`).
+    pub required: Vec<String>,
+    /// Run only cases whose id contains one of these (all when empty).
+    pub filter: Vec<String>,
+}
+
+fn split_list(s: &str) -> Vec<String> {
+    s.split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+        .map(str::to_owned)
+        .collect()
+}
+
+impl SuiteOptions {
+    /// Options from `ARPA_REQUIRE_BACKENDS` and `ARPA_CONFORMANCE_CASES` (comma-separated
+    /// lists; unset or empty: nothing required, every case).
+    pub fn from_env() -> Self {
+        let var = |k| std::env::var(k).map(|v| split_list(&v)).unwrap_or_default();
+        Self {
+            required: var(REQUIRE_ENV),
+            filter: var(CASES_ENV),
+        }
+    }
+
+    fn selects(&self, case: &Case) -> bool {
+        self.filter.is_empty() || self.filter.iter().any(|f| case.id.contains(f.as_str()))
+    }
+}
+
+/// A finished run: the table, the device of each backend that ran, and the wall time.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SuiteRun {
+    /// Case × backend verdicts.
+    pub report: Report,
+    /// `(backend, device description)` of every backend that initialised.
+    pub devices: Vec<(String, String)>,
+    /// Wall-clock time of the whole run (seconds).
+    pub seconds: f64,
+}
+
+impl SuiteRun {
+    /// Markdown document: a short header (devices, time, verdict) and the table.
+    pub fn to_markdown(&self) -> String {
+        let mut s = String::from("# arpa conformance\n\n");
+        if self.devices.is_empty() {
+            s.push_str("- no backend initialised (compiled in: enable the `cpu` feature, or `wgpu`/`vk` as they land)\n");
+        }
+        for (b, d) in &self.devices {
+            s.push_str(&format!("- `{b}`: {d}\n"));
+        }
+        s.push_str(&format!(
+            "- total {:.1} s; {}\n\n",
+            self.seconds,
+            if self.report.all_ok() {
+                "all cases pass (or fail as expected, with a reason)"
+            } else {
+                "**unexpected failures**"
+            }
+        ));
+        s.push_str(&self.report.to_markdown());
+        s
+    }
+}
+
+fn panic_message(p: &(dyn std::any::Any + Send)) -> String {
+    p.downcast_ref::<&str>()
+        .map(|s| (*s).to_owned())
+        .or_else(|| p.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "non-string panic payload".into())
+}
+
+/// Turns a case's outcome into a verdict under the backend's expectation.
+pub fn verdict(outcome: CaseResult, expected_failure: Option<&str>) -> Verdict {
+    match (outcome, expected_failure) {
+        (_, Some(r)) if r.trim().is_empty() => Verdict::Fail {
+            detail: "expected-failure entry without a reason (every expectation needs one)".into(),
+        },
+        (Err(_), Some(reason)) => Verdict::ExpectedFail {
+            reason: reason.to_owned(),
+        },
+        (Ok(metric), Some(reason)) => Verdict::Fail {
+            detail: format!(
+                "passed ({metric}) although expected to fail ({reason}): remove the expectation"
+            ),
+        },
+        (Ok(metric), None) => Verdict::Pass { metric },
+        (Err(detail), None) => Verdict::Fail { detail },
+    }
+}
+
+fn create(backend: &Backend) -> Result<Box<dyn DynTracer>, String> {
+    match catch_unwind(backend.create) {
+        Ok(Ok(t)) => Ok(t),
+        Ok(Err(e)) => Err(e.to_string()),
+        Err(p) => Err(format!("panicked: {}", panic_message(&*p))),
+    }
+}
+
+/// Runs `cases` on every backend of `backends` under `options`. Progress goes to stderr.
+///
+/// * A backend named in `options.required` that is not a known backend, or not in
+///   `backends` (not compiled in), or that fails to initialise, fails the availability row.
+///   A backend that is compiled in but not required and cannot initialise is recorded as
+///   an expected failure with the error as reason, and its cases do not run.
+/// * A panicking case fails (on that backend only); the backend is then re-created.
+pub fn run_suite_with(backends: &[Backend], cases: &[Case], options: &SuiteOptions) -> SuiteRun {
+    let start = Instant::now();
+    let mut report = Report::default();
+    let mut devices = Vec::new();
+    for backend in backends {
+        let required = options.required.iter().any(|r| r == backend.name);
+        let mut tracer = match create(backend) {
+            Ok(t) => {
+                let device = t.capabilities().device;
+                report.record(
+                    AVAILABILITY_ROW,
+                    backend.name,
+                    Verdict::Pass {
+                        metric: device.clone(),
+                    },
+                );
+                devices.push((backend.name.to_owned(), device));
+                Some(t)
+            }
+            Err(e) if required => {
+                report.record(
+                    AVAILABILITY_ROW,
+                    backend.name,
+                    Verdict::Fail {
+                        detail: format!("required by {REQUIRE_ENV} but failed to initialise: {e}"),
+                    },
+                );
+                None
+            }
+            Err(e) => {
+                report.record(
+                    AVAILABILITY_ROW,
+                    backend.name,
+                    Verdict::ExpectedFail {
+                        reason: format!("not required by {REQUIRE_ENV}; failed to initialise: {e}"),
+                    },
+                );
+                None
+            }
+        };
+        for case in cases.iter().filter(|c| options.selects(c)) {
+            let Some(t) = tracer.as_mut() else { continue };
+            let t0 = Instant::now();
+            let outcome = match catch_unwind(AssertUnwindSafe(|| (case.run)(t.as_mut()))) {
+                Ok(r) => r,
+                Err(p) => {
+                    let msg = format!("panicked: {}", panic_message(&*p));
+                    // The tracer may be in any state after a panic: start afresh.
+                    tracer = create(backend).ok();
+                    Err(msg)
+                }
+            };
+            let secs = t0.elapsed().as_secs_f64();
+            let outcome = outcome.map(|m| format!("{m}; {secs:.2} s"));
+            let v = verdict(outcome, backend.expected_failure(case.id));
+            eprintln!("[{}] {} ({secs:.2} s): {v:?}", backend.name, case.id);
+            report.record(case.title, backend.name, v);
+        }
+    }
+    for name in &options.required {
+        if backends.iter().any(|b| b.name == name) {
+            continue;
+        }
+        let detail = if KNOWN_BACKENDS.contains(&name.as_str()) {
+            format!(
+                "required by {REQUIRE_ENV} but not compiled in (enable feature `{name}` of arpa-conformance)"
+            )
+        } else {
+            format!(
+                "required by {REQUIRE_ENV} but no such backend (known: {})",
+                KNOWN_BACKENDS.join(", ")
+            )
+        };
+        report.record(AVAILABILITY_ROW, name, Verdict::Fail { detail });
+    }
+    SuiteRun {
+        report,
+        devices,
+        seconds: start.elapsed().as_secs_f64(),
+    }
+}
+
+/// Runs every case on every backend compiled in, under `options`.
+pub fn run_suite(options: &SuiteOptions) -> SuiteRun {
+    run_suite_with(&crate::backends::compiled(), &crate::cases::all(), options)
+}
+
+/// Adds context to a backend error: `"photon_pass: <error>"`.
+pub(crate) trait Context<T> {
+    fn ctx(self, what: &str) -> Result<T, String>;
+}
+
+impl<T> Context<T> for Result<T, BoxError> {
+    fn ctx(self, what: &str) -> Result<T, String> {
+        self.map_err(|e| format!("{what}: {e}"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::backends::ExpectedFailure;
+
+    fn no_device() -> Result<Box<dyn DynTracer>, BoxError> {
+        Err("no adapter".into())
+    }
+
+    fn fake(name: &'static str, expected_failures: &'static [ExpectedFailure]) -> Backend {
+        Backend {
+            name,
+            feature: name,
+            create: no_device,
+            expected_failures,
+        }
+    }
+
+    #[test]
+    fn expectations_need_reasons_and_must_still_fail() {
+        assert_eq!(
+            verdict(Err("x".into()), Some("no f64 on this GPU")),
+            Verdict::ExpectedFail {
+                reason: "no f64 on this GPU".into()
+            }
+        );
+        assert!(!verdict(Err("x".into()), Some("  ")).is_ok());
+        assert!(!verdict(Ok("fine".into()), Some("why")).is_ok());
+        assert!(verdict(Ok("fine".into()), None).is_ok());
+        assert!(!verdict(Err("bad".into()), None).is_ok());
+    }
+
+    #[test]
+    fn required_backends_must_exist_and_initialise() {
+        let backends = [fake("wgpu", &[])];
+        // Compiled in, not required, no device: expected failure, suite ok.
+        let run = run_suite_with(&backends, &[], &SuiteOptions::default());
+        assert!(run.report.all_ok(), "{}", run.report.to_markdown());
+        assert!(run.report.to_markdown().contains("xfail (not required"));
+        // Required but cannot initialise.
+        let run = run_suite_with(
+            &backends,
+            &[],
+            &SuiteOptions {
+                required: vec!["wgpu".into()],
+                filter: vec![],
+            },
+        );
+        assert!(!run.report.all_ok());
+        // Required, known, not compiled in.
+        let run = run_suite_with(
+            &[],
+            &[],
+            &SuiteOptions {
+                required: vec!["vk".into()],
+                filter: vec![],
+            },
+        );
+        assert!(!run.report.all_ok());
+        assert!(run.report.to_markdown().contains("not compiled in"));
+        // Unknown name.
+        let run = run_suite_with(
+            &[],
+            &[],
+            &SuiteOptions {
+                required: vec!["cuda".into()],
+                filter: vec![],
+            },
+        );
+        assert!(!run.report.all_ok());
+        assert!(run.report.to_markdown().contains("no such backend"));
+    }
+
+    #[test]
+    fn list_parsing() {
+        assert_eq!(
+            split_list(" cpu, wgpu ,,"),
+            vec!["cpu".to_owned(), "wgpu".to_owned()]
+        );
+        assert!(split_list("").is_empty());
+    }
+}

@@ -1,0 +1,158 @@
+//! The suite catches broken backends: the CPU backend wrapped so that it misbehaves in one
+//! way each fails the case meant to catch that (and a faithful wrapper passes them all).
+#![cfg(feature = "cpu")]
+
+use arpa_conformance::{BoxError, Case, DynTracer, backends, cases};
+use arpa_core::footprint::PackedFootprint;
+use arpa_core::progressive_photon::PackedPhoton;
+use arpa_core::scene::Scene;
+use arpa_core::tracer::{Capabilities, Image, IterationStats, QueryRecord, RenderSettings};
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Fault {
+    None,
+    /// Every pixel 3% too bright.
+    Bright,
+    /// Pixels off by 1e-4 relative.
+    SlightlyOff,
+    /// The last stored footprint is lost.
+    DropFootprint,
+    /// A footprint's flux density 1% off.
+    FootprintFlux,
+    /// Each read of the image differs in the last bit of one pixel.
+    Nondeterministic,
+    /// `upload_scene` ignores validation errors (uploads a good scene instead).
+    AcceptsAnything,
+}
+
+struct Sabotaged {
+    inner: Box<dyn DynTracer>,
+    fault: Fault,
+    reads: std::cell::Cell<u32>,
+}
+
+impl DynTracer for Sabotaged {
+    fn capabilities(&self) -> Capabilities {
+        self.inner.capabilities()
+    }
+    fn upload_scene(&mut self, scene: &Scene, settings: &RenderSettings) -> Result<(), BoxError> {
+        let r = self.inner.upload_scene(scene, settings);
+        if self.fault == Fault::AcceptsAnything && r.is_err() {
+            return self
+                .inner
+                .upload_scene(&arpa_conformance::scenes::lit_plane(8), settings);
+        }
+        r
+    }
+    fn camera_pass(&mut self) -> Result<(), BoxError> {
+        self.inner.camera_pass()
+    }
+    fn photon_pass(&mut self) -> Result<(), BoxError> {
+        self.inner.photon_pass()
+    }
+    fn build_acceleration_structure(&mut self) -> Result<(), BoxError> {
+        self.inner.build_acceleration_structure()
+    }
+    fn gather(&mut self) -> Result<(), BoxError> {
+        self.inner.gather()
+    }
+    fn accumulate(&mut self) -> Result<(), BoxError> {
+        self.inner.accumulate()
+    }
+    fn iterate(&mut self) -> Result<(), BoxError> {
+        self.inner.iterate()
+    }
+    fn iterations(&self) -> u32 {
+        self.inner.iterations()
+    }
+    fn read_image(&self) -> Result<Image, BoxError> {
+        let mut img = self.inner.read_image()?;
+        let n = self.reads.get();
+        self.reads.set(n + 1);
+        match self.fault {
+            Fault::Bright => img.pixels.iter_mut().for_each(|p| *p *= 1.03),
+            Fault::SlightlyOff => img.pixels.iter_mut().for_each(|p| *p *= 1.0 + 1e-4),
+            Fault::Nondeterministic => {
+                if let Some(p) = img.pixels.iter_mut().find(|p| p.x > 0.0) {
+                    p.x = f32::from_bits(p.x.to_bits() + (n & 1));
+                }
+            }
+            _ => {}
+        }
+        Ok(img)
+    }
+    fn read_query_points(&self) -> Result<Vec<QueryRecord>, BoxError> {
+        self.inner.read_query_points()
+    }
+    fn read_footprints(&self) -> Result<Vec<PackedFootprint>, BoxError> {
+        let mut v = self.inner.read_footprints()?;
+        match self.fault {
+            Fault::DropFootprint => {
+                v.pop();
+            }
+            Fault::FootprintFlux => {
+                let mid = v.len() / 2;
+                if let Some(f) = v.get_mut(mid) {
+                    f.flux_density_g *= 1.01;
+                }
+            }
+            _ => {}
+        }
+        Ok(v)
+    }
+    fn read_photons(&self) -> Result<Vec<PackedPhoton>, BoxError> {
+        self.inner.read_photons()
+    }
+    fn read_stats(&self) -> Result<IterationStats, BoxError> {
+        self.inner.read_stats()
+    }
+}
+
+fn run(fault: Fault, case: &str) -> Result<String, String> {
+    let cpu = backends::compiled()
+        .into_iter()
+        .find(|b| b.name == "cpu")
+        .expect("cpu backend");
+    let mut t = Sabotaged {
+        inner: (cpu.create)().expect("cpu tracer"),
+        fault,
+        reads: 0.into(),
+    };
+    let c: Case = cases::all()
+        .into_iter()
+        .find(|c| c.id == case)
+        .expect("case");
+    (c.run)(&mut t)
+}
+
+#[test]
+fn faithful_wrapper_passes() {
+    for case in [
+        "stage-photon-pass",
+        "gather-exact-arpa-constant",
+        "analytic-plane-arpa",
+        "determinism",
+        "bad-input",
+    ] {
+        run(Fault::None, case).unwrap_or_else(|e| panic!("{case}: {e}"));
+    }
+}
+
+#[test]
+fn each_fault_is_caught() {
+    for (fault, case) in [
+        (Fault::Bright, "analytic-plane-arpa"),
+        (Fault::Bright, "analytic-furnace-arpa-direct"),
+        (Fault::SlightlyOff, "gather-exact-arpa-biweight"),
+        (Fault::SlightlyOff, "gather-exact-rtpm"),
+        (Fault::DropFootprint, "stage-photon-pass"),
+        (Fault::FootprintFlux, "stage-photon-pass"),
+        (Fault::Nondeterministic, "determinism"),
+        (Fault::AcceptsAnything, "bad-input"),
+    ] {
+        match run(fault, case) {
+            Ok(m) => panic!("{fault:?} not caught by {case}: {m}"),
+            Err(e) => eprintln!("{fault:?} caught by {case}: {e}"),
+        }
+    }
+}
