@@ -1,7 +1,7 @@
 //! The `arpa` command line: argument parsing (clap) and the `render` command.
 //!
 //! ```text
-//! arpa render [SCENE] [--backend cpu] [--method arpa|rtpm] [--photons N]
+//! arpa render [SCENE.xml [-D name=value ...]] [--backend cpu] [--method arpa|rtpm] [--photons N]
 //!             [--iterations N | --time SECONDS] [--resolution WxH] [--seed S]
 //!             [--out PATH] [--no-direct] [--smoothing-caustic S_c] [--smoothing-global S_g]
 //!             [--max-depth D] [--exposure E]
@@ -166,6 +166,10 @@ fn parse_seconds(s: &str) -> Result<f64, String> {
     }
 }
 
+fn parse_define_arg(s: &str) -> Result<(String, String), String> {
+    crate::scene_file::parse_define(s).map_err(|e| e.to_string())
+}
+
 fn parse_exposure(s: &str) -> Result<f32, String> {
     match s.trim().parse::<f32>() {
         Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
@@ -176,10 +180,16 @@ fn parse_exposure(s: &str) -> Result<f32, String> {
 /// Arguments of `arpa render`.
 #[derive(Debug, Args)]
 pub struct RenderArgs {
-    /// Scene file to render (not supported yet: without it the embedded Cornell box with a
-    /// glass sphere and a mirror block is rendered).
+    /// Mitsuba 3 XML scene file to render (see `arpa::scene_file` for the supported
+    /// subset); without it the embedded Cornell box with a glass sphere and a mirror block
+    /// is rendered.
     #[arg(value_name = "SCENE")]
     pub scene: Option<PathBuf>,
+
+    /// Overrides a `<default name=... value=...>` of the scene file (repeatable), e.g.
+    /// `-D res_x=640` or `-Dres_x=640`.
+    #[arg(short = 'D', value_name = "NAME=VALUE", value_parser = parse_define_arg, requires = "scene")]
+    pub define: Vec<(String, String)>,
 
     /// Rendering backend (only those compiled in are accepted).
     #[arg(long, value_name = "NAME", default_value = "cpu", value_parser = parse_backend)]
@@ -202,7 +212,8 @@ pub struct RenderArgs {
     #[arg(long, allow_negative_numbers = true, value_name = "SECONDS", value_parser = parse_seconds)]
     pub time: Option<f64>,
 
-    /// Image size WIDTHxHEIGHT [default: the scene's, 512x512].
+    /// Image size WIDTHxHEIGHT [default: the scene file's film size, or 512x512 for the
+    /// embedded scene].
     #[arg(long, value_name = "WxH", value_parser = parse_resolution)]
     pub resolution: Option<Resolution>,
 
@@ -541,15 +552,39 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 
 /// `arpa render`.
 pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
-    if let Some(path) = &args.scene {
-        bail!("scene files are not supported yet: {}", path.display());
-    }
-    let mut scene = default_scene();
-    if let Some(r) = args.resolution {
-        scene.camera.width = r.width;
-        scene.camera.height = r.height;
-    }
-    scene.validate().context("the embedded default scene is invalid")?;
+    let scene = match &args.scene {
+        Some(path) => {
+            let mut loaded = crate::scene_file::load_scene(path, &args.define).with_context(|| format!("cannot load scene file '{}'", path.display()))?;
+            for w in &loaded.warnings {
+                eprintln!("warning: {w}");
+            }
+            if let Some(r) = args.resolution {
+                loaded.set_resolution(r.width, r.height);
+            }
+            let s = &loaded.scene;
+            eprintln!(
+                "loaded {}: {} triangles in {} meshes, {} analytic lights, {} emissive meshes, {}x{} pixels",
+                path.display(),
+                loaded.triangle_count(),
+                s.meshes.len(),
+                s.lights.len(),
+                s.meshes.iter().filter(|m| m.emission.is_some()).count(),
+                s.camera.width,
+                s.camera.height
+            );
+            loaded.scene.validate().with_context(|| format!("scene file '{}' is invalid", path.display()))?;
+            loaded.scene
+        }
+        None => {
+            let mut scene = default_scene();
+            if let Some(r) = args.resolution {
+                scene.camera.width = r.width;
+                scene.camera.height = r.height;
+            }
+            scene.validate().context("the embedded default scene is invalid")?;
+            scene
+        }
+    };
     let settings = args.settings();
     let budget = args.budget();
     let (exr_path, png_path) = output_paths(&args.out)?;

@@ -13,3 +13,4 @@ pub use arpa_cpu as cpu;
 pub mod cli;
 pub mod default_scene;
 pub mod image_io;
+pub mod scene_file;

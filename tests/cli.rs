@@ -56,7 +56,8 @@ fn bad_arguments_fail_with_a_message() {
     assert_fails(&["render", "--iterations", "1", "--time", "1", "--out", out], &["--iterations", "--time"]);
     assert_fails(&["render", "--time", "-3", "--out", out], &["--time"]);
     assert_fails(&["render", "--method", "magic", "--out", out], &["--method", "magic"]);
-    assert_fails(&["render", "scenes/cornell.xml", "--out", out], &["scene files are not supported yet", "cornell.xml"]);
+    assert_fails(&["render", "scenes/cornell.xml", "--out", out], &["cannot load scene file", "cornell.xml", "cannot read"]);
+    assert_fails(&["render", "-D", "novalue", "--out", out], &["-D", "novalue"]);
     assert_fails(&["render", "--out", dir.path().to_str().unwrap()], &["--out"]);
     assert_fails(&["frobnicate"], &["frobnicate"]);
     assert!(!std::path::Path::new(&format!("{out}.exr")).exists());

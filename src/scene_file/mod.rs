@@ -1,0 +1,180 @@
+//! Scene files: a loader for the subset of **Mitsuba 3** XML used by the shared test
+//! scenes (and a little more), with PLY and OBJ meshes.
+//!
+//! ```no_run
+//! let loaded = arpa::scene_file::load_scene("scene.xml".as_ref(), &[("res_x".into(), "64".into())])?;
+//! for w in &loaded.warnings { eprintln!("warning: {w}"); }
+//! let scene = loaded.scene; // validated
+//! # Ok::<(), arpa::scene_file::SceneFileError>(())
+//! ```
+//!
+//! ## Supported
+//!
+//! | element | mapping |
+//! |---|---|
+//! | `<default name value>`, `$name` | substituted in every attribute value; `-D name=value` ([`load_scene`]'s `defines`) overrides defaults; an undefined `$name` is an error naming the line |
+//! | `<transform name="to_world">` | `matrix` (16 numbers, row-major, or 9), `lookat` (`origin`, `target`, `up`), `translate`, `rotate` (`axis`, `angle` in degrees), `scale` (one or three values); composed in document order as Mitsuba does (each operation is applied after the previous ones) |
+//! | `<shape type="ply">` | `ply-rs` loader (binary little/big endian or ASCII; `x y z` with optional `nx ny nz`; faces `list <int> <int> vertex_indices`, quads fan-triangulated). Without stored normals the mesh is shaded with face normals (the shared scenes' convention) |
+//! | `<shape type="obj">` | `tobj`, all objects merged, polygons triangulated, `.mtl` ignored |
+//! | `<shape type="rectangle" / "cube" / "sphere">` | Mitsuba's canonical shapes (`[-1,1]²` at z = 0 facing +z; `[-1,1]³`; sphere `center` + `radius` tessellated into 5,120 triangles with exact vertices and smooth normals) |
+//! | shape `face_normals`, `flip_normals` | drop stored normals; reverse the winding and normals |
+//! | `<bsdf type="diffuse">` | [`Material::Diffuse`] with `reflectance` |
+//! | `dielectric` | [`Material::Dielectric`], `ior = int_ior / ext_ior` (numbers or Mitsuba's named IORs), `specular_transmittance` |
+//! | `conductor` | [`Material::Conductor`], roughness 0. `material="none"` (Mitsuba's default) is a perfect mirror of reflectance `specular_reflectance`; a named metal uses a small table of normal-incidence reflectances (Ag, Al, Au, Cr, Cu, Ni_palik, Pt, Fe, Ti, W), any other name 0.9 gray (warning); `eta`/`k` give the normal-incidence Fresnel reflectance `((η−1)² + k²)/((η+1)² + k²)` (warning) |
+//! | `roughconductor`, `roughdielectric` | as above with roughness `alpha` (or the mean of `alpha_u`, `alpha_v`; default 0.1): the renderer applies [`Scene::roughness_cutoff`] (0.5 here, RTPM's rule): rougher is diffuse, smoother is perfectly specular (warning saying which) |
+//! | `plastic`, `roughplastic` | diffuse with `diffuse_reflectance`; the specular coating is dropped (warning) |
+//! | `twosided` | its nested bsdf (arpa's materials are two-sided). A one-sided diffuse/conductor with non-zero reflectance gets a warning, since Mitsuba renders its back black |
+//! | `<ref id>` / `id` | top-level bsdfs by id; a shape without a bsdf is diffuse 0.5 (Mitsuba's default) |
+//! | `<emitter type="area">` in a shape | [`TriangleMesh::emission`] = `radiance`, one-sided on the geometric-normal side `cross(p1−p0, p2−p0)` (the shared scenes' convention); zero total area is an error; a warning if the stored normals point the other way |
+//! | `point` | [`PointLight`](arpa_core::emission::PointLight): `intensity` (W/sr), `position` or `to_world` |
+//! | `spot` | [`SpotLight`](arpa_core::emission::SpotLight): `to_world` (+z is the axis), `intensity`, `cutoff_angle` (default 20°) and `beam_width` (default ¾ cutoff) in degrees → radians, [`SpotFalloff::LinearAngle`](arpa_core::emission::SpotFalloff) (Mitsuba's curve) |
+//! | `directional` | [`DirectionalLight`](arpa_core::emission::DirectionalLight): `direction` or `to_world` +z, `irradiance` |
+//! | `<sensor type="perspective">` | [`Camera`](arpa_core::scene::Camera) from `to_world` in Mitsuba's convention (camera +z forward, +y up, +x *left*; a mirrored frame is an error); `fov` with `fov_axis` x (Mitsuba's default), y, diagonal, smaller, larger, converted to the vertical FOV; film `width`/`height` (default 768×576) |
+//! | colours | `<rgb value="r, g, b">`, `<rgb value="v">`, `<float>`, constant `<spectrum value="v">` |
+//! | `<integrator>` | ignored (arpa is the integrator); its `max_depth` is reported in [`LoadedScene::max_depth`] |
+//! | sampler, film `pixel_format` etc. | ignored; `sample_count` in [`LoadedScene::sample_count`]; a non-box `rfilter` warns |
+//!
+//! ## Unsupported
+//!
+//! Other shape, bsdf, emitter and sensor types, textures, media, `include`, spectra with
+//! wavelengths and `focal_length` are errors naming the element and its line; unknown
+//! properties of supported elements are warnings naming the property and its line
+//! ([`LoadedScene::warnings`]). Malformed XML, PLY or OBJ, missing files, non-finite
+//! vertices and zero-area emitters are [`SceneFileError`]s naming the file and the
+//! problem. The loaded scene is checked with [`Scene::validate`] before it is returned.
+
+mod error;
+mod mitsuba;
+mod obj;
+mod ply;
+mod shapes;
+pub mod transform;
+mod xml;
+
+pub use error::{SceneFileError, Warning};
+pub use mitsuba::ROUGHNESS_CUTOFF;
+
+use arpa_core::scene::Scene;
+#[cfg(doc)]
+use arpa_core::scene::{Material, TriangleMesh};
+use glam::DVec3;
+use std::path::{Path, PathBuf};
+
+/// A mesh as read from a file or generated, before `to_world`.
+pub(crate) struct RawMesh {
+    pub positions: Vec<DVec3>,
+    pub normals: Option<Vec<DVec3>>,
+    pub indices: Vec<[u32; 3]>,
+}
+
+/// Which image axis a Mitsuba `fov` spans.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FovAxis {
+    /// Horizontal (Mitsuba's default).
+    X,
+    /// Vertical.
+    Y,
+    /// Diagonal.
+    Diagonal,
+    /// The smaller image side.
+    Smaller,
+    /// The larger image side.
+    Larger,
+}
+
+/// The vertical field of view (radians) of a `fov_degrees` field of view along `axis` on a
+/// `width × height` film.
+pub fn vertical_fov(fov_degrees: f64, axis: FovAxis, width: u32, height: u32) -> f32 {
+    let (w, h) = (width.max(1) as f64, height.max(1) as f64);
+    let t = (0.5 * fov_degrees.to_radians()).tan();
+    let tan_half_v = match axis {
+        FovAxis::Y => t,
+        FovAxis::X => t * h / w,
+        FovAxis::Diagonal => t * h / (w * w + h * h).sqrt(),
+        FovAxis::Smaller => if w < h { t * h / w } else { t },
+        FovAxis::Larger => if w > h { t * h / w } else { t },
+    };
+    (2.0 * tan_half_v.atan()) as f32
+}
+
+/// A loaded (and validated) scene with what the loader noticed.
+#[derive(Clone, Debug)]
+pub struct LoadedScene {
+    /// The scene; its camera has the file's film size.
+    pub scene: Scene,
+    /// Approximations and ignored elements, each naming its line.
+    pub warnings: Vec<Warning>,
+    /// The scene file.
+    pub path: PathBuf,
+    /// The `<integrator>`'s `max_depth`, if any (informative: arpa has its own setting).
+    pub max_depth: Option<u32>,
+    /// The sensor's sampler `sample_count`, if any (informative).
+    pub sample_count: Option<u32>,
+    /// The sensor's `fov` in degrees, along [`LoadedScene::fov_axis`].
+    pub fov_degrees: f64,
+    /// The axis `fov` spans.
+    pub fov_axis: FovAxis,
+}
+
+impl LoadedScene {
+    /// Changes the image size, keeping the field of view along the file's `fov_axis` (as
+    /// Mitsuba does when the film size changes).
+    pub fn set_resolution(&mut self, width: u32, height: u32) {
+        let c = &mut self.scene.camera;
+        c.width = width;
+        c.height = height;
+        c.vertical_fov = vertical_fov(self.fov_degrees, self.fov_axis, width, height);
+    }
+
+    /// Total number of triangles.
+    pub fn triangle_count(&self) -> usize {
+        self.scene.meshes.iter().map(|m| m.indices.len()).sum()
+    }
+}
+
+/// Loads a Mitsuba 3 XML scene file; `defines` are `-D name=value` overrides of its
+/// `<default>`s. Mesh file names are relative to the scene file's directory.
+pub fn load_scene(path: &Path, defines: &[(String, String)]) -> Result<LoadedScene, SceneFileError> {
+    let bytes = std::fs::read(path).map_err(|source| SceneFileError::Io { path: path.to_path_buf(), source })?;
+    let text = String::from_utf8(bytes).map_err(|e| {
+        let before = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+        let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
+        SceneFileError::Xml { path: path.to_path_buf(), line, message: "the file is not UTF-8 text".into() }
+    })?;
+    load_scene_str(&text, path, defines)
+}
+
+/// Loads a scene from XML text; `path` names it in messages and its directory resolves
+/// mesh file names.
+pub fn load_scene_str(text: &str, path: &Path, defines: &[(String, String)]) -> Result<LoadedScene, SceneFileError> {
+    mitsuba::load_str(text, path, defines)
+}
+
+/// Parses a `-D` argument `name=value`.
+pub fn parse_define(s: &str) -> Result<(String, String), SceneFileError> {
+    match s.split_once('=') {
+        Some((k, v)) if !k.trim().is_empty() && k.trim().chars().all(|c| c.is_ascii_alphanumeric() || c == '_') => Ok((k.trim().to_string(), v.to_string())),
+        _ => Err(SceneFileError::BadDefine(s.to_string())),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fov_conversion() {
+        let v = vertical_fov(40.0, FovAxis::Y, 320, 180) as f64;
+        assert!((v - 40f64.to_radians()).abs() < 1e-6);
+        let v = vertical_fov(90.0, FovAxis::X, 200, 100) as f64;
+        assert!((v - 2.0 * 0.5f64.atan()).abs() < 1e-6);
+        assert_eq!(vertical_fov(30.0, FovAxis::Smaller, 100, 200), vertical_fov(30.0, FovAxis::X, 100, 200));
+        assert_eq!(vertical_fov(30.0, FovAxis::Larger, 100, 200), vertical_fov(30.0, FovAxis::Y, 100, 200));
+    }
+
+    #[test]
+    fn defines() {
+        assert_eq!(parse_define("res_x=64").unwrap(), ("res_x".to_string(), "64".to_string()));
+        assert!(parse_define("novalue").is_err() && parse_define("=3").is_err() && parse_define("a b=1").is_err());
+    }
+}

@@ -1,0 +1,448 @@
+//! The Mitsuba 3 scene-file loader (`arpa::scene_file`): every shared scene loads and
+//! validates and matches the numbers in `shared/scenes/README.md`; every kind of bad input
+//! is an error naming the file (and line) and the problem, never a panic.
+
+use arpa::core::emission::{Light, SpotFalloff};
+use arpa::core::scene::{Material, TriangleMesh};
+use arpa::scene_file::{FovAxis, LoadedScene, SceneFileError, load_scene};
+use glam::{Vec3, vec3};
+use std::path::{Path, PathBuf};
+
+/// `shared/scenes` beside the repository (as on CI), or `None` with a loud message. With
+/// `CI` set, missing scenes are a failure.
+fn shared_scenes() -> Option<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
+    if dir.join("README.md").is_file() {
+        return Some(dir);
+    }
+    if std::env::var_os("CI").is_some() {
+        panic!("CI is set but the shared scenes are missing at {}", dir.display());
+    }
+    eprintln!("\n=== SKIPPED: shared scenes not found at {} (set CI to make this a failure) ===\n", dir.display());
+    None
+}
+
+fn load_shared(name: &str) -> Option<LoadedScene> {
+    let dir = shared_scenes()?;
+    let path = dir.join(name).join("scene.xml");
+    Some(load_scene(&path, &[]).unwrap_or_else(|e| panic!("{name}: {e}")))
+}
+
+fn close(a: Vec3, b: Vec3, tol: f32) -> bool {
+    (a - b).abs().max_element() <= tol
+}
+
+fn geometric_normal(m: &TriangleMesh, t: usize) -> Vec3 {
+    let p = m.indices[t].map(|i| m.positions[i as usize]);
+    (p[1] - p[0]).cross(p[2] - p[0]).normalize()
+}
+
+fn mesh<'a>(s: &'a LoadedScene, file: &str) -> &'a TriangleMesh {
+    s.scene.meshes.iter().find(|m| m.name.starts_with(file)).unwrap_or_else(|| panic!("no mesh {file}"))
+}
+
+/// (scene, triangles, analytic lights, emissive meshes) from the README.
+const SHARED: &[(&str, usize, usize, usize)] = &[
+    ("caustic-glass", 88_066, 1, 0),
+    ("water-caustic", 103_485, 1, 0),
+    ("veach-bidir", 11_544, 0, 2),
+    ("sponza-standin", 66_454, 1, 0),
+    ("cornell-caustic", 5_144, 0, 1),
+];
+
+#[test]
+fn every_shared_scene_loads_and_validates() {
+    let Some(dir) = shared_scenes() else { return };
+    let mut found = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path().join("scene.xml");
+        if !path.is_file() {
+            continue;
+        }
+        found += 1;
+        let name = path.parent().unwrap().file_name().unwrap().to_string_lossy().into_owned();
+        let s = load_scene(&path, &[]).unwrap_or_else(|e| panic!("{name}: {e}"));
+        s.scene.validate().unwrap_or_else(|e| panic!("{name}: {e}"));
+        let emissive = s.scene.meshes.iter().filter(|m| m.emission.is_some()).count();
+        eprintln!(
+            "{name}: {} triangles, {} meshes, {} analytic lights, {emissive} emissive meshes, {}x{}, {} warnings",
+            s.triangle_count(),
+            s.scene.meshes.len(),
+            s.scene.lights.len(),
+            s.scene.camera.width,
+            s.scene.camera.height,
+            s.warnings.len()
+        );
+        for w in &s.warnings {
+            eprintln!("  warning: {w}");
+            assert!(!w.message.contains("ignored"), "{name}: a shared scene uses something the loader ignores: {w}");
+        }
+        if let Some(&(_, tris, lights, emitters)) = SHARED.iter().find(|(n, ..)| *n == name) {
+            assert_eq!(s.triangle_count(), tris, "{name}: triangle count differs from the README");
+            assert_eq!(s.scene.lights.len(), lights, "{name}: analytic lights");
+            assert_eq!(emissive, emitters, "{name}: emissive meshes");
+        }
+    }
+    assert!(found >= SHARED.len(), "only {found} scenes found in {}", dir.display());
+}
+
+#[test]
+fn caustic_glass_matches_the_readme() {
+    let Some(s) = load_shared("caustic-glass") else { return };
+    assert_eq!(s.scene.lights.len(), 1);
+    let Light::Spot(spot) = s.scene.lights[0] else { panic!("not a spot light: {:?}", s.scene.lights[0]) };
+    assert!((spot.position - glam::DVec3::new(0.0, 5.0, 9.0)).length() < 1e-9);
+    assert!((spot.intensity - glam::DVec3::new(139.81, 118.63, 105.38)).length() < 1e-9);
+    assert!((spot.cutoff - 33.6899f64.to_radians()).abs() < 1e-9, "{}", spot.cutoff);
+    assert!((spot.beam_width - 30.8251f64.to_radians()).abs() < 1e-9);
+    assert_eq!(spot.falloff, SpotFalloff::LinearAngle);
+    let want = glam::DVec3::new(-0.4744, -0.2135, -0.8540);
+    assert!((spot.direction - want).length() < 2e-3, "{:?}", spot.direction);
+    assert_eq!(mesh(&s, "meshes/mesh_00001.ply").indices.len(), 88_064);
+    assert!(mesh(&s, "meshes/mesh_00001.ply").normals.is_some(), "the glass has per-vertex normals");
+    assert_eq!(mesh(&s, "meshes/mesh_00002.ply").indices.len(), 2);
+    let glass = s.scene.materials[mesh(&s, "meshes/mesh_00001.ply").material as usize];
+    assert!(matches!(glass, Material::Dielectric { ior, roughness, .. } if (ior - 1.25).abs() < 1e-6 && roughness == 0.0), "{glass:?}");
+    let floor = s.scene.materials[mesh(&s, "meshes/mesh_00002.ply").material as usize];
+    assert_eq!(floor, Material::Diffuse { albedo: Vec3::splat(0.64) });
+    let c = s.scene.camera;
+    assert!(close(c.position, vec3(-5.5, 7.0, -5.5), 1e-6));
+    let f = (c.target - c.position).normalize();
+    assert!(close(f, (vec3(-4.75, 2.25, 0.0) - c.position).normalize(), 1e-5));
+    assert!((c.vertical_fov - 43.6028f32.to_radians()).abs() < 1e-6);
+    assert_eq!((c.width, c.height), (320, 180));
+    assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+    assert_eq!(s.max_depth, Some(16));
+}
+
+#[test]
+fn cornell_caustic_matches_the_readme() {
+    let Some(s) = load_shared("cornell-caustic") else { return };
+    let light = mesh(&s, "meshes/Light.ply");
+    assert_eq!(light.emission, Some(vec3(40.0, 34.0, 26.0)));
+    for t in 0..light.indices.len() {
+        assert!(close(geometric_normal(light, t), -Vec3::Y, 1e-5), "the light must face down");
+    }
+    assert!(light.positions.iter().all(|p| (p.y - 1.99).abs() < 1e-5));
+    assert_eq!(mesh(&s, "meshes/GlassSphere.ply").indices.len(), 5_120);
+    let mirror = s.scene.materials[mesh(&s, "meshes/MirrorBox.ply").material as usize];
+    assert_eq!(mirror, Material::Conductor { reflectance: Vec3::splat(0.95), roughness: 0.0 });
+    let red = s.scene.materials[mesh(&s, "meshes/LeftWall.ply").material as usize];
+    assert_eq!(red, Material::Diffuse { albedo: vec3(0.63, 0.065, 0.05) });
+    let c = s.scene.camera;
+    assert!(close(c.position, vec3(0.0, 1.0, 6.8), 1e-6) && close((c.target - c.position).normalize(), -Vec3::Z, 1e-6) && close(c.up, Vec3::Y, 1e-6));
+    assert_eq!((c.width, c.height), (256, 256));
+    assert!((c.vertical_fov - 19.5f32.to_radians()).abs() < 1e-6);
+    // Image right is world +x (Mitsuba's camera +x is *left*).
+    assert!(close(c.frame().unwrap().right, Vec3::X, 1e-6));
+    assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+}
+
+#[test]
+fn water_caustic_matches_the_readme() {
+    let Some(s) = load_shared("water-caustic") else { return };
+    let Light::Spot(spot) = s.scene.lights[0] else { panic!("not a spot light") };
+    assert!((spot.position - glam::DVec3::new(0.0, 1.995, 0.0)).length() < 1e-9);
+    assert!((spot.direction - glam::DVec3::NEG_Y).length() < 1e-9);
+    assert!((spot.cutoff - std::f64::consts::FRAC_PI_2).abs() < 1e-9);
+    assert!((spot.intensity - glam::DVec3::splat(8.0)).length() < 1e-12);
+    // Mesh000 asks for face normals; Mesh001 (the heightfield) keeps its smooth normals.
+    assert!(mesh(&s, "meshes/Mesh000.ply").normals.is_none());
+    assert!(mesh(&s, "meshes/Mesh001.ply").normals.is_some());
+    assert_eq!(mesh(&s, "meshes/Mesh001.ply").indices.len(), 102_938);
+    let c = s.scene.camera;
+    assert!(close(c.position, vec3(0.0, 0.990944, 6.83879), 1e-5));
+    assert!(close((c.target - c.position).normalize(), -Vec3::Z, 1e-5));
+    assert!((c.vertical_fov - 19.5f32.to_radians()).abs() < 1e-6);
+    let water = s.scene.materials[mesh(&s, "meshes/Mesh001.ply").material as usize];
+    assert!(matches!(water, Material::Dielectric { ior, .. } if (ior - 1.8).abs() < 1e-6));
+}
+
+#[test]
+fn veach_bidir_matches_the_readme() {
+    let Some(s) = load_shared("veach-bidir") else { return };
+    let l0 = mesh(&s, "meshes/Light0.ply");
+    let l1 = mesh(&s, "meshes/Light1.ply");
+    assert!((0..l0.indices.len()).all(|t| close(geometric_normal(l0, t), Vec3::Y, 1e-4)), "Light0 faces up");
+    let n1 = vec3(0.0708, -0.4292, 0.9004).normalize();
+    assert!((0..l1.indices.len()).all(|t| close(geometric_normal(l1, t), n1, 2e-3)), "Light1 faces the egg");
+    assert_eq!(l1.emission, Some(vec3(12048.179, 8605.842, 6196.206)));
+    assert_eq!(mesh(&s, "meshes/Mesh002.ply").indices.len(), 7_936);
+    let lamp = s.scene.materials[mesh(&s, "meshes/Mesh007.ply").material as usize];
+    assert!(matches!(lamp, Material::Conductor { roughness, .. } if (roughness - 0.25).abs() < 1e-6), "{lamp:?}");
+    let c = s.scene.camera;
+    assert!(close(c.position, vec3(16.2155, 4.05167, 0.0114864), 1e-4));
+    assert!(close((c.target - c.position).normalize(), vec3(-0.99998, -0.00467, -0.00502), 1e-4));
+    assert!((c.vertical_fov - 35f32.to_radians()).abs() < 1e-6);
+    // The lamp's approximations are reported, with their line.
+    assert!(s.warnings.iter().any(|w| w.message.contains("roughconductor") && w.line > 0), "{:?}", s.warnings);
+}
+
+#[test]
+fn sponza_standin_and_overrides() {
+    let Some(dir) = shared_scenes() else { return };
+    let path = dir.join("sponza-standin/scene.xml");
+    let s = load_scene(&path, &[("res_x".into(), "64".into()), ("res_y".into(), "48".into())]).unwrap();
+    let Light::Point(p) = s.scene.lights[0] else { panic!("not a point light") };
+    assert!((p.position - glam::DVec3::new(0.0, 6.5, 0.0)).length() < 1e-12);
+    assert!((p.intensity - glam::DVec3::new(150.0, 140.0, 125.0)).length() < 1e-12);
+    assert_eq!((s.scene.camera.width, s.scene.camera.height), (64, 48));
+    assert!((s.scene.camera.vertical_fov - 50f32.to_radians()).abs() < 1e-6);
+}
+
+// ---- small synthetic scenes -------------------------------------------------------------
+
+const CAMERA: &str = r#"<sensor type="perspective">
+        <float name="fov" value="40"/>
+        <string name="fov_axis" value="y"/>
+        <transform name="to_world"><lookat origin="0, 1, 5" target="0, 0, 0" up="0, 1, 0"/></transform>
+        <film type="hdrfilm"><integer name="width" value="$w"/><integer name="height" value="24"/></film>
+    </sensor>"#;
+
+/// A scene with the camera, a point light and `body`.
+fn scene_xml(body: &str) -> String {
+    format!(
+        "<?xml version=\"1.0\"?>\n<scene version=\"3.0.0\">\n    <default name=\"w\" value=\"32\"/>\n    {CAMERA}\n    <emitter type=\"point\"><point name=\"position\" x=\"0\" y=\"3\" z=\"0\"/><rgb name=\"intensity\" value=\"5\"/></emitter>\n{body}\n</scene>\n"
+    )
+}
+
+/// Writes `files` into a temporary directory, then loads `scene.xml` from it.
+fn load_in_tempdir(xml: &str, files: &[(&str, Vec<u8>)]) -> Result<LoadedScene, SceneFileError> {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, bytes) in files {
+        std::fs::write(dir.path().join(name), bytes).unwrap();
+    }
+    let path = dir.path().join("scene.xml");
+    std::fs::write(&path, xml).unwrap();
+    load_scene(&path, &[])
+}
+
+/// A binary little-endian PLY.
+fn ply(positions: &[[f32; 3]], faces: &[&[i32]], normals: bool) -> Vec<u8> {
+    let mut h = format!("ply\nformat binary_little_endian 1.0\ncomment test\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\n", positions.len());
+    if normals {
+        h += "property float nx\nproperty float ny\nproperty float nz\n";
+    }
+    h += &format!("element face {}\nproperty list uchar int vertex_indices\nend_header\n", faces.len());
+    let mut b = h.into_bytes();
+    for p in positions {
+        p.iter().for_each(|v| b.extend(v.to_le_bytes()));
+        if normals {
+            [0f32, 1.0, 0.0].iter().for_each(|v| b.extend(v.to_le_bytes()));
+        }
+    }
+    for f in faces {
+        b.push(f.len() as u8);
+        f.iter().for_each(|i| b.extend(i.to_le_bytes()));
+    }
+    b
+}
+
+const QUAD: [[f32; 3]; 4] = [[-1.0, 0.0, -1.0], [-1.0, 0.0, 1.0], [1.0, 0.0, 1.0], [1.0, 0.0, -1.0]];
+
+fn ply_shape(file: &str) -> String {
+    format!("    <shape type=\"ply\">\n        <string name=\"filename\" value=\"{file}\"/>\n    </shape>")
+}
+
+#[test]
+fn ply_quads_are_triangulated_and_normals_kept() {
+    let s = load_in_tempdir(&scene_xml(&ply_shape("q.ply")), &[("q.ply", ply(&QUAD, &[&[0, 1, 2, 3]], true))]).unwrap();
+    let m = &s.scene.meshes[0];
+    assert_eq!(m.indices, vec![[0, 1, 2], [0, 2, 3]]);
+    assert_eq!(m.normals.as_ref().unwrap()[0], Vec3::Y);
+    // Winding (-x,-z) -> (-x,+z) -> (+x,+z): normal +y.
+    assert!(close(geometric_normal(m, 0), Vec3::Y, 1e-6));
+    assert_eq!(s.scene.materials[m.material as usize], Material::Diffuse { albedo: Vec3::splat(0.5) }, "Mitsuba's default bsdf");
+    assert_eq!((s.scene.camera.width, s.scene.camera.height), (32, 24));
+    assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+}
+
+#[test]
+fn builtin_shapes_transforms_and_materials() {
+    let body = r#"
+    <bsdf type="twosided" id="gold"><bsdf type="conductor"><string name="material" value="Au"/></bsdf></bsdf>
+    <bsdf type="roughconductor" id="rough"><float name="alpha" value="0.7"/></bsdf>
+    <bsdf type="plastic" id="plastic"><rgb name="diffuse_reflectance" value="0.2, 0.3, 0.4"/></bsdf>
+    <shape type="rectangle">
+        <transform name="to_world"><rotate x="1" angle="-90"/><scale value="2"/><translate y="-1"/></transform>
+        <ref id="gold"/>
+    </shape>
+    <shape type="cube"><ref id="rough"/><transform name="to_world"><scale value="0.25"/></transform></shape>
+    <shape type="sphere"><point name="center" x="1" y="0" z="0"/><float name="radius" value="0.5"/><ref id="plastic"/></shape>
+    <shape type="rectangle">
+        <transform name="to_world"><matrix value="0.1 0 0 0  0 0.1 0 1.9  0 0 0.1 0  0 0 0 1"/><rotate x="1" angle="90"/></transform>
+        <emitter type="area"><rgb name="radiance" value="10"/></emitter>
+    </shape>"#;
+    let s = load_in_tempdir(&scene_xml(body), &[]).unwrap();
+    let [floor, cube, sphere, light] = &s.scene.meshes[..] else { panic!("{} meshes", s.scene.meshes.len()) };
+    // rotate -90° about x turns +z into +y; scale 2; translate down.
+    assert!(close(geometric_normal(floor, 0), Vec3::Y, 1e-6));
+    assert!(floor.positions.iter().all(|p| (p.y + 1.0).abs() < 1e-6 && (p.x.abs() - 2.0).abs() < 1e-6));
+    assert!(matches!(s.scene.materials[floor.material as usize], Material::Conductor { reflectance, roughness: 0.0 } if reflectance.x == 1.0 && reflectance.z < 0.5));
+    assert_eq!(cube.indices.len(), 12);
+    assert!(cube.positions.iter().all(|p| p.abs().max_element() <= 0.25 + 1e-6));
+    assert_eq!(s.scene.materials[cube.material as usize], Material::Conductor { reflectance: Vec3::ONE, roughness: 0.7 });
+    assert_eq!(sphere.indices.len(), 5120);
+    assert!(sphere.positions.iter().all(|p| ((*p - vec3(1.0, 0.0, 0.0)).length() - 0.5).abs() < 1e-5));
+    assert_eq!(s.scene.materials[sphere.material as usize], Material::Diffuse { albedo: vec3(0.2, 0.3, 0.4) });
+    // The light: scaled 0.1, moved to y = 1.9, then turned +90° about x: +z becomes -y.
+    assert!(close(geometric_normal(light, 0), -Vec3::Y, 1e-5), "{:?}", geometric_normal(light, 0));
+    assert_eq!(light.emission, Some(Vec3::splat(10.0)));
+    let warned = |what: &str| s.warnings.iter().any(|w| w.message.contains(what));
+    assert!(warned("roughconductor") && warned("plastic") && warned("not wrapped"), "{:?}", s.warnings);
+}
+
+#[test]
+fn obj_meshes_and_fov_axis_x() {
+    let obj = "v -1 0 -1\nv -1 0 1\nv 1 0 1\nv 1 0 -1\nvn 0 1 0\nf 1//1 2//1 3//1 4//1\n";
+    let xml = scene_xml(r#"    <shape type="obj"><string name="filename" value="m.obj"/></shape>"#).replace(r#"<string name="fov_axis" value="y"/>"#, "");
+    let s = load_in_tempdir(&xml, &[("m.obj", obj.as_bytes().to_vec())]).unwrap();
+    assert_eq!(s.scene.meshes[0].indices.len(), 2);
+    assert!(s.scene.meshes[0].normals.is_some());
+    // Mitsuba's default fov_axis is x: 40° across 32 px, 24 px high.
+    assert_eq!(s.fov_axis, FovAxis::X);
+    let want = 2.0 * ((20f32.to_radians()).tan() * 24.0 / 32.0).atan();
+    assert!((s.scene.camera.vertical_fov - want).abs() < 1e-6);
+    let mut s = s;
+    s.set_resolution(64, 64);
+    assert!((s.scene.camera.vertical_fov - 40f32.to_radians()).abs() < 1e-6);
+}
+
+#[test]
+fn unknown_properties_warn_with_their_line() {
+    let body = "    <bsdf type=\"twosided\" id=\"w\"><bsdf type=\"diffuse\">\n        <float name=\"sparkle\" value=\"3\"/>\n    </bsdf></bsdf>\n    <shape type=\"cube\"><ref id=\"w\"/></shape>";
+    let s = load_in_tempdir(&scene_xml(body), &[]).unwrap();
+    let w = s.warnings.iter().find(|w| w.message.contains("sparkle")).unwrap_or_else(|| panic!("{:?}", s.warnings));
+    assert_eq!(w.line, 12, "{w}");
+    assert!(w.to_string().contains("scene.xml:12:"), "{w}");
+}
+
+// ---- one test per error kind --------------------------------------------------------------
+
+fn expect_err(r: Result<LoadedScene, SceneFileError>) -> (SceneFileError, String) {
+    let e = r.expect_err("the scene must not load");
+    let s = e.to_string();
+    eprintln!("error as reported: {s}");
+    (e, s)
+}
+
+#[test]
+fn malformed_xml_is_an_error_with_its_line() {
+    let xml = scene_xml("    <shape type=\"cube\">\n    </shap>");
+    let (e, s) = expect_err(load_in_tempdir(&xml, &[]));
+    assert!(matches!(e, SceneFileError::Xml { line: 12, .. }), "{s}");
+    assert!(s.contains("scene.xml:12") && s.contains("malformed XML"), "{s}");
+    let (e, _) = expect_err(load_in_tempdir("<scene>\n<shape type=\"cube\">\n", &[]));
+    assert!(matches!(e, SceneFileError::Xml { .. }));
+}
+
+#[test]
+fn unknown_shape_type_names_element_and_line() {
+    let (e, s) = expect_err(load_in_tempdir(&scene_xml("    <shape type=\"disk\"/>"), &[]));
+    assert!(matches!(e, SceneFileError::Unsupported { line: 11, .. }), "{s}");
+    assert!(s.contains("<shape type=\"disk\">") && s.contains(":11:"), "{s}");
+    let (_, s) = expect_err(load_in_tempdir(&scene_xml("    <bsdf type=\"principled\" id=\"p\"/>"), &[]));
+    assert!(s.contains("<bsdf type=\"principled\">") && s.contains(":11:"), "{s}");
+    let (_, s) = expect_err(load_in_tempdir(&scene_xml("    <emitter type=\"envmap\"/>"), &[]));
+    assert!(s.contains("<emitter type=\"envmap\">"), "{s}");
+    let (_, s) = expect_err(load_in_tempdir(&scene_xml("    <shape type=\"cube\"><ref id=\"nope\"/></shape>"), &[]));
+    assert!(s.contains("nope") && s.contains(":11:"), "{s}");
+}
+
+#[test]
+fn missing_ply_file_names_the_file() {
+    let (e, s) = expect_err(load_in_tempdir(&scene_xml(&ply_shape("meshes/absent.ply")), &[]));
+    assert!(matches!(e, SceneFileError::Io { .. }), "{s}");
+    assert!(s.contains("absent.ply"), "{s}");
+}
+
+#[test]
+fn truncated_ply_is_an_error() {
+    let mut bytes = ply(&QUAD, &[&[0, 1, 2], &[0, 2, 3]], false);
+    bytes.truncate(bytes.len() - 7);
+    let (e, s) = expect_err(load_in_tempdir(&scene_xml(&ply_shape("t.ply")), &[("t.ply", bytes)]));
+    assert!(matches!(e, SceneFileError::Ply { .. }), "{s}");
+    assert!(s.contains("t.ply") && s.contains("ends early"), "{s}");
+    // Cut inside the vertices too, and a garbage header.
+    let bytes = ply(&QUAD, &[&[0, 1, 2]], false);
+    let cut = bytes.windows(11).position(|w| w == b"end_header\n").unwrap() + 20;
+    let (_, s) = expect_err(load_in_tempdir(&scene_xml(&ply_shape("t.ply")), &[("t.ply", bytes[..cut].to_vec())]));
+    assert!(s.contains("ends early"), "{s}");
+    let (e, s) = expect_err(load_in_tempdir(&scene_xml(&ply_shape("t.ply")), &[("t.ply", b"plyx\nformat what\n".to_vec())]));
+    assert!(matches!(e, SceneFileError::Ply { .. }) && s.contains("t.ply"), "{s}");
+    // An index past the vertices.
+    let (_, s) = expect_err(load_in_tempdir(&scene_xml(&ply_shape("t.ply")), &[("t.ply", ply(&QUAD, &[&[0, 1, 9]], false))]));
+    assert!(s.contains("vertex 9"), "{s}");
+}
+
+#[test]
+fn nan_vertex_is_an_error() {
+    let mut q = QUAD;
+    q[2][1] = f32::NAN;
+    let (e, s) = expect_err(load_in_tempdir(&scene_xml(&ply_shape("n.ply")), &[("n.ply", ply(&q, &[&[0, 1, 2, 3]], false))]));
+    assert!(matches!(e, SceneFileError::Mesh { .. }), "{s}");
+    assert!(s.contains("n.ply") && s.contains("vertex 2") && s.contains("non-finite"), "{s}");
+    let obj = "v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n";
+    let xml = scene_xml(r#"    <shape type="obj"><string name="filename" value="n.obj"/></shape>"#);
+    let (_, s) = expect_err(load_in_tempdir(&xml, &[("n.obj", obj.as_bytes().to_vec())]));
+    assert!(s.contains("n.obj") && s.contains("non-finite"), "{s}");
+}
+
+#[test]
+fn zero_area_emitter_is_an_error() {
+    let flat = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]];
+    let body = "    <shape type=\"ply\">\n        <string name=\"filename\" value=\"z.ply\"/>\n        <emitter type=\"area\"><rgb name=\"radiance\" value=\"1, 1, 1\"/></emitter>\n    </shape>";
+    let (e, s) = expect_err(load_in_tempdir(&scene_xml(body), &[("z.ply", ply(&flat, &[&[0, 1, 2]], false))]));
+    assert!(matches!(e, SceneFileError::Mesh { line: 11, .. }), "{s}");
+    assert!(s.contains("z.ply") && s.contains("zero total area"), "{s}");
+}
+
+#[test]
+fn bad_variable_is_an_error() {
+    let xml = scene_xml("    <shape type=\"cube\"><float name=\"x\" value=\"$undefined_thing\"/></shape>");
+    let (e, s) = expect_err(load_in_tempdir(&xml, &[]));
+    assert!(matches!(e, SceneFileError::UndefinedVariable { line: 11, ref name, .. } if name == "undefined_thing"), "{s}");
+    // A substituted value that is not a number.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("scene.xml");
+    std::fs::write(&path, scene_xml("    <shape type=\"cube\"/>")).unwrap();
+    let e = load_scene(&path, &[("w".into(), "wide".into())]).unwrap_err().to_string();
+    assert!(e.contains("wide") && e.contains("scene.xml:"), "{e}");
+    assert!(load_scene(&path, &[("w".into(), "48".into())]).is_ok());
+}
+
+#[test]
+fn scene_without_light_or_camera_is_an_error() {
+    let xml = "<scene version=\"3.0.0\">\n<default name=\"w\" value=\"8\"/>\n".to_string() + CAMERA + "\n<shape type=\"cube\"/>\n</scene>";
+    let (e, s) = expect_err(load_in_tempdir(&xml, &[]));
+    assert!(matches!(e, SceneFileError::Scene { .. }) && s.contains("no light"), "{s}");
+    let (_, s) = expect_err(load_in_tempdir("<scene version=\"3.0.0\"><shape type=\"cube\"/></scene>", &[]));
+    assert!(s.contains("no <sensor"), "{s}");
+}
+
+#[test]
+#[cfg(feature = "cpu")]
+fn cli_renders_a_scene_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let body = "    <shape type=\"rectangle\"><transform name=\"to_world\"><rotate x=\"1\" angle=\"-90\"/><scale value=\"3\"/></transform></shape>\n    <shape type=\"sphere\"><float name=\"radius\" value=\"0.5\"/><bsdf type=\"dielectric\"/></shape>";
+    let path = dir.path().join("s.xml");
+    std::fs::write(&path, scene_xml(body)).unwrap();
+    let out = dir.path().join("img");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_arpa"))
+        .args(["render", path.to_str().unwrap(), "-D", "w=20", "--iterations", "1", "--photons", "5000", "--out", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("5122 triangles") && err.contains("20x24"), "{err}");
+    let image = arpa::image_io::read_exr(&dir.path().join("img.exr")).unwrap();
+    assert_eq!((image.width, image.height), (20, 24));
+    assert!(image.pixels.iter().any(|p| p.max_element() > 0.0), "black image");
+    // --resolution overrides the film size.
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_arpa"))
+        .args(["render", path.to_str().unwrap(), "--resolution", "8x6", "--iterations", "1", "--photons", "2000", "--out", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(arpa::image_io::read_exr(&dir.path().join("img.exr")).unwrap().width, 8);
+}
