@@ -70,6 +70,8 @@ pub mod sampling;
 #[cfg(feature = "alloc")]
 pub mod scene;
 pub mod shading_normal;
+#[cfg(feature = "alloc")]
+pub mod shapes;
 pub mod store;
 #[cfg(feature = "alloc")]
 pub mod tracer;

@@ -40,7 +40,6 @@
 //! scene (32×32, 320 triangles of glass, a few thousand photons) in about a second.
 //! `ARPA_CPU_BENCH_ONLY=raw,pass,gather,memory,peak,breakdown` restricts the sections.
 
-use std::collections::HashMap;
 use std::hint::black_box;
 use std::process::Command;
 use std::sync::Mutex;
@@ -140,75 +139,9 @@ fn quad(name: &str, origin: Vec3, u: Vec3, v: Vec3, material: u32) -> TriangleMe
     )
 }
 
-/// Icosphere (20·4^k triangles), outward winding, radial shading normals.
+/// The glass sphere: an icosphere with smooth normals ([`arpa_core::shapes::icosphere`]).
 fn icosphere(centre: Vec3, radius: f32, subdivisions: u32, material: u32) -> TriangleMesh {
-    let t = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut v: Vec<DVec3> = [
-        (-1.0, t, 0.0),
-        (1.0, t, 0.0),
-        (-1.0, -t, 0.0),
-        (1.0, -t, 0.0),
-        (0.0, -1.0, t),
-        (0.0, 1.0, t),
-        (0.0, -1.0, -t),
-        (0.0, 1.0, -t),
-        (t, 0.0, -1.0),
-        (t, 0.0, 1.0),
-        (-t, 0.0, -1.0),
-        (-t, 0.0, 1.0),
-    ]
-    .iter()
-    .map(|&(x, y, z)| DVec3::new(x, y, z).normalize())
-    .collect();
-    let mut f: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..subdivisions {
-        let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
-        let mut midpoint = |a: u32, b: u32, v: &mut Vec<DVec3>| {
-            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                v.push((v[a as usize] + v[b as usize]).normalize());
-                (v.len() - 1) as u32
-            })
-        };
-        let mut next = Vec::with_capacity(f.len() * 4);
-        for [a, b, c] in f {
-            let ab = midpoint(a, b, &mut v);
-            let bc = midpoint(b, c, &mut v);
-            let ca = midpoint(c, a, &mut v);
-            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        f = next;
-    }
-    let mut m = mesh(
-        "glass sphere",
-        v.iter()
-            .map(|p| centre + (*p * radius as f64).as_vec3())
-            .collect(),
-        f,
-        material,
-    );
-    m.normals = Some(v.iter().map(|p| p.as_vec3()).collect());
-    m
+    arpa_core::shapes::icosphere("glass sphere", centre, radius, subdivisions, true, material)
 }
 
 /// A box of half-extents `half` around `centre`, rotated by `angle` about +y, outward

@@ -254,79 +254,10 @@ pub fn zero_area_triangle_light() -> Light {
     })
 }
 
-/// An icosphere of radius `radius` around `centre`: the icosahedron subdivided
-/// `subdivisions` times (20·4^k triangles), vertices on the sphere, normals outwards.
+/// An icosphere of radius `radius` around `centre` with flat facets
+/// ([`arpa_core::shapes::icosphere`]).
 pub fn icosphere(centre: Vec3, radius: f32, subdivisions: u32, material: u32) -> TriangleMesh {
-    let t = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut v: Vec<DVec3> = [
-        (-1.0, t, 0.0),
-        (1.0, t, 0.0),
-        (-1.0, -t, 0.0),
-        (1.0, -t, 0.0),
-        (0.0, -1.0, t),
-        (0.0, 1.0, t),
-        (0.0, -1.0, -t),
-        (0.0, 1.0, -t),
-        (t, 0.0, -1.0),
-        (t, 0.0, 1.0),
-        (-t, 0.0, -1.0),
-        (-t, 0.0, 1.0),
-    ]
-    .iter()
-    .map(|&(x, y, z)| DVec3::new(x, y, z).normalize())
-    .collect();
-    let mut f: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..subdivisions {
-        let mut mid = std::collections::HashMap::new();
-        let mut midpoint = |a: u32, b: u32, v: &mut Vec<DVec3>| {
-            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                v.push((v[a as usize] + v[b as usize]).normalize());
-                (v.len() - 1) as u32
-            })
-        };
-        let mut next = Vec::with_capacity(f.len() * 4);
-        for [a, b, c] in f {
-            let (ab, bc, ca) = (
-                midpoint(a, b, &mut v),
-                midpoint(b, c, &mut v),
-                midpoint(c, a, &mut v),
-            );
-            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        f = next;
-    }
-    TriangleMesh {
-        name: "icosphere".into(),
-        positions: v
-            .iter()
-            .map(|p| centre + (*p * radius as f64).as_vec3())
-            .collect(),
-        normals: None,
-        indices: f,
-        material,
-        emission: None,
-    }
+    arpa_core::shapes::icosphere("icosphere", centre, radius, subdivisions, false, material)
 }
 
 /// Total area of a mesh (m²), in `f64`.

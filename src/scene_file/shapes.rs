@@ -5,7 +5,6 @@
 
 use super::RawMesh;
 use glam::DVec3;
-use std::collections::HashMap;
 
 /// Mitsuba's `rectangle`.
 pub(crate) fn rectangle() -> RawMesh {
@@ -29,70 +28,10 @@ pub(crate) fn cube() -> RawMesh {
 /// Subdivisions of the sphere's icosahedron.
 pub const SPHERE_SUBDIVISIONS: u32 = 4;
 
-/// A unit icosphere (`20·4^SPHERE_SUBDIVISIONS` triangles) with outward winding and normals.
+/// A unit icosphere (`20·4^SPHERE_SUBDIVISIONS` triangles) with outward winding and normals
+/// ([`arpa_core::shapes::unit_icosphere`]).
 pub(crate) fn sphere() -> RawMesh {
-    let t = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut positions: Vec<DVec3> = [
-        (-1.0, t, 0.0),
-        (1.0, t, 0.0),
-        (-1.0, -t, 0.0),
-        (1.0, -t, 0.0),
-        (0.0, -1.0, t),
-        (0.0, 1.0, t),
-        (0.0, -1.0, -t),
-        (0.0, 1.0, -t),
-        (t, 0.0, -1.0),
-        (t, 0.0, 1.0),
-        (-t, 0.0, -1.0),
-        (-t, 0.0, 1.0),
-    ]
-    .iter()
-    .map(|&(a, b, c)| DVec3::new(a, b, c).normalize())
-    .collect();
-    let mut indices: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..SPHERE_SUBDIVISIONS {
-        let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
-        let mut next = Vec::with_capacity(indices.len() * 4);
-        for [a, b, c] in indices {
-            let mut m = |i: u32, j: u32| {
-                *mid.entry((i.min(j), i.max(j))).or_insert_with(|| {
-                    positions.push(((positions[i as usize] + positions[j as usize]) * 0.5).normalize());
-                    positions.len() as u32 - 1
-                })
-            };
-            let (ab, bc, ca) = (m(a, b), m(b, c), m(c, a));
-            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-        }
-        indices = next;
-    }
-    // Make the winding outward whatever the table's convention.
-    for t in indices.iter_mut() {
-        let p = t.map(|i| positions[i as usize]);
-        if (p[1] - p[0]).cross(p[2] - p[0]).dot(p[0] + p[1] + p[2]) < 0.0 {
-            t.swap(1, 2);
-        }
-    }
+    let (positions, indices) = arpa_core::shapes::unit_icosphere(SPHERE_SUBDIVISIONS);
     let normals = positions.clone();
     RawMesh { positions, normals: Some(normals), indices }
 }

@@ -1,0 +1,112 @@
+//! Procedural meshes shared by the default scene, the scene loader (Mitsuba's `sphere`),
+//! tests, benchmarks and the conformance suite.
+
+use crate::scene::{MaterialId, TriangleMesh};
+use alloc::collections::BTreeMap;
+use alloc::string::String;
+use alloc::vec;
+use alloc::vec::Vec;
+use glam::{DVec3, Vec3};
+
+/// A unit icosphere: the icosahedron subdivided `subdivisions` times
+/// (`20·4^subdivisions` triangles), every vertex on the unit sphere, triangles wound
+/// outwards (`(p1 − p0) × (p2 − p0)` points away from the centre). The positions double as
+/// the outward unit normals.
+pub fn unit_icosphere(subdivisions: u32) -> (Vec<DVec3>, Vec<[u32; 3]>) {
+    let t = (1.0 + libm::sqrt(5.0)) / 2.0;
+    let mut positions: Vec<DVec3> = [
+        (-1.0, t, 0.0),
+        (1.0, t, 0.0),
+        (-1.0, -t, 0.0),
+        (1.0, -t, 0.0),
+        (0.0, -1.0, t),
+        (0.0, 1.0, t),
+        (0.0, -1.0, -t),
+        (0.0, 1.0, -t),
+        (t, 0.0, -1.0),
+        (t, 0.0, 1.0),
+        (-t, 0.0, -1.0),
+        (-t, 0.0, 1.0),
+    ]
+    .iter()
+    .map(|&(a, b, c)| DVec3::new(a, b, c).normalize())
+    .collect();
+    let mut indices: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..subdivisions {
+        let mut midpoints: BTreeMap<(u32, u32), u32> = BTreeMap::new();
+        let mut next = Vec::with_capacity(indices.len() * 4);
+        for [a, b, c] in indices {
+            let mut mid = |i: u32, j: u32| {
+                *midpoints.entry((i.min(j), i.max(j))).or_insert_with(|| {
+                    positions.push((positions[i as usize] + positions[j as usize]).normalize());
+                    positions.len() as u32 - 1
+                })
+            };
+            let (ab, bc, ca) = (mid(a, b), mid(b, c), mid(c, a));
+            next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+        }
+        indices = next;
+    }
+    for t in indices.iter_mut() {
+        let p = t.map(|i| positions[i as usize]);
+        if (p[1] - p[0]).cross(p[2] - p[0]).dot(p[0] + p[1] + p[2]) < 0.0 {
+            t.swap(1, 2);
+        }
+    }
+    (positions, indices)
+}
+
+/// An icosphere mesh of `radius` (metres) around `centre` ([`unit_icosphere`]), with
+/// smooth outward vertex normals when `smooth` and flat facets otherwise.
+pub fn icosphere(name: &str, centre: Vec3, radius: f32, subdivisions: u32, smooth: bool, material: MaterialId) -> TriangleMesh {
+    let (unit, indices) = unit_icosphere(subdivisions);
+    TriangleMesh {
+        name: String::from(name),
+        positions: unit.iter().map(|p| centre + (*p * radius as f64).as_vec3()).collect(),
+        normals: smooth.then(|| unit.iter().map(|p| p.as_vec3()).collect()),
+        indices,
+        material,
+        emission: None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn icosphere_is_closed_outward_and_on_the_sphere() {
+        for k in 0..4 {
+            let (p, t) = unit_icosphere(k);
+            assert_eq!(t.len(), 20 * 4usize.pow(k));
+            // Euler: V − E + F = 2 with E = 3F/2.
+            assert_eq!(p.len() + t.len() - 3 * t.len() / 2, 2);
+            assert!(p.iter().all(|v| (v.length() - 1.0).abs() < 1e-12));
+            for tri in &t {
+                let q = tri.map(|i| p[i as usize]);
+                assert!((q[1] - q[0]).cross(q[2] - q[0]).dot(q[0]) > 0.0);
+            }
+        }
+    }
+}
