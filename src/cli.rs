@@ -305,55 +305,15 @@ pub fn output_paths(out: &Path) -> anyhow::Result<(PathBuf, PathBuf)> {
 pub struct StatTotals {
     /// Iterations summed.
     pub iterations: u32,
-    /// Photons emitted.
-    pub photons_emitted: u64,
-    /// Photon ray segments.
-    pub photon_segments: u64,
-    /// Footprints `[caustic, global]`.
-    pub footprints: [u64; 2],
-    /// Progressive photons `[caustic, global]`.
-    pub progressive: [u64; 2],
-    /// Footprints replaced as degenerate.
-    pub degenerate: u64,
-    /// Footprints replaced by bounding-box culling.
-    pub culled: u64,
-    /// Footprints replaced because `f32` cannot resolve them.
-    pub unrepresentable: u64,
-    /// Photons whose differential was lost.
-    pub differential_lost: u64,
-    /// Photons or footprints dropped by full buffers.
-    pub overflowed: u64,
-    /// Valid query points.
-    pub query_points: u64,
-    /// Containments found by the gather.
-    pub gathered: u64,
-    /// Stage times (seconds): camera, photon, build, gather, accumulate.
-    pub times: [f64; 5],
+    /// Counts and stage times summed over those iterations.
+    pub sum: IterationStats,
 }
 
 impl StatTotals {
     /// Adds one iteration's statistics.
     pub fn add(&mut self, s: &IterationStats) {
         self.iterations += 1;
-        self.photons_emitted += s.photons_emitted;
-        self.photon_segments += s.photon_segments;
-        for m in 0..2 {
-            self.footprints[m] += s.footprints[m];
-            self.progressive[m] += s.progressive[m];
-        }
-        self.degenerate += s.degenerate;
-        self.culled += s.culled;
-        self.unrepresentable += s.unrepresentable;
-        self.differential_lost += s.differential_lost;
-        self.overflowed += s.overflowed;
-        self.query_points += s.query_points;
-        self.gathered += s.gathered;
-        let t = &s.times;
-        for (acc, v) in self.times.iter_mut().zip([t.camera, t.photon, t.build, t.gather, t.accumulate]) {
-            if v.is_finite() {
-                *acc += v;
-            }
-        }
+        self.sum.accumulate(s);
     }
 
     /// Per-iteration mean of a count.
@@ -470,7 +430,7 @@ pub fn render<T: Tracer>(tracer: &mut T, scene: &Scene, settings: &RenderSetting
         last = tracer.read_stats().with_context(|| format!("cannot read the statistics of iteration {i}"))?;
         totals.add(&last);
         iterations = i;
-        progress.update(budget, iterations, render_start.elapsed(), totals.photons_emitted);
+        progress.update(budget, iterations, render_start.elapsed(), totals.sum.photons_emitted);
     }
     let render_time = render_start.elapsed();
     progress.finish();
@@ -484,10 +444,10 @@ pub fn render<T: Tracer>(tracer: &mut T, scene: &Scene, settings: &RenderSetting
 
 /// The human-readable statistics summary printed at the end of a render.
 pub fn summary(r: &Rendered, settings: &RenderSettings) -> String {
-    let t = &r.totals;
+    let t = &r.totals.sum;
     let secs = r.render_time.as_secs_f64().max(1e-9);
-    let ms = |total: f64| 1e3 * total / t.iterations.max(1) as f64;
-    let m = |v: u64| format!("{:.0}", t.mean(v));
+    let ms = |total: f64| 1e3 * total / r.totals.iterations.max(1) as f64;
+    let m = |v: u64| format!("{:.0}", r.totals.mean(v));
     let mut s = String::new();
     s += &format!(
         "rendered {} iterations in {:.2} s ({:.2} it/s, {}photons/s) on backend '{}' ({}), method {}\n",
@@ -514,11 +474,11 @@ pub fn summary(r: &Rendered, settings: &RenderSettings) -> String {
     s += &format!("  radii (last)        caustic {:.3e}, global {:.3e}\n", r.last.radii[0], r.last.radii[1]);
     s += &format!(
         "  mean per iteration  camera {:.2} ms, photons {:.2} ms, AS build {:.2} ms, gather {:.2} ms, accumulate {:.2} ms\n",
-        ms(t.times[0]),
-        ms(t.times[1]),
-        ms(t.times[2]),
-        ms(t.times[3]),
-        ms(t.times[4])
+        ms(t.times.camera),
+        ms(t.times.photon),
+        ms(t.times.build),
+        ms(t.times.gather),
+        ms(t.times.accumulate)
     );
     s += &format!("  total time          {:.2} s (render {:.2} s)", r.total_time.as_secs_f64(), secs);
     s
@@ -690,10 +650,10 @@ mod tests {
         let r = render(&mut t, &small_scene(), &settings, Budget::Iterations(5), &Progress::hidden()).unwrap();
         assert_eq!(r.iterations, 5);
         assert_eq!((r.image.width, r.image.height, r.image.pixels.len()), (8, 4, 32));
-        assert_eq!(r.totals.photons_emitted, 5000);
-        assert_eq!(r.totals.footprints, [50, 100]);
-        assert_eq!(r.totals.mean(r.totals.degenerate), 3.0);
-        assert!((r.totals.times[3] - 0.01).abs() < 1e-12);
+        assert_eq!(r.totals.sum.photons_emitted, 5000);
+        assert_eq!(r.totals.sum.footprints, [50, 100]);
+        assert_eq!(r.totals.mean(r.totals.sum.degenerate), 3.0);
+        assert!((r.totals.sum.times.gather - 0.01).abs() < 1e-12);
         let text = summary(&r, &settings);
         assert!(text.contains("rendered 5 iterations") && text.contains("10 footprints") && text.contains("gather 2.00 ms"), "{text}");
     }

@@ -17,6 +17,7 @@ use crate::kernel::Kernel;
 use crate::progressive_photon::PackedPhoton;
 use crate::radius::ProgressiveConfig;
 use crate::scene::Scene;
+use crate::store::{ProgressiveReason, StoredPhoton};
 use alloc::string::String;
 use alloc::vec::Vec;
 use glam::Vec3;
@@ -167,6 +168,66 @@ pub struct IterationStats {
     pub radii: [f64; 2],
     /// Stage timings.
     pub times: StageTimes,
+}
+
+impl StageTimes {
+    /// Adds `other`'s times (non-finite ones are skipped).
+    pub fn accumulate(&mut self, other: &StageTimes) {
+        for (acc, v) in [
+            (&mut self.camera, other.camera),
+            (&mut self.photon, other.photon),
+            (&mut self.build, other.build),
+            (&mut self.gather, other.gather),
+            (&mut self.accumulate, other.accumulate),
+        ] {
+            if v.is_finite() {
+                *acc += v;
+            }
+        }
+    }
+}
+
+impl IterationStats {
+    /// Counts one stored photon: a footprint or a progressive photon of its map, and the
+    /// reason a footprint was replaced.
+    #[inline]
+    pub fn record_stored(&mut self, stored: &StoredPhoton) {
+        match stored {
+            StoredPhoton::Footprint { packed, .. } => self.footprints[packed.photon_map().index()] += 1,
+            StoredPhoton::Progressive { photon, reason } => {
+                self.progressive[photon.photon_map().index()] += 1;
+                match reason {
+                    ProgressiveReason::Degenerate => self.degenerate += 1,
+                    ProgressiveReason::Culled => self.culled += 1,
+                    ProgressiveReason::Unrepresentable => self.unrepresentable += 1,
+                    ProgressiveReason::DifferentialLost => self.differential_lost += 1,
+                    ProgressiveReason::ProgressiveMethod => {}
+                }
+            }
+        }
+    }
+
+    /// Adds the counts and stage times of `other` (to total several iterations, or to
+    /// merge the partial counts of a parallel pass); `iteration` and `radii` become
+    /// `other`'s.
+    pub fn accumulate(&mut self, other: &IterationStats) {
+        self.iteration = other.iteration;
+        self.radii = other.radii;
+        self.photons_emitted += other.photons_emitted;
+        self.photon_segments += other.photon_segments;
+        for m in 0..2 {
+            self.footprints[m] += other.footprints[m];
+            self.progressive[m] += other.progressive[m];
+        }
+        self.degenerate += other.degenerate;
+        self.culled += other.culled;
+        self.unrepresentable += other.unrepresentable;
+        self.differential_lost += other.differential_lost;
+        self.overflowed += other.overflowed;
+        self.query_points += other.query_points;
+        self.gathered += other.gathered;
+        self.times.accumulate(&other.times);
+    }
 }
 
 /// An image of linear radiance, row-major, top row first.

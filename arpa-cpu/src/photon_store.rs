@@ -5,7 +5,8 @@ use arpa_core::aabb::Aabb as CoreAabb;
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::glam::{DVec3, Vec3};
 use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::store::{ProgressiveReason, StoredPhoton};
+use arpa_core::store::StoredPhoton;
+use arpa_core::tracer::IterationStats;
 
 use crate::scene::Aabb;
 
@@ -54,40 +55,6 @@ pub(crate) fn photon_box(photon: &PackedPhoton, radius: f32) -> Aabb {
     ))
 }
 
-/// Counts of a photon pass.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub(crate) struct StoreCounts {
-    pub footprints: [u64; 2],
-    pub progressive: [u64; 2],
-    pub degenerate: u64,
-    pub culled: u64,
-    pub unrepresentable: u64,
-    pub differential_lost: u64,
-}
-
-impl StoreCounts {
-    fn add(&mut self, b: &StoreCounts) {
-        for m in 0..2 {
-            self.footprints[m] += b.footprints[m];
-            self.progressive[m] += b.progressive[m];
-        }
-        self.degenerate += b.degenerate;
-        self.culled += b.culled;
-        self.unrepresentable += b.unrepresentable;
-        self.differential_lost += b.differential_lost;
-    }
-
-    /// Footprints of both maps.
-    pub fn footprint_total(&self) -> u64 {
-        self.footprints[0] + self.footprints[1]
-    }
-
-    /// Progressive photons of both maps.
-    pub fn progressive_total(&self) -> u64 {
-        self.progressive[0] + self.progressive[1]
-    }
-}
-
 /// Footprints (with boxes) and progressive photons, in photon-index order.
 ///
 /// `footprint_boxes[i]` bounds `footprints[i]` from the photon pass until the acceleration
@@ -98,7 +65,8 @@ pub(crate) struct PhotonStore {
     pub footprints: Vec<PackedFootprint>,
     pub footprint_boxes: Vec<Aabb>,
     pub photons: Vec<PackedPhoton>,
-    pub counts: StoreCounts,
+    /// Store counts of the pass (footprints and progressive photons per map, reasons).
+    pub counts: IterationStats,
 }
 
 impl PhotonStore {
@@ -107,7 +75,7 @@ impl PhotonStore {
         self.footprints.clear();
         self.footprint_boxes.clear();
         self.photons.clear();
-        self.counts = StoreCounts::default();
+        self.counts = IterationStats::default();
     }
 
     /// Makes room for at least `footprints` footprints (and boxes) and `photons` progressive
@@ -127,7 +95,7 @@ impl PhotonStore {
         self.footprint_boxes
             .extend_from_slice(&part.footprint_boxes);
         self.photons.extend_from_slice(&part.photons);
-        self.counts.add(&part.counts);
+        self.counts.accumulate(&part.counts);
     }
 
     /// Appends one stored photon. A footprint's box is the core's box of its elliptic slab
@@ -135,25 +103,13 @@ impl PhotonStore {
     /// ([`padded_box`]).
     #[inline]
     pub fn push(&mut self, stored: StoredPhoton) {
+        self.counts.record_stored(&stored);
         match stored {
             StoredPhoton::Footprint { packed, aabb } => {
-                let map = packed.photon_map().index();
                 self.footprints.push(packed);
                 self.footprint_boxes.push(padded_box(&aabb));
-                self.counts.footprints[map] += 1;
             }
-            StoredPhoton::Progressive { photon, reason } => {
-                let map = photon.photon_map().index();
-                self.photons.push(photon);
-                self.counts.progressive[map] += 1;
-                match reason {
-                    ProgressiveReason::Degenerate => self.counts.degenerate += 1,
-                    ProgressiveReason::Culled => self.counts.culled += 1,
-                    ProgressiveReason::Unrepresentable => self.counts.unrepresentable += 1,
-                    ProgressiveReason::DifferentialLost => self.counts.differential_lost += 1,
-                    ProgressiveReason::ProgressiveMethod => {}
-                }
-            }
+            StoredPhoton::Progressive { photon, .. } => self.photons.push(photon),
         }
     }
 }

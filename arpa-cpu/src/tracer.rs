@@ -566,8 +566,8 @@ impl Tracer for CpuTracer {
             n => {
                 let c = &st.store.counts;
                 (
-                    c.footprint_total() as f64 / n as f64,
-                    c.progressive_total() as f64 / n as f64,
+                    c.footprints.iter().sum::<u64>() as f64 / n as f64,
+                    c.progressive.iter().sum::<u64>() as f64 / n as f64,
                 )
             }
         };
