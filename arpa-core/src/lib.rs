@@ -11,11 +11,16 @@
 //! |---|---|
 //! | random numbers | [`rng`], [`sampling`], [`frame`] |
 //! | emit | [`emission`] |
-//! | propagate | [`differential`], [`shading_normal`], [`reemission`], [`classify`] |
+//! | propagate | [`differential`], [`shading_normal`], [`fresnel`], [`reemission`], [`classify`] |
 //! | store footprints | [`footprint`], [`heuristics`], [`progressive_photon`], [`store`], [`aabb`] |
 //! | build AS | (backends; [`aabb`] gives the boxes) |
 //! | gather | [`kernel`], [`estimate`] |
 //! | accumulate | [`radius`], [`accumulate`] |
+//!
+//! With the `alloc` feature, the renderer-facing layer: the scene model ([`scene`],
+//! [`shapes`], [`prepared_scene`]), the backend trait ([`tracer`]) and the reference
+//! per-photon and per-pixel paths every backend must reproduce ([`photon_path`],
+//! [`camera_path`], over a [`ray_cast::RayCaster`]).
 //!
 //! ## Conventions
 //! * World space is right-handed, units are *scene units* (the scene's length unit, called
