@@ -5,7 +5,14 @@
 //!             [--iterations N | --time SECONDS] [--resolution WxH] [--seed S]
 //!             [--out PATH] [--no-direct] [--smoothing-caustic S_c] [--smoothing-global S_g]
 //!             [--max-depth D] [--exposure E]
+//!             [--reference REF.exr [--checkpoint-every N] [--metrics-csv FILE]]
 //! ```
+//!
+//! With `--reference`, relMSE, SSIM and ꟻLIP ([`crate::metrics`]) of the accumulated image
+//! against the reference are printed at checkpoints (every `--checkpoint-every` iterations,
+//! by default at powers of two) and at the end, and `--metrics-csv` writes them as
+//! `iteration,seconds,relmse,ssim,flip` rows; `seconds` is the render time up to that
+//! iteration, excluding the time spent reading back images and computing metrics.
 //!
 //! The render loop ([`render`]) is generic over [`Tracer`]; the backend is picked from
 //! those compiled in with cargo features ([`COMPILED_BACKENDS`]). Every failure is an
@@ -246,6 +253,19 @@ pub struct RenderArgs {
     /// written unscaled).
     #[arg(long, allow_negative_numbers = true, value_name = "E", default_value_t = 1.0, value_parser = parse_exposure)]
     pub exposure: f32,
+
+    /// Reference image (OpenEXR, linear radiance, same size as the render): relMSE, SSIM
+    /// and FLIP against it are printed at checkpoints and at the end.
+    #[arg(long, value_name = "FILE.exr")]
+    pub reference: Option<PathBuf>,
+
+    /// Evaluate the metrics every N iterations [default: at powers of two].
+    #[arg(long, allow_negative_numbers = true, value_name = "N", requires = "reference", value_parser = parse_positive_u32)]
+    pub checkpoint_every: Option<u32>,
+
+    /// Write the metrics as CSV rows `iteration,seconds,relmse,ssim,flip`.
+    #[arg(long, value_name = "FILE", requires = "reference")]
+    pub metrics_csv: Option<PathBuf>,
 }
 
 impl RenderArgs {
@@ -335,8 +355,10 @@ pub struct Rendered {
     pub last: IterationStats,
     /// The backend's capabilities.
     pub capabilities: Capabilities,
-    /// Wall-clock time of the iterations (excluding upload and read-back).
+    /// Wall-clock time of the iterations (excluding upload, read-back and checkpoints).
     pub render_time: Duration,
+    /// Wall-clock time spent in checkpoints ([`Observer::observe`] and its read-backs).
+    pub checkpoint_time: Duration,
     /// Wall-clock time of upload, iterations and read-back.
     pub total_time: Duration,
 }
@@ -398,9 +420,72 @@ fn si(v: f64) -> String {
     format!("{v:.2} {p}")
 }
 
+/// When to evaluate intermediate images.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Checkpoints {
+    /// Never (only the final image).
+    Never,
+    /// At iterations 1, 2, 4, 8, ...
+    PowersOfTwo,
+    /// At every multiple of N.
+    Every(u32),
+}
+
+impl Checkpoints {
+    /// Whether `iteration` (1-based) is a checkpoint.
+    pub fn contains(self, iteration: u32) -> bool {
+        match self {
+            Checkpoints::Never => false,
+            Checkpoints::PowersOfTwo => iteration.is_power_of_two(),
+            Checkpoints::Every(n) => n > 0 && iteration.is_multiple_of(n),
+        }
+    }
+}
+
+/// Looks at the accumulated image during a [`render_observed`]: at every checkpoint and
+/// once at the end.
+pub trait Observer {
+    /// Called with the image after `iteration` iterations and the render time so far
+    /// (excluding earlier checkpoints).
+    fn observe(&mut self, iteration: u32, render_time: Duration, image: &Image) -> anyhow::Result<()>;
+}
+
+/// An [`Observer`] that does nothing.
+pub struct NoObserver;
+
+impl Observer for NoObserver {
+    fn observe(&mut self, _: u32, _: Duration, _: &Image) -> anyhow::Result<()> {
+        Ok(())
+    }
+}
+
 /// Uploads `scene` to `tracer` and runs iterations within `budget`; returns the image and
 /// statistics. Backend errors are returned with the stage and iteration that failed.
 pub fn render<T: Tracer>(tracer: &mut T, scene: &Scene, settings: &RenderSettings, budget: Budget, progress: &Progress) -> anyhow::Result<Rendered> {
+    render_observed(tracer, scene, settings, budget, progress, Checkpoints::Never, &mut NoObserver)
+}
+
+fn read_checked<T: Tracer>(tracer: &T, backend: &str) -> anyhow::Result<Image> {
+    let image = tracer.read_image().context("cannot read back the image")?;
+    let expected = image.width as u64 * image.height as u64;
+    if image.pixels.len() as u64 != expected {
+        bail!("backend '{backend}' returned a {}x{} image with {} pixels", image.width, image.height, image.pixels.len());
+    }
+    Ok(image)
+}
+
+/// [`render`] that also reads the image back at `checkpoints` and hands it to `observer`
+/// (and the final image once at the end). The time spent there is excluded from the
+/// render time and from a time budget.
+pub fn render_observed<T: Tracer, O: Observer + ?Sized>(
+    tracer: &mut T,
+    scene: &Scene,
+    settings: &RenderSettings,
+    budget: Budget,
+    progress: &Progress,
+    checkpoints: Checkpoints,
+    observer: &mut O,
+) -> anyhow::Result<Rendered> {
     let start = Instant::now();
     let capabilities = tracer.capabilities();
     if !capabilities.methods.contains(&settings.method) {
@@ -417,10 +502,13 @@ pub fn render<T: Tracer>(tracer: &mut T, scene: &Scene, settings: &RenderSetting
     let mut totals = StatTotals::default();
     let mut last = IterationStats::default();
     let mut iterations = 0u32;
+    let mut checkpoint_time = Duration::ZERO;
+    let mut observed_at = 0u32;
+    let rendering = |checkpoint_time: Duration| render_start.elapsed().saturating_sub(checkpoint_time);
     loop {
         let more = match budget {
             Budget::Iterations(n) => iterations < n,
-            Budget::Time(t) => iterations == 0 || render_start.elapsed() < t,
+            Budget::Time(t) => iterations == 0 || rendering(checkpoint_time) < t,
         };
         if !more {
             break;
@@ -430,16 +518,26 @@ pub fn render<T: Tracer>(tracer: &mut T, scene: &Scene, settings: &RenderSetting
         last = tracer.read_stats().with_context(|| format!("cannot read the statistics of iteration {i}"))?;
         totals.add(&last);
         iterations = i;
-        progress.update(budget, iterations, render_start.elapsed(), totals.sum.photons_emitted);
+        let last_iteration = matches!(budget, Budget::Iterations(n) if i >= n);
+        if checkpoints.contains(i) && !last_iteration {
+            let at = rendering(checkpoint_time);
+            let t0 = Instant::now();
+            let image = read_checked(tracer, capabilities.backend)?;
+            progress.bar.suspend(|| observer.observe(i, at, &image))?;
+            observed_at = i;
+            checkpoint_time += t0.elapsed();
+        }
+        progress.update(budget, iterations, rendering(checkpoint_time), totals.sum.photons_emitted);
     }
-    let render_time = render_start.elapsed();
+    let render_time = rendering(checkpoint_time);
     progress.finish();
-    let image = tracer.read_image().context("cannot read back the image")?;
-    let expected = image.width as u64 * image.height as u64;
-    if image.pixels.len() as u64 != expected {
-        bail!("backend '{}' returned a {}x{} image with {} pixels", capabilities.backend, image.width, image.height, image.pixels.len());
+    let image = read_checked(tracer, capabilities.backend)?;
+    if observed_at != iterations {
+        let t0 = Instant::now();
+        observer.observe(iterations, render_time, &image)?;
+        checkpoint_time += t0.elapsed();
     }
-    Ok(Rendered { image, iterations, totals, last, capabilities, render_time, total_time: start.elapsed() })
+    Ok(Rendered { image, iterations, totals, last, capabilities, render_time, checkpoint_time, total_time: start.elapsed() })
 }
 
 /// The human-readable statistics summary printed at the end of a render.
@@ -485,18 +583,26 @@ pub fn summary(r: &Rendered, settings: &RenderSettings) -> String {
 }
 
 /// Runs a backend on `scene`.
-fn render_on_backend(backend: Backend, scene: &Scene, settings: &RenderSettings, budget: Budget, progress: &Progress) -> anyhow::Result<Rendered> {
+fn render_on_backend(
+    backend: Backend,
+    scene: &Scene,
+    settings: &RenderSettings,
+    budget: Budget,
+    progress: &Progress,
+    checkpoints: Checkpoints,
+    observer: &mut dyn Observer,
+) -> anyhow::Result<Rendered> {
     // One arm per backend; each compiles without its feature and then reports it missing.
     match backend {
         Backend::Cpu => {
             #[cfg(feature = "cpu")]
             {
                 let mut tracer = arpa_cpu::CpuTracer::new().context("cannot start the CPU backend (Embree 4)")?;
-                render(&mut tracer, scene, settings, budget, progress)
+                render_observed(&mut tracer, scene, settings, budget, progress, checkpoints, observer)
             }
             #[cfg(not(feature = "cpu"))]
             {
-                let _ = (scene, settings, budget, progress);
+                let _ = (scene, settings, budget, progress, checkpoints, observer);
                 bail!("backend 'cpu' is not compiled into this build (rebuild with `--features cpu`)");
             }
         }
@@ -552,8 +658,24 @@ pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create output directory '{}'", dir.display()))?;
     }
 
+    let mut metrics = match &args.reference {
+        Some(path) => Some(MetricsObserver::new(path, args.metrics_csv.as_deref(), scene.camera.width, scene.camera.height)?),
+        None => None,
+    };
+    let checkpoints = match (&metrics, args.checkpoint_every) {
+        (None, _) => Checkpoints::Never,
+        (Some(_), Some(n)) => Checkpoints::Every(n),
+        (Some(_), None) => Checkpoints::PowersOfTwo,
+    };
+
     let progress = Progress::new(budget, std::io::stderr().is_terminal());
-    let rendered = render_on_backend(args.backend, &scene, &settings, budget, &progress)?;
+    let rendered = match &mut metrics {
+        Some(m) => render_on_backend(args.backend, &scene, &settings, budget, &progress, checkpoints, m)?,
+        None => render_on_backend(args.backend, &scene, &settings, budget, &progress, checkpoints, &mut NoObserver)?,
+    };
+    if let Some(m) = &mut metrics {
+        m.finish()?;
+    }
 
     let exr = image_io::write_exr(&exr_path, &rendered.image)?;
     let png = image_io::write_png(&png_path, &rendered.image, args.exposure)?;
@@ -563,6 +685,72 @@ pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
     }
     eprintln!("wrote {} and {}", exr_path.display(), png_path.display());
     Ok(())
+}
+
+/// Evaluates [`crate::metrics`] against a reference at checkpoints: prints a line to stderr
+/// and optionally writes a CSV row per checkpoint.
+pub struct MetricsObserver {
+    reference: Image,
+    reference_path: PathBuf,
+    csv: Option<(PathBuf, std::io::BufWriter<std::fs::File>)>,
+    /// The rows evaluated so far: `(iteration, seconds, metrics)`.
+    pub rows: Vec<(u32, f64, crate::metrics::Metrics)>,
+}
+
+impl MetricsObserver {
+    /// Reads the reference (which must be `width`x`height`) and creates the CSV file.
+    pub fn new(reference: &Path, csv: Option<&Path>, width: u32, height: u32) -> anyhow::Result<Self> {
+        let image = image_io::read_exr(reference).with_context(|| format!("cannot read reference image '{}'", reference.display()))?;
+        if (image.width, image.height) != (width, height) {
+            bail!(
+                "reference image '{}' is {}x{} pixels but the render is {}x{}; render at --resolution {}x{} or use a matching reference",
+                reference.display(),
+                image.width,
+                image.height,
+                width,
+                height,
+                image.width,
+                image.height
+            );
+        }
+        let csv = match csv {
+            Some(path) => {
+                if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+                    std::fs::create_dir_all(dir).with_context(|| format!("cannot create directory '{}'", dir.display()))?;
+                }
+                let file = std::fs::File::create(path).with_context(|| format!("cannot create metrics CSV '{}'", path.display()))?;
+                let mut w = std::io::BufWriter::new(file);
+                use std::io::Write;
+                writeln!(w, "iteration,seconds,relmse,ssim,flip").with_context(|| format!("cannot write metrics CSV '{}'", path.display()))?;
+                Some((path.to_path_buf(), w))
+            }
+            None => None,
+        };
+        Ok(Self { reference: image, reference_path: reference.to_path_buf(), csv, rows: Vec::new() })
+    }
+
+    /// Flushes the CSV file.
+    pub fn finish(&mut self) -> anyhow::Result<()> {
+        if let Some((path, w)) = &mut self.csv {
+            use std::io::Write;
+            w.flush().with_context(|| format!("cannot write metrics CSV '{}'", path.display()))?;
+        }
+        Ok(())
+    }
+}
+
+impl Observer for MetricsObserver {
+    fn observe(&mut self, iteration: u32, render_time: Duration, image: &Image) -> anyhow::Result<()> {
+        let m = crate::metrics::compare_images(image, &self.reference).with_context(|| format!("cannot compare with reference '{}'", self.reference_path.display()))?;
+        let secs = render_time.as_secs_f64();
+        eprintln!("iteration {iteration:>6}  {secs:>9.3} s  relMSE {:.6e}  SSIM {:.6}  FLIP {:.6}", m.rel_mse, m.ssim, m.flip);
+        if let Some((path, w)) = &mut self.csv {
+            use std::io::Write;
+            writeln!(w, "{iteration},{secs:.6},{:.9e},{:.9},{:.9}", m.rel_mse, m.ssim, m.flip).with_context(|| format!("cannot write metrics CSV '{}'", path.display()))?;
+        }
+        self.rows.push((iteration, secs, m));
+        Ok(())
+    }
 }
 
 #[cfg(test)]
@@ -676,6 +864,46 @@ mod tests {
         let settings = RenderSettings { method: Method::Rtpm, ..Default::default() };
         let e = render(&mut Mock::default(), &small_scene(), &settings, Budget::Iterations(1), &Progress::hidden()).unwrap_err();
         assert!(e.to_string().contains("does not implement method 'rtpm'"), "{e}");
+    }
+
+    struct Recorder(Vec<u32>);
+    impl Observer for Recorder {
+        fn observe(&mut self, iteration: u32, _: Duration, image: &Image) -> anyhow::Result<()> {
+            assert_eq!(image.pixels.len(), 32);
+            self.0.push(iteration);
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn checkpoints_observe_powers_of_two_multiples_and_the_end() {
+        let run = |c: Checkpoints, n: u32| {
+            let mut rec = Recorder(vec![]);
+            let r = render_observed(&mut Mock::default(), &small_scene(), &RenderSettings::default(), Budget::Iterations(n), &Progress::hidden(), c, &mut rec).unwrap();
+            assert_eq!(r.iterations, n);
+            rec.0
+        };
+        assert_eq!(run(Checkpoints::PowersOfTwo, 10), vec![1, 2, 4, 8, 10]);
+        assert_eq!(run(Checkpoints::PowersOfTwo, 8), vec![1, 2, 4, 8]);
+        assert_eq!(run(Checkpoints::Every(3), 7), vec![3, 6, 7]);
+        assert_eq!(run(Checkpoints::Never, 5), vec![5]);
+    }
+
+    #[test]
+    fn metrics_observer_rejects_a_wrong_size_reference() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("ref.exr");
+        image_io::write_exr(&path, &Image { width: 4, height: 2, pixels: vec![Vec3::ONE; 8] }).unwrap();
+        let e = MetricsObserver::new(&path, None, 8, 4).err().unwrap();
+        let msg = format!("{e:#}");
+        assert!(msg.contains("is 4x2 pixels but the render is 8x4"), "{msg}");
+        let csv = dir.path().join("m.csv");
+        let mut m = MetricsObserver::new(&path, Some(&csv), 4, 2).unwrap();
+        m.observe(3, Duration::from_millis(1500), &Image { width: 4, height: 2, pixels: vec![Vec3::ONE; 8] }).unwrap();
+        m.finish().unwrap();
+        let text = std::fs::read_to_string(&csv).unwrap();
+        assert_eq!(text.lines().next(), Some("iteration,seconds,relmse,ssim,flip"));
+        assert!(text.lines().nth(1).unwrap().starts_with("3,1.500000,0.0"), "{text}");
     }
 
     #[test]

@@ -13,4 +13,5 @@ pub use arpa_cpu as cpu;
 pub mod cli;
 pub mod default_scene;
 pub mod image_io;
+pub mod metrics;
 pub mod scene_file;

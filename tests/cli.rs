@@ -74,7 +74,53 @@ fn help_lists_the_render_options() {
     let o = arpa(&["render", "--help"]);
     assert!(o.status.success());
     let text = String::from_utf8_lossy(&o.stdout);
-    for opt in ["--backend", "--method", "--photons", "--iterations", "--time", "--resolution", "--seed", "--out", "--no-direct", "--smoothing-caustic", "--smoothing-global", "--max-depth", "--exposure"] {
+    for opt in ["--backend", "--method", "--photons", "--iterations", "--time", "--resolution", "--seed", "--out", "--no-direct", "--smoothing-caustic", "--smoothing-global", "--max-depth", "--exposure", "--reference", "--checkpoint-every", "--metrics-csv"] {
         assert!(text.contains(opt), "help lacks {opt}: {text}");
     }
+}
+
+#[test]
+#[cfg(feature = "cpu")]
+fn rendering_against_its_own_output_gives_zero_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let first = dir.path().join("first");
+    let second = dir.path().join("second");
+    let csv = dir.path().join("m.csv");
+    let common = ["render", "--resolution", "24x16", "--iterations", "3", "--photons", "10000", "--seed", "5"];
+    let o = arpa(&[&common[..], &["--out", first.to_str().unwrap()]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let reference = dir.path().join("first.exr");
+    let o = arpa(&[&common[..], &["--out", second.to_str().unwrap(), "--reference", reference.to_str().unwrap(), "--metrics-csv", csv.to_str().unwrap()]].concat());
+    let err = stderr(&o);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("relMSE") && err.contains("SSIM") && err.contains("FLIP"), "{err}");
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("iteration,seconds,relmse,ssim,flip"));
+    let rows: Vec<Vec<f64>> = lines.map(|l| l.split(',').map(|v| v.parse::<f64>().unwrap()).collect()).collect();
+    // Powers of two (1, 2) and the end (3).
+    assert_eq!(rows.iter().map(|r| r[0] as u32).collect::<Vec<_>>(), vec![1, 2, 3], "{text}");
+    let last = rows.last().unwrap();
+    assert!(last[1] > 0.0, "{text}");
+    assert_eq!(last[2], 0.0, "relMSE of identical renders: {text}");
+    assert!((last[3] - 1.0).abs() < 1e-9, "SSIM of identical renders: {text}");
+    assert_eq!(last[4], 0.0, "FLIP of identical renders: {text}");
+    assert!(rows[0][2] > 0.0, "an earlier checkpoint should differ from the final image: {text}");
+}
+
+#[test]
+#[cfg(feature = "cpu")]
+fn a_reference_of_the_wrong_size_is_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let first = dir.path().join("first");
+    let o = arpa(&["render", "--resolution", "16x8", "--iterations", "1", "--photons", "1000", "--out", first.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let reference = dir.path().join("first.exr");
+    let out = dir.path().join("never");
+    assert_fails(
+        &["render", "--resolution", "8x8", "--iterations", "1", "--photons", "1000", "--out", out.to_str().unwrap(), "--reference", reference.to_str().unwrap()],
+        &["reference image", "first.exr", "16x8", "8x8"],
+    );
+    assert!(!dir.path().join("never.exr").exists());
+    assert_fails(&["render", "--metrics-csv", "x.csv", "--out", out.to_str().unwrap()], &["--reference"]);
 }
