@@ -303,7 +303,7 @@ impl Scene {
                 if !(e.is_finite() && e.min_element() >= 0.0) {
                     return Err(SceneError::BadEmitter { mesh: m.name.clone(), why: "radiance is negative or not finite" });
                 }
-                if e.max_element() > 0.0 && !(mesh_area(m) > 0.0) {
+                if e.max_element() > 0.0 && !(m.area() > 0.0) {
                     return Err(SceneError::BadEmitter { mesh: m.name.clone(), why: "has zero area" });
                 }
             }
@@ -355,12 +355,16 @@ impl Scene {
     }
 }
 
-fn mesh_area(m: &TriangleMesh) -> f64 {
-    m.indices
-        .iter()
-        .map(|t| {
-            let p = t.map(|i| m.positions.get(i as usize).copied().unwrap_or(Vec3::ZERO).as_dvec3());
-            0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length()
-        })
-        .sum()
+impl TriangleMesh {
+    /// Total area of the triangles (m², computed in `f64`); indices out of range count as
+    /// the origin, so this never panics on an unvalidated mesh.
+    pub fn area(&self) -> f64 {
+        self.indices
+            .iter()
+            .map(|t| {
+                let p = t.map(|i| self.positions.get(i as usize).copied().unwrap_or(Vec3::ZERO).as_dvec3());
+                0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length()
+            })
+            .sum()
+    }
 }

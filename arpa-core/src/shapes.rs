@@ -77,6 +77,19 @@ pub fn unit_icosphere(subdivisions: u32) -> (Vec<DVec3>, Vec<[u32; 3]>) {
     (positions, indices)
 }
 
+/// The parallelogram `origin + s·u + t·v`, `s, t ∈ [0, 1]` (metres), as two triangles
+/// with geometric normal `u × v` and flat shading.
+pub fn parallelogram(name: &str, origin: Vec3, u: Vec3, v: Vec3, material: MaterialId) -> TriangleMesh {
+    TriangleMesh {
+        name: String::from(name),
+        positions: vec![origin, origin + u, origin + u + v, origin + v],
+        normals: None,
+        indices: vec![[0, 1, 2], [0, 2, 3]],
+        material,
+        emission: None,
+    }
+}
+
 /// An icosphere mesh of `radius` (metres) around `centre` ([`unit_icosphere`]), with
 /// smooth outward vertex normals when `smooth` and flat facets otherwise.
 pub fn icosphere(name: &str, centre: Vec3, radius: f32, subdivisions: u32, smooth: bool, material: MaterialId) -> TriangleMesh {

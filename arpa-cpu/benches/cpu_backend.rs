@@ -54,6 +54,7 @@ use arpa_core::prepared_scene::PreparedScene;
 use arpa_core::progressive_photon::PackedPhoton;
 use arpa_core::ray_cast::{RayCaster, RayHit};
 use arpa_core::scene::{Camera, Material, Scene, TriangleMesh};
+use arpa_core::shapes::parallelogram as quad;
 use arpa_core::store::StoredPhoton;
 use arpa_core::tracer::{IterationStats, Method, RenderSettings, StageTimes, Tracer};
 use arpa_cpu::{Aabb, BuildQuality, CpuTracer, Device, EmbreeCaster, SceneBuilder};
@@ -129,15 +130,6 @@ fn mesh(name: &str, positions: Vec<Vec3>, indices: Vec<[u32; 3]>, material: u32)
     }
 }
 
-/// `origin + s·u + t·v`, normal `u × v`.
-fn quad(name: &str, origin: Vec3, u: Vec3, v: Vec3, material: u32) -> TriangleMesh {
-    mesh(
-        name,
-        vec![origin, origin + u, origin + u + v, origin + v],
-        vec![[0, 1, 2], [0, 2, 3]],
-        material,
-    )
-}
 
 /// The glass sphere: an icosphere with smooth normals ([`arpa_core::shapes::icosphere`]).
 fn icosphere(centre: Vec3, radius: f32, subdivisions: u32, material: u32) -> TriangleMesh {

@@ -45,7 +45,7 @@ const FURNACE_ALBEDO: f64 = 0.5;
 fn furnace(method: Method, direct_lighting: bool) -> f64 {
     let sphere = icosphere(Vec3::ZERO, 1.0, 3, 0);
     assert_eq!(sphere.indices.len(), 1280);
-    let area = mesh_area(&sphere);
+    let area = sphere.area();
     let scene = scene(
         vec![sphere],
         vec![diffuse(FURNACE_ALBEDO as f32)],

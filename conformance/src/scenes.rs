@@ -5,18 +5,7 @@ use arpa_core::emission::{Light, PointLight, TriangleLight};
 use arpa_core::glam::{DVec3, Vec3};
 use arpa_core::scene::{Camera, Material, Scene, TriangleMesh};
 
-/// The parallelogram `origin + s·u + t·v`, `s, t ∈ [0, 1]`, as two triangles with
-/// geometric normal `u × v`.
-pub fn quad(name: &str, origin: Vec3, u: Vec3, v: Vec3, material: u32) -> TriangleMesh {
-    TriangleMesh {
-        name: name.into(),
-        positions: vec![origin, origin + u, origin + u + v, origin + v],
-        normals: None,
-        indices: vec![[0, 1, 2], [0, 2, 3]],
-        material,
-        emission: None,
-    }
-}
+pub use arpa_core::shapes::parallelogram as quad;
 
 /// The axis-aligned box `[lo, hi]` as one closed mesh of 12 triangles, normals outwards
 /// (the interior of a dielectric is on the side opposite the normal).
@@ -260,16 +249,6 @@ pub fn icosphere(centre: Vec3, radius: f32, subdivisions: u32, material: u32) ->
     arpa_core::shapes::icosphere("icosphere", centre, radius, subdivisions, false, material)
 }
 
-/// Total area of a mesh (m²), in `f64`.
-pub fn mesh_area(m: &TriangleMesh) -> f64 {
-    m.indices
-        .iter()
-        .map(|t| {
-            let p = t.map(|i| m.positions[i as usize].as_dvec3());
-            0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length()
-        })
-        .sum()
-}
 
 /// Intensity of the furnace's point light (W/sr).
 pub const FURNACE_INTENSITY: f64 = 1.5;

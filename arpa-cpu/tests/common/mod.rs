@@ -25,16 +25,7 @@ pub fn mesh(
     }
 }
 
-/// The parallelogram `origin + s·u + t·v`, `s, t ∈ [0, 1]`, as two triangles with normal
-/// `u × v`.
-pub fn quad(name: &str, origin: Vec3, u: Vec3, v: Vec3, material: u32) -> TriangleMesh {
-    mesh(
-        name,
-        vec![origin, origin + u, origin + u + v, origin + v],
-        vec![[0, 1, 2], [0, 2, 3]],
-        material,
-    )
-}
+pub use arpa_core::shapes::parallelogram as quad;
 
 /// An icosphere of radius `radius` around `centre` with flat facets
 /// ([`arpa_core::shapes::icosphere`]).
@@ -42,16 +33,6 @@ pub fn icosphere(centre: Vec3, radius: f32, subdivisions: u32, material: u32) ->
     arpa_core::shapes::icosphere("icosphere", centre, radius, subdivisions, false, material)
 }
 
-/// Total area of a mesh (m²), in `f64`.
-pub fn mesh_area(m: &TriangleMesh) -> f64 {
-    m.indices
-        .iter()
-        .map(|t| {
-            let p = t.map(|i| m.positions[i as usize].as_dvec3());
-            0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length()
-        })
-        .sum()
-}
 
 pub fn point_light(position: DVec3, intensity: f64) -> Light {
     Light::Point(PointLight {

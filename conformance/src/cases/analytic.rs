@@ -141,7 +141,7 @@ pub const FURNACE_ITERATIONS: u32 = 4;
 /// [`FURNACE_TOL_PERCENT`].
 fn furnace(t: &mut dyn DynTracer, method: Method, direct_lighting: bool) -> CaseResult {
     let scene = scenes::furnace(FURNACE_SIZE);
-    let area = scenes::mesh_area(&scene.meshes[0]);
+    let area = scene.meshes[0].area();
     let rho = scenes::FURNACE_ALBEDO;
     let indirect = rho * 4.0 * PI * scenes::FURNACE_INTENSITY / ((1.0 - rho) * area);
     // Deep enough that truncation removes < 1e-9 of the light at albedo 0.5.
