@@ -18,6 +18,8 @@
 //! * A positional filter (`cargo bench ... -- gather`) is applied to the summary too (as a
 //!   substring of `group/name`).
 //! * `ARPA_BENCH_SUMMARY_ONLY=1` skips criterion and runs only the timing loop.
+//! * `ARPA_BENCH_OPS=N` times rounds of at least `N` operations instead of 10^7 (small `N`
+//!   makes `valgrind --tool=callgrind` runs feasible; the ns/op are then less stable).
 
 use std::f64::consts::{PI, TAU};
 use std::hint::black_box;
@@ -42,7 +44,7 @@ use glam::{DVec2, DVec3, Vec3};
 
 /// Number of distinct inputs per pool.
 const POOL: usize = 1024;
-/// Operations timed per round by the summary loop.
+/// Operations timed per round by the summary loop (`ARPA_BENCH_OPS` overrides it).
 const SUMMARY_OPS: usize = 10_000_000;
 /// Rounds of the summary loop (the best is reported).
 const SUMMARY_ROUNDS: usize = 3;
@@ -636,11 +638,16 @@ fn thread_cpu_ns() -> Option<u64> {
     s.split_whitespace().next()?.parse().ok()
 }
 
-/// Best-of-rounds ns per element of `pass`, over at least `SUMMARY_OPS` elements per round:
+/// Operations per timed round: `SUMMARY_OPS` or `ARPA_BENCH_OPS`.
+fn summary_ops() -> usize {
+    std::env::var("ARPA_BENCH_OPS").ok().and_then(|s| s.parse::<usize>().ok()).unwrap_or(SUMMARY_OPS).max(1)
+}
+
+/// Best-of-rounds ns per element of `pass`, over at least [`summary_ops`] elements per round:
 /// `(wall clock, on-CPU time)`.
 fn time_pass(pools: &mut Pools, pass: Pass) -> (f64, Option<f64>) {
     let per_pass = pass(pools).max(1);
-    let passes = SUMMARY_OPS.div_ceil(per_pass);
+    let passes = summary_ops().div_ceil(per_pass);
     let ops = (passes * per_pass) as f64;
     let mut best_wall = f64::INFINITY;
     let mut best_cpu: Option<f64> = None;
@@ -698,7 +705,7 @@ fn main() {
     for s in &pools.stats {
         println!("  [{s}]");
     }
-    println!("X.X ns/op = own Instant loop, best of {SUMMARY_ROUNDS} rounds of >= {SUMMARY_OPS} ops (wall clock)");
+    println!("X.X ns/op = own Instant loop, best of {SUMMARY_ROUNDS} rounds of >= {} ops (wall clock)", summary_ops());
     println!("cpu = on-CPU time of the same rounds (excludes time preempted by other processes)");
     println!("criterion = its estimate of one pass / elements per pass");
     let mut results = Vec::new();

@@ -139,21 +139,33 @@ pub fn refract_direction(d: DVec3, n: DVec3, ior: f64) -> (DVec3, RefractionEven
     ((eta * d - mu * n).normalize_or(d), RefractionEvent::Transmitted, eta)
 }
 
+/// `true` when every component is finite, tested on the bit patterns without branching:
+/// `(bits & exponent) + 2^52` carries into the sign bit exactly when all exponent bits are
+/// set (infinity or NaN).
 #[inline]
 fn all_finite(v: &[DVec3]) -> bool {
-    v.iter().all(|x| x.is_finite())
+    const EXPONENT: u64 = 0x7ff0_0000_0000_0000;
+    let flag = |x: f64| (x.to_bits() & EXPONENT) + (1 << 52);
+    let carry = v.iter().fold(0u64, |acc, c| acc | flag(c.x) | flag(c.y) | flag(c.z));
+    carry >> 63 == 0
 }
 
 impl RayDifferential {
     /// A ray differential from its parts. `d` is normalised (its derivatives are assumed to
     /// be those of the unit direction already); fails on a zero or non-finite direction.
     pub fn new(p: DVec3, d: DVec3, dp_du: DVec3, dp_dv: DVec3, dd_du: DVec3, dd_dv: DVec3) -> Result<Self, DifferentialError> {
-        let len = d.length();
-        if !(len > 0.0) || !len.is_finite() || !d.is_finite() {
-            return Err(DifferentialError::InvalidDirection);
-        }
-        let r = Self { p, d: d / len, dp_du, dp_dv, dd_du, dd_dv };
-        r.checked()
+        let len2 = d.length_squared();
+        let d = if (len2 - 1.0).abs() <= 1e-8 {
+            // Unit up to rounding: see `frame::unit_or_zero`.
+            d * (1.5 - 0.5 * len2)
+        } else {
+            let len = libm::sqrt(len2);
+            if !(len > 0.0) || !len.is_finite() || !d.is_finite() {
+                return Err(DifferentialError::InvalidDirection);
+            }
+            d / len
+        };
+        Self { p, d, dp_du, dp_dv, dd_du, dd_dv }.checked()
     }
 
     /// From an *unnormalised* direction `w(u, v)` with derivatives `∂w/∂u`, `∂w/∂v`:
@@ -201,6 +213,20 @@ impl RayDifferential {
             return Err(DifferentialError::InvalidDistance);
         }
         let n = n.normalize_or_zero();
+        if n == DVec3::ZERO || !n.is_finite() {
+            return Err(DifferentialError::InvalidNormal);
+        }
+        self.transfer_unit_normal(t, n)
+    }
+
+    /// [`RayDifferential::transfer`] to a surface whose normal `n` is unit already (a
+    /// cached triangle normal): skips the normalisation, which may move a unit `n` by an
+    /// ulp. Errors like `transfer` (a zero or non-finite `n` is an invalid normal).
+    #[inline]
+    pub fn transfer_unit_normal(&self, t: f64, n: DVec3) -> Result<Self, DifferentialError> {
+        if !(t >= 0.0) || !t.is_finite() {
+            return Err(DifferentialError::InvalidDistance);
+        }
         if n == DVec3::ZERO || !n.is_finite() {
             return Err(DifferentialError::InvalidNormal);
         }

@@ -108,15 +108,18 @@ impl Footprint {
     /// surface with geometric normal `geometric_normal` (either orientation). The normal
     /// is oriented towards the arriving photon and the differentials are projected into
     /// the tangent plane.
-    #[inline]
+    #[inline(always)]
     pub fn from_hit(ray: &RayDifferential, geometric_normal: DVec3, flux: DVec3, map: PhotonMap) -> Result<Self, FootprintError> {
-        let n = geometric_normal.normalize_or_zero();
+        let n = crate::frame::unit_or_zero(geometric_normal);
         if n == DVec3::ZERO || !n.is_finite() {
             return Err(FootprintError::InvalidNormal);
         }
-        let n = if ray.d.dot(n) > 0.0 { -n } else { n };
+        // The projection is exactly invariant under n → −n, so it does not wait for the
+        // orientation test.
         let project = |v: DVec3| v - n * n.dot(v);
-        Ok(Self { center: ray.p, normal: n, du: project(ray.dp_du), dv: project(ray.dp_dv), flux, map })
+        let (du, dv) = (project(ray.dp_du), project(ray.dp_dv));
+        let n = if ray.d.dot(n) > 0.0 { -n } else { n };
+        Ok(Self { center: ray.p, normal: n, du, dv, flux, map })
     }
 
     /// Both differentials scaled by `s` (the smoothing factor `S`); the flux is unchanged.
@@ -274,9 +277,11 @@ pub(crate) fn pack_parts(fp: &Footprint, la2: f64, lb2: f64, cross: DVec3, den: 
     let row_u = fp.dv.cross(fp.normal) * inv;
     let row_v = fp.normal.cross(fp.du) * inv;
     let density = fp.flux * (2.0 * inv.abs());
-    // A density that underflows f32 would silently drop the photon's flux.
+    // A density that underflows f32 would silently drop the photon's flux (checked for
+    // all three channels without short-circuiting: one well-predicted branch).
     let d32 = density.as_vec3();
-    if (0..3).any(|c| fp.flux[c] != 0.0 && !(d32[c].abs() >= f32::MIN_POSITIVE)) {
+    let underflow = |c: usize| fp.flux[c] != 0.0 && !(d32[c].abs() >= f32::MIN_POSITIVE);
+    if underflow(0) | underflow(1) | underflow(2) {
         return Err(FootprintError::Unrepresentable);
     }
     let f = |v: DVec3| v.as_vec3().to_array();
@@ -290,11 +295,13 @@ pub(crate) fn pack_parts(fp: &Footprint, la2: f64, lb2: f64, cross: DVec3, den: 
         row_n: f(fp.normal * (1.0 / h)),
         flux_density_b: density.z as f32,
     };
-    if bytemuck::cast_ref::<_, [f32; 16]>(&packed).iter().enumerate().all(|(i, x)| i == 3 || x.is_finite()) {
-        Ok(packed)
-    } else {
-        Err(FootprintError::Unrepresentable)
-    }
+    // Every float but the map word (index 3) finite: exponent bits not all set, tested
+    // on the bit patterns without branching.
+    // (`(w & exp) + 2^23` carries into bit 31 exactly when all exponent bits are set.)
+    let mut words: [u32; 16] = bytemuck::cast(packed);
+    words[3] = 0;
+    let carry = words.iter().fold(0u32, |acc, w| acc | ((w & 0x7f80_0000) + 0x0080_0000));
+    if carry & 0x8000_0000 == 0 { Ok(packed) } else { Err(FootprintError::Unrepresentable) }
 }
 
 /// The 64-byte `f32` footprint record of the gather stage, laid out as four

@@ -304,56 +304,88 @@ impl ResolvedHeuristics {
     /// order) and packs the footprint for progressive radius `radius` (metres). Returns
     /// the final footprint, its record and its box, or why it must become a progressive
     /// photon.
+    ///
+    /// Dampening and the smoothing factor scale `D_u` and `D_v` by one factor `s`, and
+    /// every later quantity is homogeneous in that factor (`|D|² ∝ s²`, `D_u × D_v ∝ s²`,
+    /// semi-axes and box extents `∝ s`), so this computes them from the unscaled
+    /// differentials while `s` is still being computed and scales them afterwards. Only
+    /// an H-max clamp of one differential (which breaks the homogeneity) takes the
+    /// sequential path.
     #[inline]
-    pub fn store(&self, mut fp: Footprint, radius: f64) -> Result<(Footprint, PackedFootprint, Aabb), StoreRejection> {
-        let mut la2 = fp.du.length_squared();
-        let mut lb2 = fp.dv.length_squared();
-        if let Some(d) = self.dampening {
-            let major2 = la2.max(lb2);
+    pub fn store(&self, fp: Footprint, radius: f64) -> Result<(Footprint, PackedFootprint, Aabb), StoreRejection> {
+        // Scale-free parts, independent of the dampening factor.
+        let la2_0 = fp.du.length_squared();
+        let lb2_0 = fp.dv.length_squared();
+        let major2_0 = la2_0.max(lb2_0);
+        let cross_0 = fp.du.cross(fp.dv);
+        let e2_0 = 0.25 * (fp.du * fp.du + fp.dv * fp.dv);
+        // Degenerate removal, |D_u × D_v| < f |D_major|² in squares, is invariant under a
+        // common scale (decided here, applied after H-max, which may change it).
+        let degenerate = self.degenerate.is_some_and(|f| !(major2_0 > 0.0) || !(cross_0.length_squared() >= f * f * major2_0 * major2_0));
+        let (major_0, minor_0) = (libm::sqrt(major2_0), libm::sqrt(la2_0.min(lb2_0)));
+        let e_0 = DVec3::new(libm::sqrt(e2_0.x), libm::sqrt(e2_0.y), libm::sqrt(e2_0.z));
+        let s = self.dampening.map_or(1.0, |d| {
             let reference = match d.reference {
                 DampenReference::Absolute(l) => l,
                 DampenReference::ProgressiveDiameter => 2.0 * radius,
             };
-            if major2 > 0.0 && major2.is_finite() && reference > 0.0 && reference.is_finite() {
-                let ratio = dampen_ratio(major2, reference, d.exponent);
-                if ratio.is_finite() && ratio > 0.0 {
-                    fp.du *= ratio;
-                    fp.dv *= ratio;
-                    let r2 = ratio * ratio;
-                    la2 *= r2;
-                    lb2 *= r2;
-                }
+            if major2_0 > 0.0 && major2_0.is_finite() && reference > 0.0 && reference.is_finite() {
+                let ratio = dampen_ratio(major2_0, reference, d.exponent);
+                if ratio.is_finite() && ratio > 0.0 { ratio } else { 1.0 }
+            } else {
+                1.0
+            }
+        });
+        let s2 = s * s;
+        let (la2, lb2) = (la2_0 * s2, lb2_0 * s2);
+        if let Some((h, mode)) = self.h_max.filter(|(h, _)| *h > 0.0) {
+            if la2.max(lb2) > h * h {
+                return self.store_clamped(fp.scaled(s), la2, lb2, h, mode, radius);
             }
         }
-        if let Some((h, mode)) = self.h_max.filter(|(h, _)| *h > 0.0) {
-            let h2 = h * h;
-            match mode {
-                HMaxMode::EachDifferential => {
-                    if la2 > h2 {
-                        fp.du *= h / libm::sqrt(la2);
-                        la2 = fp.du.length_squared();
-                    }
-                    if lb2 > h2 {
-                        fp.dv *= h / libm::sqrt(lb2);
-                        lb2 = fp.dv.length_squared();
-                    }
+        if degenerate {
+            return Err(StoreRejection::Heuristic(Rejection::Degenerate));
+        }
+        let fp = fp.scaled(s);
+        // From the scaled differentials, like the record's rows (`pack_parts`): the
+        // denominator may cancel, and the density must match the rows it is used with.
+        let cross = fp.du.cross(fp.dv);
+        let den = cross.dot(fp.normal);
+        if degenerate_denominator(den, la2, lb2) {
+            return Err(StoreRejection::Heuristic(Rejection::Degenerate));
+        }
+        let h = half_thickness(fp.center, s * major_0, s * minor_0, radius);
+        self.finish(fp, la2, lb2, cross, den, h, e_0 * s)
+    }
+
+    /// [`ResolvedHeuristics::store`] after dampening when H-max clamps: `fp` is dampened,
+    /// `la2`, `lb2` its squared differential lengths.
+    #[cold]
+    #[inline(never)]
+    fn store_clamped(&self, mut fp: Footprint, mut la2: f64, mut lb2: f64, h: f64, mode: HMaxMode, radius: f64) -> Result<(Footprint, PackedFootprint, Aabb), StoreRejection> {
+        let h2 = h * h;
+        match mode {
+            HMaxMode::EachDifferential => {
+                if la2 > h2 {
+                    fp.du *= h / libm::sqrt(la2);
+                    la2 = fp.du.length_squared();
                 }
-                HMaxMode::PreserveAspect => {
-                    let major2 = la2.max(lb2);
-                    if major2 > h2 {
-                        let s = h / libm::sqrt(major2);
-                        fp.du *= s;
-                        fp.dv *= s;
-                        la2 = fp.du.length_squared();
-                        lb2 = fp.dv.length_squared();
-                    }
+                if lb2 > h2 {
+                    fp.dv *= h / libm::sqrt(lb2);
+                    lb2 = fp.dv.length_squared();
                 }
+            }
+            HMaxMode::PreserveAspect => {
+                let s = h / libm::sqrt(la2.max(lb2));
+                fp.du *= s;
+                fp.dv *= s;
+                la2 = fp.du.length_squared();
+                lb2 = fp.dv.length_squared();
             }
         }
         let cross = fp.du.cross(fp.dv);
         let major2 = la2.max(lb2);
         if let Some(f) = self.degenerate {
-            // |D_u × D_v| < f |D_major|², in squares.
             if !(major2 > 0.0) || !(cross.length_squared() >= f * f * major2 * major2) {
                 return Err(StoreRejection::Heuristic(Rejection::Degenerate));
             }
@@ -363,10 +395,19 @@ impl ResolvedHeuristics {
             return Err(StoreRejection::Heuristic(Rejection::Degenerate));
         }
         let h = half_thickness(fp.center, libm::sqrt(major2), libm::sqrt(la2.min(lb2)), radius);
-        // The box of the elliptic slab (see `Footprint::aabb`).
         let e2 = 0.25 * (fp.du * fp.du + fp.dv * fp.dv);
-        let e = DVec3::new(libm::sqrt(e2.x), libm::sqrt(e2.y), libm::sqrt(e2.z)) + (fp.normal * h).abs();
-        let bounds = Aabb::from_centre_half_extent(fp.center, e);
+        let e = DVec3::new(libm::sqrt(e2.x), libm::sqrt(e2.y), libm::sqrt(e2.z));
+        self.finish(fp, la2, lb2, cross, den, h, e)
+    }
+
+    /// Box, culling and packing of the final footprint `fp` (squared differential lengths
+    /// `la2`, `lb2`, `D_u × D_v`, denominator `den`, slab half-thickness `h`, and the
+    /// ellipse's box half-extent `e_ellipse` = `√(a_k² + b_k²)`).
+    #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
+    fn finish(&self, fp: Footprint, la2: f64, lb2: f64, cross: DVec3, den: f64, h: f64, e_ellipse: DVec3) -> Result<(Footprint, PackedFootprint, Aabb), StoreRejection> {
+        // The box of the elliptic slab (see `Footprint::aabb`).
+        let e = e_ellipse + (fp.normal * h).abs();
         if let Some((metric, threshold)) = self.cull {
             let mine = match metric {
                 CullMetric::LargestExtent => 2.0 * e.max_element(),
@@ -377,6 +418,7 @@ impl ResolvedHeuristics {
                 return Err(StoreRejection::Heuristic(Rejection::Culled));
             }
         }
+        let bounds = Aabb::from_centre_half_extent(fp.center, e);
         match pack_parts(&fp, la2, lb2, cross, den, h) {
             Ok(packed) => Ok((fp, packed, bounds)),
             Err(crate::footprint::FootprintError::Degenerate) => Err(StoreRejection::Heuristic(Rejection::Degenerate)),

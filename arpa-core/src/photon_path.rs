@@ -125,7 +125,7 @@ pub fn trace_photon(
         let s = scene.surface(&hit);
         // Distance from the differential's origin to the hit, along the direction.
         let t = (s.position - st.ray.p).dot(d).max(0.0);
-        let moved = if st.differential_valid { st.ray.transfer(t, s.geometric_normal).ok() } else { None };
+        let moved = if st.differential_valid { st.ray.transfer_unit_normal(t, s.geometric_normal).ok() } else { None };
         let ray_at_hit = match moved {
             Some(r) => r,
             None => {

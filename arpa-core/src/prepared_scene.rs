@@ -26,6 +26,21 @@ pub struct PreparedScene {
     sphere: (DVec3, f64),
     camera: CameraFrame,
     scattering: Vec<Scattering>,
+    /// Per mesh, per triangle: what every hit reads ([`TriangleGeometry`]).
+    triangles: Vec<Vec<TriangleGeometry>>,
+    /// Per mesh with shading normals, per triangle: the barycentric gradients
+    /// ([`ShadedTriangle::barycentric_gradients`]); `None` for meshes without normals.
+    gradients: Vec<Option<Vec<Result<[DVec3; 3], DifferentialError>>>>,
+}
+
+/// A triangle's vertices in `f64` and its unit geometric normal, computed once at
+/// [`PreparedScene::new`] instead of at every hit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct TriangleGeometry {
+    /// Vertex positions (metres).
+    p: [DVec3; 3],
+    /// `(p1 − p0) × (p2 − p0)` normalised (`+y` for a degenerate triangle).
+    normal: DVec3,
 }
 
 /// A point on a surface hit by a ray.
@@ -62,7 +77,35 @@ impl PreparedScene {
             area_cdf.push(acc);
         }
         let scattering = scene.materials.iter().map(|m| m.scattering(scene.roughness_cutoff)).collect();
+        let vertices = |m: &crate::scene::TriangleMesh, idx: [u32; 3]| idx.map(|i| m.positions[i as usize].as_dvec3());
+        let triangles = scene
+            .meshes
+            .iter()
+            .map(|m| {
+                m.indices
+                    .iter()
+                    .map(|&idx| {
+                        let p = vertices(m, idx);
+                        TriangleGeometry { p, normal: (p[1] - p[0]).cross(p[2] - p[0]).normalize_or(DVec3::Y) }
+                    })
+                    .collect()
+            })
+            .collect();
+        let gradients = scene
+            .meshes
+            .iter()
+            .map(|m| {
+                m.normals.as_ref().map(|normals| {
+                    m.indices
+                        .iter()
+                        .map(|&idx| ShadedTriangle { p: vertices(m, idx), n: idx.map(|i| normals[i as usize].as_dvec3()) }.barycentric_gradients())
+                        .collect()
+                })
+            })
+            .collect();
         Ok(Self {
+            triangles,
+            gradients,
             bounds: scene.bounds(),
             sphere: scene.bounding_sphere(),
             camera: scene.camera.frame()?,
@@ -136,20 +179,20 @@ impl PreparedScene {
 
     /// Vertices of a triangle in `f64`.
     pub fn triangle(&self, mesh: u32, triangle: u32) -> [DVec3; 3] {
-        let m = &self.scene.meshes[mesh as usize];
-        m.indices[triangle as usize].map(|i| m.positions[i as usize].as_dvec3())
+        self.triangles[mesh as usize][triangle as usize].p
     }
 
     /// The surface point of a hit.
+    #[inline]
     pub fn surface(&self, hit: &RayHit) -> SurfacePoint {
         let m = &self.scene.meshes[hit.mesh as usize];
-        let p = self.triangle(hit.mesh, hit.triangle);
+        let tri = &self.triangles[hit.mesh as usize][hit.triangle as usize];
+        let p = &tri.p;
         let (b1, b2) = (hit.b1 as f64, hit.b2 as f64);
         let b = DVec3::new(1.0 - b1 - b2, b1, b2);
-        let ng = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or(DVec3::Y);
         SurfacePoint {
             position: p[0] * b.x + p[1] * b.y + p[2] * b.z,
-            geometric_normal: ng,
+            geometric_normal: tri.normal,
             barycentric: b,
             scattering: self.scattering[m.material as usize],
             emission: m.emission,
@@ -163,10 +206,12 @@ impl PreparedScene {
     /// geometric normal.
     pub fn shading_normal(&self, s: &SurfacePoint, dp_du: DVec3, dp_dv: DVec3) -> Result<NormalDifferential, DifferentialError> {
         let m = &self.scene.meshes[s.mesh as usize];
-        let Some(normals) = &m.normals else { return Ok(NormalDifferential::flat(s.geometric_normal)) };
+        let (Some(normals), Some(gradients)) = (&m.normals, &self.gradients[s.mesh as usize]) else {
+            return Ok(NormalDifferential::flat(s.geometric_normal));
+        };
         let idx = m.indices[s.triangle as usize];
         let tri = ShadedTriangle { p: self.triangle(s.mesh, s.triangle), n: idx.map(|i| normals[i as usize].as_dvec3()) };
-        let mut nd = tri.normal_differential(s.barycentric, dp_du, dp_dv)?;
+        let mut nd = tri.normal_differential_with(gradients[s.triangle as usize]?, s.barycentric, dp_du, dp_dv)?;
         if nd.n.dot(s.geometric_normal) < 0.0 {
             nd = NormalDifferential { n: -nd.n, dn_du: -nd.dn_du, dn_dv: -nd.dn_dv };
         }

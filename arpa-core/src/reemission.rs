@@ -31,7 +31,7 @@ pub fn reemit(hit: DVec3, dp_du: DVec3, dp_dv: DVec3, direction: DVec3, reemissi
     let area = dp_du.cross(dp_dv).length();
     let v = virtual_distance(area, reemission_length)?;
     let f = Frame::from_normal(direction);
-    if !direction.is_finite() || !(direction.length() > 0.0) {
+    if !direction.is_finite() || !(direction.length_squared() > 0.0) {
         return Err(DifferentialError::InvalidDirection);
     }
     let (du, dv) = (f.t * reemission_length, f.b * reemission_length);
@@ -44,7 +44,7 @@ pub fn reemit(hit: DVec3, dp_du: DVec3, dp_dv: DVec3, direction: DVec3, reemissi
 /// the albedo only.
 pub fn diffuse_direction(normal: DVec3, u: DVec2) -> DVec3 {
     let f = Frame::from_normal(normal);
-    f.to_world(cosine_hemisphere(u)).normalize_or(f.n)
+    crate::frame::unit_or(f.to_world(cosine_hemisphere(u)), f.n)
 }
 
 #[cfg(test)]

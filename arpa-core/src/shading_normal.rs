@@ -43,7 +43,14 @@ impl ShadedTriangle {
     /// has been transferred onto this triangle:
     /// `∂bᵢ = ∇bᵢ·∂P`, `∂m = Σ ∂bᵢ nᵢ`, `∂N = [∂m − N (N·∂m)] / |m|` with `m = Σ bᵢ nᵢ`.
     pub fn normal_differential(&self, b: DVec3, dp_du: DVec3, dp_dv: DVec3) -> Result<NormalDifferential, DifferentialError> {
-        let grads = self.barycentric_gradients()?;
+        self.normal_differential_with(self.barycentric_gradients()?, b, dp_du, dp_dv)
+    }
+
+    /// [`ShadedTriangle::normal_differential`] with the triangle's
+    /// [`ShadedTriangle::barycentric_gradients`] `grads` (1/metres) computed beforehand
+    /// (they are constant over the triangle).
+    #[inline]
+    pub fn normal_differential_with(&self, grads: [DVec3; 3], b: DVec3, dp_du: DVec3, dp_dv: DVec3) -> Result<NormalDifferential, DifferentialError> {
         let m = self.n[0] * b.x + self.n[1] * b.y + self.n[2] * b.z;
         let len = m.length();
         if !(len > 0.0) || !len.is_finite() {

@@ -81,7 +81,7 @@ pub fn store_footprint(fp: Footprint, smoothing: &Smoothing, heuristics: &Heuris
 
 /// [`store_footprint`] with heuristics resolved for the scene and the footprint map's
 /// progressive `radius` (metres): the per-photon hot path.
-#[inline]
+#[inline(always)]
 pub fn store_footprint_resolved(fp: Footprint, smoothing: &Smoothing, heuristics: &ResolvedHeuristics, radius: f64) -> StoredPhoton {
     let fp = smoothing.apply(fp);
     match heuristics.store(fp, radius) {
