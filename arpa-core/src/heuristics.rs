@@ -270,7 +270,13 @@ pub enum StoreRejection {
 /// `ℓ'/ℓ = (ℓ/ℓ_ref)^(γ−1)` from `major2 = ℓ²` and `reference = ℓ_ref`.
 #[inline]
 fn dampen_ratio(major2: f64, reference: f64, exponent: f64) -> f64 {
-    if exponent == 0.25 {
+    if exponent == 0.25 && major2.is_normal() && major2 < f64::INFINITY {
+        // γ = 1/4 (ARPA): ℓ_ref^(3/4) · (ℓ²)^(−3/8). The first factor does not depend on
+        // the footprint (two square roots off the critical path), the second is a table
+        // and a polynomial instead of a chain of three square roots and a division.
+        let r = libm::sqrt(reference);
+        r * libm::sqrt(r) * pow_minus_3_8(major2)
+    } else if exponent == 0.25 {
         // γ = 1/4 (ARPA): (ℓ_ref²/ℓ²)^(3/8) with one division and three square roots.
         let a = libm::sqrt(reference * reference / major2); // (ℓ_ref/ℓ)
         let b = libm::sqrt(a); // (ℓ_ref/ℓ)^(1/2)
@@ -278,6 +284,63 @@ fn dampen_ratio(major2: f64, reference: f64, exponent: f64) -> f64 {
     } else {
         libm::exp(0.5 * (exponent - 1.0) * libm::log(major2 / (reference * reference)))
     }
+}
+
+/// `1/c_j` for the centres `c_j = 1 + (j + ½)/32` of the 32 mantissa intervals of
+/// [`pow_minus_3_8`].
+const INV_CENTRE: [f64; 32] = [
+    0.9846153846153847, 0.9552238805970149, 0.927536231884058, 0.9014084507042254, 0.8767123287671232, 0.8533333333333334,
+    0.8311688311688312, 0.810126582278481, 0.7901234567901234, 0.7710843373493976, 0.7529411764705882, 0.735632183908046,
+    0.7191011235955056, 0.7032967032967034, 0.6881720430107527, 0.6736842105263158, 0.6597938144329897, 0.6464646464646465,
+    0.6336633663366337, 0.6213592233009708, 0.6095238095238096, 0.5981308411214953, 0.5871559633027523, 0.5765765765765766,
+    0.5663716814159292, 0.5565217391304348, 0.5470085470085471, 0.5378151260504201, 0.5289256198347108, 0.5203252032520326,
+    0.512, 0.5039370078740157,
+];
+
+/// `INV_CENTRE[j]^(3/8)`, correctly rounded (computed with 50-digit decimals).
+const INV_CENTRE_POW: [f64; 32] = [
+    0.9942027990453687, 0.9829681344317388, 0.9721853698676625, 0.9618239996215786, 0.951856363575963, 0.9422573123770744,
+    0.9330039197274034, 0.924075234149582, 0.915452063958719, 0.907116790301895, 0.8990532040225665, 0.8912463628322492,
+    0.8836824658590922, 0.8763487431213369, 0.8692333578652639, 0.8623253200293184, 0.855614409362212, 0.8490911069435698,
+    0.8427465340396284, 0.8365723973803193, 0.8305609400732101, 0.8247048974785767, 0.8189974574618665, 0.8134322245178238,
+    0.8080031873269495, 0.8027046893616231, 0.7975314022077274, 0.7924783013092617, 0.7875406438792704, 0.7827139487513616,
+    0.7779939779728584, 0.7733767199638524,
+];
+
+/// `2^(−r/8)`, `r = 0..8`.
+const POW2_MINUS_EIGHTHS: [f64; 8] =
+    [1.0, 0.9170040432046712, 0.8408964152537145, 0.7711054127039704, 0.7071067811865476, 0.6484197773255048, 0.5946035575013605, 0.5452538663326288];
+
+/// Taylor coefficients `binom(−3/8, k)`, `k = 1..=8`, of `(1 + t)^(−3/8)`.
+const TAYLOR_MINUS_3_8: [f64; 8] = [
+    -0.375, 0.2578125, -0.2041015625, 0.172210693359375, -0.15068435668945312, 0.13498806953430176, -0.12293556332588196,
+    0.11333122244104743,
+];
+
+/// `x^(−3/8)` for a normal, finite, positive `x`, to a few ulps: with `x = 2^e m`,
+/// `m ∈ [1, 2)` in interval `j` (top five mantissa bits), `x^(−3/8) =
+/// 2^(−3e/8) · (m/c_j)^(−3/8) · c_j^(−3/8)`, where `t = m/c_j − 1` is below 1/64 in
+/// magnitude so the Taylor series of `(1 + t)^(−3/8)` to `t⁸` is exact to ~1e-17
+/// (evaluated by Estrin's scheme, a short dependency chain), and `2^(−3e/8)` is a power of
+/// two times a table entry.
+#[inline]
+fn pow_minus_3_8(x: f64) -> f64 {
+    let bits = x.to_bits();
+    let e = ((bits >> 52) & 0x7ff) as i64 - 1023;
+    let j = ((bits >> 47) & 31) as usize;
+    let m = f64::from_bits((bits & 0x000f_ffff_ffff_ffff) | 0x3ff0_0000_0000_0000);
+    let t = m * INV_CENTRE[j] - 1.0;
+    let k = &TAYLOR_MINUS_3_8;
+    let (t2, t4) = (t * t, (t * t) * (t * t));
+    let p01 = 1.0 + k[0] * t;
+    let p23 = k[1] + k[2] * t;
+    let p45 = k[3] + k[4] * t;
+    let p67 = k[5] + k[6] * t;
+    let p = (p01 + p23 * t2) + (p45 + p67 * t2) * t4 + k[7] * (t4 * t4);
+    // 3e = 8q + r, 0 ≤ r < 8; 2^(−q) is built from its exponent bits (|q| ≤ 384).
+    let (q, r) = ((3 * e).div_euclid(8), (3 * e).rem_euclid(8) as usize);
+    let two_q = f64::from_bits(((1023 - q) as u64) << 52);
+    p * INV_CENTRE_POW[j] * (two_q * POW2_MINUS_EIGHTHS[r])
 }
 
 impl Heuristics {
@@ -423,6 +486,62 @@ impl ResolvedHeuristics {
             Ok(packed) => Ok((fp, packed, bounds)),
             Err(crate::footprint::FootprintError::Degenerate) => Err(StoreRejection::Heuristic(Rejection::Degenerate)),
             Err(_) => Err(StoreRejection::Unrepresentable),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pow_minus_3_8_tables_are_what_they_say() {
+        for j in 0..32 {
+            let c = 1.0 + (j as f64 + 0.5) / 32.0;
+            assert_eq!(INV_CENTRE[j], 1.0 / c);
+            let exact = libm::pow(INV_CENTRE[j], 0.375);
+            assert!((INV_CENTRE_POW[j] - exact).abs() <= 2.0 * f64::EPSILON * exact, "{j}");
+        }
+        for (r, &v) in POW2_MINUS_EIGHTHS.iter().enumerate() {
+            assert!((v - libm::exp2(-(r as f64) / 8.0)).abs() <= f64::EPSILON);
+        }
+        let mut binom = 1.0;
+        for (k, &c) in TAYLOR_MINUS_3_8.iter().enumerate() {
+            binom *= (-0.375 - k as f64) / (k as f64 + 1.0);
+            assert!((c - binom).abs() <= 4.0 * f64::EPSILON * binom.abs(), "{k}");
+        }
+    }
+
+    #[test]
+    fn pow_minus_3_8_matches_libm_over_the_normal_range() {
+        let mut rng = crate::rng::Rng::new(3, 8, 0, crate::rng::StreamDomain::User);
+        let mut worst: f64 = 0.0;
+        for i in 0..200_000 {
+            // Log-uniform over the normal range, plus the interval edges of the mantissa.
+            let x = if i % 4 == 0 {
+                f64::from_bits(((rng.next_u32() % 2000 + 20) as u64) << 52 | ((rng.next_u32() % 33) as u64) << 47) 
+            } else {
+                libm::exp2(rng.next_f64() * 2040.0 - 1020.0)
+            };
+            if !x.is_normal() {
+                continue;
+            }
+            let exact = libm::pow(x, -0.375);
+            let rel = (pow_minus_3_8(x) - exact).abs() / exact;
+            worst = worst.max(rel);
+        }
+        assert!(worst <= 4.0 * f64::EPSILON, "worst relative error {worst:e}");
+    }
+
+    #[test]
+    fn fast_dampening_ratio_matches_the_exponential_form() {
+        let mut rng = crate::rng::Rng::new(3, 9, 0, crate::rng::StreamDomain::User);
+        for _ in 0..100_000 {
+            let major2 = libm::exp2(rng.next_f64() * 400.0 - 200.0);
+            let reference = libm::exp2(rng.next_f64() * 100.0 - 50.0);
+            let exact = libm::exp(0.5 * (0.25 - 1.0) * libm::log(major2 / (reference * reference)));
+            let fast = dampen_ratio(major2, reference, 0.25);
+            assert!((fast - exact).abs() <= 1e-13 * exact, "{major2:e} {reference:e}: {fast:e} vs {exact:e}");
         }
     }
 }
