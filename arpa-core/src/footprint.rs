@@ -265,7 +265,7 @@ pub fn half_thickness(center: DVec3, major: f64, minor: f64, radius: f64) -> f64
 /// [`Footprint::pack`] with the squared differential lengths, `D_u × D_v`, the
 /// denominator `den = (D_u × D_v)·n` (already checked with [`degenerate_denominator`]) and
 /// the slab half-thickness `h` already known.
-#[inline]
+#[inline(always)]
 pub(crate) fn pack_parts(fp: &Footprint, la2: f64, lb2: f64, cross: DVec3, den: f64, h: f64) -> Result<PackedFootprint, FootprintError> {
     // σ₂ ≥ |a × b|/√(|a|² + |b|²) ≥ k·scale, compared in squares:
     // |D_u × D_v|² ≥ 4 (|D_u|² + |D_v|²) (k·scale)².

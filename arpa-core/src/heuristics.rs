@@ -268,7 +268,7 @@ pub enum StoreRejection {
 }
 
 /// `ℓ'/ℓ = (ℓ/ℓ_ref)^(γ−1)` from `major2 = ℓ²` and `reference = ℓ_ref`.
-#[inline]
+#[inline(always)]
 fn dampen_ratio(major2: f64, reference: f64, exponent: f64) -> f64 {
     if exponent == 0.25 && major2.is_normal() && major2 < f64::INFINITY {
         // γ = 1/4 (ARPA): ℓ_ref^(3/4) · (ℓ²)^(−3/8). The first factor does not depend on
@@ -323,7 +323,7 @@ const TAYLOR_MINUS_3_8: [f64; 8] = [
 /// magnitude so the Taylor series of `(1 + t)^(−3/8)` to `t⁸` is exact to ~1e-17
 /// (evaluated by Estrin's scheme, a short dependency chain), and `2^(−3e/8)` is a power of
 /// two times a table entry.
-#[inline]
+#[inline(always)]
 fn pow_minus_3_8(x: f64) -> f64 {
     let bits = x.to_bits();
     let e = ((bits >> 52) & 0x7ff) as i64 - 1023;
@@ -374,7 +374,7 @@ impl ResolvedHeuristics {
     /// differentials while `s` is still being computed and scales them afterwards. Only
     /// an H-max clamp of one differential (which breaks the homogeneity) takes the
     /// sequential path.
-    #[inline]
+    #[inline(always)]
     pub fn store(&self, fp: Footprint, radius: f64) -> Result<(Footprint, PackedFootprint, Aabb), StoreRejection> {
         // Scale-free parts, independent of the dampening factor.
         let la2_0 = fp.du.length_squared();
@@ -387,18 +387,21 @@ impl ResolvedHeuristics {
         let degenerate = self.degenerate.is_some_and(|f| !(major2_0 > 0.0) || !(cross_0.length_squared() >= f * f * major2_0 * major2_0));
         let (major_0, minor_0) = (libm::sqrt(major2_0), libm::sqrt(la2_0.min(lb2_0)));
         let e_0 = DVec3::new(libm::sqrt(e2_0.x), libm::sqrt(e2_0.y), libm::sqrt(e2_0.z));
-        let s = self.dampening.map_or(1.0, |d| {
-            let reference = match d.reference {
-                DampenReference::Absolute(l) => l,
-                DampenReference::ProgressiveDiameter => 2.0 * radius,
-            };
-            if major2_0 > 0.0 && major2_0.is_finite() && reference > 0.0 && reference.is_finite() {
-                let ratio = dampen_ratio(major2_0, reference, d.exponent);
-                if ratio.is_finite() && ratio > 0.0 { ratio } else { 1.0 }
-            } else {
-                1.0
+        let s = match self.dampening {
+            None => 1.0,
+            Some(d) => {
+                let reference = match d.reference {
+                    DampenReference::Absolute(l) => l,
+                    DampenReference::ProgressiveDiameter => 2.0 * radius,
+                };
+                if major2_0 > 0.0 && major2_0.is_finite() && reference > 0.0 && reference.is_finite() {
+                    let ratio = dampen_ratio(major2_0, reference, d.exponent);
+                    if ratio.is_finite() && ratio > 0.0 { ratio } else { 1.0 }
+                } else {
+                    1.0
+                }
             }
-        });
+        };
         let s2 = s * s;
         let (la2, lb2) = (la2_0 * s2, lb2_0 * s2);
         if let Some((h, mode)) = self.h_max.filter(|(h, _)| *h > 0.0) {
