@@ -84,6 +84,7 @@ impl NormalDifferential {
         Self { n, dn_du: DVec3::ZERO, dn_dv: DVec3::ZERO }
     }
 
+    #[inline(always)]
     fn validated(&self) -> Result<Self, DifferentialError> {
         if !self.n.is_finite() || !self.dn_du.is_finite() || !self.dn_dv.is_finite() {
             return Err(DifferentialError::InvalidNormal);
@@ -153,6 +154,7 @@ fn all_finite(v: &[DVec3]) -> bool {
 impl RayDifferential {
     /// A ray differential from its parts. `d` is normalised (its derivatives are assumed to
     /// be those of the unit direction already); fails on a zero or non-finite direction.
+    #[inline(always)]
     pub fn new(p: DVec3, d: DVec3, dp_du: DVec3, dp_dv: DVec3, dd_du: DVec3, dd_dv: DVec3) -> Result<Self, DifferentialError> {
         let len2 = d.length_squared();
         let d = if (len2 - 1.0).abs() <= 1e-8 {
@@ -257,11 +259,13 @@ impl RayDifferential {
     /// `∂(D·N) = ∂D·N + D·∂N`, `∂R = ∂D − 2[(D·N) ∂N + ∂(D·N) N]`, `∂P` unchanged.
     ///
     /// Invariant under `N → −N`.
+    #[inline(always)]
     pub fn reflect(&self, normal: &NormalDifferential) -> Result<Self, DifferentialError> {
         let nd = normal.validated()?;
         Ok(self.reflect_unchecked(&nd)?.reprojected())
     }
 
+    #[inline(always)]
     fn reflect_unchecked(&self, nd: &NormalDifferential) -> Result<Self, DifferentialError> {
         let n = nd.n;
         let dn = self.d.dot(n);
@@ -289,6 +293,7 @@ impl RayDifferential {
     ///
     /// Total internal reflection (`k < 0`) falls back to [`RayDifferential::reflect`] and is
     /// reported in the returned event.
+    #[inline]
     pub fn refract(&self, normal: &NormalDifferential, ior: f64) -> Result<(Self, RefractionEvent), DifferentialError> {
         let mut nd = normal.validated()?;
         if !(ior > 0.0) || !ior.is_finite() {

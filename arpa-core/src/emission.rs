@@ -401,6 +401,7 @@ impl PreparedLight {
     }
 
     /// Emits photon `index` (see [`Light::emit`]).
+    #[inline]
     pub fn emit(&self, index: u32, rng: &mut Rng) -> Result<EmittedPhoton, EmissionError> {
         let params = &self.params;
         let (centre, radius) = params.scene_sphere;
@@ -437,6 +438,7 @@ impl PreparedLight {
         Ok(EmittedPhoton { ray, flux, reemission_length: lengths.reemission, surface_normal })
     }
 
+    #[inline(always)]
     fn area_photon(&self, p: DVec3, rng: &mut Rng) -> Result<(RayDifferential, DVec3, Option<DVec3>), EmissionError> {
         let light_frame = &self.frame;
         let d = light_frame.to_world(cosine_hemisphere(rng.next_2d())).normalize_or(light_frame.n);

@@ -49,7 +49,7 @@ impl Frame {
     /// A frame around `n` whose first tangent is as close as possible to `hint`
     /// (the component of `hint` orthogonal to `n`). Falls back to [`Frame::from_normal`]
     /// when `hint` is (nearly) parallel to `n`, zero or non-finite.
-    #[inline]
+    #[inline(always)]
     pub fn from_normal_and_hint(n: DVec3, hint: DVec3) -> Self {
         let n = unit_or(n, DVec3::Z);
         let t = hint - n * n.dot(hint);

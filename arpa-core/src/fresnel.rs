@@ -4,6 +4,7 @@
 /// the incident direction and the normal (either sign) and relative index `ior`
 /// (inside over outside; `cos_i < 0` means arriving from outside). Returns 1 under total
 /// internal reflection; always in `[0, 1]`.
+#[inline]
 pub fn dielectric_reflectance(cos_i: f64, ior: f64) -> f64 {
     if !(ior > 0.0) || !ior.is_finite() || !cos_i.is_finite() {
         return 1.0;

@@ -202,6 +202,7 @@ pub fn trace_photon(
 impl PathState {
     /// Specular reflection at the hit `at` about the shading normal `nd` (or `n` when its
     /// derivative could not be formed); the differential is lost if it cannot follow.
+    #[inline(always)]
     fn reflect(&mut self, at: &RayDifferential, nd: Result<NormalDifferential, DifferentialError>, n: DVec3) {
         self.ray = match (self.differential_valid, nd.and_then(|nd| at.reflect(&nd))) {
             (true, Ok(r)) => r,
@@ -220,6 +221,7 @@ fn lost_differential(p: DVec3, d: DVec3) -> RayDifferential {
 }
 
 #[allow(clippy::too_many_arguments)]
+#[inline(always)]
 fn store(ray: &RayDifferential, normal: &DVec3, flux: DVec3, map: PhotonMap, differential_valid: bool, settings: &RenderSettings, setup: &PhotonPassSetup) -> StoredPhoton {
     let reason = match (settings.method, differential_valid) {
         (Method::Rtpm, _) => Some(ProgressiveReason::ProgressiveMethod),

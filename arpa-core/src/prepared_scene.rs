@@ -215,6 +215,7 @@ impl PreparedScene {
     /// The shading normal at `s` and its derivatives along the positional differentials
     /// `dp_du`, `dp_dv` (zero for meshes without vertex normals), oriented like the
     /// geometric normal.
+    #[inline(always)]
     pub fn shading_normal(&self, s: &SurfacePoint, dp_du: DVec3, dp_dv: DVec3) -> Result<NormalDifferential, DifferentialError> {
         let m = &self.scene.meshes[s.mesh as usize];
         let (Some(normals), Some(gradients)) = (&m.normals, &self.gradients[s.mesh as usize]) else {
@@ -245,6 +246,7 @@ impl PreparedScene {
 
 /// Offsets a ray origin off a surface along `normal` (oriented to the side the ray
 /// leaves towards) to avoid self-intersection in `f32`.
+#[inline]
 pub fn offset_origin(p: DVec3, normal: DVec3) -> Vec3 {
     let scale = 1e-5 * (1.0 + p.abs().max_element());
     (p + normal * scale).as_vec3()

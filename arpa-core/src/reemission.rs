@@ -27,6 +27,7 @@ pub fn virtual_distance(parallelogram_area: f64, reemission_length: f64) -> Resu
 ///
 /// Uses the photon's own (unsmoothed, un-dampened) footprint, so the smoothing factor and
 /// heuristics, which shape only what is *stored*, do not compound along a path.
+#[inline(always)]
 pub fn reemit(hit: DVec3, dp_du: DVec3, dp_dv: DVec3, direction: DVec3, reemission_length: f64) -> Result<RayDifferential, DifferentialError> {
     let area = dp_du.cross(dp_dv).length();
     let v = virtual_distance(area, reemission_length)?;
@@ -42,6 +43,7 @@ pub fn reemit(hit: DVec3, dp_du: DVec3, dp_dv: DVec3, direction: DVec3, reemissi
 /// hemisphere of `normal` (unit, oriented towards the side the photon arrived from), from
 /// the unit-square sample `u`. Density `cos θ / π`, so the photon's flux is multiplied by
 /// the albedo only.
+#[inline(always)]
 pub fn diffuse_direction(normal: DVec3, u: DVec2) -> DVec3 {
     let f = Frame::from_normal(normal);
     crate::frame::unit_or(f.to_world(cosine_hemisphere(u)), f.n)

@@ -49,7 +49,7 @@ impl ShadedTriangle {
     /// [`ShadedTriangle::normal_differential`] with the triangle's
     /// [`ShadedTriangle::barycentric_gradients`] `grads` (1/metres) computed beforehand
     /// (they are constant over the triangle).
-    #[inline]
+    #[inline(always)]
     pub fn normal_differential_with(&self, grads: [DVec3; 3], b: DVec3, dp_du: DVec3, dp_dv: DVec3) -> Result<NormalDifferential, DifferentialError> {
         let m = self.n[0] * b.x + self.n[1] * b.y + self.n[2] * b.z;
         let len = m.length();
