@@ -140,15 +140,12 @@ pub fn refract_direction(d: DVec3, n: DVec3, ior: f64) -> (DVec3, RefractionEven
     ((eta * d - mu * n).normalize_or(d), RefractionEvent::Transmitted, eta)
 }
 
-/// `true` when every component is finite, tested on the bit patterns without branching:
-/// `(bits & exponent) + 2^52` carries into the sign bit exactly when all exponent bits are
-/// set (infinity or NaN).
+/// `true` when every component is finite, without a branch per component: `c − c` is
+/// `+0` for finite `c` and NaN for an infinity or NaN, and a NaN survives the sum.
 #[inline]
 fn all_finite(v: &[DVec3]) -> bool {
-    const EXPONENT: u64 = 0x7ff0_0000_0000_0000;
-    let flag = |x: f64| (x.to_bits() & EXPONENT) + (1 << 52);
-    let carry = v.iter().fold(0u64, |acc, c| acc | flag(c.x) | flag(c.y) | flag(c.z));
-    carry >> 63 == 0
+    let zero = v.iter().fold(DVec3::ZERO, |acc, &c| acc + (c - c));
+    zero.x + zero.y + zero.z == 0.0
 }
 
 impl RayDifferential {
