@@ -284,24 +284,23 @@ pub(crate) fn pack_parts(fp: &Footprint, la2: f64, lb2: f64, cross: DVec3, den: 
     if underflow(0) | underflow(1) | underflow(2) {
         return Err(FootprintError::Unrepresentable);
     }
-    let f = |v: DVec3| v.as_vec3().to_array();
-    let packed = PackedFootprint {
-        center: f(fp.center),
+    let (c, ru, rv, rn) = (fp.center.as_vec3(), row_u.as_vec3(), row_v.as_vec3(), (fp.normal * (1.0 / h)).as_vec3());
+    // Every stored float finite: `x − x` is 0 for finite `x` and NaN otherwise, and a NaN
+    // survives the sum (checked on the values in registers, one branch).
+    let zero = (c - c) + (ru - ru) + (rv - rv) + (rn - rn) + (d32 - d32);
+    if zero.x + zero.y + zero.z != 0.0 {
+        return Err(FootprintError::Unrepresentable);
+    }
+    Ok(PackedFootprint {
+        center: c.to_array(),
         map: fp.map as u32,
-        row_u: f(row_u),
-        flux_density_r: density.x as f32,
-        row_v: f(row_v),
-        flux_density_g: density.y as f32,
-        row_n: f(fp.normal * (1.0 / h)),
-        flux_density_b: density.z as f32,
-    };
-    // Every float but the map word (index 3) finite: exponent bits not all set, tested
-    // on the bit patterns without branching.
-    // (`(w & exp) + 2^23` carries into bit 31 exactly when all exponent bits are set.)
-    let mut words: [u32; 16] = bytemuck::cast(packed);
-    words[3] = 0;
-    let carry = words.iter().fold(0u32, |acc, w| acc | ((w & 0x7f80_0000) + 0x0080_0000));
-    if carry & 0x8000_0000 == 0 { Ok(packed) } else { Err(FootprintError::Unrepresentable) }
+        row_u: ru.to_array(),
+        flux_density_r: d32.x,
+        row_v: rv.to_array(),
+        flux_density_g: d32.y,
+        row_n: rn.to_array(),
+        flux_density_b: d32.z,
+    })
 }
 
 /// The 64-byte `f32` footprint record of the gather stage, laid out as four
