@@ -9,7 +9,8 @@
 //! Rows `r0..r1` and columns `c0..c1` are pixel ranges (end exclusive), as in the scenes
 //! README. Each region prints the mean linear RGB of both images and their ratio
 //! (TEST/REF, per channel and of the channel average). `--grid N` also prints the ratio
-//! of the channel averages over an N×N grid of blocks covering the image.
+//! of the channel averages over an N×N grid of blocks covering the image. The first line
+//! gives relMSE, SSIM and FLIP of TEST against REF (`arpa::metrics`, as `--reference`).
 
 use anyhow::{Context, bail};
 use arpa::image_io::read_exr;
@@ -58,6 +59,8 @@ fn main() -> anyhow::Result<()> {
         let (rows, cols) = spec.split_once(',').with_context(|| format!("region '{a}' must be name:r0-r1,c0-c1"))?;
         regions.push((name.to_string(), parse_range(rows)?, parse_range(cols)?));
     }
+    let m = arpa::metrics::compare_images(&test, &reference)?;
+    println!("relMSE {:.4e}  SSIM {:.4}  FLIP {:.4}", m.rel_mse, m.ssim, m.flip);
     println!("{:<16} {:>30} {:>30} {:>24} {:>7}", "region", "REF mean RGB", "TEST mean RGB", "TEST/REF RGB", "avg");
     for (name, rows, cols) in &regions {
         let a = mean(&reference, *rows, *cols);
