@@ -1,0 +1,20 @@
+//! # arpa-wgpu
+//!
+//! The wgpu backend of ARPA, on Vulkan ray queries (`EXPERIMENTAL_RAY_QUERY`), with
+//! lavapipe (Mesa's software Vulkan, ≥ 25) when no GPU is present.
+//!
+//! This first slice holds the foundation the tracer is built on:
+//! * [`device`]: adapter choice (a real GPU with ray queries, else lavapipe, or a name
+//!   forced by the caller) and device creation, with an error naming the adapter when ray
+//!   queries are missing;
+//! * [`harness`]: a compute harness that runs WGSL functions (the core's WGSL twin,
+//!   [`arpa_core::shaders`]) over input buffers and reads the results back, used by the
+//!   tests that compare the twin with the Rust core.
+//!
+//! The `Tracer` (scene upload, photon pass, footprint AS, gather) is not implemented yet.
+
+pub mod device;
+pub mod harness;
+
+pub use device::{AdapterChoice, DeviceError, GpuContext};
+pub use harness::{HarnessError, run_kernel};
