@@ -39,11 +39,16 @@ fn out_v3(i: u32, v: vec3<f32>) { out_f(i, v.x); out_f(i + 1u, v.y); out_f(i + 2
 /// once per item of `input` (`in_stride` words each), with every twin file included.
 /// Returns `out_stride` words per item.
 pub fn run(ctx: &GpuContext, label: &str, body: &str, input: &[u32], in_stride: usize, out_stride: usize) -> Vec<Vec<u32>> {
+    run_with(ctx, label, "", body, input, in_stride, out_stride)
+}
+
+/// [`run`] with extra WGSL declarations (`helpers`) placed before the entry point.
+pub fn run_with(ctx: &GpuContext, label: &str, helpers: &str, body: &str, input: &[u32], in_stride: usize, out_stride: usize) -> Vec<Vec<u32>> {
     assert_eq!(input.len() % in_stride, 0);
     let items = input.len() / in_stride;
     let twin: String = arpa_core::shaders::ALL.iter().map(|(_, s)| *s).collect::<Vec<_>>().join("\n");
     let source = format!(
-        "{twin}\n{PRELUDE}\n@compute @workgroup_size(64)\nfn main(@builtin(global_invocation_id) gid: vec3<u32>) {{\n    let item = gid.x;\n    if item >= {items}u {{ return; }}\n    let ib = item * {in_stride}u;\n    let ob = item * {out_stride}u;\n{body}\n}}\n"
+        "{twin}\n{PRELUDE}\n{helpers}\n@compute @workgroup_size(64)\nfn main(@builtin(global_invocation_id) gid: vec3<u32>) {{\n    let item = gid.x;\n    if item >= {items}u {{ return; }}\n    let ib = item * {in_stride}u;\n    let ob = item * {out_stride}u;\n{body}\n}}\n"
     );
     let out = run_kernel(ctx, label, &source, "main", input, items as u32, items * out_stride)
         .unwrap_or_else(|e| panic!("{e}"));
