@@ -3,7 +3,8 @@
 //!
 //! Each constant is one file of `arpa-core/shaders/`. WGSL has no modules: a renderer
 //! concatenates the files it needs (in the order of [`ALL`], which respects the one
-//! dependency: [`FOOTPRINT`] calls [`KERNEL`]) and its own code after them. Every name is
+//! dependencies: [`FOOTPRINT`] calls [`KERNEL`]; [`EMISSION`] calls [`RNG`], [`FRAME`], [`SAMPLING`]
+//! and [`DIFFERENTIAL`]) and its own code after them. Every name is
 //! prefixed `arpa_`/`Arpa`/`ARPA_`, so the files never collide with each other or with the
 //! renderer. Status codes replace the Rust error enums (each file lists them).
 //!
@@ -14,6 +15,9 @@
 //! | [`FOOTPRINT`] | [`crate::footprint`] | `PackedFootprint` (same 64-byte layout), `Footprint::pack` (`M_p⁻¹` rows, slab, flux density), point-in-footprint test, irradiance |
 //! | [`RADIUS`] | [`crate::radius`] | progressive radius, closed form and recurrence |
 //! | [`DIFFERENTIAL`] | [`crate::differential`] | transfer, reflection, refraction with total internal reflection |
+//! | [`FRAME`] | [`crate::frame`] | orthonormal frames (Duff et al.; with a tangent hint) |
+//! | [`SAMPLING`] | [`crate::sampling`] | sphere, cone, concentric disc, cosine hemisphere, triangle, Fibonacci lattice |
+//! | [`EMISSION`] | [`crate::emission`] | `PreparedLight::emit` from a [`crate::emission::PackedLight`] (same 160-byte layout) |
 //!
 //! ## Precision
 //! WGSL has `f32` only; the core propagates in `f64`. The integer code ([`RNG`]) is exact.
@@ -49,12 +53,37 @@ pub const RADIUS: &str = include_str!("../shaders/radius.wgsl");
 /// `arpa_diff_reflect`, `arpa_diff_refract`, `arpa_reflect_direction`. World space, metres.
 pub const DIFFERENTIAL: &str = include_str!("../shaders/differential.wgsl");
 
+/// `frame.wgsl`: `ArpaFrame`, `arpa_frame_from_normal`, `arpa_frame_from_normal_and_hint`,
+/// `arpa_frame_to_world`, `arpa_frame_to_local`.
+pub const FRAME: &str = include_str!("../shaders/frame.wgsl");
+
+/// `sampling.wgsl`: `arpa_uniform_sphere`, `arpa_uniform_cone` (takes `1 − cos θ_max`),
+/// `arpa_uniform_disc`, `arpa_cosine_hemisphere`, `arpa_uniform_triangle`,
+/// `arpa_fibonacci_lattice`.
+pub const SAMPLING: &str = include_str!("../shaders/sampling.wgsl");
+
+/// `emission.wgsl` (needs [`RNG`], [`FRAME`], [`SAMPLING`], [`DIFFERENTIAL`]): `ArpaLight`
+/// (= [`crate::emission::PackedLight`]), `ArpaEmitted`, `arpa_emit`, `arpa_spot_falloff`.
+pub const EMISSION: &str = include_str!("../shaders/emission.wgsl");
+
 /// Every file as `(file name, source)`, in an order in which concatenation satisfies each
 /// file's dependencies.
-pub const ALL: [(&str, &str); 5] = [
+pub const ALL: [(&str, &str); 8] = [
     ("rng.wgsl", RNG),
     ("kernel.wgsl", KERNEL),
     ("footprint.wgsl", FOOTPRINT),
     ("radius.wgsl", RADIUS),
     ("differential.wgsl", DIFFERENTIAL),
+    ("frame.wgsl", FRAME),
+    ("sampling.wgsl", SAMPLING),
+    ("emission.wgsl", EMISSION),
 ];
+
+/// The files each file needs before it (by name), for renderers that include a subset.
+pub fn dependencies(file: &str) -> &'static [&'static str] {
+    match file {
+        "footprint.wgsl" => &["kernel.wgsl"],
+        "emission.wgsl" => &["rng.wgsl", "differential.wgsl", "frame.wgsl", "sampling.wgsl"],
+        _ => &[],
+    }
+}

@@ -20,8 +20,11 @@ fn validate(label: &str, source: &str) {
 #[test]
 fn each_file_validates_with_its_dependencies() {
     for (name, source) in shaders::ALL {
-        let src = if name == "footprint.wgsl" { format!("{}\n{}", shaders::KERNEL, source) } else { source.to_string() };
-        validate(name, &src);
+        let deps: Vec<&str> = shaders::dependencies(name)
+            .iter()
+            .map(|d| shaders::ALL.iter().find(|(n, _)| n == d).unwrap_or_else(|| panic!("{name}: unknown dependency {d}")).1)
+            .collect();
+        validate(name, &format!("{}\n{}", deps.join("\n"), source));
     }
 }
 
@@ -29,6 +32,25 @@ fn each_file_validates_with_its_dependencies() {
 fn all_files_together_validate() {
     let all: String = shaders::ALL.iter().map(|(_, s)| *s).collect::<Vec<_>>().join("\n");
     validate("all twin files", &all);
+}
+
+#[test]
+fn dependencies_come_first_in_all() {
+    for (i, (name, _)) in shaders::ALL.iter().enumerate() {
+        for d in shaders::dependencies(name) {
+            let j = shaders::ALL.iter().position(|(n, _)| n == d).expect("dependency listed in ALL");
+            assert!(j < i, "{name} needs {d}, which comes after it in ALL");
+        }
+    }
+}
+
+#[test]
+fn a_file_without_its_dependencies_is_rejected() {
+    // The dependency list is needed: emission.wgsl alone does not validate.
+    assert!(naga::front::wgsl::parse_str(shaders::EMISSION).is_err() || {
+        let m = naga::front::wgsl::parse_str(shaders::EMISSION).unwrap();
+        naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::empty()).validate(&m).is_err()
+    });
 }
 
 #[test]
