@@ -2,10 +2,9 @@
 //! include without the rest of arpa (WebGPU/wgpu directly, Vulkan through naga).
 //!
 //! Each constant is one file of `arpa-core/shaders/`. WGSL has no modules: a renderer
-//! concatenates the files it needs (in the order of [`ALL`], which respects the one
-//! dependencies: [`FOOTPRINT`] calls [`KERNEL`]; [`EMISSION`] calls [`RNG`], [`FRAME`], [`SAMPLING`]
-//! and [`DIFFERENTIAL`]) and its own code after them. Every name is
-//! prefixed `arpa_`/`Arpa`/`ARPA_`, so the files never collide with each other or with the
+//! concatenates the files it needs, each after the ones it depends on ([`dependencies`];
+//! [`ALL`] is in such an order), and its own code after them. Every name is prefixed
+//! `arpa_`/`Arpa`/`ARPA_`, so the files never collide with each other or with the
 //! renderer. Status codes replace the Rust error enums (each file lists them).
 //!
 //! | file | Rust twin | what |
@@ -18,6 +17,7 @@
 //! | [`FRAME`] | [`crate::frame`] | orthonormal frames (Duff et al.; with a tangent hint) |
 //! | [`SAMPLING`] | [`crate::sampling`] | sphere, cone, concentric disc, cosine hemisphere, triangle, Fibonacci lattice |
 //! | [`EMISSION`] | [`crate::emission`] | `PreparedLight::emit` from a [`crate::emission::PackedLight`] (same 160-byte layout) |
+//! | [`HEURISTICS`] | [`crate::heuristics`] | `ResolvedHeuristics::store` from a [`crate::heuristics::PackedHeuristics`]: dampening, H-max, degenerate removal, box, culling, record |
 //!
 //! ## Precision
 //! WGSL has `f32` only; the core propagates in `f64`. The integer code ([`RNG`]) is exact.
@@ -66,9 +66,13 @@ pub const SAMPLING: &str = include_str!("../shaders/sampling.wgsl");
 /// (= [`crate::emission::PackedLight`]), `ArpaEmitted`, `arpa_emit`, `arpa_spot_falloff`.
 pub const EMISSION: &str = include_str!("../shaders/emission.wgsl");
 
+/// `heuristics.wgsl` (needs [`FOOTPRINT`], [`KERNEL`]): `ArpaHeuristics`
+/// (= [`crate::heuristics::PackedHeuristics`]), `ArpaStored`, `arpa_store`.
+pub const HEURISTICS: &str = include_str!("../shaders/heuristics.wgsl");
+
 /// Every file as `(file name, source)`, in an order in which concatenation satisfies each
 /// file's dependencies.
-pub const ALL: [(&str, &str); 8] = [
+pub const ALL: [(&str, &str); 9] = [
     ("rng.wgsl", RNG),
     ("kernel.wgsl", KERNEL),
     ("footprint.wgsl", FOOTPRINT),
@@ -77,6 +81,7 @@ pub const ALL: [(&str, &str); 8] = [
     ("frame.wgsl", FRAME),
     ("sampling.wgsl", SAMPLING),
     ("emission.wgsl", EMISSION),
+    ("heuristics.wgsl", HEURISTICS),
 ];
 
 /// The files each file needs before it (by name), for renderers that include a subset.
@@ -84,6 +89,7 @@ pub fn dependencies(file: &str) -> &'static [&'static str] {
     match file {
         "footprint.wgsl" => &["kernel.wgsl"],
         "emission.wgsl" => &["rng.wgsl", "differential.wgsl", "frame.wgsl", "sampling.wgsl"],
+        "heuristics.wgsl" => &["kernel.wgsl", "footprint.wgsl"],
         _ => &[],
     }
 }
