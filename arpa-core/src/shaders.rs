@@ -17,6 +17,7 @@
 //! | [`FRAME`] | [`crate::frame`] | orthonormal frames (Duff et al.; with a tangent hint) |
 //! | [`SAMPLING`] | [`crate::sampling`] | sphere, cone, concentric disc, cosine hemisphere, triangle, Fibonacci lattice |
 //! | [`EMISSION`] | [`crate::emission`] | `PreparedLight::emit` from a [`crate::emission::PackedLight`] (same 160-byte layout) |
+//! | [`REEMISSION`] | [`crate::reemission`] | virtual distance, `reemit`, cosine-distributed diffuse direction |
 //! | [`HEURISTICS`] | [`crate::heuristics`] | `ResolvedHeuristics::store` from a [`crate::heuristics::PackedHeuristics`]: dampening, H-max, degenerate removal, box, culling, record |
 //!
 //! ## Precision
@@ -70,9 +71,13 @@ pub const EMISSION: &str = include_str!("../shaders/emission.wgsl");
 /// (= [`crate::heuristics::PackedHeuristics`]), `ArpaStored`, `arpa_store`.
 pub const HEURISTICS: &str = include_str!("../shaders/heuristics.wgsl");
 
+/// `reemission.wgsl` (needs [`DIFFERENTIAL`], [`FRAME`], [`SAMPLING`]): `ArpaReemitted`,
+/// `arpa_virtual_distance`, `arpa_reemit`, `arpa_diffuse_direction`.
+pub const REEMISSION: &str = include_str!("../shaders/reemission.wgsl");
+
 /// Every file as `(file name, source)`, in an order in which concatenation satisfies each
 /// file's dependencies.
-pub const ALL: [(&str, &str); 9] = [
+pub const ALL: [(&str, &str); 10] = [
     ("rng.wgsl", RNG),
     ("kernel.wgsl", KERNEL),
     ("footprint.wgsl", FOOTPRINT),
@@ -82,6 +87,7 @@ pub const ALL: [(&str, &str); 9] = [
     ("sampling.wgsl", SAMPLING),
     ("emission.wgsl", EMISSION),
     ("heuristics.wgsl", HEURISTICS),
+    ("reemission.wgsl", REEMISSION),
 ];
 
 /// The files each file needs before it (by name), for renderers that include a subset.
@@ -90,6 +96,7 @@ pub fn dependencies(file: &str) -> &'static [&'static str] {
         "footprint.wgsl" => &["kernel.wgsl"],
         "emission.wgsl" => &["rng.wgsl", "differential.wgsl", "frame.wgsl", "sampling.wgsl"],
         "heuristics.wgsl" => &["kernel.wgsl", "footprint.wgsl"],
+        "reemission.wgsl" => &["differential.wgsl", "frame.wgsl", "sampling.wgsl"],
         _ => &[],
     }
 }
