@@ -9,11 +9,15 @@
 //!   queries are missing;
 //! * [`harness`]: a compute harness that runs WGSL functions (the core's WGSL twin,
 //!   [`arpa_core::shaders`]) over input buffers and reads the results back, used by the
-//!   tests that compare the twin with the Rust core.
+//!   tests that compare the twin with the Rust core;
+//! * [`gather`]: the gather stage on ray queries (footprint boxes in AABB acceleration
+//!   structures, one per map; point queries; the twin's exact test and kernel), checked
+//!   against the core's brute-force gather.
 //!
 //! The `Tracer` (scene upload, photon pass, footprint AS, gather) is not implemented yet.
 
 pub mod device;
+pub mod gather;
 pub mod harness;
 
 pub use device::{AdapterChoice, DeviceError, GpuContext};

@@ -8,9 +8,9 @@
 //! Directions within 1e-5 of the xy-plane are skipped: Duff's frame (the core's and the
 //! twin's) branches on the sign of z there, and rounding picks the branch.
 
-mod common;
+
 use arpa_core::reemission::{diffuse_direction, reemit};
-use common::*;
+use crate::common::*;
 use glam::{DVec2, DVec3};
 use proptest::prelude::*;
 

@@ -15,10 +15,10 @@
 //!   `4 ε |row| |q − x_p|`; containment exactly outside that margin; irradiance within
 //!   `1e-6` of the density plus the kernel's slope times that margin.
 
-mod common;
+
 use arpa_core::footprint::{Footprint, FootprintError, PackedFootprint, PhotonMap};
 use arpa_core::kernel::Kernel;
-use common::*;
+use crate::common::*;
 use glam::{DVec3, Vec3};
 use proptest::prelude::*;
 

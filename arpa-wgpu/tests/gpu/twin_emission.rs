@@ -16,11 +16,11 @@
 //! whose lattice point lies within 1e-5 of the unit square's edge are skipped (the wrap of
 //! the shifted lattice is decided by rounding there).
 
-mod common;
+
 use arpa_core::emission::{DirectionalLight, Light, PackedLight, PointLight, QuadLight, SpotFalloff, SpotLight, TriangleLight, EmissionParams};
 use arpa_core::rng::{Rng, StreamDomain};
 use arpa_core::sampling::fibonacci_lattice;
-use common::*;
+use crate::common::*;
 use glam::{DVec2, DVec3};
 use proptest::prelude::*;
 

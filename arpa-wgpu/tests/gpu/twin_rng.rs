@@ -2,9 +2,9 @@
 //! `rng::tests`, computed by an independent transcription of pcg4d) and random streams,
 //! bit for bit.
 
-mod common;
+
 use arpa_core::rng::{Rng, StreamDomain, pcg4d};
-use common::*;
+use crate::common::*;
 use proptest::prelude::*;
 
 /// pcg4d known answers pinned in arpa-core (`KAT_PCG4D_ZERO`, `KAT_PCG4D_1234`).

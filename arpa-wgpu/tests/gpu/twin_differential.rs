@@ -14,9 +14,9 @@
 //!   (`cos_t = −√k`). Compared where `|D·N| ≥ 1e-3` and, for refraction, `|k| ≥ 1e-2`;
 //!   labels (success, total internal reflection) must agree wherever `|k| ≥ 1e-4`.
 
-mod common;
+
 use arpa_core::differential::{DifferentialError, NormalDifferential, RayDifferential, RefractionEvent};
-use common::*;
+use crate::common::*;
 use glam::DVec3;
 use proptest::prelude::*;
 

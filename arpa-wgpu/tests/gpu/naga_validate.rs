@@ -54,6 +54,15 @@ fn a_file_without_its_dependencies_is_rejected() {
 }
 
 #[test]
+fn gather_kernel_validates() {
+    let src = format!("enable wgpu_ray_query;\n{}\n{}\n{}", shaders::KERNEL, shaders::FOOTPRINT, arpa_wgpu::gather::GATHER_WGSL);
+    let module = naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| panic!("gather.wgsl: {}", e.emit_to_string(&src)));
+    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::RAY_QUERY)
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("gather.wgsl: {}", e.emit_to_string(&src)));
+}
+
+#[test]
 fn a_broken_file_is_rejected() {
     // The check itself can fail: a type error in the twin is caught.
     let broken = shaders::RADIUS.replace("let i = max(iteration, 1u);", "let i = max(iteration, 1.0);");

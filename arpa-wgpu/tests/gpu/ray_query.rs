@@ -5,9 +5,9 @@
 //! instance data, and the exact set of boxes that contain a query point (the gather's
 //! point query: a ray of negligible length started at the point).
 
-mod common;
+
 use arpa_wgpu::GpuContext;
-use common::*;
+use crate::common::*;
 use wgpu::util::DeviceExt;
 
 /// The test scene: a unit quad at z = 0 (two triangles) lifted to z = 0.5 by its

@@ -8,9 +8,9 @@
 //! with a 40-digit evaluation to 2.5e-7). Tolerance: `2e-6 + 4 ε₆₄ lgamma(i + 1)` relative,
 //! at most 4.2e-5. The recurrence: 1e-6.
 
-mod common;
+
 use arpa_core::radius::{MIN_RADIUS, RadiusSchedule};
-use common::*;
+use crate::common::*;
 use proptest::prelude::*;
 
 const BODY: &str = "

@@ -12,14 +12,14 @@
 //! 1e-5; the box within 2e-5 of the core's extent, and it contains the twin's own elliptic
 //! slab (rounded outwards).
 
-mod common;
+
 use arpa_core::aabb::Aabb;
 use arpa_core::footprint::{Footprint, PackedFootprint, PhotonMap};
 use arpa_core::heuristics::{
     BoundingBoxCulling, CullMetric, DampenReference, Dampening, DegenerateRemoval, HMax, HMaxMode, HeuristicContext, Heuristics, LengthSpec,
     PackedHeuristics, Rejection, StoreRejection,
 };
-use common::*;
+use crate::common::*;
 use glam::DVec3;
 use proptest::prelude::*;
 
