@@ -226,9 +226,9 @@ mod tests {
     #[test]
     fn errors_name_the_adapter() {
         let old = cand("Mesa llvmpipe 22.3", DeviceType::Cpu, false);
-        let e = choose(&[old.clone()], &AdapterChoice::Auto).unwrap_err().to_string();
+        let e = choose(std::slice::from_ref(&old), &AdapterChoice::Auto).unwrap_err().to_string();
         assert!(e.contains("Mesa llvmpipe 22.3") && e.contains("ray queries"), "{e}");
-        let e = choose(&[old.clone()], &AdapterChoice::NameContains("llvm".into())).unwrap_err().to_string();
+        let e = choose(std::slice::from_ref(&old), &AdapterChoice::NameContains("llvm".into())).unwrap_err().to_string();
         assert!(e.contains("Mesa llvmpipe 22.3"), "{e}");
         let e = choose(&[old.clone(), cand("GPU", DeviceType::DiscreteGpu, false)], &AdapterChoice::Auto).unwrap_err().to_string();
         assert!(e.contains("Mesa llvmpipe 22.3") && e.contains("\"GPU\""), "{e}");

@@ -42,7 +42,7 @@ fn scene(seed: u32, n: usize) -> (Vec<PackedFootprint>, Vec<arpa_core::aabb::Aab
             du: DVec3::new(a.cos(), a.sin(), 0.0) * la,
             dv: DVec3::new(b.cos(), b.sin(), 0.0) * lb,
             flux: DVec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) * 1e-3,
-            map: if rng.next_u32() % 3 == 0 { PhotonMap::Caustic } else { PhotonMap::Global },
+            map: if rng.next_u32().is_multiple_of(3) { PhotonMap::Caustic } else { PhotonMap::Global },
         };
         let radius = 0.05;
         if let Ok(p) = fp.pack(radius) {
@@ -60,7 +60,7 @@ fn queries(seed: u32, n: usize) -> Vec<QueryPoint> {
             let k = (rng.next_u32() % 2) as usize;
             let (z, normal) = plane(k);
             // A quarter of the queries look at the planes' back sides.
-            let back = rng.next_u32() % 4 == 0;
+            let back = rng.next_u32().is_multiple_of(4);
             let p = DVec3::new(1.2 * (rng.next_f64() - 0.5), 1.2 * (rng.next_f64() - 0.5), z);
             QueryPoint { position: p.as_vec3(), normal: (if back { -normal } else { normal }).as_vec3() }
         })

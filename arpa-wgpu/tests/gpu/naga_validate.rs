@@ -14,7 +14,7 @@ fn validate(label: &str, source: &str) {
         panic!("{label}: naga validation error:\n{}", e.emit_to_string_with_path(source, label));
     }
     // Nothing may be silently dropped: every file defines functions.
-    assert!(module.functions.len() > 0, "{label}: no functions");
+    assert!(!module.functions.is_empty(), "{label}: no functions");
 }
 
 #[test]

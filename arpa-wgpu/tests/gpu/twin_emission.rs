@@ -138,7 +138,7 @@ proptest! {
         let (mut compared, mut worst_dir) = (0, 0.0f64);
         for ((c, prepared), g) in kept.iter().zip(&out) {
             let u = fibonacci_lattice(c.index, c.params.photon_count, c.params.lattice_shift);
-            if [u.x, u.y].iter().any(|&x| x < 1e-5 || x > 1.0 - 1e-5) {
+            if [u.x, u.y].iter().any(|&x| !(1e-5..=1.0 - 1e-5).contains(&x)) {
                 continue;
             }
             let mut rng = Rng::new(c.stream.0, c.stream.1, c.index, StreamDomain::Photon);

@@ -22,6 +22,7 @@ use arpa_core::heuristics::{
 use crate::common::*;
 use glam::DVec3;
 use proptest::prelude::*;
+use std::f64::consts::{PI, TAU};
 
 const EPS: f64 = f32::EPSILON as f64;
 
@@ -68,7 +69,7 @@ fn heuristics() -> impl Strategy<Value = Heuristics> {
 }
 
 prop_compose! {
-    fn case()(c in (0.0..3.14f64, 0.0..6.28f64, -3.0f64..3.0), n in (0.0..3.14f64, 0.0..6.28f64), alpha in 0.0..6.28f64,
+    fn case()(c in (0.0..PI, 0.0..TAU, -3.0f64..3.0), n in (0.0..PI, 0.0..TAU), alpha in 0.0..TAU,
               sin_exp in -3.0f64..0.0, lu in -4.0f64..2.0, lv_rel in -2.0f64..1.0, flux in prop::array::uniform3(0.01f64..10.0),
               map in 0u32..2, heuristics in heuristics(), scene_exp in (-1.0f64..1.5, -1.0f64..1.5, -1.0f64..1.5), r_exp in -4.0f64..-1.0) -> Case {
         let normal = r32(unit(n.0, n.1));
@@ -119,10 +120,10 @@ fn near_threshold(c: &Case) -> bool {
     let fp = c.heuristics.clamp_h_max(c.heuristics.dampen(c.fp, &ctx), &ctx);
     let near = |x: f64, t: f64| x.is_finite() && t.is_finite() && t != 0.0 && (x / t - 1.0).abs() < 1e-3;
     let (major, _) = fp.major_minor();
-    if let Some(d) = c.heuristics.degenerate {
-        if near(fp.parallelogram_area(), d.fraction * major * major) {
-            return true;
-        }
+    if let Some(d) = c.heuristics.degenerate
+        && near(fp.parallelogram_area(), d.fraction * major * major)
+    {
+        return true;
     }
     if let Some(cull) = c.heuristics.culling {
         let b = fp.aabb(c.radius);
