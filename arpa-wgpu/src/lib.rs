@@ -10,6 +10,8 @@
 //! * [`harness`]: a compute harness that runs WGSL functions (the core's WGSL twin,
 //!   [`arpa_core::shaders`]) over input buffers and reads the results back, used by the
 //!   tests that compare the twin with the Rust core;
+//! * [`scene`]: scene upload (a triangle BLAS per mesh, one TLAS) and closest-hit ray
+//!   casting on ray queries, checked against the core's brute-force caster;
 //! * [`gather`]: the gather stage on ray queries (footprint boxes in AABB acceleration
 //!   structures, one per map; point queries; the twin's exact test and kernel), checked
 //!   against the core's brute-force gather.
@@ -19,6 +21,7 @@
 pub mod device;
 pub mod gather;
 pub mod harness;
+pub mod scene;
 
 pub use device::{AdapterChoice, DeviceError, GpuContext};
 pub use harness::{HarnessError, run_kernel};

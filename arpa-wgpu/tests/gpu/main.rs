@@ -6,6 +6,7 @@ mod common;
 
 mod gather;
 mod naga_validate;
+mod ray_cast;
 mod ray_query;
 mod twin_differential;
 mod twin_emission;

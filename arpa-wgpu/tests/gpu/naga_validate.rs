@@ -63,6 +63,15 @@ fn gather_kernel_validates() {
 }
 
 #[test]
+fn ray_cast_kernel_validates() {
+    let src = format!("enable wgpu_ray_query;\n{}", arpa_wgpu::scene::RAY_CAST_WGSL);
+    let module = naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| panic!("ray_cast.wgsl: {}", e.emit_to_string(&src)));
+    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::RAY_QUERY)
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("ray_cast.wgsl: {}", e.emit_to_string(&src)));
+}
+
+#[test]
 fn a_broken_file_is_rejected() {
     // The check itself can fail: a type error in the twin is caught.
     let broken = shaders::RADIUS.replace("let i = max(iteration, 1u);", "let i = max(iteration, 1.0);");
