@@ -12,6 +12,8 @@
 //!   tests that compare the twin with the Rust core;
 //! * [`scene`]: scene upload (a triangle BLAS per mesh, one TLAS) and closest-hit ray
 //!   casting on ray queries, checked against the core's brute-force caster;
+//! * [`store`]: footprint store, acceleration-structure build and gather in one device
+//!   submission (deterministic slots, inactive boxes for rejected footprints);
 //! * [`gather`]: the gather stage on ray queries (footprint boxes in AABB acceleration
 //!   structures, one per map; point queries; the twin's exact test and kernel), checked
 //!   against the core's brute-force gather.
@@ -22,6 +24,7 @@ pub mod device;
 pub mod gather;
 pub mod harness;
 pub mod scene;
+pub mod store;
 
 pub use device::{AdapterChoice, DeviceError, GpuContext};
 pub use harness::{HarnessError, run_kernel};

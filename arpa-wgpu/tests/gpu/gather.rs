@@ -53,7 +53,7 @@ fn scene(seed: u32, n: usize) -> (Vec<PackedFootprint>, Vec<arpa_core::aabb::Aab
     (fps, boxes)
 }
 
-fn queries(seed: u32, n: usize) -> Vec<QueryPoint> {
+pub(crate) fn queries(seed: u32, n: usize) -> Vec<QueryPoint> {
     let mut rng = Rng::new(seed, 1, 0, StreamDomain::User);
     (0..n)
         .map(|_| {
@@ -67,7 +67,7 @@ fn queries(seed: u32, n: usize) -> Vec<QueryPoint> {
         .collect()
 }
 
-fn check(fps: &[PackedFootprint], qs: &[QueryPoint], got: &[arpa_wgpu::gather::GatherResult], kernel: Kernel) -> Result<(usize, usize), TestCaseError> {
+pub(crate) fn check(fps: &[PackedFootprint], qs: &[QueryPoint], got: &[arpa_wgpu::gather::GatherResult], kernel: Kernel) -> Result<(usize, usize), TestCaseError> {
     let (mut contributions, mut lit) = (0usize, 0usize);
     for (q, g) in qs.iter().zip(got) {
         let mut est = IrradianceEstimate::default();

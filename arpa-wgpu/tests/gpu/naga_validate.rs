@@ -72,6 +72,12 @@ fn ray_cast_kernel_validates() {
 }
 
 #[test]
+fn store_kernel_validates() {
+    let src = format!("{}\n{}\n{}\n{}", shaders::KERNEL, shaders::FOOTPRINT, shaders::HEURISTICS, arpa_wgpu::store::STORE_WGSL);
+    validate("store.wgsl", &src);
+}
+
+#[test]
 fn a_broken_file_is_rejected() {
     // The check itself can fail: a type error in the twin is caught.
     let broken = shaders::RADIUS.replace("let i = max(iteration, 1u);", "let i = max(iteration, 1.0);");
