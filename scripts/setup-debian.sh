@@ -6,3 +6,5 @@ cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
 # Embree 4 (arpa-cpu), with libclang for embree4-sys's bindgen.
 bash scripts/install-embree4.sh
+# Lavapipe with ray queries (Mesa >= 25 from bookworm-backports) and the Vulkan loader (arpa-wgpu).
+bash scripts/install-lavapipe.sh

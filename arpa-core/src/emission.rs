@@ -461,3 +461,106 @@ pub enum EmissionError {
     #[error(transparent)]
     Differential(#[from] DifferentialError),
 }
+
+/// The 160-byte `f32` record of a [`PreparedLight`] for GPU storage buffers: the WGSL
+/// twin's `ArpaLight` (`arpa-core/shaders/emission.wgsl`, [`crate::shaders::EMISSION`]),
+/// whose `arpa_emit` emits photon `index` from it as [`PreparedLight::emit`] does. Built by
+/// [`PreparedLight::pack`]; positions in metres, angles in radians, flux in W per photon.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct PackedLight {
+    /// 0 point, 1 spot, 2 directional, 3 triangle, 4 quad.
+    pub kind: u32,
+    /// Spot falloff: 0 linear in angle, 1 smoothstep.
+    pub falloff: u32,
+    /// Photons this iteration, `N`.
+    pub photon_count: u32,
+    /// Padding (0).
+    pub pad0: u32,
+    /// Point/spot position, triangle vertex 0 or quad origin (m).
+    pub p0: [f32; 3],
+    /// Scene bounding-sphere radius (m).
+    pub scene_radius: f32,
+    /// Triangle vertex 1 or quad `edge_u` (m).
+    pub p1: [f32; 3],
+    /// Spot cut-off half-angle (rad).
+    pub cutoff: f32,
+    /// Triangle vertex 2 or quad `edge_v` (m).
+    pub p2: [f32; 3],
+    /// Spot full-intensity half-angle (rad).
+    pub beam_width: f32,
+    /// Light frame tangent `t` (spot axis frame, directional beam frame, emitter plane).
+    pub frame_t: [f32; 3],
+    /// `ℓ_x` (m).
+    pub len_positional: f32,
+    /// Light frame bitangent `b`.
+    pub frame_b: [f32; 3],
+    /// `ℓ_ω` (rad).
+    pub len_directional: f32,
+    /// Light frame axis `n`.
+    pub frame_n: [f32; 3],
+    /// Directional length at diffuse re-emission (rad).
+    pub len_reemission: f32,
+    /// Flux per photon before the spot falloff (W, RGB).
+    pub flux: [f32; 3],
+    /// `1 − cos(cutoff) = 2 sin²(cutoff/2)` (computed in f64; f32 cannot form it for narrow cones).
+    pub one_minus_cos_cutoff: f32,
+    /// Scene bounding-sphere centre (m).
+    pub scene_centre: [f32; 3],
+    /// Padding (0).
+    pub pad1: f32,
+    /// Cranley–Patterson shift of the Fibonacci lattice this iteration.
+    pub lattice_shift: [f32; 2],
+    /// Padding (0).
+    pub pad2: [f32; 2],
+}
+
+// The WGSL struct `ArpaLight` has exactly this size (eight vec3 + scalar groups, a header
+// and the lattice shift).
+const _: () = assert!(core::mem::size_of::<PackedLight>() == 160);
+
+impl PreparedLight {
+    /// The GPU record of this light (see [`PackedLight`]); every value rounded once to `f32`.
+    pub fn pack(&self) -> PackedLight {
+        let f = |v: DVec3| v.as_vec3().to_array();
+        let zero = [0.0f32; 3];
+        let (kind, p0, p1, p2, cutoff, beam_width, falloff) = match &self.light {
+            Light::Point(l) => (0, f(l.position), zero, zero, 0.0, 0.0, 0),
+            Light::Spot(l) => {
+                let falloff = match l.falloff {
+                    SpotFalloff::LinearAngle => 0,
+                    SpotFalloff::SmoothstepAngle => 1,
+                };
+                (1, f(l.position), zero, zero, l.cutoff as f32, l.beam_width as f32, falloff)
+            }
+            Light::Directional(_) => (2, zero, zero, zero, 0.0, 0.0, 0),
+            Light::Triangle(l) => (3, f(l.p[0]), f(l.p[1]), f(l.p[2]), 0.0, 0.0, 0),
+            Light::Quad(l) => (4, f(l.origin), f(l.edge_u), f(l.edge_v), 0.0, 0.0, 0),
+        };
+        let one_minus_cos_cutoff = if let Light::Spot(l) = &self.light { cone_solid_angle_from_angle(l.cutoff) / TAU } else { 2.0 };
+        PackedLight {
+            kind,
+            falloff,
+            photon_count: self.params.photon_count,
+            pad0: 0,
+            p0,
+            scene_radius: self.params.scene_sphere.1 as f32,
+            p1,
+            cutoff,
+            p2,
+            beam_width,
+            frame_t: f(self.frame.t),
+            len_positional: self.lengths.positional as f32,
+            frame_b: f(self.frame.b),
+            len_directional: self.lengths.directional as f32,
+            frame_n: f(self.frame.n),
+            len_reemission: self.lengths.reemission as f32,
+            flux: f(self.flux),
+            one_minus_cos_cutoff: one_minus_cos_cutoff as f32,
+            scene_centre: f(self.params.scene_sphere.0),
+            pad1: 0.0,
+            lattice_shift: self.params.lattice_shift.as_vec2().to_array(),
+            pad2: [0.0; 2],
+        }
+    }
+}

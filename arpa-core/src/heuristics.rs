@@ -493,6 +493,74 @@ impl ResolvedHeuristics {
     }
 }
 
+/// The 48-byte GPU record of a [`ResolvedHeuristics`]: the WGSL twin's `ArpaHeuristics`
+/// (`arpa-core/shaders/heuristics.wgsl`, [`crate::shaders::HEURISTICS`]), whose
+/// `arpa_store` makes the decisions of [`ResolvedHeuristics::store`] in `f32`. Lengths in
+/// metres (the surface-area threshold in m²).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct PackedHeuristics {
+    /// Bit 0 dampening, bit 1 H-max, bit 2 degenerate removal, bit 3 culling (set = on).
+    pub enabled: u32,
+    /// Dampening reference: 0 absolute (`dampen_reference`), 1 progressive diameter `2 r_i`.
+    pub dampen_reference_kind: u32,
+    /// H-max mode: 0 each differential, 1 preserve aspect.
+    pub h_max_mode: u32,
+    /// Culling metric: 0 largest extent, 1 diagonal, 2 surface area.
+    pub cull_metric: u32,
+    /// Dampening exponent `γ`.
+    pub dampen_exponent: f32,
+    /// Absolute dampening reference length (m), when `dampen_reference_kind` is 0.
+    pub dampen_reference: f32,
+    /// `h_max` (m).
+    pub h_max: f32,
+    /// Degenerate-removal fraction `f`.
+    pub degenerate_fraction: f32,
+    /// Culling threshold: fraction times the scene box's metric (m, or m² for surface area).
+    pub cull_threshold: f32,
+    /// Padding (0).
+    pub pad: [f32; 3],
+}
+
+impl ResolvedHeuristics {
+    /// The GPU record (see [`PackedHeuristics`]); values rounded once to `f32`.
+    pub fn pack(&self) -> PackedHeuristics {
+        let mut p = PackedHeuristics::default();
+        if let Some(d) = self.dampening {
+            p.enabled |= 1;
+            p.dampen_exponent = d.exponent as f32;
+            match d.reference {
+                DampenReference::Absolute(l) => p.dampen_reference = l as f32,
+                DampenReference::ProgressiveDiameter => p.dampen_reference_kind = 1,
+            }
+        }
+        if let Some((h, mode)) = self.h_max {
+            p.enabled |= 2;
+            p.h_max = h as f32;
+            p.h_max_mode = match mode {
+                HMaxMode::EachDifferential => 0,
+                HMaxMode::PreserveAspect => 1,
+            };
+        }
+        if let Some(f) = self.degenerate {
+            p.enabled |= 4;
+            p.degenerate_fraction = f as f32;
+        }
+        if let Some((metric, threshold)) = self.cull {
+            p.enabled |= 8;
+            p.cull_metric = match metric {
+                CullMetric::LargestExtent => 0,
+                CullMetric::Diagonal => 1,
+                CullMetric::SurfaceArea => 2,
+            };
+            p.cull_threshold = threshold as f32;
+        }
+        p
+    }
+}
+
+const _: () = assert!(core::mem::size_of::<PackedHeuristics>() == 48);
+
 #[cfg(test)]
 mod tests {
     use super::*;

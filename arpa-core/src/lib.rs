@@ -22,6 +22,9 @@
 //! per-photon and per-pixel paths every backend must reproduce ([`photon_path`],
 //! [`camera_path`], over a [`ray_cast::RayCaster`]).
 //!
+//! [`shaders`] holds the WGSL twin of the per-photon maths (rng, kernel, footprint,
+//! radius, differentials) as source strings for GPU backends.
+//!
 //! ## Conventions
 //! * World space is right-handed, units are *scene units* (the scene's length unit, called
 //!   metres in doc comments for brevity). Directions are unit vectors.
@@ -75,6 +78,7 @@ pub mod sampling;
 #[cfg(feature = "alloc")]
 pub mod scene;
 pub mod shading_normal;
+pub mod shaders;
 #[cfg(feature = "alloc")]
 pub mod shapes;
 pub mod store;

@@ -1,0 +1,134 @@
+// WGSL twin of arpa_core::emission's per-photon step (PreparedLight::emit): photon `index`
+// of a light prepared on the host (arpa_core::emission::PackedLight, same 160-byte layout)
+// with its ray differential, flux and re-emission length. Needs rng.wgsl, frame.wgsl,
+// sampling.wgsl and differential.wgsl.
+//
+// Precision: f32 throughout (positions to a few eps32 of their magnitude, directions and
+// differentials to a few eps32 relative); the spot falloff angle is taken as
+// atan2(sin, cos) of the sampled direction, which keeps narrow cones accurate. The random
+// 2-D draws are the core's truncated to 24 bits (rng.wgsl).
+
+// Light kinds (PackedLight::kind).
+const ARPA_LIGHT_POINT: u32 = 0u;
+const ARPA_LIGHT_SPOT: u32 = 1u;
+const ARPA_LIGHT_DIRECTIONAL: u32 = 2u;
+const ARPA_LIGHT_TRIANGLE: u32 = 3u;
+const ARPA_LIGHT_QUAD: u32 = 4u;
+// Spot falloff curves (PackedLight::falloff).
+const ARPA_FALLOFF_LINEAR: u32 = 0u;
+const ARPA_FALLOFF_SMOOTHSTEP: u32 = 1u;
+
+// A light prepared for one iteration (arpa_core::emission::PackedLight).
+struct ArpaLight {
+    kind: u32,
+    falloff: u32,
+    photon_count: u32,         // N photons this iteration
+    pad0: u32,
+    p0: vec3<f32>,             // point/spot position, triangle p0, quad origin (m)
+    scene_radius: f32,         // bounding-sphere radius (m)
+    p1: vec3<f32>,             // triangle p1, quad edge_u (m)
+    cutoff: f32,               // spot cut-off half-angle (rad)
+    p2: vec3<f32>,             // triangle p2, quad edge_v (m)
+    beam_width: f32,           // spot full-intensity half-angle (rad)
+    frame_t: vec3<f32>,        // light frame (spot axis / beam / emitter plane)
+    len_positional: f32,       // l_x (m)
+    frame_b: vec3<f32>,
+    len_directional: f32,      // l_omega (rad)
+    frame_n: vec3<f32>,
+    len_reemission: f32,       // directional length at diffuse re-emission (rad)
+    flux: vec3<f32>,           // flux per photon (W, RGB)
+    one_minus_cos_cutoff: f32, // 1 - cos(cutoff), from f64 on the host
+    scene_centre: vec3<f32>,   // bounding-sphere centre (m)
+    pad1: f32,
+    lattice_shift: vec2<f32>,  // Cranley-Patterson shift of this iteration
+    pad2: vec2<f32>,
+}
+
+// One emitted photon; `ray` and the rest are meaningful only when status == ARPA_DIFF_OK.
+struct ArpaEmitted {
+    ray: ArpaRayDiff,
+    flux: vec3<f32>,              // W, RGB
+    reemission_length: f32,       // rad
+    surface_normal: vec3<f32>,    // area lights: unit normal of the emitting side
+    has_surface_normal: u32,      // 1 for area lights, 0 for delta lights
+    status: u32,                  // ARPA_DIFF_* of the initial differential
+}
+
+// Spot falloff f(theta) in [0, 1] at angle theta (rad) from the axis (SpotLight::falloff_at).
+fn arpa_spot_falloff(light: ArpaLight, theta: f32) -> f32 {
+    if theta <= light.beam_width {
+        return 1.0;
+    }
+    if theta >= light.cutoff {
+        return 0.0;
+    }
+    let x = (light.cutoff - theta) / (light.cutoff - light.beam_width);
+    if light.falloff == ARPA_FALLOFF_SMOOTHSTEP {
+        return x * x * (3.0 - 2.0 * x);
+    }
+    return x;
+}
+
+// RayDifferential::new: normalises d; InvalidDirection for a zero or non-finite d.
+fn arpa_ray_new(p: vec3<f32>, d: vec3<f32>, dp_du: vec3<f32>, dp_dv: vec3<f32>, dd_du: vec3<f32>, dd_dv: vec3<f32>) -> ArpaDiffResult {
+    let dn = arpa_diff_normalize_or(d, vec3<f32>(0.0));
+    let r = ArpaRayDiff(p, dn, dp_du, dp_dv, dd_du, dd_dv);
+    if all(dn == vec3<f32>(0.0)) {
+        return ArpaDiffResult(r, ARPA_DIFF_INVALID_DIRECTION, 0u);
+    }
+    return arpa_diff_checked(r, 0u);
+}
+
+// Photon `index` of `light` (PreparedLight::emit). Area lights draw their direction from
+// `rng` (one 2-D draw); the primary sample comes from the shifted Fibonacci lattice.
+fn arpa_emit(light: ArpaLight, index: u32, rng: ptr<function, ArpaRng>) -> ArpaEmitted {
+    var out: ArpaEmitted;
+    out.flux = light.flux;
+    out.reemission_length = light.len_reemission;
+    out.has_surface_normal = 0u;
+    out.surface_normal = vec3<f32>(0.0);
+    let u = arpa_fibonacci_lattice(index, light.photon_count, light.lattice_shift);
+    let w = light.len_directional;
+    let x = light.len_positional;
+    let zero = vec3<f32>(0.0);
+    var res: ArpaDiffResult;
+    switch light.kind {
+        case 0u: { // point
+            let d = arpa_uniform_sphere(u);
+            let f = arpa_frame_from_normal(d);
+            res = arpa_ray_new(light.p0, d, zero, zero, f.t * w, f.b * w);
+        }
+        case 1u: { // spot
+            let local = arpa_uniform_cone(u, light.one_minus_cos_cutoff);
+            let lf = ArpaFrame(light.frame_t, light.frame_b, light.frame_n);
+            let d = arpa_frame_to_world(lf, local);
+            let theta = atan2(length(local.xy), local.z);
+            let f = arpa_frame_from_normal(d);
+            res = arpa_ray_new(light.p0, d, zero, zero, f.t * w, f.b * w);
+            out.flux = light.flux * arpa_spot_falloff(light, theta);
+        }
+        case 2u: { // directional
+            let disc = arpa_uniform_disc(u) * light.scene_radius;
+            let origin = light.scene_centre - light.frame_n * light.scene_radius + light.frame_t * disc.x + light.frame_b * disc.y;
+            res = arpa_ray_new(origin, light.frame_n, light.frame_t * x, light.frame_b * x, zero, zero);
+        }
+        default: { // triangle, quad
+            var p: vec3<f32>;
+            if light.kind == ARPA_LIGHT_TRIANGLE {
+                let b = arpa_uniform_triangle(u);
+                p = light.p0 * b.x + light.p1 * b.y + light.p2 * b.z;
+            } else {
+                p = light.p0 + light.p1 * u.x + light.p2 * u.y;
+            }
+            let lf = ArpaFrame(light.frame_t, light.frame_b, light.frame_n);
+            let d = arpa_frame_normalize_or(arpa_frame_to_world(lf, arpa_cosine_hemisphere(arpa_rng_next_2d(rng))), light.frame_n);
+            let df = arpa_frame_from_normal_and_hint(d, light.frame_t);
+            res = arpa_ray_new(p, d, light.frame_t * x, light.frame_b * x, df.t * w, df.b * w);
+            out.surface_normal = light.frame_n;
+            out.has_surface_normal = 1u;
+        }
+    }
+    out.ray = res.ray;
+    out.status = res.status;
+    return out;
+}

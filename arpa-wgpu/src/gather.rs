@@ -1,0 +1,220 @@
+//! The gather stage on ray queries: footprint boxes in an AABB acceleration structure (one
+//! bottom-level structure per photon map, told apart by instance masks), a point query per
+//! query point, the exact filter-space test and kernel of the core's WGSL twin
+//! (`arpa_footprint_irradiance`), irradiance summed per map.
+//!
+//! This is the building block the `Tracer`'s gather will run on device-resident buffers;
+//! here it takes host slices so that it can be checked against the core's brute-force
+//! gather ([`arpa_core::estimate::IrradianceEstimate`]).
+
+use crate::device::GpuContext;
+use crate::harness::HarnessError;
+use arpa_core::aabb::Aabb;
+use arpa_core::estimate::QueryPoint;
+use arpa_core::footprint::PackedFootprint;
+use arpa_core::kernel::Kernel;
+use wgpu::util::DeviceExt;
+
+/// WGSL of the gather kernel (entry point `gather`); concatenated after
+/// `enable wgpu_ray_query;` and the twin's `kernel.wgsl` and `footprint.wgsl`.
+pub const GATHER_WGSL: &str = include_str!("shaders/gather.wgsl");
+
+/// Irradiance gathered at one query point (W/m², RGB, summed in `f32` on the device).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GatherResult {
+    /// Caustic-map irradiance.
+    pub caustic: [f32; 3],
+    /// Caustic footprints that contributed.
+    pub caustic_count: u32,
+    /// Global-map irradiance.
+    pub global: [f32; 3],
+    /// Global footprints that contributed.
+    pub global_count: u32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+struct GpuQuery {
+    position: [f32; 3],
+    kernel: u32,
+    normal: [f32; 3],
+    pad: u32,
+}
+
+fn kernel_id(k: Kernel) -> u32 {
+    match k {
+        Kernel::Constant => 0,
+        Kernel::Epanechnikov => 1,
+        Kernel::Silverman => 2,
+    }
+}
+
+/// `f32` box containing the `f64` box `b` (each bound rounded outwards), as WGSL/Vulkan's
+/// `AABB` record: min xyz, max xyz.
+pub fn aabb_f32(b: &Aabb) -> [f32; 6] {
+    let down = |x: f64| {
+        let y = x as f32;
+        if (y as f64) > x { y.next_down() } else { y }
+    };
+    let up = |x: f64| {
+        let y = x as f32;
+        if (y as f64) < x { y.next_up() } else { y }
+    };
+    [down(b.min.x), down(b.min.y), down(b.min.z), up(b.max.x), up(b.max.y), up(b.max.z)]
+}
+
+/// Gathers the footprints `footprints` (with their acceleration-structure boxes `boxes`,
+/// one per footprint) at every query point with kernel `kernel`. Footprints may come in any
+/// order and either map. Errors when the device rejects the kernel or more than 2²⁴
+/// footprints are given (the instance data that indexes them has 24 bits).
+pub fn gather(
+    ctx: &GpuContext,
+    footprints: &[PackedFootprint],
+    boxes: &[Aabb],
+    queries: &[QueryPoint],
+    kernel: Kernel,
+) -> Result<Vec<GatherResult>, HarnessError> {
+    let label = "footprint gather";
+    let err = |message: String| HarnessError::Size { label: label.into(), message };
+    if footprints.len() != boxes.len() {
+        return Err(err(format!("{} footprints but {} boxes", footprints.len(), boxes.len())));
+    }
+    if footprints.len() >= 1 << 24 {
+        return Err(err(format!("{} footprints; at most 2^24 - 1", footprints.len())));
+    }
+    if queries.is_empty() {
+        return Ok(Vec::new());
+    }
+    let device = &ctx.device;
+    let groups = u32::try_from(queries.len()).unwrap_or(u32::MAX).div_ceil(64);
+    if groups > device.limits().max_compute_workgroups_per_dimension {
+        return Err(err(format!("{} queries exceed one dispatch", queries.len())));
+    }
+    // Sort by map: caustic first, then global.
+    let mut order: Vec<usize> = (0..footprints.len()).collect();
+    order.sort_by_key(|&i| footprints[i].map.min(1));
+    let sorted: Vec<PackedFootprint> = order.iter().map(|&i| footprints[i]).collect();
+    let split = sorted.iter().position(|f| f.map != 0).unwrap_or(sorted.len());
+    let ranges = [(0usize, split), (split, sorted.len())];
+
+    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let blas_desc = wgpu::CreateBlasDescriptor {
+        label: Some(label),
+        flags: wgpu::AccelerationStructureFlags::PREFER_FAST_TRACE,
+        update_mode: wgpu::AccelerationStructureUpdateMode::Build,
+    };
+    let mut blases = Vec::new();
+    for (map, &(start, end)) in ranges.iter().enumerate() {
+        if end == start {
+            continue;
+        }
+        let aabbs: Vec<[f32; 6]> = order[start..end].iter().map(|&i| aabb_f32(&boxes[i])).collect();
+        let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some(label),
+            contents: bytemuck::cast_slice(&aabbs),
+            usage: wgpu::BufferUsages::BLAS_INPUT,
+        });
+        let size = wgpu::BlasAABBGeometrySizeDescriptor {
+            primitive_count: (end - start) as u32,
+            flags: wgpu::AccelerationStructureGeometryFlags::empty(),
+        };
+        let blas = device.create_blas(&blas_desc, wgpu::BlasGeometrySizeDescriptors::AABBs { descriptors: vec![size.clone()] });
+        blases.push((map, start, blas, buffer, size));
+    }
+    let mut tlas = device.create_tlas(&wgpu::CreateTlasDescriptor {
+        label: Some(label),
+        max_instances: 2,
+        flags: wgpu::AccelerationStructureFlags::PREFER_FAST_TRACE,
+        update_mode: wgpu::AccelerationStructureUpdateMode::Build,
+    });
+    let identity = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+    for (slot, (map, start, blas, _, _)) in blases.iter().enumerate() {
+        tlas[slot] = Some(wgpu::TlasInstance::new(blas, identity, *start as u32, 1u8 << *map));
+    }
+
+    // The `enable` directive must precede every declaration.
+    let source = format!("enable wgpu_ray_query;\n{}\n{}\n{}", arpa_core::shaders::KERNEL, arpa_core::shaders::FOOTPRINT, GATHER_WGSL);
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(label), source: wgpu::ShaderSource::Wgsl(source.into()) });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(label),
+        layout: None,
+        module: &module,
+        entry_point: Some("gather"),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    // Storage bindings must not be empty.
+    let dummy = [PackedFootprint::default()];
+    let fp_words: &[PackedFootprint] = if sorted.is_empty() { &dummy } else { &sorted };
+    let fp_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: bytemuck::cast_slice(fp_words),
+        usage: wgpu::BufferUsages::STORAGE,
+    });
+    let gq: Vec<GpuQuery> = queries
+        .iter()
+        .map(|q| GpuQuery { position: q.position.to_array(), kernel: kernel_id(kernel), normal: q.normal.to_array(), pad: 0 })
+        .collect();
+    let q_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents: bytemuck::cast_slice(&gq), usage: wgpu::BufferUsages::STORAGE });
+    let out_bytes = (queries.len() * std::mem::size_of::<GatherResult>()) as u64;
+    let out_buf = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: out_bytes,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let staging = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: out_bytes,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &[
+            wgpu::BindGroupEntry { binding: 0, resource: fp_buf.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 1, resource: q_buf.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 2, resource: out_buf.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 3, resource: tlas.as_binding() },
+        ],
+    });
+    let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
+    let entries: Vec<wgpu::BlasBuildEntry> = blases
+        .iter()
+        .map(|(_, _, blas, buffer, size)| wgpu::BlasBuildEntry {
+            blas,
+            geometry: wgpu::BlasGeometries::AabbGeometries(vec![wgpu::BlasAabbGeometry {
+                size,
+                stride: wgpu::AABB_GEOMETRY_MIN_STRIDE,
+                aabb_buffer: buffer,
+                primitive_offset: 0,
+            }]),
+        })
+        .collect();
+    encoder.build_acceleration_structures(entries.iter(), [&tlas]);
+    {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(label), timestamp_writes: None });
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &bind_group, &[]);
+        pass.dispatch_workgroups(groups, 1, 1);
+    }
+    encoder.copy_buffer_to_buffer(&out_buf, 0, &staging, 0, out_bytes);
+    if let Some(e) = pollster::block_on(scope.pop()) {
+        return Err(HarnessError::Shader { label: label.into(), message: e.to_string() });
+    }
+    ctx.queue.submit([encoder.finish()]);
+    let readback = |message: String| HarnessError::Readback { label: label.into(), message };
+    let (tx, rx) = std::sync::mpsc::channel();
+    staging.map_async(wgpu::MapMode::Read, .., move |r| {
+        let _ = tx.send(r);
+    });
+    device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| readback(e.to_string()))?;
+    rx.recv().map_err(|e| readback(e.to_string()))?.map_err(|e| readback(e.to_string()))?;
+    let view = staging.get_mapped_range(..).map_err(|e| readback(e.to_string()))?;
+    let out = bytemuck::cast_slice::<u8, GatherResult>(&view).to_vec();
+    drop(view);
+    staging.unmap();
+    Ok(out)
+}

@@ -1,0 +1,137 @@
+//! A compute harness: runs a WGSL entry point over a `u32` input buffer and reads a `u32`
+//! output buffer back. Floats travel as their bit patterns (`f32::to_bits`), so nothing is
+//! rounded on the way in or out.
+//!
+//! The shader must declare
+//! ```wgsl
+//! @group(0) @binding(0) var<storage, read> input: array<u32>;
+//! @group(0) @binding(1) var<storage, read_write> output: array<u32>;
+//! ```
+//! and an entry point with `@workgroup_size(WORKGROUP_SIZE)` (see [`WORKGROUP_SIZE`]) that
+//! handles invocation `global_invocation_id.x` and returns for ids `>= items`.
+
+use crate::device::GpuContext;
+
+/// Workgroup size (x) the harness dispatches for.
+pub const WORKGROUP_SIZE: u32 = 64;
+
+/// Why a kernel could not be run.
+#[derive(Debug, thiserror::Error)]
+pub enum HarnessError {
+    /// The WGSL did not compile or the pipeline was invalid; wgpu's message names the
+    /// line and the problem.
+    #[error("WGSL kernel {label:?} rejected by wgpu: {message}")]
+    Shader {
+        /// Label of the kernel.
+        label: String,
+        /// wgpu's validation message.
+        message: String,
+    },
+    /// Too many items for one dispatch, or an empty output.
+    #[error("kernel {label:?}: {message}")]
+    Size {
+        /// Label of the kernel.
+        label: String,
+        /// What is wrong.
+        message: String,
+    },
+    /// Reading the result back failed.
+    #[error("kernel {label:?}: reading the output back failed: {message}")]
+    Readback {
+        /// Label of the kernel.
+        label: String,
+        /// What failed.
+        message: String,
+    },
+}
+
+/// Runs entry point `entry` of the WGSL module `source` for `items` invocations over
+/// `input` and returns the `output_words` words of the output buffer (zero-initialised).
+pub fn run_kernel(
+    ctx: &GpuContext,
+    label: &str,
+    source: &str,
+    entry: &str,
+    input: &[u32],
+    items: u32,
+    output_words: usize,
+) -> Result<Vec<u32>, HarnessError> {
+    use wgpu::util::DeviceExt;
+    let device = &ctx.device;
+    let size_err = |message: String| HarnessError::Size { label: label.into(), message };
+    if output_words == 0 {
+        return Err(size_err("empty output".into()));
+    }
+    let groups = items.div_ceil(WORKGROUP_SIZE);
+    if groups > device.limits().max_compute_workgroups_per_dimension {
+        return Err(size_err(format!("{items} items need {groups} workgroups, more than one dispatch allows")));
+    }
+
+    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(label),
+        layout: None,
+        module: &module,
+        entry_point: Some(entry),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    // Storage bindings must not be empty: pad the input with one word.
+    let pad = [0u32];
+    let input_words: &[u32] = if input.is_empty() { &pad } else { input };
+    let input_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("arpa-wgpu harness input"),
+        contents: bytemuck::cast_slice(input_words),
+        usage: wgpu::BufferUsages::STORAGE,
+    });
+    let out_bytes = (output_words * 4) as u64;
+    let output_buf = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("arpa-wgpu harness output"),
+        size: out_bytes,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let staging = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("arpa-wgpu harness staging"),
+        size: out_bytes,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &[
+            wgpu::BindGroupEntry { binding: 0, resource: input_buf.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 1, resource: output_buf.as_entire_binding() },
+        ],
+    });
+    let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
+    {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(label), timestamp_writes: None });
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &bind_group, &[]);
+        pass.dispatch_workgroups(groups.max(1), 1, 1);
+    }
+    encoder.copy_buffer_to_buffer(&output_buf, 0, &staging, 0, out_bytes);
+    if let Some(err) = pollster::block_on(scope.pop()) {
+        return Err(HarnessError::Shader { label: label.into(), message: err.to_string() });
+    }
+    ctx.queue.submit([encoder.finish()]);
+
+    let readback = |message: String| HarnessError::Readback { label: label.into(), message };
+    let (tx, rx) = std::sync::mpsc::channel();
+    staging.map_async(wgpu::MapMode::Read, .., move |r| {
+        let _ = tx.send(r);
+    });
+    device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| readback(e.to_string()))?;
+    rx.recv().map_err(|e| readback(e.to_string()))?.map_err(|e| readback(e.to_string()))?;
+    let view = staging.get_mapped_range(..).map_err(|e| readback(e.to_string()))?;
+    let out = bytemuck::cast_slice::<u8, u32>(&view).to_vec();
+    drop(view);
+    staging.unmap();
+    Ok(out)
+}

@@ -1,0 +1,18 @@
+//! arpa-wgpu's integration tests, in one test binary (each binary links wgpu and naga;
+//! one binary instead of ten saves most of the link time). The GPU tests run on the
+//! adapter `common::gpu` picks (lavapipe in CI) and skip loudly without one outside CI.
+
+mod common;
+
+mod gather;
+mod naga_validate;
+mod ray_cast;
+mod ray_query;
+mod store;
+mod twin_differential;
+mod twin_emission;
+mod twin_footprint;
+mod twin_heuristics;
+mod twin_radius;
+mod twin_reemission;
+mod twin_rng;
