@@ -228,9 +228,9 @@ pub fn run_suite_with(backends: &[Backend], cases: &[Case], options: &SuiteOptio
             let Some(t) = tracer.as_mut() else { continue };
             if let Some(Err(missing)) = case.needs.map(|f| f()) {
                 let v = missing_data(missing, ci_is_set());
-                if matches!(v, Verdict::Skipped { .. }) {
+                if let Verdict::Skipped { reason } = &v {
                     eprintln!(
-                        "\n*** WARNING: conformance case '{}' SKIPPED on {}: {v:?} ***\n",
+                        "\n*** WARNING: conformance case '{}' SKIPPED on {}: {reason} ***\n",
                         case.id, backend.name
                     );
                 }
