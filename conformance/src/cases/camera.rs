@@ -7,7 +7,9 @@
 //! it through the chain (its mirror image, or the entry angle through the slab) must leave
 //! the eye through the record's own pixel. At the suite's resolutions a pixel spans a few
 //! millimetres on the floor, so a misplaced reflection or a refraction with a wrong index
-//! lands pixels away. Normals and weights (`throughput · albedo/π`) are exact; the
+//! lands pixels away; over all records the traced-back rays' sub-pixel positions must
+//! average `(½, ½)` (uniform jitter, the box filter of the references). Normals and
+//! weights (`throughput · albedo/π`) are exact; the
 //! Fresnel-chosen split between reflection and refraction is checked statistically
 //! against the exact reflectance.
 
@@ -34,6 +36,35 @@ pub const NORMAL_TOL: f64 = 1e-5;
 pub const WEIGHT_TOL: f64 = 1e-5;
 /// Standard deviations allowed for the Fresnel statistics.
 pub const SIGMAS: f64 = 4.0;
+
+/// Sub-pixel positions of the traced-back rays: with the documented jittered pinhole
+/// (box filter) they are uniform over the pixel, mean `(½, ½)`, variance `1/12` per axis.
+#[derive(Default)]
+struct Jitter {
+    sum: [f64; 2],
+    n: usize,
+}
+
+impl Jitter {
+    fn add(&mut self, pin: &Pinhole, (x, y): (f64, f64), pixel: u32) {
+        self.sum[0] += x - (pixel % pin.width) as f64;
+        self.sum[1] += y - (pixel / pin.width) as f64;
+        self.n += 1;
+    }
+
+    /// `(mean x, mean y, largest |z|)` of the sub-pixel offsets against `½`.
+    fn z(&self) -> (f64, f64, f64) {
+        let n = self.n.max(1) as f64;
+        let sd = (1.0 / 12.0 / n).sqrt();
+        let (mx, my) = (self.sum[0] / n, self.sum[1] / n);
+        (mx, my, ((mx - 0.5) / sd).abs().max(((my - 0.5) / sd).abs()))
+    }
+
+    fn describe(&self) -> String {
+        let (mx, my, z) = self.z();
+        format!("mean sub-pixel position ({mx:.3}, {my:.3}) (uniform jitter: 0.5, {z:.1}σ)")
+    }
+}
 
 fn v(a: [f32; 3]) -> DVec3 {
     Vec3::from_array(a).as_dvec3()
@@ -155,6 +186,7 @@ pub fn mirror(t: &mut dyn DynTracer) -> CaseResult {
     let rho_pi = scenes::MIRROR_FLOOR_ALBEDO / PI;
     let mut counts = [0usize; 3];
     let mut worst = 0.0f64;
+    let mut jitter = Jitter::default();
     for records in collect(t, 2)? {
         for r in &records {
             let probes = pin.pixel_probes(r.pixel).map(|d| mirror_chain(pin.eye, d));
@@ -181,29 +213,30 @@ pub fn mirror(t: &mut dyn DynTracer) -> CaseResult {
                 let d = (q - pin.eye).normalize();
                 let blocked =
                     mirror_hit(pin.eye, d).is_some_and(|(tm, _)| tm < (q - pin.eye).length());
-                (!blocked).then(|| pin.film(d).map(|f| pin.outside_pixel(f, r.pixel)))
+                (!blocked).then(|| pin.film(d).map(|f| (pin.outside_pixel(f, r.pixel), f)))
             };
             let mirrored = {
                 let image = DVec3::new(2.0 * scenes::MIRROR_X - q.x, q.y, q.z);
                 let d = (image - pin.eye).normalize();
-                mirror_hit(pin.eye, d).map(|_| pin.film(d).map(|f| pin.outside_pixel(f, r.pixel)))
+                mirror_hit(pin.eye, d)
+                    .map(|_| pin.film(d).map(|f| (pin.outside_pixel(f, r.pixel), f)))
             };
             // Chains whose traced-back ray leaves the eye through this pixel (both near
             // the mirror's foot, where a point and its image nearly coincide).
-            let fits: Vec<(MirrorChain, f64)> = [
+            let fits: Vec<(MirrorChain, (f64, (f64, f64)))> = [
                 (MirrorChain::Direct, direct),
                 (MirrorChain::Mirrored, mirrored),
             ]
             .into_iter()
             .filter_map(|(c, o)| o.flatten().map(|o| (c, o)))
-            .filter(|&(_, o)| o <= PIXEL_TOL)
+            .filter(|&(_, (o, _))| o <= PIXEL_TOL)
             .collect();
             let weight_of = |c: MirrorChain| match c {
                 MirrorChain::Mirrored => scenes::MIRROR_REFLECTANCE * rho_pi,
                 _ => rho_pi,
             };
             let w = v(r.weight).x;
-            let Some(&(chain, off)) = fits
+            let Some(&(chain, (off, film))) = fits
                 .iter()
                 .find(|(c, _)| (w - weight_of(*c)).abs() <= WEIGHT_TOL * weight_of(*c))
                 .or(fits.first())
@@ -220,6 +253,7 @@ pub fn mirror(t: &mut dyn DynTracer) -> CaseResult {
                 ));
             }
             worst = worst.max(off);
+            jitter.add(&pin, film, r.pixel);
             check_floor_record(r, weight_of(chain))?;
             counts[(chain == MirrorChain::Mirrored) as usize] += 1;
         }
@@ -230,10 +264,17 @@ pub fn mirror(t: &mut dyn DynTracer) -> CaseResult {
             "query points direct/mirrored/none {counts:?}: a chain is missing"
         ));
     }
-    Ok(format!(
-        "direct/mirrored/none {}/{}/{}; worst traced-back ray {worst:.1e} px outside its pixel (tol {PIXEL_TOL})",
-        counts[0], counts[1], counts[2]
-    ))
+    let msg = format!(
+        "direct/mirrored/none {}/{}/{}; worst traced-back ray {worst:.1e} px outside its pixel (tol {PIXEL_TOL}); {}",
+        counts[0],
+        counts[1],
+        counts[2],
+        jitter.describe()
+    );
+    if jitter.z().2 > SIGMAS {
+        return Err(msg);
+    }
+    Ok(msg)
 }
 
 /// Largest number of slab crossings a chain may have in [`glass_slab`] (1 + 2 per pair of
@@ -269,6 +310,7 @@ pub fn glass_slab(t: &mut dyn DynTracer) -> CaseResult {
     let (mut valid, mut first) = (0usize, 0usize);
     let (mut e_valid, mut v_valid, mut e_first, mut v_first) = (0.0, 0.0, 0.0, 0.0);
     let mut worst = 0.0f64;
+    let mut jitter = Jitter::default();
     let mut by_k = [0usize; MAX_CROSSINGS as usize / 2 + 1];
     for records in collect(t, 6)? {
         for r in &records {
@@ -311,13 +353,12 @@ pub fn glass_slab(t: &mut dyn DynTracer) -> CaseResult {
                         1 + 2 * k,
                     );
                     let d = azimuth * th.sin() - DVec3::Y * th.cos();
-                    let off = pin
-                        .film(d)
-                        .map_or(f64::INFINITY, |fp| pin.outside_pixel(fp, r.pixel));
-                    (off, k)
+                    let film = pin.film(d);
+                    let off = film.map_or(f64::INFINITY, |fp| pin.outside_pixel(fp, r.pixel));
+                    (off, k, film.unwrap_or_default())
                 })
                 .min_by(|a, b| a.0.total_cmp(&b.0))
-                .unwrap_or((f64::INFINITY, 0));
+                .unwrap_or((f64::INFINITY, 0, (0.0, 0.0)));
             if best.0 > PIXEL_TOL {
                 return Err(format!(
                     "pixel {}: query point {q}: no chain through the slab ends there from this pixel (closest {} crossings, {:.3} px outside)",
@@ -327,6 +368,7 @@ pub fn glass_slab(t: &mut dyn DynTracer) -> CaseResult {
                 ));
             }
             worst = worst.max(best.0);
+            jitter.add(&pin, best.2, r.pixel);
             by_k[best.1 as usize] += 1;
             first += (best.1 == 0) as usize;
             check_floor_record(r, rho_pi)?;
@@ -335,9 +377,10 @@ pub fn glass_slab(t: &mut dyn DynTracer) -> CaseResult {
     let z_valid = (valid as f64 - e_valid) / v_valid.sqrt();
     let z_first = (first as f64 - e_first) / v_first.sqrt();
     let msg = format!(
-        "query points {valid} (Fresnel expects {e_valid:.0}, {z_valid:+.1}σ), straight through {first} ({e_first:.0}, {z_first:+.1}σ), by internal-reflection pairs {by_k:?}; worst traced-back ray {worst:.1e} px outside its pixel (tol {PIXEL_TOL})"
+        "query points {valid} (Fresnel expects {e_valid:.0}, {z_valid:+.1}σ), straight through {first} ({e_first:.0}, {z_first:+.1}σ), by internal-reflection pairs {by_k:?}; worst traced-back ray {worst:.1e} px outside its pixel (tol {PIXEL_TOL}); {}",
+        jitter.describe()
     );
-    if z_valid.abs() > SIGMAS || z_first.abs() > SIGMAS {
+    if z_valid.abs() > SIGMAS || z_first.abs() > SIGMAS || jitter.z().2 > SIGMAS {
         return Err(msg);
     }
     Ok(msg)
