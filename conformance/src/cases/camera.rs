@@ -66,6 +66,10 @@ impl Jitter {
     }
 }
 
+/// A traced-back ray: how far outside the record's pixel it leaves the eye (px) and its
+/// film position (px).
+type TracedBack = (f64, (f64, f64));
+
 fn v(a: [f32; 3]) -> DVec3 {
     Vec3::from_array(a).as_dvec3()
 }
@@ -223,7 +227,7 @@ pub fn mirror(t: &mut dyn DynTracer) -> CaseResult {
             };
             // Chains whose traced-back ray leaves the eye through this pixel (both near
             // the mirror's foot, where a point and its image nearly coincide).
-            let fits: Vec<(MirrorChain, (f64, (f64, f64)))> = [
+            let fits: Vec<(MirrorChain, TracedBack)> = [
                 (MirrorChain::Direct, direct),
                 (MirrorChain::Mirrored, mirrored),
             ]
