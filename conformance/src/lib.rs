@@ -8,15 +8,28 @@
 //! * [`backends`]: the registry. Each backend is a cargo feature of this crate (`cpu`, on
 //!   by default; `wgpu`, `vk` as they land) with the cases it is expected to fail, each
 //!   with a reason ([`Verdict::ExpectedFail`]).
-//! * [`cases`]: the cases (stage agreement with `arpa-core`, gather exactness, analytic
-//!   scenes, determinism, bad input).
+//! * [`cases`]: the cases (stage agreement with `arpa-core`, gather exactness, camera pass
+//!   through a mirror and a glass slab against exact optics, analytic scenes (plane,
+//!   furnace, glass slab, mirror caustic), independent references (each scene of
+//!   `../shared/scenes` against its Mitsuba 3 / LuxCore ground truth), determinism, bad
+//!   input).
 //! * [`suite`]: the runner. `ARPA_REQUIRE_BACKENDS=cpu,wgpu` makes a listed backend that
 //!   is unknown, not compiled in or unable to initialise a failure.
 //!
 //! Run it with `cargo run -p arpa-conformance --profile test [-- --out FILE]` (opt-level 2;
-//! writes `target/conformance.md` by default, about 1 s on 2 cores; the unoptimised `dev`
-//! profile takes ~8 s) or `cargo test -p arpa-conformance` (asserts that nothing failed
-//! unexpectedly, and writes the same file).
+//! writes `target/conformance.md` by default) or `cargo test -p arpa-conformance` (asserts
+//! that nothing failed unexpectedly, and writes the same file).
+//!
+//! ## Reference cases: reduced and full set, missing data
+//!
+//! The reference cases ([`cases::reference`]) run a **reduced set** by default and in CI
+//! (¼ of the reference resolution, 8 × 100k photons, the reference box-averaged 4 × 4;
+//! about 10 s for all five scenes on 2 cores, the whole suite about 15 s). Set
+//! `ARPA_CONFORMANCE_FULL=1` for the **full set** (reference resolution, 64 × 250k photons,
+//! tighter limits; minutes). They read `../shared/scenes` beside the repository (or
+//! `ARPA_SHARED_SCENES`); if it is absent they are skipped with a loud warning
+//! ([`Verdict::Skipped`]), or fail when env `CI` is set ([`suite::ci_is_set`]).
+//! `ARPA_CONFORMANCE_IMAGES=DIR` writes the renders and references for inspection.
 #![warn(missing_docs)]
 
 use std::fmt::Write as _;
@@ -47,6 +60,14 @@ pub enum Verdict {
     ExpectedFail {
         /// Why this backend cannot pass the case.
         reason: String,
+        /// What the case measured this time (empty when it did not run).
+        measured: String,
+    },
+    /// Not run: data the case needs (`../shared/scenes`) is absent and env `CI` is not set
+    /// (with `CI` set the same situation is a [`Verdict::Fail`]).
+    Skipped {
+        /// What is missing.
+        reason: String,
     },
 }
 
@@ -60,7 +81,13 @@ impl Verdict {
         match self {
             Verdict::Pass { metric } => format!("pass ({metric})"),
             Verdict::Fail { detail } => format!("**FAIL** ({detail})"),
-            Verdict::ExpectedFail { reason } => format!("xfail ({reason})"),
+            Verdict::ExpectedFail { reason, measured } if measured.is_empty() => {
+                format!("xfail ({reason})")
+            }
+            Verdict::ExpectedFail { reason, measured } => {
+                format!("xfail ({reason}; measured: {measured})")
+            }
+            Verdict::Skipped { reason } => format!("**SKIPPED** ({reason})"),
         }
     }
 }
@@ -102,6 +129,15 @@ impl Report {
             .iter()
             .flat_map(|(_, cells)| cells.iter().flatten())
             .all(Verdict::is_ok)
+    }
+
+    /// Number of [`Verdict::Skipped`] cells.
+    pub fn skipped(&self) -> usize {
+        self.rows
+            .iter()
+            .flat_map(|(_, cells)| cells.iter().flatten())
+            .filter(|v| matches!(v, Verdict::Skipped { .. }))
+            .count()
     }
 
     /// The table as GitHub-flavoured Markdown (cells that did not run show `–`).
@@ -147,6 +183,7 @@ mod tests {
             "wgpu",
             Verdict::ExpectedFail {
                 reason: "no adapter".into(),
+                measured: String::new(),
             },
         );
         assert!(r.all_ok());

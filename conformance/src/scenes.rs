@@ -249,7 +249,6 @@ pub fn icosphere(centre: Vec3, radius: f32, subdivisions: u32, material: u32) ->
     arpa_core::shapes::icosphere("icosphere", centre, radius, subdivisions, false, material)
 }
 
-
 /// Intensity of the furnace's point light (W/sr).
 pub const FURNACE_INTENSITY: f64 = 1.5;
 /// Albedo of the furnace's wall.
@@ -263,5 +262,113 @@ pub fn furnace(size: u32) -> Scene {
         vec![diffuse(FURNACE_ALBEDO as f32)],
         vec![point_light(DVec3::ZERO, FURNACE_INTENSITY)],
         camera(Vec3::ZERO, Vec3::new(0.3, 0.2, 1.0), Vec3::Y, 60.0, size),
+    )
+}
+
+/// Bottom of the slab scene's glass slab (m).
+pub const SLAB_BOTTOM: f64 = 0.5;
+/// Thickness of the slab scene's glass slab (m).
+pub const SLAB_THICKNESS: f64 = 1.0;
+/// Half side of the slab scene's glass slab (m).
+pub const SLAB_HALF_SIDE: f64 = 4.0;
+/// IOR of the slab (and of [`glass`]).
+pub const SLAB_IOR: f64 = 1.5;
+/// Albedo of the slab scene's floor.
+pub const SLAB_FLOOR_ALBEDO: f64 = 0.5;
+/// Position of the slab scene's point light (m): on the y axis above the slab.
+pub const SLAB_LIGHT: DVec3 = DVec3::new(0.0, 2.5, 0.0);
+/// Intensity of the slab scene's point light (W/sr).
+pub const SLAB_INTENSITY: f64 = 3.0;
+/// The slab scene's camera position (m).
+pub const SLAB_CAMERA: Vec3 = Vec3::new(0.0, 4.0, 2.0);
+/// The slab scene's vertical field of view (degrees).
+pub const SLAB_FOV_DEGREES: f32 = 24.0;
+
+/// A 12 × 12 diffuse floor at y = 0 (albedo [`SLAB_FLOOR_ALBEDO`]) under a clear glass
+/// slab `|x|, |z| ≤ 4`, `y ∈ [0.5, 1.5]` (IOR 1.5), a point light above the slab at
+/// [`SLAB_LIGHT`], and a camera at [`SLAB_CAMERA`] looking at the origin, so that every
+/// camera ray enters the slab through its top face and the floor is seen only through
+/// the glass. The slab's faces are parallel: every chain top–bottom has a closed form.
+pub fn glass_slab(size: u32) -> Scene {
+    let floor = quad(
+        "floor",
+        Vec3::new(-6.0, 0.0, -6.0),
+        Vec3::new(0.0, 0.0, 12.0),
+        Vec3::new(12.0, 0.0, 0.0),
+        0,
+    );
+    let h = SLAB_HALF_SIDE as f32;
+    let slab = cuboid(
+        "glass slab",
+        Vec3::new(-h, SLAB_BOTTOM as f32, -h),
+        Vec3::new(h, (SLAB_BOTTOM + SLAB_THICKNESS) as f32, h),
+        1,
+    );
+    scene(
+        vec![floor, slab],
+        vec![diffuse(SLAB_FLOOR_ALBEDO as f32), glass()],
+        vec![point_light(SLAB_LIGHT, SLAB_INTENSITY)],
+        camera(SLAB_CAMERA, Vec3::ZERO, Vec3::Y, SLAB_FOV_DEGREES, size),
+    )
+}
+
+/// The mirror scene's mirror plane `x = MIRROR_X` (m).
+pub const MIRROR_X: f64 = 1.0;
+/// Height of the mirror (m); it spans `y ∈ [0, MIRROR_HEIGHT]`, `|z| ≤ MIRROR_HALF_WIDTH`.
+pub const MIRROR_HEIGHT: f64 = 1.2;
+/// Half width of the mirror (m).
+pub const MIRROR_HALF_WIDTH: f64 = 0.5;
+/// Reflectance of [`mirror`].
+pub const MIRROR_REFLECTANCE: f64 = 0.9;
+/// Albedo of the mirror scene's floor.
+pub const MIRROR_FLOOR_ALBEDO: f64 = 0.5;
+/// Position of the mirror scene's point light (m).
+pub const MIRROR_LIGHT: DVec3 = DVec3::new(-0.3, 0.6, 0.0);
+/// Intensity of the mirror scene's point light (W/sr).
+pub const MIRROR_INTENSITY: f64 = 2.0;
+/// The mirror scene's camera position (m).
+pub const MIRROR_CAMERA: Vec3 = Vec3::new(-2.0, 2.2, 0.0);
+/// The mirror scene's camera target (m).
+pub const MIRROR_TARGET: Vec3 = Vec3::new(0.6, 0.2, 0.0);
+/// The mirror scene's vertical field of view (degrees).
+pub const MIRROR_FOV_DEGREES: f32 = 50.0;
+
+/// A diffuse floor `x ∈ [−3, 1]`, `|z| ≤ 3` at y = 0 ending at a vertical mirror (plane
+/// `x = 1`, `y ∈ [0, 1.2]`, `|z| ≤ 0.5`, reflectance 0.9) and a point light in front of the
+/// mirror. The camera looks at the mirror over the floor: it sees the floor directly and
+/// reflected, and rays above or beside the mirror leave the scene. The mirror's caustic on
+/// the floor is the light of the image source mirrored in `x = 1`, through the mirror's
+/// rectangle.
+pub fn mirror_wall(size: u32) -> Scene {
+    let floor = quad(
+        "floor",
+        Vec3::new(-3.0, 0.0, -3.0),
+        Vec3::new(0.0, 0.0, 6.0),
+        Vec3::new(4.0, 0.0, 0.0),
+        0,
+    );
+    let (x, w, h) = (
+        MIRROR_X as f32,
+        MIRROR_HALF_WIDTH as f32,
+        MIRROR_HEIGHT as f32,
+    );
+    let mirror_quad = quad(
+        "mirror",
+        Vec3::new(x, 0.0, -w),
+        Vec3::new(0.0, h, 0.0),
+        Vec3::new(0.0, 0.0, 2.0 * w),
+        1,
+    );
+    scene(
+        vec![floor, mirror_quad],
+        vec![diffuse(MIRROR_FLOOR_ALBEDO as f32), mirror()],
+        vec![point_light(MIRROR_LIGHT, MIRROR_INTENSITY)],
+        camera(
+            MIRROR_CAMERA,
+            MIRROR_TARGET,
+            Vec3::Y,
+            MIRROR_FOV_DEGREES,
+            size,
+        ),
     )
 }

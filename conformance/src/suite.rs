@@ -22,6 +22,10 @@ pub struct Case {
     /// The case. It uploads its own scene (which resets the tracer) and must not assume
     /// anything about the tracer's state.
     pub run: fn(&mut dyn DynTracer) -> CaseResult,
+    /// Checked before the case runs on any backend: `Err(what is missing)` when data the
+    /// case reads (the shared scenes) is absent. The case is then skipped loudly, or fails
+    /// when env `CI` is set ([`ci_is_set`]). `None`: the case needs nothing external.
+    pub needs: Option<fn() -> Result<(), String>>,
 }
 
 impl core::fmt::Debug for Case {
@@ -38,6 +42,15 @@ pub const AVAILABILITY_ROW: &str = "backend compiled in and initialises";
 
 /// Environment variable listing the backends that must be compiled in and initialise.
 pub const REQUIRE_ENV: &str = "ARPA_REQUIRE_BACKENDS";
+
+/// `true` when env `CI` is set to anything but empty, `0` or `false` (GitHub, GitLab and
+/// most CI services set `CI=true`): missing shared data then fails instead of skipping.
+pub fn ci_is_set() -> bool {
+    std::env::var("CI").is_ok_and(|v| {
+        let v = v.trim();
+        !(v.is_empty() || v == "0" || v.eq_ignore_ascii_case("false"))
+    })
+}
 
 /// Environment variable restricting the run to cases whose id contains one of its
 /// comma-separated parts.
@@ -97,13 +110,19 @@ impl SuiteRun {
         for (b, d) in &self.devices {
             s.push_str(&format!("- `{b}`: {d}\n"));
         }
+        let skipped = self.report.skipped();
         s.push_str(&format!(
-            "- total {:.1} s; {}\n\n",
+            "- total {:.1} s; {}{}\n\n",
             self.seconds,
             if self.report.all_ok() {
                 "all cases pass (or fail as expected, with a reason)"
             } else {
                 "**unexpected failures**"
+            },
+            if skipped > 0 {
+                format!("; **{skipped} skipped** (shared scenes absent)")
+            } else {
+                String::new()
             }
         ));
         s.push_str(&self.report.to_markdown());
@@ -124,8 +143,9 @@ pub fn verdict(outcome: CaseResult, expected_failure: Option<&str>) -> Verdict {
         (_, Some(r)) if r.trim().is_empty() => Verdict::Fail {
             detail: "expected-failure entry without a reason (every expectation needs one)".into(),
         },
-        (Err(_), Some(reason)) => Verdict::ExpectedFail {
+        (Err(measured), Some(reason)) => Verdict::ExpectedFail {
             reason: reason.to_owned(),
+            measured,
         },
         (Ok(metric), Some(reason)) => Verdict::Fail {
             detail: format!(
@@ -134,6 +154,17 @@ pub fn verdict(outcome: CaseResult, expected_failure: Option<&str>) -> Verdict {
         },
         (Ok(metric), None) => Verdict::Pass { metric },
         (Err(detail), None) => Verdict::Fail { detail },
+    }
+}
+
+/// The verdict of a case whose data is missing: skipped, or failed when `ci`.
+pub fn missing_data(missing: String, ci: bool) -> Verdict {
+    if ci {
+        Verdict::Fail {
+            detail: format!("{missing}; CI is set, so missing data is a failure"),
+        }
+    } else {
+        Verdict::Skipped { reason: missing }
     }
 }
 
@@ -187,6 +218,7 @@ pub fn run_suite_with(backends: &[Backend], cases: &[Case], options: &SuiteOptio
                     backend.name,
                     Verdict::ExpectedFail {
                         reason: format!("not required by {REQUIRE_ENV}; failed to initialise: {e}"),
+                        measured: String::new(),
                     },
                 );
                 None
@@ -194,6 +226,17 @@ pub fn run_suite_with(backends: &[Backend], cases: &[Case], options: &SuiteOptio
         };
         for case in cases.iter().filter(|c| options.selects(c)) {
             let Some(t) = tracer.as_mut() else { continue };
+            if let Some(Err(missing)) = case.needs.map(|f| f()) {
+                let v = missing_data(missing, ci_is_set());
+                if let Verdict::Skipped { reason } = &v {
+                    eprintln!(
+                        "\n*** WARNING: conformance case '{}' SKIPPED on {}: {reason} ***\n",
+                        case.id, backend.name
+                    );
+                }
+                report.record(case.title, backend.name, v);
+                continue;
+            }
             let t0 = Instant::now();
             let outcome = match catch_unwind(AssertUnwindSafe(|| (case.run)(t.as_mut()))) {
                 Ok(r) => r,
@@ -273,7 +316,8 @@ mod tests {
         assert_eq!(
             verdict(Err("x".into()), Some("no f64 on this GPU")),
             Verdict::ExpectedFail {
-                reason: "no f64 on this GPU".into()
+                reason: "no f64 on this GPU".into(),
+                measured: "x".into(),
             }
         );
         assert!(!verdict(Err("x".into()), Some("  ")).is_ok());
@@ -321,6 +365,17 @@ mod tests {
         );
         assert!(!run.report.all_ok());
         assert!(run.report.to_markdown().contains("no such backend"));
+    }
+
+    #[test]
+    fn missing_data_skips_outside_ci_and_fails_in_ci() {
+        let v = missing_data("../shared absent".into(), false);
+        assert!(v.is_ok() && matches!(v, Verdict::Skipped { .. }));
+        let mut r = crate::Report::default();
+        r.record("reference", "cpu", v);
+        assert_eq!(r.skipped(), 1);
+        assert!(r.to_markdown().contains("**SKIPPED** (../shared absent)"));
+        assert!(!missing_data("../shared absent".into(), true).is_ok());
     }
 
     #[test]

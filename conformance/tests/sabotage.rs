@@ -2,6 +2,7 @@
 //! way each fails the case meant to catch that (and a faithful wrapper passes them all).
 #![cfg(feature = "cpu")]
 
+use arpa_conformance::suite::ci_is_set;
 use arpa_conformance::{BoxError, Case, DynTracer, backends, cases};
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::progressive_photon::PackedPhoton;
@@ -23,6 +24,14 @@ enum Fault {
     Nondeterministic,
     /// `upload_scene` ignores validation errors (uploads a good scene instead).
     AcceptsAnything,
+    /// Every image half as bright (a lost light or bounce).
+    Half,
+    /// Every image mirrored left–right (geometry or camera frame flipped).
+    FlippedImage,
+    /// Query points moved 5 mm along +x.
+    QueryShift,
+    /// Query-point weights 2% high.
+    QueryWeight,
 }
 
 struct Sabotaged {
@@ -72,6 +81,13 @@ impl DynTracer for Sabotaged {
         match self.fault {
             Fault::Bright => img.pixels.iter_mut().for_each(|p| *p *= 1.03),
             Fault::SlightlyOff => img.pixels.iter_mut().for_each(|p| *p *= 1.0 + 1e-4),
+            Fault::Half => img.pixels.iter_mut().for_each(|p| *p *= 0.5),
+            Fault::FlippedImage => {
+                let w = img.width as usize;
+                img.pixels
+                    .chunks_mut(w.max(1))
+                    .for_each(|row| row.reverse());
+            }
             Fault::Nondeterministic => {
                 if let Some(p) = img.pixels.iter_mut().find(|p| p.x > 0.0) {
                     p.x = f32::from_bits(p.x.to_bits() + (n & 1));
@@ -82,7 +98,15 @@ impl DynTracer for Sabotaged {
         Ok(img)
     }
     fn read_query_points(&self) -> Result<Vec<QueryRecord>, BoxError> {
-        self.inner.read_query_points()
+        let mut v = self.inner.read_query_points()?;
+        for r in &mut v {
+            match self.fault {
+                Fault::QueryShift => r.position[0] += 0.005,
+                Fault::QueryWeight => r.weight = r.weight.map(|w| w * 1.02),
+                _ => {}
+            }
+        }
+        Ok(v)
     }
     fn read_footprints(&self) -> Result<Vec<PackedFootprint>, BoxError> {
         let mut v = self.inner.read_footprints()?;
@@ -131,6 +155,10 @@ fn faithful_wrapper_passes() {
         "stage-photon-pass",
         "gather-exact-arpa-constant",
         "analytic-plane-arpa",
+        "camera-mirror",
+        "camera-glass-slab",
+        "analytic-glass-slab-arpa",
+        "analytic-mirror-caustic-arpa",
         "determinism",
         "bad-input",
     ] {
@@ -149,10 +177,54 @@ fn each_fault_is_caught() {
         (Fault::FootprintFlux, "stage-photon-pass"),
         (Fault::Nondeterministic, "determinism"),
         (Fault::AcceptsAnything, "bad-input"),
+        (Fault::QueryShift, "camera-mirror"),
+        (Fault::QueryShift, "camera-glass-slab"),
+        (Fault::QueryWeight, "camera-mirror"),
+        (Fault::QueryWeight, "camera-glass-slab"),
+        (Fault::Bright, "analytic-glass-slab-arpa"),
+        (Fault::Bright, "analytic-glass-slab-rtpm"),
+        (Fault::Bright, "analytic-mirror-caustic-arpa"),
+        (Fault::Bright, "analytic-mirror-caustic-rtpm"),
     ] {
         match run(fault, case) {
             Ok(m) => panic!("{fault:?} not caught by {case}: {m}"),
             Err(e) => eprintln!("{fault:?} caught by {case}: {e}"),
+        }
+    }
+}
+
+/// The reference cases catch a backend that loses half the light or flips the image (each needs the shared
+/// scenes: skipped loudly without them, a failure under CI). The faithful backend passing
+/// them is the suite's own test (`tests/suite.rs`).
+#[test]
+fn reference_cases_catch_lost_light_and_flipped_images() {
+    for case in cases::all()
+        .iter()
+        .filter(|c| c.id.starts_with("reference-"))
+    {
+        if let Some(Err(missing)) = case.needs.map(|f| f()) {
+            // Same rule as the suite: skip loudly, fail under CI.
+            assert!(!ci_is_set(), "{}: {missing} (CI is set)", case.id);
+            eprintln!(
+                "\n*** WARNING: sabotage check of '{}' SKIPPED: {missing} ***\n",
+                case.id
+            );
+            continue;
+        }
+        // Flipping is checked on the two quickest scenes only (CI time); the limits it
+        // trips (SSIM, FLIP, regions) are the same code for every scene.
+        let flip = matches!(
+            case.id,
+            "reference-caustic-glass" | "reference-cornell-caustic"
+        );
+        for fault in [Fault::Half, Fault::FlippedImage]
+            .into_iter()
+            .filter(|f| flip || *f == Fault::Half)
+        {
+            match run(fault, case.id) {
+                Ok(m) => panic!("{fault:?} not caught by {}: {m}", case.id),
+                Err(e) => eprintln!("{fault:?} caught by {}: {e}", case.id),
+            }
         }
     }
 }

@@ -4,6 +4,7 @@
 use std::f64::consts::PI;
 
 use arpa_core::glam::{DVec3, Vec3};
+use arpa_core::radius::{ProgressiveConfig, RadiusSpec};
 use arpa_core::tracer::{Method, QueryRecord, RenderSettings};
 
 use crate::dyn_tracer::DynTracer;
@@ -199,4 +200,238 @@ pub fn furnace_arpa_direct(t: &mut dyn DynTracer) -> CaseResult {
 /// The furnace case with RTPM photons carrying all the light (direct lighting off).
 pub fn furnace_rtpm_photons_only(t: &mut dyn DynTracer) -> CaseResult {
     furnace(t, Method::Rtpm, false)
+}
+
+/// Largest error of a region mean in the slab and mirror cases (percent).
+pub const SPECULAR_TOL_PERCENT: f64 = 2.0;
+/// Image side of the slab and mirror cases (pixels).
+pub const SPECULAR_SIZE: u32 = 32;
+/// Photons per iteration of the slab and mirror cases.
+pub const SPECULAR_PHOTONS: u32 = 100_000;
+/// Initial caustic radius of the slab and mirror cases (m): 4× the default, so that a
+/// few photons per iteration suffice (the irradiance varies on a scale of 1 m, so the
+/// kernel's smoothing bias stays ~`r²` ≈ 0.2 %).
+pub const SPECULAR_CAUSTIC_RADIUS: f64 = 0.04;
+/// Iterations of the slab and mirror cases.
+pub const SPECULAR_ITERATIONS: u32 = 4;
+
+/// Renders `scene` photons-only for [`SPECULAR_ITERATIONS`] and compares region means of
+/// the image with `Σ weight · E(q)` over each pixel's own query points (the camera
+/// weights are checked exactly by the camera cases). `region(q)` assigns a pixel (by its
+/// first query point) to one of `names.len()` regions or none.
+fn region_means(
+    t: &mut dyn DynTracer,
+    method: Method,
+    scene: &arpa_core::scene::Scene,
+    max_depth: u32,
+    irradiance: impl Fn(DVec3) -> f64,
+    region: impl Fn(DVec3) -> Option<usize>,
+    names: &[&str],
+) -> Result<(Vec<f64>, String), String> {
+    let settings = RenderSettings {
+        method,
+        photons_per_iteration: SPECULAR_PHOTONS,
+        seed: 9,
+        max_depth,
+        direct_lighting: false,
+        radii: ProgressiveConfig {
+            caustic: RadiusSpec::Absolute(SPECULAR_CAUSTIC_RADIUS),
+            ..ProgressiveConfig::default()
+        },
+        ..RenderSettings::default()
+    };
+    t.upload_scene(scene, &settings).ctx("upload_scene")?;
+    let pixels = (scene.camera.width * scene.camera.height) as usize;
+    let mut expected = vec![0.0f64; pixels];
+    let mut member: Vec<Option<Option<usize>>> = vec![None; pixels];
+    for _ in 0..SPECULAR_ITERATIONS {
+        t.iterate().ctx("iterate")?;
+        let records = t.read_query_points().ctx("read_query_points")?;
+        if records.len() != pixels {
+            return Err(format!(
+                "{} query records for {pixels} pixels",
+                records.len()
+            ));
+        }
+        for r in records.iter().filter(|r| r.valid == 1) {
+            let p = r.pixel as usize;
+            if p >= pixels {
+                return Err(format!("query record for pixel {p} outside the image"));
+            }
+            let q = Vec3::from_array(r.position).as_dvec3();
+            let w = Vec3::from_array(r.weight).as_dvec3();
+            expected[p] += w.x * irradiance(q) / SPECULAR_ITERATIONS as f64;
+            member[p].get_or_insert(region(q));
+        }
+    }
+    let image = t.read_image().ctx("read_image")?;
+    if image.pixels.len() != pixels || image.pixels.iter().any(|p| !p.is_finite()) {
+        return Err("image of the wrong size or with non-finite pixels".into());
+    }
+    let mut errors = Vec::new();
+    let mut parts = Vec::new();
+    for (k, name) in names.iter().enumerate() {
+        let members: Vec<usize> = (0..pixels)
+            .filter(|&i| member[i] == Some(Some(k)))
+            .collect();
+        if members.len() < 20 {
+            return Err(format!(
+                "region '{name}' has {} pixels (framing error)",
+                members.len()
+            ));
+        }
+        let est = members
+            .iter()
+            .map(|&i| image.pixels[i].x as f64)
+            .sum::<f64>();
+        let ana = members.iter().map(|&i| expected[i]).sum::<f64>();
+        let e = (est / ana - 1.0) * 100.0;
+        errors.push(e);
+        parts.push(format!("{name} {e:+.2}% ({} px)", members.len()));
+    }
+    Ok((
+        errors,
+        format!(
+            "{} (tol ±{SPECULAR_TOL_PERCENT}%, {SPECULAR_ITERATIONS}×{SPECULAR_PHOTONS} photons, {}² px)",
+            parts.join(", "),
+            scene.camera.width
+        ),
+    ))
+}
+
+fn verdict_of(errors: &[f64], msg: String) -> CaseResult {
+    if errors.iter().all(|e| e.abs() < SPECULAR_TOL_PERCENT) {
+        Ok(msg)
+    } else {
+        Err(msg)
+    }
+}
+
+/// Irradiance (W/m²) on the floor of [`scenes::glass_slab`] at horizontal distance `rho`
+/// from the light's foot, from the light through the two interfaces (no internal
+/// reflection): the ray leaving at angle θ lands at `ρ(θ) = (h_above + h_below) tan θ +
+/// t tan θ_t` (`sin θ = n sin θ_t`) carrying `I (1 − F(θ))² dΩ` (the same `F` at both
+/// faces), so `E = I (1 − F)² sin θ / (ρ dρ/dθ)`; at `ρ → 0`, `I (1 − F)²/ρ'(0)²`.
+pub fn slab_irradiance(rho: f64) -> f64 {
+    use super::optics::{fresnel, slab_entry_angle, slab_offset_derivative};
+    let n = scenes::SLAB_IOR;
+    let above = scenes::SLAB_LIGHT.y - scenes::SLAB_BOTTOM - scenes::SLAB_THICKNESS;
+    let (below, thick) = (scenes::SLAB_BOTTOM, scenes::SLAB_THICKNESS);
+    let th = slab_entry_angle(rho, above, below, thick, n, 1);
+    let tf = 1.0 - fresnel(1.0, n, th);
+    let deriv = slab_offset_derivative(th, above, below, thick, n, 1);
+    if th < 1e-6 {
+        scenes::SLAB_INTENSITY * tf * tf / (deriv * deriv)
+    } else {
+        scenes::SLAB_INTENSITY * tf * tf * th.sin() / (rho * deriv)
+    }
+}
+
+/// Glass slab ([`scenes::glass_slab`]), photons only, at most 3 interactions (so only the
+/// straight chain top–bottom–floor exists for photons and camera rays alike): the floor
+/// seen through the slab has radiance `weight · E(ρ)` with [`slab_irradiance`]'s exact
+/// two-interface transmittance. Ring means `ρ < 0.4`, `< 0.8`, `< 1.2` of the light's
+/// foot within [`SPECULAR_TOL_PERCENT`]; ignoring Fresnel would be 8 % too bright.
+fn glass_slab(t: &mut dyn DynTracer, method: Method) -> CaseResult {
+    let scene = scenes::glass_slab(SPECULAR_SIZE);
+    let foot = DVec3::new(scenes::SLAB_LIGHT.x, 0.0, scenes::SLAB_LIGHT.z);
+    let rho = |q: DVec3| (q - foot).length();
+    let (errors, msg) = region_means(
+        t,
+        method,
+        &scene,
+        3,
+        |q| slab_irradiance(rho(q)),
+        |q| Some((rho(q) / 0.4) as usize).filter(|&k| k < 3),
+        &["ρ<0.4", "ρ<0.8", "ρ<1.2"],
+    )?;
+    verdict_of(&errors, msg)
+}
+
+/// Margin around the mirror's edge, measured in the mirror plane (m), inside which a
+/// pixel is in no region (footprints and pixels straddle the caustic's edge).
+pub const MIRROR_EDGE_MARGIN: f64 = 0.08;
+
+/// The point where the image-source ray to floor point `q` crosses the mirror plane.
+fn mirror_crossing(q: DVec3) -> DVec3 {
+    let image = DVec3::new(
+        2.0 * scenes::MIRROR_X - scenes::MIRROR_LIGHT.x,
+        scenes::MIRROR_LIGHT.y,
+        scenes::MIRROR_LIGHT.z,
+    );
+    let s = (image.x - scenes::MIRROR_X) / (image.x - q.x);
+    image + (q - image) * s
+}
+
+/// Irradiance (W/m²) on the floor of [`scenes::mirror_wall`] at `q`: the light's
+/// `I cos θ/d²` plus, where the ray from the image source `L'` (the light mirrored in
+/// `x = 1`) to `q` crosses the mirror's rectangle, the image source's `I R cos θ'/d'²`.
+pub fn mirror_irradiance(q: DVec3) -> f64 {
+    let l = scenes::MIRROR_LIGHT;
+    let image = DVec3::new(2.0 * scenes::MIRROR_X - l.x, l.y, l.z);
+    let point = |src: DVec3| {
+        let d = src - q;
+        scenes::MIRROR_INTENSITY * (d.y / d.length()) / d.length_squared()
+    };
+    let m = mirror_crossing(q);
+    let through =
+        (0.0..=scenes::MIRROR_HEIGHT).contains(&m.y) && m.z.abs() <= scenes::MIRROR_HALF_WIDTH;
+    point(l)
+        + if through {
+            scenes::MIRROR_REFLECTANCE * point(image)
+        } else {
+            0.0
+        }
+}
+
+/// Mirror ([`scenes::mirror_wall`]), photons only, at most 2 interactions (light →
+/// mirror → floor; no floor → mirror → floor): the floor (seen directly and in the
+/// mirror) has radiance `weight · E` with [`mirror_irradiance`]. Region means inside the
+/// reflected caustic (crossing at least [`MIRROR_EDGE_MARGIN`] inside the mirror's edge)
+/// and beside it (as far outside), each within [`SPECULAR_TOL_PERCENT`]: the caustic has
+/// the image source's irradiance and lands where the geometry says.
+fn mirror_caustic(t: &mut dyn DynTracer, method: Method) -> CaseResult {
+    let scene = scenes::mirror_wall(SPECULAR_SIZE);
+    let region = |q: DVec3| {
+        let m = mirror_crossing(q);
+        let inside_z = scenes::MIRROR_HALF_WIDTH - MIRROR_EDGE_MARGIN;
+        let inside_y = MIRROR_EDGE_MARGIN..=scenes::MIRROR_HEIGHT - MIRROR_EDGE_MARGIN;
+        if m.z.abs() < inside_z && inside_y.contains(&m.y) {
+            Some(0)
+        } else if m.z.abs() > scenes::MIRROR_HALF_WIDTH + MIRROR_EDGE_MARGIN {
+            Some(1)
+        } else {
+            None
+        }
+    };
+    let (errors, msg) = region_means(
+        t,
+        method,
+        &scene,
+        2,
+        mirror_irradiance,
+        region,
+        &["in caustic", "beside it"],
+    )?;
+    verdict_of(&errors, msg)
+}
+
+/// The slab case with ARPA footprints.
+pub fn glass_slab_arpa(t: &mut dyn DynTracer) -> CaseResult {
+    glass_slab(t, Method::Arpa)
+}
+
+/// The slab case with RTPM progressive photons.
+pub fn glass_slab_rtpm(t: &mut dyn DynTracer) -> CaseResult {
+    glass_slab(t, Method::Rtpm)
+}
+
+/// The mirror case with ARPA footprints.
+pub fn mirror_caustic_arpa(t: &mut dyn DynTracer) -> CaseResult {
+    mirror_caustic(t, Method::Arpa)
+}
+
+/// The mirror case with RTPM progressive photons.
+pub fn mirror_caustic_rtpm(t: &mut dyn DynTracer) -> CaseResult {
+    mirror_caustic(t, Method::Rtpm)
 }
