@@ -11,8 +11,10 @@ use arpa_core::tracer::{Capabilities, Image, IterationStats, QueryRecord, Render
 pub type BoxError = Box<dyn std::error::Error + Send + Sync + 'static>;
 
 /// [`Tracer`] with its associated error type erased: the same stage and `read_*` calls,
-/// each error boxed. Implemented for every `T: Tracer`; cases never name a backend type.
-pub trait DynTracer {
+/// each error boxed. Implemented for every `T: Tracer + Send`; cases never name a backend
+/// type. `Send` lets a case drive the backend from a thread pool of its choosing (the
+/// thread-count determinism case).
+pub trait DynTracer: Send {
     /// [`Tracer::capabilities`].
     fn capabilities(&self) -> Capabilities;
     /// [`Tracer::upload_scene`].
@@ -47,7 +49,7 @@ fn boxed<E: std::error::Error + Send + Sync + 'static>(e: E) -> BoxError {
     Box::new(e)
 }
 
-impl<T: Tracer> DynTracer for T {
+impl<T: Tracer + Send> DynTracer for T {
     fn capabilities(&self) -> Capabilities {
         Tracer::capabilities(self)
     }

@@ -160,6 +160,7 @@ fn faithful_wrapper_passes() {
         "analytic-glass-slab-arpa",
         "analytic-mirror-caustic-arpa",
         "determinism",
+        "determinism-threads",
         "bad-input",
     ] {
         run(Fault::None, case).unwrap_or_else(|e| panic!("{case}: {e}"));
@@ -176,6 +177,7 @@ fn each_fault_is_caught() {
         (Fault::DropFootprint, "stage-photon-pass"),
         (Fault::FootprintFlux, "stage-photon-pass"),
         (Fault::Nondeterministic, "determinism"),
+        (Fault::Nondeterministic, "determinism-threads"),
         (Fault::AcceptsAnything, "bad-input"),
         (Fault::QueryShift, "camera-mirror"),
         (Fault::QueryShift, "camera-glass-slab"),

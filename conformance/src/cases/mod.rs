@@ -137,6 +137,12 @@ pub fn all() -> Vec<Case> {
             run: determinism::same_seed_twice,
         },
         Case {
+            id: "determinism-threads",
+            title: "1 vs 2 host threads: bit-identical image",
+            needs: None,
+            run: determinism::thread_count_invariant,
+        },
+        Case {
             id: "bad-input",
             title: "bad scenes rejected by upload_scene (no panic)",
             needs: None,
