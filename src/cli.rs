@@ -22,6 +22,7 @@ use crate::default_scene::default_scene;
 use crate::image_io;
 use anyhow::{Context, bail};
 use arpa_core::classify::Smoothing;
+use arpa_core::radius::{ProgressiveConfig, RadiusSpec};
 use arpa_core::scene::Scene;
 use arpa_core::tracer::{Capabilities, Image, IterationStats, Method, RenderSettings, Tracer};
 use clap::{Args, Parser, Subcommand, ValueEnum};
@@ -41,6 +42,10 @@ pub const COMPILED_BACKENDS: &[&str] = &[
 
 /// Default number of iterations when neither `--iterations` nor `--time` is given.
 pub const DEFAULT_ITERATIONS: u32 = 64;
+
+/// Default maximum number of surface interactions when neither `--max-depth` nor the
+/// scene file gives one.
+pub const DEFAULT_MAX_DEPTH: u32 = 10;
 
 /// Largest accepted image side (pixels).
 pub const MAX_RESOLUTION: u32 = 16384;
@@ -177,6 +182,13 @@ fn parse_define_arg(s: &str) -> Result<(String, String), String> {
     crate::scene_file::parse_define(s).map_err(|e| e.to_string())
 }
 
+fn parse_positive_f32(s: &str) -> Result<f32, String> {
+    match s.trim().parse::<f32>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("'{s}' is not a positive finite number")),
+    }
+}
+
 fn parse_exposure(s: &str) -> Result<f32, String> {
     match s.trim().parse::<f32>() {
         Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
@@ -245,9 +257,25 @@ pub struct RenderArgs {
     #[arg(long, allow_negative_numbers = true, value_name = "S_G", default_value_t = 1.0, value_parser = parse_positive_f64)]
     pub smoothing_global: f64,
 
-    /// Maximum number of surface interactions of photon and camera paths.
-    #[arg(long, allow_negative_numbers = true, value_name = "N", default_value_t = 10, value_parser = parse_max_depth)]
-    pub max_depth: u32,
+    /// Maximum number of surface interactions of photon and camera paths [default: the
+    /// scene file's integrator `max_depth` minus one (Mitsuba counts path segments, so
+    /// `max_depth` 16 allows 15 surface interactions), or 10].
+    #[arg(long, allow_negative_numbers = true, value_name = "N", value_parser = parse_max_depth)]
+    pub max_depth: Option<u32>,
+
+    /// Initial caustic radius of the progressive photons (scene units) [default: 0.01].
+    #[arg(long, allow_negative_numbers = true, value_name = "R", value_parser = parse_positive_f64)]
+    pub radius_caustic: Option<f64>,
+
+    /// Initial global radius of the progressive photons (scene units) [default: 0.05].
+    #[arg(long, allow_negative_numbers = true, value_name = "R", value_parser = parse_positive_f64)]
+    pub radius_global: Option<f64>,
+
+    /// Roughness cut-off of rough conductors and dielectrics, compared with their GGX
+    /// `alpha`: at or above it diffuse, smoother perfectly specular [default: the scene's;
+    /// 0.25 for scene files (RTPM's rule), 0.5 for the embedded scene].
+    #[arg(long, allow_negative_numbers = true, value_name = "ALPHA", value_parser = parse_positive_f32)]
+    pub roughness_cutoff: Option<f32>,
 
     /// Multiplier applied to the radiance before the PNG's sRGB encoding (the EXR is
     /// written unscaled).
@@ -271,15 +299,34 @@ pub struct RenderArgs {
 impl RenderArgs {
     /// The render settings these arguments select.
     pub fn settings(&self) -> RenderSettings {
+        let defaults = RenderSettings::default();
         RenderSettings {
             method: self.method.into(),
             photons_per_iteration: self.photons,
             seed: self.seed,
-            max_depth: self.max_depth,
+            max_depth: self.max_depth.unwrap_or(DEFAULT_MAX_DEPTH),
             direct_lighting: !self.no_direct,
             smoothing: Smoothing { caustic: self.smoothing_caustic, global: self.smoothing_global },
-            ..RenderSettings::default()
+            radii: ProgressiveConfig {
+                caustic: self.radius_caustic.map_or(defaults.radii.caustic, RadiusSpec::Absolute),
+                global: self.radius_global.map_or(defaults.radii.global, RadiusSpec::Absolute),
+                ..defaults.radii
+            },
+            ..defaults
         }
+    }
+
+    /// [`RenderArgs::settings`] for a scene file whose integrator asks for `max_depth`
+    /// (Mitsuba's path depth in segments): without `--max-depth`, photon and camera paths
+    /// get `max_depth - 1` surface interactions (at least 1).
+    pub fn settings_for_file(&self, file_max_depth: Option<u32>) -> RenderSettings {
+        let mut s = self.settings();
+        if self.max_depth.is_none()
+            && let Some(d) = file_max_depth
+        {
+            s.max_depth = d.saturating_sub(1).clamp(1, 1024);
+        }
+        s
     }
 
     /// The iteration or time budget.
@@ -618,7 +665,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 
 /// `arpa render`.
 pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
-    let scene = match &args.scene {
+    let (mut scene, file_max_depth) = match &args.scene {
         Some(path) => {
             let mut loaded = crate::scene_file::load_scene(path, &args.define).with_context(|| format!("cannot load scene file '{}'", path.display()))?;
             for w in &loaded.warnings {
@@ -639,7 +686,7 @@ pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
                 s.camera.height
             );
             loaded.scene.validate().with_context(|| format!("scene file '{}' is invalid", path.display()))?;
-            loaded.scene
+            (loaded.scene, loaded.max_depth)
         }
         None => {
             let mut scene = default_scene();
@@ -648,10 +695,13 @@ pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
                 scene.camera.height = r.height;
             }
             scene.validate().context("the embedded default scene is invalid")?;
-            scene
+            (scene, None)
         }
     };
-    let settings = args.settings();
+    if let Some(c) = args.roughness_cutoff {
+        scene.roughness_cutoff = c;
+    }
+    let settings = args.settings_for_file(file_max_depth);
     let budget = args.budget();
     let (exr_path, png_path) = output_paths(&args.out)?;
     if let Some(dir) = exr_path.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -949,5 +999,35 @@ mod tests {
         assert_eq!(a.budget(), Budget::Time(Duration::from_secs_f64(2.5)));
         let s = a.settings();
         assert!(!s.direct_lighting && s.method == Method::Rtpm && s.smoothing.caustic == 2.0);
+    }
+
+    #[test]
+    #[cfg(feature = "cpu")]
+    fn cli_radii_depth_and_cutoff() {
+        let parse = |args: &[&str]| {
+            let mut v = vec!["arpa", "render"];
+            v.extend_from_slice(args);
+            let Command::Render(a) = Cli::try_parse_from(v).unwrap().command;
+            a
+        };
+        let a = parse(&[]);
+        assert_eq!(a.settings().radii, RenderSettings::default().radii);
+        assert_eq!(a.settings().max_depth, DEFAULT_MAX_DEPTH);
+        // Mitsuba's max_depth counts segments: 16 -> 15 surface interactions.
+        assert_eq!(a.settings_for_file(Some(16)).max_depth, 15);
+        assert_eq!(a.settings_for_file(Some(1)).max_depth, 1);
+        assert_eq!(a.settings_for_file(None).max_depth, DEFAULT_MAX_DEPTH);
+        let a = parse(&["--radius-caustic", "0.03", "--radius-global", "0.09", "--max-depth", "7", "--roughness-cutoff", "0.2"]);
+        let s = a.settings_for_file(Some(16));
+        assert_eq!(s.max_depth, 7, "--max-depth wins over the file");
+        assert_eq!(s.radii.caustic, RadiusSpec::Absolute(0.03));
+        assert_eq!(s.radii.global, RadiusSpec::Absolute(0.09));
+        assert_eq!(s.radii.alpha, RenderSettings::default().radii.alpha);
+        assert_eq!(a.roughness_cutoff, Some(0.2));
+        for bad in [&["--radius-caustic", "0"][..], &["--radius-global", "-1"], &["--roughness-cutoff", "nan"], &["--roughness-cutoff", "0"]] {
+            let mut v = vec!["arpa", "render"];
+            v.extend_from_slice(bad);
+            assert!(Cli::try_parse_from(v).is_err(), "{bad:?} must be rejected");
+        }
     }
 }

@@ -24,7 +24,7 @@ pub enum Material {
         albedo: Vec3,
     },
     /// Mirror or metal: specular reflection scaled by `reflectance`. With `roughness`
-    /// above the scene's [`Scene::roughness_cutoff`] it is treated as diffuse with
+    /// at or above the scene's [`Scene::roughness_cutoff`] it is treated as diffuse with
     /// albedo `reflectance` (RTPM's rule).
     Conductor {
         /// Specular reflectance (linear RGB, ≤ 1).
@@ -33,7 +33,7 @@ pub enum Material {
         roughness: f32,
     },
     /// Smooth dielectric interface (glass, water) with exact Fresnel; the interior is on
-    /// the side opposite the geometric normal. Rough ones above the cut-off are diffuse
+    /// the side opposite the geometric normal. Rough ones at or above the cut-off are diffuse
     /// with albedo `transmittance`.
     Dielectric {
         /// Interior over exterior index of refraction.
@@ -62,10 +62,10 @@ impl Material {
         match *self {
             Material::Diffuse { albedo } => Scattering::Diffuse(albedo),
             Material::Conductor { reflectance, roughness } => {
-                if roughness > cutoff { Scattering::Diffuse(reflectance) } else { Scattering::Mirror(reflectance) }
+                if roughness >= cutoff { Scattering::Diffuse(reflectance) } else { Scattering::Mirror(reflectance) }
             }
             Material::Dielectric { ior, transmittance, roughness } => {
-                if roughness > cutoff { Scattering::Diffuse(transmittance) } else { Scattering::Refractive(ior, transmittance) }
+                if roughness >= cutoff { Scattering::Diffuse(transmittance) } else { Scattering::Refractive(ior, transmittance) }
             }
         }
     }
@@ -250,7 +250,8 @@ pub struct Scene {
     pub lights: Vec<Light>,
     /// The camera.
     pub camera: Camera,
-    /// Roughness above which glossy materials count as diffuse (RTPM: 0.5).
+    /// GGX `alpha` at and above which glossy materials count as diffuse (RTPM's rule is
+    /// linear roughness `sqrt(alpha)` above 0.5; the Mitsuba loader uses `alpha` 0.25).
     pub roughness_cutoff: f32,
 }
 
@@ -366,5 +367,21 @@ impl TriangleMesh {
                 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length()
             })
             .sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn roughness_cutoff_is_inclusive() {
+        let metal = |roughness| Material::Conductor { reflectance: Vec3::splat(0.5), roughness };
+        assert_eq!(metal(0.0).scattering(0.25), Scattering::Mirror(Vec3::splat(0.5)));
+        assert_eq!(metal(0.2499).scattering(0.25), Scattering::Mirror(Vec3::splat(0.5)));
+        assert_eq!(metal(0.25).scattering(0.25), Scattering::Diffuse(Vec3::splat(0.5)));
+        let glass = |roughness| Material::Dielectric { ior: 1.5, transmittance: Vec3::ONE, roughness };
+        assert_eq!(glass(0.1).scattering(0.25), Scattering::Refractive(1.5, Vec3::ONE));
+        assert_eq!(glass(0.25).scattering(0.25), Scattering::Diffuse(Vec3::ONE));
     }
 }
