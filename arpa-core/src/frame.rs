@@ -1,4 +1,4 @@
-//! Orthonormal frames around a unit vector.
+//! Unit vectors and orthonormal frames around them.
 
 use glam::DVec3;
 
