@@ -13,6 +13,7 @@ use crate::emission::{EmissionParams, PreparedLight};
 use crate::footprint::{Footprint, PhotonMap};
 use crate::fresnel::dielectric_reflectance;
 use crate::heuristics::ResolvedHeuristics;
+use crate::lambertian::DiffuseShading;
 use crate::prepared_scene::{offset_origin, PreparedScene};
 use crate::ray_cast::RayCaster;
 use crate::reemission::{diffuse_direction, reemit};
@@ -139,6 +140,22 @@ pub fn trace_photon(
             Scattering::Diffuse(albedo) => {
                 let map = st.classifier.record(SurfaceInteraction::Diffuse).unwrap_or(PhotonMap::Global);
                 let first_interaction = st.classifier.diffuse_events() == 1 && st.classifier.specular_events() == 0;
+                // Shading normals (Mitsuba's two-sided diffuse in the shading frame): the
+                // photon counts with the adjoint ratio a(ω_i) = |ω_i·n_s|/|ω_i·n_g| both in
+                // the density estimate and in what it carries on (crate::lambertian).
+                let shading = match scene.has_shading_normals(&s) {
+                    false => None,
+                    true => match DiffuseShading::new(front, scene.shading_normal_at(&s), -d) {
+                        Some(sh) => Some(sh),
+                        None => break,
+                    },
+                };
+                if let Some(sh) = &shading {
+                    st.flux *= sh.adjoint_ratio(-d);
+                    if !(st.flux.max_element() > 0.0) {
+                        break;
+                    }
+                }
                 if !(settings.direct_lighting && first_interaction) {
                     sink(store(&ray_at_hit, &s.geometric_normal, st.flux, map, st.differential_valid, settings, setup));
                     stats.stored += 1;
@@ -149,7 +166,13 @@ pub fn trace_photon(
                     break;
                 }
                 st.flux *= albedo / survive;
-                let dir = diffuse_direction(front, rng.next_2d());
+                let dir = match &shading {
+                    None => diffuse_direction(front, rng.next_2d()),
+                    Some(sh) => match sh.sample_reemission(rng.next_2d()) {
+                        Some(dir) => dir,
+                        None => break,
+                    },
+                };
                 st.ray = match (st.differential_valid, reemit(s.position, ray_at_hit.dp_du, ray_at_hit.dp_dv, dir, reemission_length)) {
                     (true, Ok(r)) => r,
                     _ => {

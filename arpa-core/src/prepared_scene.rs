@@ -230,6 +230,33 @@ impl PreparedScene {
         Ok(nd)
     }
 
+    /// Whether the mesh of `s` has vertex normals (else its shading normal is the
+    /// geometric one).
+    #[inline(always)]
+    pub fn has_shading_normals(&self, s: &SurfacePoint) -> bool {
+        self.scene.meshes[s.mesh as usize].normals.is_some()
+    }
+
+    /// The unit interpolated shading normal at `s` (world space, oriented like the
+    /// geometric normal), without derivatives: the geometric normal for meshes without
+    /// vertex normals or where the interpolated normal vanishes.
+    #[inline(always)]
+    pub fn shading_normal_at(&self, s: &SurfacePoint) -> DVec3 {
+        let m = &self.scene.meshes[s.mesh as usize];
+        let Some(normals) = &m.normals else { return s.geometric_normal };
+        let idx = m.indices[s.triangle as usize];
+        let b = s.barycentric;
+        let v = |k: usize| normals[idx[k] as usize].as_dvec3();
+        let n = (v(0) * b.x + v(1) * b.y + v(2) * b.z).normalize_or_zero();
+        if n == DVec3::ZERO {
+            s.geometric_normal
+        } else if n.dot(s.geometric_normal) < 0.0 {
+            -n
+        } else {
+            n
+        }
+    }
+
     /// Picks an area emitter for next-event estimation with probability proportional to
     /// its power from the uniform number `u`: `(emitter index, probability)`.
     pub fn pick_area_emitter(&self, u: f64) -> Option<(usize, f64)> {
