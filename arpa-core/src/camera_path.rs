@@ -50,7 +50,10 @@ pub fn trace_camera_path(scene: &PreparedScene, caster: &impl RayCaster, setting
                     radiance += weight * direct_irradiance(scene, caster, &s, &shading, &mut rng);
                 }
                 record.position = s.position.as_vec3().to_array();
-                record.normal = front.as_vec3().to_array();
+                // Orientation for the gather: flipped where the viewer is below the
+                // shading plane (see photon_path's `orient_to_shading_side`).
+                let oriented = if shading.is_some_and(|sh| sh.below_shading_plane()) { -front } else { front };
+                record.normal = oriented.as_vec3().to_array();
                 record.weight = weight.as_vec3().to_array();
                 record.valid = 1;
                 break;

@@ -29,6 +29,18 @@
 //! `ρ/π · a(ω_i) · |ω_o·n_g|` per steradian over `{ω_o·n_s > 0, ω_o·n_g > 0}`; this one has
 //! a 0/1 direction weight, and where `n_s = n_g` it is exactly the plain cosine re-emission.
 //!
+//! **Density estimate.** The gather keeps `L = ρ/π · Σ Φ_p W_p` with no per-photon factor
+//! (records hold no direction): the adjoint ratio `a(ω_i)` is already in the stored flux,
+//! so `Σ Φ_p W_p` estimates the *shading-frame* irradiance `∫ L_i (ω_i·n_s)⁺ dω_i` that
+//! Mitsuba's radiance integral needs (pbrt-v3's SPPM instead evaluates `f` in the shading
+//! frame at the gather and applies no ratio anywhere, i.e. it counts photon density per
+//! geometric area as if it were per shading-projected area). Mitsuba's lobe is zero unless
+//! viewer and light lie on the same side of the shading plane; the records carry that side
+//! in their orientation (photon path's `orient_to_shading_side`, the query normal of
+//! [`crate::camera_path`]), so the gather's facing test applies it. The stored `a` uses
+//! the shading normal at the photon's hit, not at the query point (the same up to the
+//! normal's variation over the footprint).
+//!
 //! **Through the surface.** Directions on the other side of the *geometric* surface
 //! (`ω·n_g ≤ 0`) get nothing on either side: next-event estimation ignores lights behind
 //! the face and re-emission into the face absorbs the photon. Mitsuba lets such paths
@@ -75,6 +87,14 @@ impl DiffuseShading {
             return None;
         }
         Some(Self { geometric, shading: if c > 0.0 { shading } else { -shading } })
+    }
+
+    /// Whether the direction the frame was built for lies below the shading plane on its
+    /// side of the face, i.e. the shading normal had to be flipped away from the geometric
+    /// one (only possible where they differ).
+    #[inline(always)]
+    pub fn below_shading_plane(&self) -> bool {
+        self.shading.dot(self.geometric) < 0.0
     }
 
     /// The cosine `(ω·n_s)⁺` of the unit direction `w` (towards a light) in the shading
