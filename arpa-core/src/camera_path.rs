@@ -2,7 +2,8 @@
 //! follows specular chains (mirrors, Fresnel-chosen reflection or refraction) to the first
 //! diffuse vertex, the *query point*. Emission seen along the way is added, and with
 //! direct lighting on, next-event estimation evaluates every delta light exactly and one
-//! area emitter chosen by power.
+//! area emitter chosen by power. Diffuse surfaces are two-sided Lambertian in the shading
+//! frame of their interpolated vertex normals, as in Mitsuba 3 ([`crate::lambertian`]).
 //!
 //! Camera paths carry *radiance*: crossing an interface from index `n_i` into `n_t`
 //! scales it by `(n_i/n_t)²` (pbrt's radiance-mode transmission), so a floor seen through

@@ -2,7 +2,9 @@
 //! differentials, propagate through specular chains (reflection, refraction with
 //! Fresnel-weighted choice and total internal reflection), store at diffuse hits
 //! (footprint or progressive photon), absorb and re-emit with the virtual distance, and
-//! end by Russian roulette or after `max_depth` interactions.
+//! end by Russian roulette or after `max_depth` interactions. On meshes with vertex
+//! normals a diffuse hit weights the photon by the adjoint shading-normal ratio and
+//! re-emits it within the shading lobe ([`crate::lambertian`]).
 //!
 //! This is the reference the conformance suite compares backends with, and the CPU
 //! backend's implementation.
