@@ -368,12 +368,12 @@ impl ResolvedHeuristics {
     /// the final footprint, its record and its box, or why it must become a progressive
     /// photon.
     ///
-    /// Dampening and the smoothing factor scale `D_u` and `D_v` by one factor `s`, and
-    /// every later quantity is homogeneous in that factor (`|D|² ∝ s²`, `D_u × D_v ∝ s²`,
-    /// semi-axes and box extents `∝ s`), so this computes them from the unscaled
-    /// differentials while `s` is still being computed and scales them afterwards. Only
-    /// an H-max clamp of one differential (which breaks the homogeneity) takes the
-    /// sequential path.
+    /// Dampening scales `D_u` and `D_v` by one factor `s`, and the degenerate test, the
+    /// squared lengths, the semi-axes and the box extents are homogeneous in it, so they
+    /// are computed from the undampened differentials while `s` is still being computed
+    /// and scaled afterwards (`D_u × D_v` and the record's rows use the dampened
+    /// differentials, as [`Footprint::pack`] does). Only an H-max clamp of one
+    /// differential (which breaks the homogeneity) takes the sequential path.
     #[inline(always)]
     pub fn store(&self, fp: Footprint, radius: f64) -> Result<(Footprint, PackedFootprint, Aabb), StoreRejection> {
         // Scale-free parts, independent of the dampening factor.
