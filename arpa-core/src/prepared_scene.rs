@@ -43,7 +43,16 @@ struct TriangleGeometry {
     p: [Vec3; 3],
     /// `(p1 − p0) × (p2 − p0)` in `f64`, normalised (`+y` for a degenerate triangle).
     normal: DVec3,
+    /// Whether the triangle has vertex normals that differ from `normal` (by more than
+    /// [`FLAT_NORMAL_TOLERANCE`]); only then do diffuse hits on it take the shading-normal
+    /// paths (the others give the same result up to that tolerance, faster).
+    shaded: bool,
 }
+
+/// Largest distance (radians, for unit vectors) of all three unit vertex normals of a
+/// triangle from its face normal (all on the same side) for which the triangle is shaded
+/// flat: the cosines then differ by less than this relative amount.
+pub const FLAT_NORMAL_TOLERANCE: f64 = 1e-6;
 
 impl TriangleGeometry {
     /// The vertices in `f64`.
@@ -97,7 +106,13 @@ impl PreparedScene {
                     .map(|&idx| {
                         let p = vertices(m, idx);
                         let normal = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or(DVec3::Y);
-                        TriangleGeometry { p: idx.map(|i| m.positions[i as usize]), normal }
+                        let shaded = m.normals.as_ref().is_some_and(|ns| {
+                            let near = |side: f64| {
+                                idx.iter().all(|&i| (ns[i as usize].as_dvec3().normalize_or_zero() - normal * side).length() <= FLAT_NORMAL_TOLERANCE)
+                            };
+                            !(near(1.0) || near(-1.0))
+                        });
+                        TriangleGeometry { p: idx.map(|i| m.positions[i as usize]), normal, shaded }
                     })
                     .collect()
             })
@@ -230,18 +245,22 @@ impl PreparedScene {
         Ok(nd)
     }
 
-    /// Whether the mesh of `s` has vertex normals (else its shading normal is the
-    /// geometric one).
+    /// Whether the triangle of `s` has vertex normals that differ from its face normal
+    /// (beyond [`FLAT_NORMAL_TOLERANCE`]); else its shading normal is the geometric one.
     #[inline(always)]
     pub fn has_shading_normals(&self, s: &SurfacePoint) -> bool {
-        self.scene.meshes[s.mesh as usize].normals.is_some()
+        self.triangles[s.mesh as usize][s.triangle as usize].shaded
     }
 
     /// The unit interpolated shading normal at `s` (world space, oriented like the
-    /// geometric normal), without derivatives: the geometric normal for meshes without
-    /// vertex normals or where the interpolated normal vanishes.
+    /// geometric normal), without derivatives: the geometric normal for triangles without
+    /// distinct vertex normals ([`PreparedScene::has_shading_normals`]) or where the
+    /// interpolated normal vanishes.
     #[inline(always)]
     pub fn shading_normal_at(&self, s: &SurfacePoint) -> DVec3 {
+        if !self.has_shading_normals(s) {
+            return s.geometric_normal;
+        }
         let m = &self.scene.meshes[s.mesh as usize];
         let Some(normals) = &m.normals else { return s.geometric_normal };
         let idx = m.indices[s.triangle as usize];
