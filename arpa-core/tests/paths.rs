@@ -371,3 +371,26 @@ fn tilted_vertex_normals_reflect_photons_by_the_adjoint() {
     assert!(err.abs() < 0.02, "{method:?}: {err}");
     }
 }
+
+/// Which triangles take the shading-normal paths: tilted vertex normals do; vertex normals
+/// equal to the face normal (either orientation), or none, shade flat with the face normal.
+#[test]
+fn only_triangles_with_distinct_vertex_normals_are_shaded() {
+    let hit = |scene: &PreparedScene| {
+        let caster = BruteForceCaster::new(scene);
+        let h = arpa_core::ray_cast::RayCaster::intersect(&caster, Vec3::new(0.3, 2.0, 0.2), Vec3::NEG_Y, f32::INFINITY).unwrap();
+        scene.surface(&h)
+    };
+    let tilted = tilted_plane_scene(4);
+    let s = hit(&tilted);
+    assert!(tilted.has_shading_normals(&s));
+    assert!((tilted.shading_normal_at(&s) - tilted_normal()).length() < 1e-7);
+    for normals in [None, Some(vec![Vec3::Y; 4]), Some(vec![Vec3::NEG_Y; 4])] {
+        let mut scene = plane_scene(4);
+        scene.meshes[0].normals = normals.clone();
+        let scene = PreparedScene::new(scene).unwrap();
+        let s = hit(&scene);
+        assert!(!scene.has_shading_normals(&s), "{normals:?}");
+        assert_eq!(scene.shading_normal_at(&s), s.geometric_normal);
+    }
+}
