@@ -482,7 +482,8 @@ fn roughness_cutoff_is_rtpms_linear_roughness_half() {
 
 #[test]
 fn tilted_vertex_normals_on_diffuse_meshes_warn() {
-    // Normals lying in the plane of the quad: Mitsuba would shade with them, arpa does not.
+    // Normals lying in the plane of the quad (arpa and Mitsuba both shade with them: a
+    // likely broken export is worth a warning).
     let s = load_in_tempdir(&scene_xml(&ply_shape("t.ply")), &[("t.ply", ply_with_normal(&QUAD, &[&[0, 1, 2, 3]], Some([1.0, 0.0, 0.0])))]).unwrap();
     let w = s.warnings.iter().find(|w| w.message.contains("vertex normals")).unwrap_or_else(|| panic!("{:?}", s.warnings));
     assert!(w.message.contains("t.ply") && w.message.contains("100.0 %") && w.line == 11, "{w}");

@@ -2,7 +2,8 @@
 //! follows specular chains (mirrors, Fresnel-chosen reflection or refraction) to the first
 //! diffuse vertex, the *query point*. Emission seen along the way is added, and with
 //! direct lighting on, next-event estimation evaluates every delta light exactly and one
-//! area emitter chosen by power.
+//! area emitter chosen by power. Diffuse surfaces are two-sided Lambertian in the shading
+//! frame of their interpolated vertex normals, as in Mitsuba 3 ([`crate::lambertian`]).
 //!
 //! Camera paths carry *radiance*: crossing an interface from index `n_i` into `n_t`
 //! scales it by `(n_i/n_t)²` (pbrt's radiance-mode transmission), so a floor seen through
@@ -11,6 +12,7 @@
 use crate::differential::{refract_direction, reflect_direction, RefractionEvent};
 use crate::emission::Light;
 use crate::fresnel::dielectric_reflectance;
+use crate::lambertian::DiffuseShading;
 use crate::prepared_scene::{offset_origin, PreparedScene, SurfacePoint};
 use crate::ray_cast::RayCaster;
 use crate::rng::{Rng, StreamDomain};
@@ -41,12 +43,18 @@ pub fn trace_camera_path(scene: &PreparedScene, caster: &impl RayCaster, setting
         }
         match s.scattering {
             Scattering::Diffuse(albedo) => {
-                let weight = throughput * albedo.as_dvec3() * FRAC_1_PI;
-                if settings.direct_lighting {
-                    radiance += weight * direct_irradiance(scene, caster, &s, front, &mut rng);
+                // Mitsuba's two-sided diffuse lobe in the shading frame: zero for a viewer
+                // in the shading plane.
+                let shading = DiffuseShading::new(front, scene.shading_normal_at(&s), -dir);
+                let weight = if shading.is_some() { throughput * albedo.as_dvec3() * FRAC_1_PI } else { DVec3::ZERO };
+                if let (true, Some(shading)) = (settings.direct_lighting, shading) {
+                    radiance += weight * direct_irradiance(scene, caster, &s, &shading, &mut rng);
                 }
                 record.position = s.position.as_vec3().to_array();
-                record.normal = front.as_vec3().to_array();
+                // Orientation for the gather: flipped where the viewer is below the
+                // shading plane (see photon_path's `orient_to_shading_side`).
+                let oriented = if shading.is_some_and(|sh| sh.below_shading_plane()) { -front } else { front };
+                record.normal = oriented.as_vec3().to_array();
                 record.weight = weight.as_vec3().to_array();
                 record.valid = 1;
                 break;
@@ -89,10 +97,15 @@ fn shading_normal(scene: &PreparedScene, s: &SurfacePoint) -> DVec3 {
     scene.shading_normal(s, DVec3::ZERO, DVec3::ZERO).map(|n| n.n).unwrap_or(s.geometric_normal)
 }
 
-/// Direct irradiance (W/m², RGB) at a diffuse point with unit normal `front` (towards the
-/// viewer): every delta light exactly, plus one area emitter picked by power with one
-/// uniformly sampled point (unbiased; one-sided emitters).
-pub fn direct_irradiance(scene: &PreparedScene, caster: &impl RayCaster, s: &SurfacePoint, front: DVec3, rng: &mut Rng) -> DVec3 {
+/// Direct irradiance (W/m², RGB) at a diffuse point in the shading frame `shading` (seen
+/// from the viewer: [`DiffuseShading::new`] with the direction to the viewer): every delta
+/// light exactly, plus one area emitter picked by power with one uniformly sampled point
+/// (unbiased; one-sided emitters). The cosine at the point is taken about the shading
+/// normal, and lights below the shading plane or behind the face give nothing
+/// ([`DiffuseShading::cosine`]), as in Mitsuba 3; with `shading.shading = shading.geometric`
+/// this is the plain `E = ∫ L cos θ dω`.
+pub fn direct_irradiance(scene: &PreparedScene, caster: &impl RayCaster, s: &SurfacePoint, shading: &DiffuseShading, rng: &mut Rng) -> DVec3 {
+    let front = shading.geometric;
     let p = s.position;
     let from = offset_origin(p, front);
     let mut e = DVec3::ZERO;
@@ -106,7 +119,7 @@ pub fn direct_irradiance(scene: &PreparedScene, caster: &impl RayCaster, s: &Sur
             Light::Point(l) => {
                 let d = l.position - p;
                 let r2 = d.length_squared();
-                let cos = front.dot(d) / libm::sqrt(r2);
+                let cos = shading.cosine(d / libm::sqrt(r2));
                 if cos > 0.0 && visible(l.position) {
                     e += l.intensity * (cos / r2);
                 }
@@ -115,7 +128,7 @@ pub fn direct_irradiance(scene: &PreparedScene, caster: &impl RayCaster, s: &Sur
                 let d = l.position - p;
                 let r2 = d.length_squared();
                 let r = libm::sqrt(r2);
-                let cos = front.dot(d) / r;
+                let cos = shading.cosine(d / r);
                 let axis = l.direction.normalize_or(DVec3::Z);
                 let theta = libm::acos((-d / r).dot(axis).clamp(-1.0, 1.0));
                 let falloff = l.falloff_at(theta);
@@ -125,7 +138,7 @@ pub fn direct_irradiance(scene: &PreparedScene, caster: &impl RayCaster, s: &Sur
             }
             Light::Directional(l) => {
                 let to_light = -l.direction.normalize_or(DVec3::Z);
-                let cos = front.dot(to_light);
+                let cos = shading.cosine(to_light);
                 let far = p + to_light * (4.0 * scene.bounding_sphere().1 + 1.0);
                 if cos > 0.0 && visible(far) {
                     e += l.irradiance * cos;
@@ -153,7 +166,7 @@ pub fn direct_irradiance(scene: &PreparedScene, caster: &impl RayCaster, s: &Sur
         let r2 = d.length_squared();
         let r = libm::sqrt(r2);
         if r > 0.0 {
-            let cos_q = front.dot(d) / r;
+            let cos_q = shading.cosine(d / r);
             let cos_l = -normal.dot(d) / r;
             if cos_q > 0.0 && cos_l > 0.0 && prob > 0.0 && visible(point) {
                 e += radiance * (cos_q * cos_l * area / (r2 * prob));

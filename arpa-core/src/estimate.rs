@@ -17,7 +17,8 @@ use glam::{DVec3, Vec3};
 pub struct QueryPoint {
     /// Position (metres).
     pub position: Vec3,
-    /// Unit geometric normal oriented towards the viewer.
+    /// Unit geometric normal oriented towards the viewer (flipped where the viewer lies
+    /// below the shading plane, see [`crate::tracer::QueryRecord::normal`]).
     pub normal: Vec3,
 }
 

@@ -324,7 +324,9 @@ pub struct PackedFootprint {
     pub row_v: [f32; 3],
     /// Green flux density (W/m²).
     pub flux_density_g: f32,
-    /// Normal over slab half-thickness, `n/h` (1/m).
+    /// Normal over slab half-thickness, `n/h` (1/m), `n` towards the arrival side
+    /// (flipped where the photon arrived from below the shading plane, see
+    /// [`crate::lambertian`]).
     pub row_n: [f32; 3],
     /// Blue flux density (W/m²).
     pub flux_density_b: f32,

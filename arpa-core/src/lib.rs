@@ -11,7 +11,7 @@
 //! |---|---|
 //! | random numbers | [`rng`], [`sampling`], [`frame`] |
 //! | emit | [`emission`] |
-//! | propagate | [`differential`], [`shading_normal`], [`fresnel`], [`reemission`], [`classify`] |
+//! | propagate | [`differential`], [`shading_normal`], [`fresnel`], [`lambertian`], [`reemission`], [`classify`] |
 //! | store footprints | [`footprint`], [`heuristics`], [`progressive_photon`], [`store`], [`aabb`] |
 //! | build AS | (backends; [`aabb`] gives the boxes) |
 //! | gather | [`kernel`], [`estimate`] |
@@ -64,6 +64,7 @@ pub mod frame;
 pub mod fresnel;
 pub mod heuristics;
 pub mod kernel;
+pub mod lambertian;
 #[cfg(feature = "alloc")]
 pub mod prepared_scene;
 #[cfg(feature = "alloc")]

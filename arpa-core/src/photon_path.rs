@@ -2,7 +2,9 @@
 //! differentials, propagate through specular chains (reflection, refraction with
 //! Fresnel-weighted choice and total internal reflection), store at diffuse hits
 //! (footprint or progressive photon), absorb and re-emit with the virtual distance, and
-//! end by Russian roulette or after `max_depth` interactions.
+//! end by Russian roulette or after `max_depth` interactions. On meshes with vertex
+//! normals a diffuse hit weights the photon by the adjoint shading-normal ratio and
+//! re-emits it within the shading lobe ([`crate::lambertian`]).
 //!
 //! This is the reference the conformance suite compares backends with, and the CPU
 //! backend's implementation.
@@ -13,6 +15,7 @@ use crate::emission::{EmissionParams, PreparedLight};
 use crate::footprint::{Footprint, PhotonMap};
 use crate::fresnel::dielectric_reflectance;
 use crate::heuristics::ResolvedHeuristics;
+use crate::lambertian::DiffuseShading;
 use crate::prepared_scene::{offset_origin, PreparedScene};
 use crate::ray_cast::RayCaster;
 use crate::reemission::{diffuse_direction, reemit};
@@ -139,8 +142,28 @@ pub fn trace_photon(
             Scattering::Diffuse(albedo) => {
                 let map = st.classifier.record(SurfaceInteraction::Diffuse).unwrap_or(PhotonMap::Global);
                 let first_interaction = st.classifier.diffuse_events() == 1 && st.classifier.specular_events() == 0;
+                // Shading normals (Mitsuba's two-sided diffuse in the shading frame): the
+                // photon counts with the adjoint ratio a(ω_i) = |ω_i·n_s|/|ω_i·n_g| both in
+                // the density estimate and in what it carries on (crate::lambertian).
+                let shading = match scene.has_shading_normals(&s) {
+                    false => None,
+                    true => match DiffuseShading::new(front, scene.shading_normal_at(&s), -d) {
+                        Some(sh) => Some(sh),
+                        None => break,
+                    },
+                };
+                if let Some(sh) = &shading {
+                    st.flux *= sh.adjoint_ratio(-d);
+                    if !(st.flux.max_element() > 0.0) {
+                        break;
+                    }
+                }
                 if !(settings.direct_lighting && first_interaction) {
-                    sink(store(&ray_at_hit, &s.geometric_normal, st.flux, map, st.differential_valid, settings, setup));
+                    // A photon from below the shading plane (on the side it landed on) is
+                    // stored with its orientation flipped, so that only query points seen
+                    // from below the shading plane too gather it (crate::lambertian).
+                    let below = shading.as_ref().is_some_and(DiffuseShading::below_shading_plane);
+                    sink(store(&ray_at_hit, &s.geometric_normal, st.flux, map, st.differential_valid, below, settings, setup));
                     stats.stored += 1;
                 }
                 let albedo = albedo.as_dvec3();
@@ -149,7 +172,13 @@ pub fn trace_photon(
                     break;
                 }
                 st.flux *= albedo / survive;
-                let dir = diffuse_direction(front, rng.next_2d());
+                let dir = match &shading {
+                    None => diffuse_direction(front, rng.next_2d()),
+                    Some(sh) => match sh.sample_reemission(rng.next_2d()) {
+                        Some(dir) => dir,
+                        None => break,
+                    },
+                };
                 st.ray = match (st.differential_valid, reemit(s.position, ray_at_hit.dp_du, ray_at_hit.dp_dv, dir, reemission_length)) {
                     (true, Ok(r)) => r,
                     _ => {
@@ -220,19 +249,57 @@ fn lost_differential(p: DVec3, d: DVec3) -> RayDifferential {
     RayDifferential { p, d, dp_du: DVec3::ZERO, dp_dv: DVec3::ZERO, dd_du: DVec3::ZERO, dd_dv: DVec3::ZERO }
 }
 
+/// Stores the photon `ray` at a diffuse hit with geometric normal `normal`: a footprint,
+/// or a progressive photon (RTPM, lost differential, or a footprint the heuristics
+/// reject). `below_shading_plane` flips the stored orientation ([`orient_to_shading_side`]).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn store(ray: &RayDifferential, normal: &DVec3, flux: DVec3, map: PhotonMap, differential_valid: bool, settings: &RenderSettings, setup: &PhotonPassSetup) -> StoredPhoton {
+fn store(
+    ray: &RayDifferential,
+    normal: &DVec3,
+    flux: DVec3,
+    map: PhotonMap,
+    differential_valid: bool,
+    below_shading_plane: bool,
+    settings: &RenderSettings,
+    setup: &PhotonPassSetup,
+) -> StoredPhoton {
     let reason = match (settings.method, differential_valid) {
         (Method::Rtpm, _) => Some(ProgressiveReason::ProgressiveMethod),
         (Method::Arpa, false) => Some(ProgressiveReason::DifferentialLost),
         (Method::Arpa, true) => None,
     };
-    if let Some(reason) = reason {
-        return store_progressive(ray.p, *normal, ray.d, flux, map, reason);
-    }
-    match Footprint::from_hit(ray, *normal, flux, map) {
-        Ok(fp) => store_footprint_resolved(fp, &settings.smoothing, &setup.heuristics, setup.radii[map.index()]),
-        Err(_) => store_progressive(ray.p, *normal, ray.d, flux, map, ProgressiveReason::DifferentialLost),
+    let stored = match reason {
+        Some(reason) => store_progressive(ray.p, *normal, ray.d, flux, map, reason),
+        None => match Footprint::from_hit(ray, *normal, flux, map) {
+            Ok(fp) => store_footprint_resolved(fp, &settings.smoothing, &setup.heuristics, setup.radii[map.index()]),
+            Err(_) => store_progressive(ray.p, *normal, ray.d, flux, map, ProgressiveReason::DifferentialLost),
+        },
+    };
+    if below_shading_plane { orient_to_shading_side(stored) } else { stored }
+}
+
+/// Flips the orientation of a stored photon (a footprint's `row_n`, a progressive photon's
+/// normal; exact sign flips) from the geometric side it arrived on to the other one.
+///
+/// The gather counts a record at a query point only where the query normal faces the
+/// record's orientation. Query points carry their geometric normal towards the viewer,
+/// flipped where the viewer is below the shading plane
+/// ([`crate::camera_path::trace_camera_path`]), and records their geometric normal
+/// towards the arriving photon, flipped where the photon came from below the shading
+/// plane. So a photon counts where viewer and photon lie on the same side of the shading
+/// plane, which is where Mitsuba's two-sided diffuse lobe is non-zero. Without vertex
+/// normals nothing is flipped (the shading plane is the face).
+#[cold]
+fn orient_to_shading_side(stored: StoredPhoton) -> StoredPhoton {
+    match stored {
+        StoredPhoton::Footprint { mut packed, aabb } => {
+            packed.row_n = packed.row_n.map(|x| -x);
+            StoredPhoton::Footprint { packed, aabb }
+        }
+        StoredPhoton::Progressive { mut photon, reason } => {
+            photon.normal = photon.normal.map(|x| -x);
+            StoredPhoton::Progressive { photon, reason }
+        }
     }
 }

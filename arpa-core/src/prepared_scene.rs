@@ -43,7 +43,16 @@ struct TriangleGeometry {
     p: [Vec3; 3],
     /// `(p1 − p0) × (p2 − p0)` in `f64`, normalised (`+y` for a degenerate triangle).
     normal: DVec3,
+    /// Whether the triangle has vertex normals that differ from `normal` (by more than
+    /// [`FLAT_NORMAL_TOLERANCE`]); only then do diffuse hits on it take the shading-normal
+    /// paths (the others give the same result up to that tolerance, faster).
+    shaded: bool,
 }
+
+/// Largest distance (radians, for unit vectors) of all three unit vertex normals of a
+/// triangle from its face normal (all on the same side) for which the triangle is shaded
+/// flat: the cosines then differ by less than this relative amount.
+pub const FLAT_NORMAL_TOLERANCE: f64 = 1e-6;
 
 impl TriangleGeometry {
     /// The vertices in `f64`.
@@ -97,7 +106,13 @@ impl PreparedScene {
                     .map(|&idx| {
                         let p = vertices(m, idx);
                         let normal = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or(DVec3::Y);
-                        TriangleGeometry { p: idx.map(|i| m.positions[i as usize]), normal }
+                        let shaded = m.normals.as_ref().is_some_and(|ns| {
+                            let near = |side: f64| {
+                                idx.iter().all(|&i| (ns[i as usize].as_dvec3().normalize_or_zero() - normal * side).length() <= FLAT_NORMAL_TOLERANCE)
+                            };
+                            !(near(1.0) || near(-1.0))
+                        });
+                        TriangleGeometry { p: idx.map(|i| m.positions[i as usize]), normal, shaded }
                     })
                     .collect()
             })
@@ -228,6 +243,37 @@ impl PreparedScene {
             nd = NormalDifferential { n: -nd.n, dn_du: -nd.dn_du, dn_dv: -nd.dn_dv };
         }
         Ok(nd)
+    }
+
+    /// Whether the triangle of `s` has vertex normals that differ from its face normal
+    /// (beyond [`FLAT_NORMAL_TOLERANCE`]); else its shading normal is the geometric one.
+    #[inline(always)]
+    pub fn has_shading_normals(&self, s: &SurfacePoint) -> bool {
+        self.triangles[s.mesh as usize][s.triangle as usize].shaded
+    }
+
+    /// The unit interpolated shading normal at `s` (world space, oriented like the
+    /// geometric normal), without derivatives: the geometric normal for triangles without
+    /// distinct vertex normals ([`PreparedScene::has_shading_normals`]) or where the
+    /// interpolated normal vanishes.
+    #[inline(always)]
+    pub fn shading_normal_at(&self, s: &SurfacePoint) -> DVec3 {
+        if !self.has_shading_normals(s) {
+            return s.geometric_normal;
+        }
+        let m = &self.scene.meshes[s.mesh as usize];
+        let Some(normals) = &m.normals else { return s.geometric_normal };
+        let idx = m.indices[s.triangle as usize];
+        let b = s.barycentric;
+        let v = |k: usize| normals[idx[k] as usize].as_dvec3();
+        let n = (v(0) * b.x + v(1) * b.y + v(2) * b.z).normalize_or_zero();
+        if n == DVec3::ZERO {
+            s.geometric_normal
+        } else if n.dot(s.geometric_normal) < 0.0 {
+            -n
+        } else {
+            n
+        }
     }
 
     /// Picks an area emitter for next-event estimation with probability proportional to

@@ -41,7 +41,8 @@ pub struct PackedPhoton {
     pub position: [f32; 3],
     /// [`PhotonMap`] as `u32`.
     pub map: u32,
-    /// Unit normal towards the arrival side.
+    /// Unit normal towards the arrival side (flipped where the photon arrived from below
+    /// the shading plane, see [`crate::lambertian`]).
     pub normal: [f32; 3],
     /// Padding (zero).
     pub _pad0: u32,

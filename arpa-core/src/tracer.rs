@@ -106,7 +106,9 @@ pub struct QueryRecord {
     pub position: [f32; 3],
     /// Pixel index (row-major) the query belongs to.
     pub pixel: u32,
-    /// Unit geometric normal oriented towards the viewer.
+    /// Unit geometric normal oriented towards the viewer, flipped where the viewer lies
+    /// below the shading plane of a mesh with vertex normals (the gather's side test,
+    /// [`crate::lambertian`]).
     pub normal: [f32; 3],
     /// 1 if this is a valid query point, 0 if the camera path ended elsewhere.
     pub valid: u32,

@@ -2417,3 +2417,59 @@ fn regression_refract_direction_with_zero_ior_returns_finite_eta() {
     let (t, _, eta) = refract_direction(DVec3::NEG_Z, DVec3::Z, 0.0);
     assert!(t.is_finite() && eta.is_finite(), "T = {t}, η = {eta}");
 }
+
+// ---------------------------------------------------------------------------------------
+// lambertian::DiffuseShading::{new, cosine, adjoint_ratio, sample_reemission}
+// ---------------------------------------------------------------------------------------
+
+type ShadingIn = (DVec3, DVec3, DVec3, DVec3, DVec3, DVec2);
+
+/// `(n_g, n_s, toward, w, w_in, u)`: unit geometric and shading normals (any relative
+/// tilt), a direction `toward` and an arriving `w_in` on the `n_g` side down to grazing,
+/// any unit `w`; one case in ten has `toward` exactly in the shading plane.
+fn shading_input() -> BoxedStrategy<ShadingIn> {
+    let side = |n: DVec3, c: f64, phi: f64| dir_at(n, c.abs(), phi);
+    prop_oneof![
+        9 => (unit_vec(), unit_vec(), grazing_cos(), 0.0f64..TAU, unit_vec(), grazing_cos(), 0.0f64..TAU, unit_square())
+            .prop_map(move |(ng, ns, c, phi, w, ci, phii, u)| (ng, ns, side(ng, c, phi), w, side(ng, ci, phii), u)),
+        1 => (unit_vec(), unit_square()).prop_map(|(w, u)| (DVec3::Y, DVec3::X, DVec3::Y, w, DVec3::Y, u)),
+    ]
+    .boxed()
+}
+
+fn check_diffuse_shading((ng, ns, toward, w, w_in, u): ShadingIn) -> Outcome {
+    use arpa_core::lambertian::{DiffuseShading, MAX_ADJOINT_RATIO};
+    let Some(s) = DiffuseShading::new(ng, ns, toward) else {
+        prop_assert!(toward.dot(ns) == 0.0, "no frame for toward·n_s = {:e}", toward.dot(ns));
+        return Ok("in_shading_plane");
+    };
+    prop_assert!(s.shading.dot(toward) > 0.0 && (s.shading.abs() - ns.abs()).length() == 0.0);
+    prop_assert_eq!(s.below_shading_plane(), s.shading.dot(ng) < 0.0);
+    let c = s.cosine(w);
+    prop_assert!(c.is_finite() && (0.0..=1.0 + 1e-12).contains(&c), "cosine {}", c);
+    if w.dot(ng) <= 0.0 || w.dot(s.shading) <= 0.0 {
+        prop_assert_eq!(c, 0.0);
+    }
+    let a = s.adjoint_ratio(w_in);
+    prop_assert!(a.is_finite() && (0.0..=MAX_ADJOINT_RATIO).contains(&a), "ratio {}", a);
+    if ns == ng || ns == -ng {
+        prop_assert!(a == 1.0 || w_in.dot(ng) == 0.0, "ratio {} without tilt", a);
+    }
+    let outcome = match s.sample_reemission(u) {
+        Some(d) => {
+            prop_assert!(d.is_finite() && (d.length() - 1.0).abs() <= 1e-12, "{}", d);
+            prop_assert!(d.dot(ng) >= -1e-12 && d.dot(s.shading) >= 0.0, "re-emitted outside the lobe: {}", d);
+            "reemitted"
+        }
+        None => "absorbed",
+    };
+    Ok(if a == MAX_ADJOINT_RATIO { "clamped" } else { outcome })
+}
+
+stress!(
+    diffuse_shading_is_finite_bounded_and_in_the_lobe,
+    diffuse_shading_cases_reach_every_outcome,
+    shading_input(),
+    check_diffuse_shading,
+    ["in_shading_plane", "clamped", "absorbed", "reemitted"]
+);

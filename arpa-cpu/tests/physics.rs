@@ -43,8 +43,28 @@ const FURNACE_ALBEDO: f64 = 0.5;
 /// uniform: `E_i = ρΦ/((1 − ρ) A)` with `A` the (facetted) wall's area. The radiance is
 /// `L(q) = ρ/π (E_d(q) + E_i)`; for ρ = 1/2 and a round sphere, `L = I/(πR²)`.
 fn furnace(method: Method, direct_lighting: bool) -> f64 {
-    let sphere = icosphere(Vec3::ZERO, 1.0, 3, 0);
+    furnace_with(method, direct_lighting, false)
+}
+
+/// [`furnace`]; with `face_vertex_normals` every facet gets its own three vertices whose
+/// vertex normals are the facet's normal, so the shading-normal code runs with `n_s = n_g`.
+fn furnace_with(method: Method, direct_lighting: bool, face_vertex_normals: bool) -> f64 {
+    let mut sphere = icosphere(Vec3::ZERO, 1.0, 3, 0);
     assert_eq!(sphere.indices.len(), 1280);
+    if face_vertex_normals {
+        let (mut positions, mut normals, mut indices) = (vec![], vec![], vec![]);
+        for t in &sphere.indices {
+            let p = t.map(|i| sphere.positions[i as usize]);
+            let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
+            let base = positions.len() as u32;
+            positions.extend_from_slice(&p);
+            normals.extend_from_slice(&[n; 3]);
+            indices.push([base, base + 1, base + 2]);
+        }
+        sphere.positions = positions;
+        sphere.normals = Some(normals);
+        sphere.indices = indices;
+    }
     let area = sphere.area();
     let scene = scene(
         vec![sphere],
@@ -128,6 +148,19 @@ fn furnace_arpa_direct_lighting() {
 fn furnace_arpa_photons_only() {
     let e = furnace(Method::Arpa, false);
     assert!(e.abs() < 2.0, "{e:+.3}%");
+}
+
+/// Vertex normals equal to the facet normals run the shading-normal paths (adjoint
+/// ratio, re-emission within the shading lobe, NEE cosine about `n_s`) with `n_s = n_g`:
+/// the furnace stays within its tolerance and gives the face-normal result.
+#[test]
+fn furnace_with_vertex_normals_equal_to_face_normals_is_unchanged() {
+    for direct_lighting in [false, true] {
+        let plain = furnace(Method::Arpa, direct_lighting);
+        let shaded = furnace_with(Method::Arpa, direct_lighting, true);
+        assert!(shaded.abs() < 2.0, "{shaded:+.3}%");
+        assert!((shaded - plain).abs() < 0.05, "{shaded:+.4}% vs {plain:+.4}% without vertex normals");
+    }
 }
 
 #[test]

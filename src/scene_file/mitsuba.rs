@@ -684,7 +684,7 @@ impl<'a> Loader<'a> {
                 self.warn(
                     n.line,
                     format!(
-                        "mesh '{file}': {:.1} % of its area has vertex normals more than {TILTED_NORMAL_DEGREES}° from the face normal; arpa shades diffuse surfaces with face normals, Mitsuba with these normals, so the images differ there",
+                        "mesh '{file}': {:.1} % of its area has vertex normals more than {TILTED_NORMAL_DEGREES}° from the face normal; both arpa and Mitsuba shade diffuse surfaces with them (the interpolated normal decides the cosine and which side is lit), so such a mesh looks different from its face-normal rendering",
                         100.0 * off
                     ),
                 );
@@ -794,7 +794,7 @@ impl<'a> Loader<'a> {
 pub const TILTED_NORMAL_DEGREES: f64 = 60.0;
 
 /// Fraction of a diffuse mesh's area with tilted vertex normals above which the loader
-/// warns that arpa's shading (face normals on diffuse surfaces) differs from Mitsuba's.
+/// warns (both arpa and Mitsuba shade diffuse surfaces with such normals; likely a broken export).
 pub const TILTED_NORMAL_WARN_FRACTION: f64 = 0.01;
 
 /// Fraction of the total area of `indices` whose triangles have at least one vertex
