@@ -65,10 +65,7 @@ pub fn compiled() -> Vec<Backend> {
         name: "cpu",
         feature: "cpu",
         create: create_cpu,
-        expected_failures: &[ExpectedFailure {
-            case: "reference-sponza-standin",
-            reason: "image mean +7–9 % above Mitsuba path (LuxCore agrees with Mitsuba to 0.9 %), both methods, not the depth limit; open (issue 4)",
-        }],
+        expected_failures: &[],
     });
     v
 }
