@@ -1736,6 +1736,13 @@ fn close(a: f64, b: f64, rel: f64) -> bool {
     (a - b).abs() <= rel * a.abs().max(b.abs())
 }
 
+/// `|v|` without the underflow of `v.length()`: components around 1e-158 square into the
+/// subnormal range and lose digits (a cross product of two 1e-79 differentials does).
+fn length_scaled(v: DVec3) -> f64 {
+    let m = v.abs().max_element();
+    if m > 0.0 && m.is_finite() { m * (v / m).length() } else { v.length() }
+}
+
 type EmitIn = (Light, EmissionParams, u32, u32);
 
 fn check_emit((light, params, index, seed): EmitIn) -> Outcome {
@@ -1765,8 +1772,8 @@ fn check_emit((light, params, index, seed): EmitIn) -> Outcome {
     let lengths = light.emission_lengths(params.photon_count, s, radius);
     prop_assert_eq!(ph.reemission_length, lengths.reemission);
     // Tiling rule: footprint ellipse (π/4)|D_u × D_v| = s² · measure / N.
-    let pos_area = 0.25 * PI * ph.ray.dp_du.cross(ph.ray.dp_dv).length();
-    let dir_area = 0.25 * PI * ph.ray.dd_du.cross(ph.ray.dd_dv).length();
+    let pos_area = 0.25 * PI * length_scaled(ph.ray.dp_du.cross(ph.ray.dp_dv));
+    let dir_area = 0.25 * PI * length_scaled(ph.ray.dd_du.cross(ph.ray.dd_dv));
     let s2 = s * s;
     match light {
         Light::Point(_) => {
@@ -2473,3 +2480,23 @@ stress!(
     check_diffuse_shading,
     ["in_shading_plane", "clamped", "absorbed", "reemitted"]
 );
+
+/// The tiling check of `light_emit_is_finite_tiles_and_labels_invalid_lights_for_all_kinds`
+/// itself lost digits: a quad light 1e-30 m wide with `N = 2³² − 1` and scale 1e-30 has
+/// positional differentials of 1.4e-79 m, whose cross product (2e-158) `length()` squares
+/// into the subnormal range (4e-316): 2.2e-9 relative error, over the 1e-9 tolerance. The
+/// emitted differentials were exact; the check now measures the cross product scaled.
+#[test]
+fn regression_tiny_quad_tiling_check_does_not_underflow() {
+    let light = Light::Quad(QuadLight {
+        origin: DVec3::ZERO,
+        edge_u: DVec3::new(1e-30, 0.0, 0.0),
+        edge_v: DVec3::new(2.2737367544323208e-43, 0.0, -6.845946761352856e-59),
+        radiance: DVec3::new(0.0, 0.0, 1.0),
+    });
+    let params = EmissionParams { photon_count: u32::MAX, scale: 1e-30, scene_sphere: (DVec3::ZERO, 1.0), lattice_shift: DVec2::ZERO };
+    match check_emit((light, params, 0, 0)) {
+        Ok(outcome) => assert_eq!(outcome, "quad_ok"),
+        Err(e) => panic!("{e}"),
+    }
+}
