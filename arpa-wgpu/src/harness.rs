@@ -89,18 +89,7 @@ pub fn run_kernel(
         usage: wgpu::BufferUsages::STORAGE,
     });
     let out_bytes = (output_words * 4) as u64;
-    let output_buf = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("arpa-wgpu harness output"),
-        size: out_bytes,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
-    let staging = device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("arpa-wgpu harness staging"),
-        size: out_bytes,
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
+    let (output_buf, staging) = output_and_staging(device, label, out_bytes);
     let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some(label),
         layout: &pipeline.get_bind_group_layout(0),
@@ -117,21 +106,46 @@ pub fn run_kernel(
         pass.dispatch_workgroups(groups.max(1), 1, 1);
     }
     encoder.copy_buffer_to_buffer(&output_buf, 0, &staging, 0, out_bytes);
+    let [out] = submit_and_read(ctx, scope, encoder, label, [&staging])?;
+    Ok(bytemuck::pod_collect_to_vec(&out))
+}
+
+/// A kernel's output buffer of `bytes` (`STORAGE | COPY_SRC`) and the `MAP_READ` staging
+/// buffer of the same size it is copied into for [`submit_and_read`].
+pub(crate) fn output_and_staging(device: &wgpu::Device, label: &str, bytes: u64) -> (wgpu::Buffer, wgpu::Buffer) {
+    let buffer = |usage| device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size: bytes, usage, mapped_at_creation: false });
+    (
+        buffer(wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC),
+        buffer(wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST),
+    )
+}
+
+/// Closes the validation `scope` opened before the work in `encoder` was recorded (a
+/// validation error becomes [`HarnessError::Shader`]), submits `encoder`, waits for the
+/// device and returns the bytes of each staging buffer (`MAP_READ`, filled by copies
+/// recorded in `encoder`), in order.
+pub(crate) fn submit_and_read<const N: usize>(
+    ctx: &GpuContext,
+    scope: wgpu::ErrorScopeGuard,
+    encoder: wgpu::CommandEncoder,
+    label: &str,
+    staging: [&wgpu::Buffer; N],
+) -> Result<[Vec<u8>; N], HarnessError> {
     if let Some(err) = pollster::block_on(scope.pop()) {
         return Err(HarnessError::Shader { label: label.into(), message: err.to_string() });
     }
     ctx.queue.submit([encoder.finish()]);
-
     let readback = |message: String| HarnessError::Readback { label: label.into(), message };
-    let (tx, rx) = std::sync::mpsc::channel();
-    staging.map_async(wgpu::MapMode::Read, .., move |r| {
-        let _ = tx.send(r);
-    });
-    device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| readback(e.to_string()))?;
-    rx.recv().map_err(|e| readback(e.to_string()))?.map_err(|e| readback(e.to_string()))?;
-    let view = staging.get_mapped_range(..).map_err(|e| readback(e.to_string()))?;
-    let out = bytemuck::cast_slice::<u8, u32>(&view).to_vec();
-    drop(view);
-    staging.unmap();
+    let mut out: [Vec<u8>; N] = core::array::from_fn(|_| Vec::new());
+    for (buffer, bytes) in staging.into_iter().zip(&mut out) {
+        let (tx, rx) = std::sync::mpsc::channel();
+        buffer.map_async(wgpu::MapMode::Read, .., move |r| {
+            let _ = tx.send(r);
+        });
+        ctx.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| readback(e.to_string()))?;
+        rx.recv().map_err(|e| readback(e.to_string()))?.map_err(|e| readback(e.to_string()))?;
+        *bytes = buffer.get_mapped_range(..).map_err(|e| readback(e.to_string()))?.to_vec();
+        buffer.unmap();
+    }
     Ok(out)
 }

@@ -5,7 +5,7 @@
 //! [`arpa_core::ray_cast::BruteForceCaster`].
 
 use crate::device::GpuContext;
-use crate::harness::HarnessError;
+use crate::harness::{HarnessError, output_and_staging, submit_and_read};
 use arpa_core::ray_cast::RayHit;
 use arpa_core::scene::TriangleMesh;
 use arpa_core::glam::Vec3;
@@ -199,18 +199,7 @@ impl GpuScene {
         });
         let in_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents: bytemuck::cast_slice(&input), usage: wgpu::BufferUsages::STORAGE });
         let out_bytes = (rays.len() * std::mem::size_of::<CastHit>()) as u64;
-        let out_buf = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(label),
-            size: out_bytes,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let staging = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(label),
-            size: out_bytes,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
+        let (out_buf, staging) = output_and_staging(device, label, out_bytes);
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some(label),
             layout: &pipeline.get_bind_group_layout(0),
@@ -228,24 +217,10 @@ impl GpuScene {
             pass.dispatch_workgroups(groups, 1, 1);
         }
         encoder.copy_buffer_to_buffer(&out_buf, 0, &staging, 0, out_bytes);
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(HarnessError::Shader { label: label.into(), message: e.to_string() });
-        }
-        ctx.queue.submit([encoder.finish()]);
-        let readback = |message: String| HarnessError::Readback { label: label.into(), message };
-        let (tx, rx) = std::sync::mpsc::channel();
-        staging.map_async(wgpu::MapMode::Read, .., move |r| {
-            let _ = tx.send(r);
-        });
-        device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| readback(e.to_string()))?;
-        rx.recv().map_err(|e| readback(e.to_string()))?.map_err(|e| readback(e.to_string()))?;
-        let view = staging.get_mapped_range(..).map_err(|e| readback(e.to_string()))?;
-        let hits = bytemuck::cast_slice::<u8, CastHit>(&view)
+        let [out] = submit_and_read(ctx, scope, encoder, label, [&staging])?;
+        Ok(bytemuck::pod_collect_to_vec::<u8, CastHit>(&out)
             .iter()
             .map(|h| (h.mesh != u32::MAX).then_some(RayHit { t: h.t, mesh: h.mesh, triangle: h.triangle, b1: h.b1, b2: h.b2 }))
-            .collect();
-        drop(view);
-        staging.unmap();
-        Ok(hits)
+            .collect())
     }
 }

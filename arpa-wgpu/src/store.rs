@@ -8,7 +8,7 @@
 
 use crate::device::GpuContext;
 use crate::gather::{GATHER_WGSL, GatherResult};
-use crate::harness::HarnessError;
+use crate::harness::{HarnessError, submit_and_read};
 use arpa_core::estimate::QueryPoint;
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::heuristics::PackedHeuristics;
@@ -212,25 +212,10 @@ pub fn store_and_gather(
     let st_status = staging(&status_buf, (n * 4) as u64, &mut encoder);
     let st_records = staging(&records_buf, (n * 64) as u64, &mut encoder);
     let st_out = staging(&out_buf, out_bytes, &mut encoder);
-    if let Some(e) = pollster::block_on(scope.pop()) {
-        return Err(HarnessError::Shader { label: label.into(), message: e.to_string() });
-    }
-    ctx.queue.submit([encoder.finish()]);
-    let readback = |message: String| HarnessError::Readback { label: label.into(), message };
-    let read = |b: &wgpu::Buffer| -> Result<Vec<u8>, HarnessError> {
-        let (tx, rx) = std::sync::mpsc::channel();
-        b.map_async(wgpu::MapMode::Read, .., move |r| {
-            let _ = tx.send(r);
-        });
-        device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| readback(e.to_string()))?;
-        rx.recv().map_err(|e| readback(e.to_string()))?.map_err(|e| readback(e.to_string()))?;
-        let v = b.get_mapped_range(..).map_err(|e| readback(e.to_string()))?.to_vec();
-        b.unmap();
-        Ok(v)
-    };
+    let [status, records, gathered] = submit_and_read(ctx, scope, encoder, label, [&st_status, &st_records, &st_out])?;
     Ok(StoreGatherOutput {
-        status: bytemuck::pod_collect_to_vec(&read(&st_status)?),
-        records: bytemuck::pod_collect_to_vec(&read(&st_records)?),
-        gathered: bytemuck::pod_collect_to_vec(&read(&st_out)?),
+        status: bytemuck::pod_collect_to_vec(&status),
+        records: bytemuck::pod_collect_to_vec(&records),
+        gathered: bytemuck::pod_collect_to_vec(&gathered),
     })
 }
