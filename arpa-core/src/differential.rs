@@ -143,6 +143,7 @@ pub fn refract_direction(d: DVec3, n: DVec3, ior: f64) -> (DVec3, RefractionEven
 /// `true` when every component is finite, without a branch per component: `c − c` is
 /// `+0` for finite `c` and NaN for an infinity or NaN, and a NaN survives the sum.
 #[inline]
+#[allow(clippy::eq_op)] // `c - c` is the finiteness test, not a zero
 fn all_finite(v: &[DVec3]) -> bool {
     let zero = v.iter().fold(DVec3::ZERO, |acc, &c| acc + (c - c));
     zero.x + zero.y + zero.z == 0.0

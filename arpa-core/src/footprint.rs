@@ -266,6 +266,7 @@ pub fn half_thickness(center: DVec3, major: f64, minor: f64, radius: f64) -> f64
 /// denominator `den = (D_u × D_v)·n` (already checked with [`degenerate_denominator`]) and
 /// the slab half-thickness `h` already known.
 #[inline(always)]
+#[allow(clippy::eq_op)] // `x - x` is the finiteness test, not a zero
 pub(crate) fn pack_parts(fp: &Footprint, la2: f64, lb2: f64, cross: DVec3, den: f64, h: f64) -> Result<PackedFootprint, FootprintError> {
     // σ₂ ≥ |a × b|/√(|a|² + |b|²) ≥ k·scale, compared in squares:
     // |D_u × D_v|² ≥ 4 (|D_u|² + |D_v|²) (k·scale)².

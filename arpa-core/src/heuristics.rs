@@ -309,7 +309,7 @@ const INV_CENTRE_POW: [f64; 32] = [
 
 /// `2^(−r/8)`, `r = 0..8`.
 const POW2_MINUS_EIGHTHS: [f64; 8] =
-    [1.0, 0.9170040432046712, 0.8408964152537145, 0.7711054127039704, 0.7071067811865476, 0.6484197773255048, 0.5946035575013605, 0.5452538663326288];
+    [1.0, 0.9170040432046712, 0.8408964152537145, 0.7711054127039704, core::f64::consts::FRAC_1_SQRT_2, 0.6484197773255048, 0.5946035575013605, 0.5452538663326288];
 
 /// Taylor coefficients `binom(−3/8, k)`, `k = 1..=8`, of `(1 + t)^(−3/8)`.
 const TAYLOR_MINUS_3_8: [f64; 8] = [
@@ -404,10 +404,10 @@ impl ResolvedHeuristics {
         };
         let s2 = s * s;
         let (la2, lb2) = (la2_0 * s2, lb2_0 * s2);
-        if let Some((h, mode)) = self.h_max.filter(|(h, _)| *h > 0.0) {
-            if la2.max(lb2) > h * h {
-                return self.store_clamped(fp.scaled(s), la2, lb2, h, mode, radius);
-            }
+        if let Some((h, mode)) = self.h_max.filter(|(h, _)| *h > 0.0)
+            && la2.max(lb2) > h * h
+        {
+            return self.store_clamped(fp.scaled(s), la2, lb2, h, mode, radius);
         }
         if degenerate {
             return Err(StoreRejection::Heuristic(Rejection::Degenerate));
@@ -451,10 +451,10 @@ impl ResolvedHeuristics {
         }
         let cross = fp.du.cross(fp.dv);
         let major2 = la2.max(lb2);
-        if let Some(f) = self.degenerate {
-            if !(major2 > 0.0) || !(cross.length_squared() >= f * f * major2 * major2) {
-                return Err(StoreRejection::Heuristic(Rejection::Degenerate));
-            }
+        if let Some(f) = self.degenerate
+            && (!(major2 > 0.0) || !(cross.length_squared() >= f * f * major2 * major2))
+        {
+            return Err(StoreRejection::Heuristic(Rejection::Degenerate));
         }
         let den = cross.dot(fp.normal);
         if degenerate_denominator(den, la2, lb2) {

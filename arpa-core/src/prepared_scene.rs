@@ -30,8 +30,11 @@ pub struct PreparedScene {
     triangles: Vec<Vec<TriangleGeometry>>,
     /// Per mesh with shading normals, per triangle: the barycentric gradients
     /// ([`ShadedTriangle::barycentric_gradients`]); `None` for meshes without normals.
-    gradients: Vec<Option<Vec<Result<[DVec3; 3], DifferentialError>>>>,
+    gradients: Vec<Option<Vec<TriangleGradients>>>,
 }
+
+/// One triangle's barycentric gradients, or why it has none.
+type TriangleGradients = Result<[DVec3; 3], DifferentialError>;
 
 /// A triangle's vertices (the mesh's `f32` values, so converting them to `f64` is exact)
 /// and its unit geometric normal, computed once at [`PreparedScene::new`] instead of at
