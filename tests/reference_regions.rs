@@ -13,19 +13,10 @@
 use arpa::cli::{Budget, Progress, render};
 use arpa::core::tracer::{Image, Method, RenderSettings};
 use arpa::scene_file::load_scene;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-fn shared_scenes() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
-    if dir.join("README.md").is_file() {
-        return Some(dir);
-    }
-    if std::env::var_os("CI").is_some() {
-        panic!("CI is set but the shared scenes are missing at {}", dir.display());
-    }
-    eprintln!("\n=== SKIPPED: shared scenes not found at {} (set CI to make this a failure) ===\n", dir.display());
-    None
-}
+mod common;
+use common::shared_scenes;
 
 /// Mean of the three channels over rows `r0..r1`, columns `c0..c1`.
 fn region_mean(img: &Image, (r0, r1): (usize, usize), (c0, c1): (usize, usize)) -> f64 {

@@ -6,21 +6,9 @@ use arpa::core::emission::{Light, SpotFalloff};
 use arpa::core::scene::{Material, Scattering, TriangleMesh};
 use arpa::scene_file::{FovAxis, LoadedScene, SceneFileError, load_scene};
 use glam::{Vec3, vec3};
-use std::path::{Path, PathBuf};
 
-/// `shared/scenes` beside the repository (as on CI), or `None` with a loud message. With
-/// `CI` set, missing scenes are a failure.
-fn shared_scenes() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
-    if dir.join("README.md").is_file() {
-        return Some(dir);
-    }
-    if std::env::var_os("CI").is_some() {
-        panic!("CI is set but the shared scenes are missing at {}", dir.display());
-    }
-    eprintln!("\n=== SKIPPED: shared scenes not found at {} (set CI to make this a failure) ===\n", dir.display());
-    None
-}
+mod common;
+use common::shared_scenes;
 
 fn load_shared(name: &str) -> Option<LoadedScene> {
     let dir = shared_scenes()?;
