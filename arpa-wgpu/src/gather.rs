@@ -53,15 +53,8 @@ fn kernel_id(k: Kernel) -> u32 {
 /// `f32` box containing the `f64` box `b` (each bound rounded outwards), as WGSL/Vulkan's
 /// `AABB` record: min xyz, max xyz.
 pub fn aabb_f32(b: &Aabb) -> [f32; 6] {
-    let down = |x: f64| {
-        let y = x as f32;
-        if (y as f64) > x { y.next_down() } else { y }
-    };
-    let up = |x: f64| {
-        let y = x as f32;
-        if (y as f64) < x { y.next_up() } else { y }
-    };
-    [down(b.min.x), down(b.min.y), down(b.min.z), up(b.max.x), up(b.max.y), up(b.max.z)]
+    let (lo, hi) = b.to_f32_conservative();
+    [lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]]
 }
 
 /// Gathers the footprints `footprints` (with their acceleration-structure boxes `boxes`,
