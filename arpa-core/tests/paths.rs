@@ -37,6 +37,25 @@ fn plane_scene(size: u32) -> Scene {
     }
 }
 
+/// The photon pass of iteration `it` by the reference paths: its setup (radii), the
+/// footprints and the progressive photons it stores.
+fn photon_pass(
+    scene: &PreparedScene,
+    caster: &BruteForceCaster,
+    settings: &RenderSettings,
+    it: u32,
+) -> (PhotonPassSetup, Vec<PackedFootprint>, Vec<PackedPhoton>) {
+    let setup = PhotonPassSetup::new(scene, settings, it);
+    let (mut fps, mut phs) = (vec![], vec![]);
+    for i in 0..setup.photon_count() {
+        trace_photon(scene, caster, settings, &setup, i, &mut |s| match s {
+            StoredPhoton::Footprint { packed, .. } => fps.push(packed),
+            StoredPhoton::Progressive { photon, .. } => phs.push(photon),
+        });
+    }
+    (setup, fps, phs)
+}
+
 /// Renders `iterations` iterations with the reference paths; returns per-pixel mean
 /// radiance (red channel) and the last iteration's query records.
 fn render(scene: &PreparedScene, settings: &RenderSettings, iterations: u32) -> (Vec<f64>, Vec<QueryRecord>) {
@@ -47,14 +66,7 @@ fn render(scene: &PreparedScene, settings: &RenderSettings, iterations: u32) -> 
     let mut records = vec![];
     for it in 0..iterations {
         records = (0..pixels).map(|p| trace_camera_path(scene, &caster, settings, it, p)).collect();
-        let setup = PhotonPassSetup::new(scene, settings, it);
-        let (mut fps, mut phs): (Vec<PackedFootprint>, Vec<PackedPhoton>) = (vec![], vec![]);
-        for i in 0..setup.photon_count() {
-            trace_photon(scene, &caster, settings, &setup, i, &mut |s| match s {
-                StoredPhoton::Footprint { packed, .. } => fps.push(packed),
-                StoredPhoton::Progressive { photon, .. } => phs.push(photon),
-            });
-        }
+        let (setup, fps, phs) = photon_pass(scene, &caster, settings, it);
         let radii = setup.radii.map(|r| r as f32);
         for (r, acc) in records.iter().zip(&mut sum) {
             let mut l = r.radiance[0] as f64;
@@ -177,14 +189,7 @@ fn glass_slab_caustic_matches_optics() {
         let mut sums = vec![0.0; rings.len()];
         let mut caustic_footprints = 0usize;
         for iteration in 0..iterations {
-            let setup = PhotonPassSetup::new(&scene, &settings, iteration);
-            let (mut fps, mut phs) = (vec![], vec![]);
-            for i in 0..setup.photon_count() {
-                trace_photon(&scene, &caster, &settings, &setup, i, &mut |s| match s {
-                    StoredPhoton::Footprint { packed, .. } => fps.push(packed),
-                    StoredPhoton::Progressive { photon, .. } => phs.push(photon),
-                });
-            }
+            let (setup, fps, phs) = photon_pass(&scene, &caster, &settings, iteration);
             caustic_footprints += fps.iter().filter(|f| f.photon_map() == arpa_core::footprint::PhotonMap::Caustic).count();
             let r = setup.radii.map(|r| r as f32);
             for (ring, sum) in rings.iter().zip(&mut sums) {
@@ -353,14 +358,7 @@ fn tilted_vertex_normals_reflect_photons_by_the_adjoint() {
     let settings = RenderSettings { method, photons_per_iteration: 100_000, direct_lighting: true, max_depth: 2, radii, ..RenderSettings::default() };
     let mut estimate = 0.0;
     for iteration in 0..iterations {
-        let setup = PhotonPassSetup::new(&scene, &settings, iteration);
-        let (mut fps, mut phs) = (vec![], vec![]);
-        for i in 0..setup.photon_count() {
-            trace_photon(&scene, &caster, &settings, &setup, i, &mut |s| match s {
-                StoredPhoton::Footprint { packed, .. } => fps.push(packed),
-                StoredPhoton::Progressive { photon, .. } => phs.push(photon),
-            });
-        }
+        let (setup, fps, phs) = photon_pass(&scene, &caster, &settings, iteration);
         let r = setup.radii.map(|r| r as f32);
         estimate += points.iter().map(|q| gather_brute_force(q, &fps, &phs, r, Kernel::Silverman).irradiance().x).sum::<f64>();
     }
