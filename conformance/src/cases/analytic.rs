@@ -27,6 +27,32 @@ fn analytic(r: &QueryRecord) -> f64 {
     PLANE_ALBEDO / PI * PLANE_INTENSITY * (PLANE_LIGHT_HEIGHT / d) / (d * d)
 }
 
+/// Runs `iterations` iterations of the uploaded scene and hands each iteration's query
+/// records to `each` (0-based iteration), after checking there is one record per pixel
+/// of a `pixels`-pixel image and that every record names a pixel inside it.
+fn for_each_iteration(
+    t: &mut dyn DynTracer,
+    iterations: u32,
+    pixels: usize,
+    mut each: impl FnMut(u32, &[QueryRecord]) -> Result<(), String>,
+) -> Result<(), String> {
+    for it in 0..iterations {
+        t.iterate().ctx("iterate")?;
+        let records = t.read_query_points().ctx("read_query_points")?;
+        if records.len() != pixels {
+            return Err(format!(
+                "{} query records for {pixels} pixels",
+                records.len()
+            ));
+        }
+        if let Some(r) = records.iter().find(|r| r.pixel as usize >= pixels) {
+            return Err(format!("query record for pixel {} outside the image", r.pixel));
+        }
+        each(it, &records)?;
+    }
+    Ok(())
+}
+
 /// Point light at height 1 over a diffuse plane, direct lighting off (every bit of the
 /// image comes from the photons): the mean radiance of each ring `r ∈ [0, 0.5)`,
 /// `[0.5, 1)`, `[1, 1.5)` around the light's foot is within [`PLANE_TOL_PERCENT`] of the
@@ -46,16 +72,8 @@ fn plane(t: &mut dyn DynTracer, method: Method) -> CaseResult {
     let pixels = (PLANE_SIZE * PLANE_SIZE) as usize;
     let mut expected = vec![0.0f64; pixels];
     let mut ring = vec![None; pixels];
-    for it in 0..PLANE_ITERATIONS {
-        t.iterate().ctx("iterate")?;
-        let records = t.read_query_points().ctx("read_query_points")?;
-        if records.len() != pixels {
-            return Err(format!(
-                "{} query records for {pixels} pixels",
-                records.len()
-            ));
-        }
-        for r in &records {
+    for_each_iteration(t, PLANE_ITERATIONS, pixels, |it, records| {
+        for r in records {
             if r.valid != 1 {
                 return Err(format!(
                     "pixel {}: no query point, but every camera ray hits the plane",
@@ -63,16 +81,14 @@ fn plane(t: &mut dyn DynTracer, method: Method) -> CaseResult {
                 ));
             }
             let p = r.pixel as usize;
-            if p >= pixels {
-                return Err(format!("query record for pixel {p} outside the image"));
-            }
             expected[p] += analytic(r) / PLANE_ITERATIONS as f64;
             if it == 0 {
                 let rho = (r.position[0] as f64).hypot(r.position[2] as f64);
                 ring[p] = Some((rho / 0.5) as usize).filter(|&k| k < 3);
             }
         }
-    }
+        Ok(())
+    })?;
     let image = t.read_image().ctx("read_image")?;
     if image.pixels.len() != pixels {
         return Err(format!(
@@ -155,12 +171,11 @@ fn furnace(t: &mut dyn DynTracer, method: Method, direct_lighting: bool) -> Case
         ..RenderSettings::default()
     };
     t.upload_scene(&scene, &settings).ctx("upload_scene")?;
+    let pixels = (scene.camera.width * scene.camera.height) as usize;
     let mut expected = 0.0;
-    for _ in 0..FURNACE_ITERATIONS {
-        t.iterate().ctx("iterate")?;
-        let records = t.read_query_points().ctx("read_query_points")?;
+    for_each_iteration(t, FURNACE_ITERATIONS, pixels, |_, records| {
         let mut sum = 0.0;
-        for r in &records {
+        for r in records {
             if r.valid != 1 {
                 return Err(format!(
                     "pixel {}: no query point inside a closed sphere",
@@ -174,7 +189,8 @@ fn furnace(t: &mut dyn DynTracer, method: Method, direct_lighting: bool) -> Case
             sum += rho / PI * (direct + indirect);
         }
         expected += sum / records.len().max(1) as f64 / FURNACE_ITERATIONS as f64;
-    }
+        Ok(())
+    })?;
     let image = t.read_image().ctx("read_image")?;
     if image.pixels.iter().any(|p| !p.is_finite()) {
         return Err("non-finite pixel".into());
@@ -244,26 +260,16 @@ fn region_means(
     let pixels = (scene.camera.width * scene.camera.height) as usize;
     let mut expected = vec![0.0f64; pixels];
     let mut member: Vec<Option<Option<usize>>> = vec![None; pixels];
-    for _ in 0..SPECULAR_ITERATIONS {
-        t.iterate().ctx("iterate")?;
-        let records = t.read_query_points().ctx("read_query_points")?;
-        if records.len() != pixels {
-            return Err(format!(
-                "{} query records for {pixels} pixels",
-                records.len()
-            ));
-        }
+    for_each_iteration(t, SPECULAR_ITERATIONS, pixels, |_, records| {
         for r in records.iter().filter(|r| r.valid == 1) {
             let p = r.pixel as usize;
-            if p >= pixels {
-                return Err(format!("query record for pixel {p} outside the image"));
-            }
             let q = Vec3::from_array(r.position).as_dvec3();
             let w = Vec3::from_array(r.weight).as_dvec3();
             expected[p] += w.x * irradiance(q) / SPECULAR_ITERATIONS as f64;
             member[p].get_or_insert(region(q));
         }
-    }
+        Ok(())
+    })?;
     let image = t.read_image().ctx("read_image")?;
     if image.pixels.len() != pixels || image.pixels.iter().any(|p| !p.is_finite()) {
         return Err("image of the wrong size or with non-finite pixels".into());
