@@ -24,6 +24,7 @@ pub mod device;
 pub mod gather;
 pub mod harness;
 pub mod scene;
+pub mod sort;
 pub mod store;
 
 pub use device::{AdapterChoice, DeviceError, GpuContext};

@@ -8,6 +8,7 @@ mod gather;
 mod naga_validate;
 mod ray_cast;
 mod ray_query;
+mod sort;
 mod store;
 mod twin_differential;
 mod twin_emission;
