@@ -20,12 +20,16 @@
 //!
 //! The `Tracer` (scene upload, photon pass, footprint AS, gather) is not implemented yet.
 
+pub mod accel;
+pub mod accumulate;
 pub mod device;
 pub mod gather;
 pub mod harness;
+pub mod maps;
 pub mod scene;
 pub mod sort;
 pub mod store;
+pub mod tracer;
 
 pub use device::{AdapterChoice, DeviceError, GpuContext};
 pub use harness::{HarnessError, run_kernel};

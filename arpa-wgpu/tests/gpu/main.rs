@@ -5,6 +5,7 @@
 mod common;
 
 mod gather;
+mod maps;
 mod naga_validate;
 mod ray_cast;
 mod ray_query;

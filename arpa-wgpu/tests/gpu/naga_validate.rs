@@ -73,8 +73,14 @@ fn ray_cast_kernel_validates() {
 
 #[test]
 fn store_kernel_validates() {
-    let src = format!("{}\n{}\n{}\n{}", shaders::KERNEL, shaders::FOOTPRINT, shaders::HEURISTICS, arpa_wgpu::store::STORE_WGSL);
+    let src = format!("{}\n{}\n{}\n{}\n{}", shaders::KERNEL, shaders::FOOTPRINT, shaders::HEURISTICS, arpa_wgpu::sort::MORTON_WGSL, arpa_wgpu::store::STORE_WGSL);
     validate("store.wgsl", &src);
+}
+
+#[test]
+fn sort_and_accumulate_kernels_validate() {
+    validate("sort.wgsl", arpa_wgpu::sort::SORT_WGSL);
+    validate("accumulate.wgsl", arpa_wgpu::accumulate::ACCUMULATE_WGSL);
 }
 
 #[test]
