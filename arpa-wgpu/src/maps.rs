@@ -11,7 +11,7 @@ use crate::accel::MapAccel;
 use crate::accumulate::{AccumPixel, DeviceAccumulator};
 use crate::device::GpuContext;
 use crate::gather::ImageGather;
-use crate::store::{KeyedPhoton, MapStore, RawFootprint, StoreCounts, StorePipelines, StoreSettings};
+use crate::store::{KeyedFootprint, KeyedPhoton, MapStore, StoreCounts, StorePipelines, StoreSettings};
 use crate::tracer::WgpuError;
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::kernel::Kernel;
@@ -88,7 +88,7 @@ impl PhotonMaps {
         })
     }
 
-    /// Binds the photon pass's output buffers (`raw`: [`RawFootprint`]s, `photons`:
+    /// Binds the photon pass's output buffers (`raw`: [`KeyedFootprint`]s, `photons`:
     /// [`KeyedPhoton`]s) with their capacities; call again whenever they are reallocated.
     pub fn bind_inputs(&mut self, ctx: &GpuContext, raw: &wgpu::Buffer, photons: &wgpu::Buffer, raw_capacity: u32, photon_capacity: u32) -> Result<(), WgpuError> {
         self.store = None;
@@ -184,7 +184,7 @@ pub struct HostRun {
 /// (to exercise the running mean). For tests and benchmarks.
 pub fn run_from_host(
     ctx: &GpuContext,
-    raw: &[RawFootprint],
+    raw: &[KeyedFootprint],
     photons: &[KeyedPhoton],
     settings: &StoreSettings,
     records: &[QueryRecord],
@@ -194,7 +194,7 @@ pub fn run_from_host(
     let device = &ctx.device;
     let pixels = u32::try_from(records.len()).map_err(|_| WgpuError::Size(format!("{} query records", records.len())))?;
     let upload = |bytes: &[u8], usage| {
-        let pad = [0u8; 80];
+        let pad = [0u8; 96];
         let contents = if bytes.is_empty() { &pad[..] } else { bytes };
         device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("arpa host upload"), contents, usage: wgpu::BufferUsages::STORAGE | usage })
     };

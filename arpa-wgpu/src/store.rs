@@ -7,8 +7,9 @@
 //! records. The host uploads the raw footprints and reads back only what the tests inspect.
 //!
 //! [`MapStore`] is the tracer's form of the stage, on the photon pass's device buffers:
-//! raw footprints (smoothed here, then the twin's heuristics; rejected ones fall back to
-//! progressive photons as in [`arpa_core::store`]) and progressive photons, each with its
+//! raw footprints ([`KeyedFootprint`], smoothed by the photon pass; the twin's heuristics
+//! here, rejected ones fall back to progressive photons as in [`arpa_core::store`]) and
+//! progressive photons ([`KeyedPhoton`]), each with its
 //! unique photon key, are keyed by `(map, Morton code of the box centre, photon key)`,
 //! sorted on the device ([`crate::sort`]) and compacted into sorted record and box
 //! buffers: caustic records first, then global ones. The result does not depend on the
@@ -29,9 +30,8 @@ use wgpu::util::DeviceExt;
 /// `kernel.wgsl`, `footprint.wgsl` and `heuristics.wgsl`.
 pub const STORE_WGSL: &str = include_str!("shaders/store.wgsl");
 
-/// A footprint as the photon pass leaves it at a diffuse hit: [`arpa_core::footprint::Footprint::from_hit`]
-/// in `f32`, before smoothing and heuristics (world space: metres, unit normal towards the
-/// arriving photon, W), with the photon's unique key and flags. 80 bytes.
+/// A footprint as the photon pass leaves it at a diffuse hit, before the heuristics
+/// (world space: metres, unit normal towards the arriving photon, W). 80 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct RawFootprint {
@@ -41,14 +41,12 @@ pub struct RawFootprint {
     pub map: u32,
     /// Unit normal.
     pub normal: [f32; 3],
-    /// Unique key of the stored photon (`photon index · max_depth + depth`): the
-    /// tie-breaker of the deterministic sort (see [`MapStore`]).
-    pub key: u32,
+    /// Padding.
+    pub pad0: u32,
     /// `D_u` (m).
     pub du: [f32; 3],
-    /// Bit 0 ([`RAW_BELOW_SHADING_PLANE`]): the photon arrived from below the shading
-    /// plane, so the stored orientation is flipped (the core's `orient_to_shading_side`).
-    pub flags: u32,
+    /// Padding.
+    pub pad1: u32,
     /// `D_v` (m).
     pub dv: [f32; 3],
     /// Padding.
@@ -59,28 +57,33 @@ pub struct RawFootprint {
     pub pad3: u32,
 }
 
-/// [`RawFootprint::flags`] bit: arrived from below the shading plane.
-pub const RAW_BELOW_SHADING_PLANE: u32 = 1;
+/// A raw footprint as the photon pass appends it (96 bytes): the footprint with the
+/// map's smoothing factor applied to `D_u`, `D_v` and the normal flipped where the photon
+/// arrived from below the shading plane (which flips the packed record's `row_n` exactly,
+/// as the core's `orient_to_shading_side`), and the photon's unique key.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct KeyedFootprint {
+    /// The footprint.
+    pub footprint: RawFootprint,
+    /// `photon_index · max_depth + depth`, unique within the iteration: the tie-breaker of
+    /// the deterministic sort.
+    pub key: u32,
+    /// Padding (zero).
+    pub pad: [u32; 3],
+}
 
-/// A progressive photon as the photon pass appends it: the
-/// [`arpa_core::progressive_photon::PackedPhoton`] layout (normal already oriented and
-/// flipped as the core stores it) with the unique photon key in the first padding word.
-/// 48 bytes.
+/// A progressive photon as the photon pass appends it (64 bytes): normal oriented and
+/// flipped as the core stores it, and the photon's unique key.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct KeyedPhoton {
-    /// The record; its `_pad0` holds the key on the way in, and is zeroed in the sorted
-    /// output.
+    /// The photon (metres, unit normal towards the arrival side, W).
     pub photon: PackedPhoton,
-}
-
-impl KeyedPhoton {
-    /// `photon` with `key`.
-    pub fn new(mut photon: PackedPhoton, key: u32) -> Self {
-        photon._pad0 = key;
-        photon._pad1 = 0;
-        Self { photon }
-    }
+    /// `photon_index · max_depth + depth`, unique within the iteration.
+    pub key: u32,
+    /// Padding (zero).
+    pub pad: [u32; 3],
 }
 
 /// Parameters of the store kernels (`StoreParams` in store.wgsl, 112 bytes).
@@ -89,7 +92,7 @@ impl KeyedPhoton {
 struct StoreParams {
     heuristics: PackedHeuristics,
     radii: [f32; 2],
-    smoothing: [f32; 2],
+    pad0: [f32; 2],
     scene_lo: [f32; 3],
     raw_count: u32,
     scene_inv: [f32; 3],
@@ -303,8 +306,6 @@ pub struct StoreSettings {
     pub heuristics: PackedHeuristics,
     /// Progressive radii of the iteration, `[caustic, global]` (metres).
     pub radii: [f32; 2],
-    /// Smoothing factors `[S_c, S_g]`.
-    pub smoothing: [f32; 2],
     /// Scene bounds `(min, max)` (metres): the Morton grid.
     pub bounds: ([f32; 3], [f32; 3]),
     /// Raw footprints the photon pass appended (at most the raw capacity).
@@ -397,7 +398,7 @@ pub struct MapStore {
 }
 
 impl MapStore {
-    /// Buffers for up to `raw_capacity` raw footprints in `raw` ([`RawFootprint`]) and
+    /// Buffers for up to `raw_capacity` raw footprints in `raw` ([`KeyedFootprint`]) and
     /// `photon_capacity` progressive photons in `photons` ([`KeyedPhoton`]).
     pub fn new(
         device: &wgpu::Device,
@@ -423,7 +424,7 @@ impl MapStore {
         let ph_sorted = crate::sort::sorted_len(total_photons);
         let fp_slots = buffer(raw_capacity, 64, U::empty());
         let fp_box_slots = buffer(raw_capacity, 24, U::empty());
-        let ph_extra = buffer(raw_capacity, 48, U::empty());
+        let ph_extra = buffer(raw_capacity, 64, U::empty());
         let fp_items = buffer(fp_sorted, 12, U::empty());
         let ph_items = buffer(ph_sorted, 12, U::empty());
         let counts = buffer(1, 32, U::COPY_SRC | U::COPY_DST);
@@ -490,7 +491,7 @@ impl MapStore {
         let params = StoreParams {
             heuristics: settings.heuristics,
             radii: settings.radii,
-            smoothing: settings.smoothing,
+            pad0: [0.0; 2],
             scene_lo: lo,
             raw_count: settings.raw_count,
             scene_inv: [inv(0), inv(1), inv(2)],

@@ -7,9 +7,10 @@
 // (the gather returned zero where the brute-force gather found footprints).
 //
 // The tracer's keyed store (store_keyed, photon_keys, compact_*; bindings 5 and up) works on
-// the photon pass's atomic-append buffers: each raw footprint is smoothed, stored through
-// the heuristics into its own slot or, when rejected, becomes a progressive photon in its
-// own slot (the core's fallback); every stored item gets a sort key (map << 30 | Morton code
+// the photon pass's atomic-append buffers (footprints already smoothed and, below the
+// shading plane, with the normal flipped): each raw footprint is stored through the
+// heuristics into its own slot or, when rejected, becomes a progressive photon in its own
+// slot (the core's fallback); every stored item gets a sort key (map << 30 | Morton code
 // of its box centre, unique photon key, slot) for sort.wgsl; after the sort, compact_*
 // copy the records and boxes into sorted order (caustic first, then global).
 // Needs kernel.wgsl, footprint.wgsl, heuristics.wgsl, morton.wgsl and sort.wgsl's SortItem
@@ -19,29 +20,42 @@ struct RawFootprint {
     center: vec3<f32>,  // metres
     map: u32,           // 0 caustic, 1 global
     normal: vec3<f32>,  // unit, towards the arriving photon
-    key: u32,           // unique photon key (photon index * max_depth + depth)
-    du: vec3<f32>,      // metres (tangent plane), before smoothing
-    flags: u32,         // bit 0: arrived from below the shading plane (flip the orientation)
+    pad0: u32,
+    du: vec3<f32>,      // metres (tangent plane)
+    pad1: u32,
     dv: vec3<f32>,
     pad2: u32,
     flux: vec3<f32>,    // W, RGB
     pad3: u32,
 }
 
-// arpa_core::progressive_photon::PackedPhoton with the photon key in its first padding word.
+// arpa-wgpu photon.rs KeyedFootprint (96 bytes).
+struct KeyedFootprint {
+    fp: RawFootprint,
+    key: u32,           // unique photon key (photon index * max_depth + depth)
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+}
+
+// arpa_core::progressive_photon::PackedPhoton + key (photon.rs KeyedPhoton, 64 bytes).
 struct KeyedPhoton {
     position: vec3<f32>, // metres
     map: u32,
     normal: vec3<f32>,   // unit, towards the arrival side (already flipped where needed)
-    key: u32,
+    pad0: u32,
     flux: vec3<f32>,     // W, RGB
-    pad: u32,
+    pad1: u32,
+    key: u32,
+    pad2: u32,
+    pad3: u32,
+    pad4: u32,
 }
 
 struct StoreParams {
     heuristics: ArpaHeuristics,
     radii: vec2<f32>,      // progressive radius per map (metres)
-    smoothing: vec2<f32>,  // smoothing factor per map (S_c, S_g)
+    pad2: vec2<f32>,
     scene_lo: vec3<f32>,   // scene bounds' low corner (metres)
     raw_count: u32,        // raw footprints appended by the photon pass
     scene_inv: vec3<f32>,  // 1 / scene extent per axis (1/m; 0 on a flat axis)
@@ -97,7 +111,7 @@ const STORE_COUNT_PHOTONS: u32 = 2u;      // + map
 const STORE_COUNT_REASON: u32 = 3u;       // + ARPA_STORE_* status (1 degenerate, 2 culled, 3 unrepresentable)
 const STORE_INVALID: u32 = 0xffffffffu;
 
-@group(0) @binding(5) var<storage, read> raw_in: array<RawFootprint>;
+@group(0) @binding(5) var<storage, read> raw_in: array<KeyedFootprint>;
 @group(0) @binding(6) var<storage, read> photons_in: array<KeyedPhoton>;
 @group(0) @binding(7) var<storage, read> kparams: StoreParams;
 @group(0) @binding(8) var<storage, read_write> fp_slots: array<ArpaPackedFootprint>;
@@ -108,7 +122,16 @@ const STORE_INVALID: u32 = 0xffffffffu;
 @group(0) @binding(13) var<storage, read_write> store_counts: array<atomic<u32>, 8>;
 @group(0) @binding(14) var<storage, read_write> fp_out: array<ArpaPackedFootprint>;
 @group(0) @binding(15) var<storage, read_write> fp_box_out: array<f32>;
-@group(0) @binding(16) var<storage, read_write> ph_out: array<KeyedPhoton>;
+// PackedPhoton (48 bytes): the sorted output.
+struct StorePhotonOut {
+    position: vec3<f32>,
+    map: u32,
+    normal: vec3<f32>,
+    pad0: u32,
+    flux: vec3<f32>,
+    pad1: u32,
+}
+@group(0) @binding(16) var<storage, read_write> ph_out: array<StorePhotonOut>;
 @group(0) @binding(17) var<storage, read_write> ph_box_out: array<f32>;
 
 // Linear invocation index of a 2D dispatch of 64-wide workgroups.
@@ -132,35 +155,24 @@ fn store_keyed(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workg
         fp_items[i] = STORE_INVALID_ITEM;
         return;
     }
-    let f = raw_in[i];
+    let keyed = raw_in[i];
+    let f = keyed.fp;
     let map = min(f.map, 1u);
-    let flip = (f.flags & 1u) != 0u;
-    let s = kparams.smoothing[map];
-    let du = f.du * s;
-    let dv = f.dv * s;
-    let st = arpa_store(kparams.heuristics, f.center, f.normal, du, dv, f.flux, map, kparams.radii[map]);
+    let st = arpa_store(kparams.heuristics, f.center, f.normal, f.du, f.dv, f.flux, map, kparams.radii[map]);
     let photon_slot = kparams.photon_count + i;
     if st.status == ARPA_STORE_OK {
-        var record = st.record;
-        if flip {
-            record.row_n = -record.row_n;
-        }
-        fp_slots[i] = record;
+        fp_slots[i] = st.record;
         let b = 6u * i;
         fp_box_slots[b] = st.box_min.x; fp_box_slots[b + 1u] = st.box_min.y; fp_box_slots[b + 2u] = st.box_min.z;
         fp_box_slots[b + 3u] = st.box_max.x; fp_box_slots[b + 4u] = st.box_max.y; fp_box_slots[b + 5u] = st.box_max.z;
-        fp_items[i] = store_item(map, 0.5 * (st.box_min + st.box_max), f.key, i);
+        fp_items[i] = store_item(map, 0.5 * (st.box_min + st.box_max), keyed.key, i);
         ph_items[photon_slot] = STORE_INVALID_ITEM;
         atomicAdd(&store_counts[STORE_COUNT_FOOTPRINTS + map], 1u);
     } else {
         // The core's fallback: a progressive photon at the (smoothed) footprint's centre
         // with its normal and flux.
-        var normal = f.normal;
-        if flip {
-            normal = -normal;
-        }
-        ph_extra[i] = KeyedPhoton(f.center, map, normal, f.key, f.flux, 0u);
-        ph_items[photon_slot] = store_item(map, f.center, f.key, photon_slot);
+        ph_extra[i] = KeyedPhoton(f.center, map, f.normal, 0u, f.flux, 0u, keyed.key, 0u, 0u, 0u);
+        ph_items[photon_slot] = store_item(map, f.center, keyed.key, photon_slot);
         fp_items[i] = STORE_INVALID_ITEM;
         atomicAdd(&store_counts[STORE_COUNT_PHOTONS + map], 1u);
         atomicAdd(&store_counts[STORE_COUNT_REASON + min(st.status, 3u)], 1u);
@@ -222,9 +234,7 @@ fn compact_photons(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_w
     } else {
         p = ph_extra[item.value - kparams.photon_count];
     }
-    p.key = 0u;
-    p.pad = 0u;
-    ph_out[s] = p;
+    ph_out[s] = StorePhotonOut(p.position, p.map, p.normal, 0u, p.flux, 0u);
     let r = kparams.radii[min(p.map, 1u)];
     let scale = arpa_max_abs(p.position) + r;
     let pad = r * STORE_PHOTON_RELATIVE_PAD + STORE_PHOTON_POSITION_PAD * scale + ARPA_F32_MIN_POSITIVE;

@@ -1,9 +1,12 @@
 //! The tracer's device chain (`arpa_wgpu::maps`: keyed store → sort → compaction → AABB
 //! build → image gather → running mean) on raw footprints and photons uploaded as a photon
 //! pass would append them, against the core:
-//! * every raw footprint's outcome (footprint or progressive fallback, per map, orientation
-//!   flipped where flagged) is `store_footprint_resolved`'s after the map's smoothing, except
-//!   within 1e-3 of a heuristic threshold (as in `store`); photons pass through unchanged;
+//! * every raw footprint's outcome (footprint or progressive fallback, per map) is
+//!   `store_footprint_resolved`'s after the map's smoothing (applied by the photon pass, so
+//!   here by the test in f32), except within 1e-3 of a heuristic threshold (as in `store`);
+//!   a footprint handed over with its normal flipped (below the shading plane) comes out
+//!   as the core's record or photon of the unflipped one with the orientation flipped
+//!   (`orient_to_shading_side`); photons pass through unchanged;
 //! * the outputs are sorted by map, photons by Morton code within a map;
 //! * each pixel is `radiance + weight · E` with `E` the brute-force gather
 //!   (`gather_brute_force`, f64) over the device's own records, within the `gather` test's
@@ -25,7 +28,7 @@ use arpa_core::store::{StoredPhoton, store_footprint_resolved};
 use arpa_core::tracer::QueryRecord;
 use arpa_wgpu::maps::{HostRun, run_from_host};
 use arpa_wgpu::sort::morton_code;
-use arpa_wgpu::store::{KeyedPhoton, RAW_BELOW_SHADING_PLANE, RawFootprint, StoreSettings};
+use arpa_wgpu::store::{KeyedFootprint, KeyedPhoton, RawFootprint, StoreSettings};
 use glam::{DVec3, Vec3};
 
 const RADII: [f32; 2] = [0.02, 0.05];
@@ -33,20 +36,26 @@ const SMOOTHING: [f32; 2] = [0.8, 1.3];
 const EPS: f64 = f32::EPSILON as f64;
 
 struct Input {
-    raw: Vec<RawFootprint>,
+    /// Before smoothing and flip (what the core takes), with the flip flag.
+    unsmoothed: Vec<(RawFootprint, bool)>,
+    raw: Vec<KeyedFootprint>,
     photons: Vec<KeyedPhoton>,
     records: Vec<QueryRecord>,
 }
 
 fn input(seed: u32) -> Input {
-    let mut raw = raw(seed, 3000);
     let mut rng = Rng::new(seed, 7, 0, StreamDomain::User);
-    for (i, r) in raw.iter_mut().enumerate() {
-        r.key = 2 * i as u32 + 1;
-        if rng.next_u32().is_multiple_of(5) {
-            r.flags = RAW_BELOW_SHADING_PLANE;
-        }
-    }
+    let unsmoothed: Vec<(RawFootprint, bool)> = raw(seed, 3000).into_iter().map(|r| (r, rng.next_u32().is_multiple_of(5))).collect();
+    let raw = unsmoothed
+        .iter()
+        .enumerate()
+        .map(|(i, (r, flip))| {
+            let s = SMOOTHING[r.map as usize];
+            let sign = if *flip { -1.0 } else { 1.0 };
+            let footprint = RawFootprint { du: r.du.map(|x| x * s), dv: r.dv.map(|x| x * s), normal: r.normal.map(|x| sign * x), ..*r };
+            KeyedFootprint { footprint, key: 2 * i as u32 + 1, pad: [0; 3] }
+        })
+        .collect();
     let photons = (0..1500u32)
         .map(|i| {
             let k = rng.next_u32() % 2;
@@ -59,7 +68,7 @@ fn input(seed: u32) -> Input {
                 flux: [f(rng.next_f64() * 1e-3), f(rng.next_f64() * 1e-3), f(rng.next_f64() * 1e-3)],
                 ..Default::default()
             };
-            KeyedPhoton::new(ph, 2 * i)
+            KeyedPhoton { photon: ph, key: 2 * i, pad: [0; 3] }
         })
         .collect();
     let records = (0..4000u32)
@@ -83,7 +92,7 @@ fn input(seed: u32) -> Input {
             }
         })
         .collect();
-    Input { raw, photons, records }
+    Input { unsmoothed, raw, photons, records }
 }
 
 fn settings(input: &Input) -> StoreSettings {
@@ -91,7 +100,6 @@ fn settings(input: &Input) -> StoreSettings {
     StoreSettings {
         heuristics: Heuristics::default().resolve(&b).pack(),
         radii: RADII,
-        smoothing: SMOOTHING,
         bounds: (b.min.as_vec3().to_array(), b.max.as_vec3().to_array()),
         raw_count: input.raw.len() as u32,
         photon_count: input.photons.len() as u32,
@@ -121,13 +129,13 @@ fn chain_matches_core() {
         out.footprints.iter().map(|f| (f.center.map(f32::to_bits), f)).collect();
     let ph_by_pos: std::collections::HashMap<[u32; 3], &PackedPhoton> = out.photons.iter().map(|p| (p.position.map(f32::to_bits), p)).collect();
     let (mut checked, mut fallbacks, mut flipped) = (0, 0, 0);
-    for r in &input.raw {
+    for (r, flip) in &input.unsmoothed {
+        let flip = *flip;
         let fp = core_footprint(r);
         let radius = RADII[r.map as usize] as f64;
         if near_threshold(&heuristics, &smoothing.apply(fp), radius) {
             continue;
         }
-        let flip = r.flags & RAW_BELOW_SHADING_PLANE != 0;
         let sign = if flip { -1.0 } else { 1.0 };
         let key = r.center.map(f32::to_bits);
         match store_footprint_resolved(fp, &smoothing, &resolved, radius) {
@@ -152,9 +160,7 @@ fn chain_matches_core() {
     }
     assert!(checked > 2500 && fallbacks > 100 && flipped > 300, "{checked} checked, {fallbacks} fallbacks, {flipped} flipped");
     for p in &input.photons {
-        let mut want = p.photon;
-        want._pad0 = 0;
-        assert_eq!(**ph_by_pos.get(&p.photon.position.map(f32::to_bits)).expect("photon missing"), want);
+        assert_eq!(**ph_by_pos.get(&p.photon.position.map(f32::to_bits)).expect("photon missing"), p.photon);
     }
 
     // Sorted: by map, photons by Morton code within a map.
@@ -223,7 +229,7 @@ fn chain_is_independent_of_append_order() {
     let Some(ctx) = gpu() else { return };
     let input = input(12);
     let a = run(ctx, &input, Kernel::Silverman);
-    let mut permuted = Input { raw: input.raw.clone(), photons: input.photons.clone(), records: input.records.clone() };
+    let mut permuted = Input { unsmoothed: Vec::new(), raw: input.raw.clone(), photons: input.photons.clone(), records: input.records.clone() };
     permuted.raw.reverse();
     permuted.raw.rotate_left(777);
     permuted.photons.rotate_left(123);
