@@ -34,4 +34,5 @@ pub mod store;
 pub mod tracer;
 
 pub use device::{AdapterChoice, DeviceError, GpuContext};
+pub use tracer::{WgpuError, WgpuTracer};
 pub use harness::{HarnessError, run_kernel};

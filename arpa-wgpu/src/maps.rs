@@ -107,8 +107,16 @@ impl PhotonMaps {
     /// Stores, sorts and compacts the photon pass's output, reads the counts back and
     /// builds the acceleration structure over the sorted boxes. Returns the counts.
     pub fn store_and_build(&mut self, ctx: &GpuContext, settings: &StoreSettings) -> Result<StoreCounts, WgpuError> {
+        let counts = self.store_sorted(ctx, settings)?;
+        self.build(ctx)?;
+        Ok(counts)
+    }
+
+    /// Stores, sorts and compacts the photon pass's output and reads the counts back
+    /// (drops the previous acceleration structure).
+    pub fn store_sorted(&mut self, ctx: &GpuContext, settings: &StoreSettings) -> Result<StoreCounts, WgpuError> {
         self.accel = None;
-        let store = self.store("build_acceleration_structure")?;
+        let store = self.store("photon_pass")?;
         scoped(ctx, "store and sort", || {
             let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa store") });
             store.encode(&ctx.device, &ctx.queue, &self.pipelines, &mut encoder, settings).map_err(|e| WgpuError::Size(e.to_string()))?;
@@ -117,6 +125,17 @@ impl PhotonMaps {
         })?;
         let bytes = read_buffer(ctx, "store counts", store.counts_buffer(), 32)?;
         let counts: StoreCounts = bytemuck::pod_read_unaligned(&bytes);
+        self.counts = counts;
+        self.radii = settings.radii;
+        Ok(counts)
+    }
+
+    /// Builds the acceleration structure over the boxes of the last
+    /// [`PhotonMaps::store_sorted`].
+    pub fn build(&mut self, ctx: &GpuContext) -> Result<(), WgpuError> {
+        self.accel = None;
+        let store = self.store("build_acceleration_structure")?;
+        let counts = self.counts;
         let accel = scoped(ctx, "acceleration-structure build", || {
             let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa build") });
             let accel = crate::accel::build(&ctx.device, &mut encoder, &store.footprint_boxes, &store.photon_boxes, &counts).map_err(|e| WgpuError::Size(e.to_string()))?;
@@ -124,9 +143,7 @@ impl PhotonMaps {
             Ok(accel)
         })?;
         self.accel = Some(accel);
-        self.counts = counts;
-        self.radii = settings.radii;
-        Ok(counts)
+        Ok(())
     }
 
     /// Counts of the last [`PhotonMaps::store_and_build`].
