@@ -23,6 +23,7 @@
 pub mod device;
 pub mod gather;
 pub mod harness;
+pub mod photon;
 pub mod scene;
 pub mod store;
 

@@ -6,6 +6,7 @@ mod common;
 
 mod gather;
 mod naga_validate;
+mod photon_pass;
 mod ray_cast;
 mod ray_query;
 mod store;
