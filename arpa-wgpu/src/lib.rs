@@ -12,6 +12,9 @@
 //!   tests that compare the twin with the Rust core;
 //! * [`scene`]: scene upload (a triangle BLAS per mesh, one TLAS) and closest-hit ray
 //!   casting on ray queries, checked against the core's brute-force caster;
+//! * [`photon`]: the photon pass on the device (one invocation per photon, the twin of
+//!   `arpa_core::photon_path::trace_photon`), appending raw footprints and progressive
+//!   photons with unique keys, with counters and overflow counting;
 //! * [`store`]: footprint store, acceleration-structure build and gather in one device
 //!   submission (deterministic slots, inactive boxes for rejected footprints);
 //! * [`gather`]: the gather stage on ray queries (footprint boxes in AABB acceleration

@@ -215,7 +215,7 @@ impl PhotonOutputs {
     /// Usage: `STORAGE | COPY_SRC | COPY_DST`.
     pub fn new(ctx: &GpuContext, footprint_capacity: u32, photon_capacity: u32) -> Result<Self, PhotonPassError> {
         let device = &ctx.device;
-        let max_bytes = device.limits().max_storage_buffer_binding_size as u64;
+        let max_bytes = device.limits().max_storage_buffer_binding_size;
         let check = |what: &'static str, capacity: u32, size: usize| {
             let bytes = capacity as u64 * size as u64;
             if capacity == 0 || bytes > max_bytes || bytes > device.limits().max_buffer_size {

@@ -409,3 +409,26 @@ fn overflow_is_counted_and_nothing_is_written_past_capacity() {
         assert!(capped.photons.iter().all(|r| by_key_p.get(&r.key) == Some(r)), "{method:?}: capped photons are records of the full pass");
     }
 }
+
+
+/// Same scene, settings and iteration: the same records, bit for bit, once sorted by key
+/// (the append order may differ); another iteration draws other photons.
+#[test]
+fn records_sorted_by_key_are_deterministic() {
+    let Some(ctx) = gpu() else { return };
+    let prepared = PreparedScene::new(box_scene()).expect("valid scene");
+    let s = settings(Method::Arpa, 2000, true);
+    let sorted = |r: PhotonReadback| {
+        let mut f = r.footprints;
+        let mut p = r.photons;
+        f.sort_by_key(|x| x.key);
+        p.sort_by_key(|x| x.key);
+        (r.counters, f, p)
+    };
+    let a = sorted(device_pass(ctx, &prepared, &s, 5, (20_000, 20_000)));
+    let b = sorted(device_pass(ctx, &prepared, &s, 5, (20_000, 20_000)));
+    assert!(!a.1.is_empty() && !a.2.is_empty());
+    assert_eq!(a, b);
+    let c = sorted(device_pass(ctx, &prepared, &s, 6, (20_000, 20_000)));
+    assert_ne!(a.1, c.1);
+}
