@@ -11,7 +11,9 @@
 //!   [`arpa_core::shaders`]) over input buffers and reads the results back, used by the
 //!   tests that compare the twin with the Rust core;
 //! * [`scene`]: scene upload (a triangle BLAS per mesh, one TLAS) and closest-hit ray
-//!   casting on ray queries, checked against the core's brute-force caster;
+//!   casting on ray queries, checked against the core's brute-force caster; the prepared
+//!   scene (materials, normals, emitters) as bind group 0 of every pass with its WGSL
+//!   ([`scene::SCENE_WGSL`]), checked against `PreparedScene`;
 //! * [`photon`]: the photon pass on the device (one invocation per photon, the twin of
 //!   `arpa_core::photon_path::trace_photon`), appending raw footprints and progressive
 //!   photons with unique keys, with counters and overflow counting;
