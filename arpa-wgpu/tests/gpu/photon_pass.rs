@@ -432,3 +432,14 @@ fn records_sorted_by_key_are_deterministic() {
     let c = sorted(device_pass(ctx, &prepared, &s, 6, (20_000, 20_000)));
     assert_ne!(a.1, c.1);
 }
+
+/// The photon pass's module (twin files, scene, pass) parses and validates with naga,
+/// without a GPU.
+#[test]
+fn photon_pass_module_validates_with_naga() {
+    let src = arpa_wgpu::photon::photon_pass_source();
+    let module = naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| panic!("photon pass: {}", e.emit_to_string(&src)));
+    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::RAY_QUERY)
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("photon pass: {}", e.emit_to_string(&src)));
+}
