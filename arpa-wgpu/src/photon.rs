@@ -150,7 +150,8 @@ struct EmitterRange {
 /// Why the photon pass could not be built or encoded.
 #[derive(Debug, thiserror::Error)]
 pub enum PhotonPassError {
-    /// The keys `photon_index · max_depth + depth` would not fit in `u32`.
+    /// The keys `photon_index · max_depth + depth` (and the segment count, at most
+    /// `photons · max_depth`) would not fit in `u32`.
     #[error("photon pass: {photons} photons with max depth {max_depth} exceed the u32 record keys (photons x max depth must stay below 2^32)")]
     KeyRange {
         /// Photons of the iteration.
@@ -392,8 +393,10 @@ impl PhotonPass {
     }
 
     /// Uploads `setup` (the iteration's photon allocation, prepared lights with their
-    /// lattice shift, iteration number) with `queue.write_buffer` and records, in `encoder`,
-    /// the clearing of `out`'s counters and the photon pass writing into `out`.
+    /// lattice shift, iteration number; [`PhotonPassSetup::new`] with the same settings
+    /// the pass was built with) with `queue.write_buffer` and records, in `encoder`, the
+    /// clearing of `out`'s counters and the photon pass writing into `out`. `scene` must be
+    /// the scene the pass was built for (its bind group 0).
     ///
     /// The upload takes effect at the next `queue.submit`: submit `encoder` before encoding
     /// the next iteration.
@@ -410,7 +413,7 @@ impl PhotonPass {
         }
         let photons = setup.photon_count();
         let s = &self.settings;
-        if photons as u64 * s.max_depth as u64 > u32::MAX as u64 + 1 {
+        if photons as u64 * s.max_depth as u64 > u32::MAX as u64 {
             return Err(PhotonPassError::KeyRange { photons, max_depth: s.max_depth });
         }
         let max = ctx.device.limits().max_compute_workgroups_per_dimension;
