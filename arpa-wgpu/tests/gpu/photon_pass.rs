@@ -304,6 +304,9 @@ fn compare(name: &str, scene: Scene, s: RenderSettings) {
     let gpu_records = device_records(&read, &prepared, &s, &setup);
     let (mut same_decisions, mut agree, mut cpu_segments) = (0u32, 0u32, 0u64);
     let mut cpu_stored = [0u64; 2];
+    // Core records by where the device leaves them: raw footprints (stored as footprints,
+    // or rejected by the heuristics) and progressive photons (RTPM, lost differential).
+    let (mut cpu_raw, mut cpu_progressive, mut cpu_lost) = ([0u64; 2], [0u64; 2], 0u64);
     let mut worst = Errors::default();
     let mut outside = Vec::new();
     for index in 0..n {
@@ -311,7 +314,19 @@ fn compare(name: &str, scene: Scene, s: RenderSettings) {
         let stats = trace_photon(&prepared, &caster, &s, &setup, index, &mut |st| cpu.push(st));
         cpu_segments += stats.segments as u64;
         for st in &cpu {
-            cpu_stored[st.map().index()] += 1;
+            let m = st.map().index();
+            cpu_stored[m] += 1;
+            match st {
+                StoredPhoton::Footprint { .. } => cpu_raw[m] += 1,
+                StoredPhoton::Progressive { reason, .. } => match reason {
+                    ProgressiveReason::Degenerate | ProgressiveReason::Culled | ProgressiveReason::Unrepresentable => cpu_raw[m] += 1,
+                    ProgressiveReason::DifferentialLost => {
+                        cpu_lost += 1;
+                        cpu_progressive[m] += 1;
+                    }
+                    ProgressiveReason::ProgressiveMethod => cpu_progressive[m] += 1,
+                },
+            }
         }
         let gpu = &gpu_records[index as usize];
         let decisions = gpu.len() == cpu.len() && gpu.iter().zip(&cpu).all(|((_, g), c)| same_kind(g, c));
@@ -344,10 +359,16 @@ fn compare(name: &str, scene: Scene, s: RenderSettings) {
     );
     assert!(fraction >= 0.99, "{name}: decisions and records (within {TIGHT:?}) agree for only {:.3} % of the photons", 100.0 * fraction);
     assert!(outside.is_empty(), "{name}: {} records of photons with the same decisions outside {COARSE:?}, first (photon, depth, errors) {:?}", outside.len(), &outside[..outside.len().min(5)]);
+    // Counts agree within the fraction of photons that may take other decisions.
     let within = |a: u64, b: u64| (a as f64 - b as f64).abs() <= 0.01 * b as f64;
     assert!(within(c.segments as u64, cpu_segments), "{name}: segments device {} core {cpu_segments}", c.segments);
+    assert!(within(c.differential_lost as u64, cpu_lost), "{name}: differential lost: device {} core {cpu_lost}", c.differential_lost);
+    let gpu_raw = [c.footprints_caustic as u64, c.footprints_global as u64];
+    let gpu_progressive = [c.progressive_caustic as u64, c.progressive_global as u64];
     for m in 0..2 {
         assert!(within(gpu_stored[m], cpu_stored[m]), "{name}: stored in map {m}: device {} core {}", gpu_stored[m], cpu_stored[m]);
+        assert!(within(gpu_raw[m], cpu_raw[m]), "{name}: raw footprints in map {m}: device {} core {}", gpu_raw[m], cpu_raw[m]);
+        assert!(within(gpu_progressive[m], cpu_progressive[m]), "{name}: progressive in map {m}: device {} core {}", gpu_progressive[m], cpu_progressive[m]);
     }
 }
 
