@@ -121,6 +121,10 @@ impl PhotonCounters {
     }
 }
 
+// The WGSL structs of photon_pass.wgsl have exactly these sizes.
+const _: () = assert!(size_of::<KeyedFootprint>() == 96 && size_of::<KeyedPhoton>() == 64 && size_of::<PhotonCounters>() == 48);
+const _: () = assert!(size_of::<PhotonParams>() == 48 && size_of::<EmitterRange>() == 16);
+
 /// Per-iteration uniforms (the WGSL `PhotonParams`, 48 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
