@@ -14,6 +14,9 @@
 //!   casting on ray queries, checked against the core's brute-force caster; the prepared
 //!   scene (materials, normals, emitters) as bind group 0 of every pass with its WGSL
 //!   ([`scene::SCENE_WGSL`]), checked against `PreparedScene`;
+//! * [`photon`]: the photon pass on the device (one invocation per photon, the twin of
+//!   `arpa_core::photon_path::trace_photon`), appending raw footprints and progressive
+//!   photons with unique keys, with counters and overflow counting;
 //! * [`store`]: footprint store, acceleration-structure build and gather in one device
 //!   submission (deterministic slots, inactive boxes for rejected footprints);
 //! * [`camera`]: the camera pass (query points, emission seen, next-event estimation) on
@@ -31,6 +34,7 @@ pub mod device;
 pub mod gather;
 pub mod harness;
 pub mod maps;
+pub mod photon;
 pub mod scene;
 pub mod sort;
 pub mod store;

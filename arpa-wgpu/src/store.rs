@@ -23,7 +23,6 @@ use arpa_core::estimate::QueryPoint;
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::heuristics::PackedHeuristics;
 use arpa_core::kernel::Kernel;
-use arpa_core::progressive_photon::PackedPhoton;
 use wgpu::util::DeviceExt;
 
 /// WGSL of the store kernel (entry point `store_footprints`), after the twin's
@@ -57,34 +56,11 @@ pub struct RawFootprint {
     pub pad3: u32,
 }
 
-/// A raw footprint as the photon pass appends it (96 bytes): the footprint with the
-/// map's smoothing factor applied to `D_u`, `D_v` and the normal flipped where the photon
-/// arrived from below the shading plane (which flips the packed record's `row_n` exactly,
-/// as the core's `orient_to_shading_side`), and the photon's unique key.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct KeyedFootprint {
-    /// The footprint.
-    pub footprint: RawFootprint,
-    /// `photon_index · max_depth + depth`, unique within the iteration: the tie-breaker of
-    /// the deterministic sort.
-    pub key: u32,
-    /// Padding (zero).
-    pub pad: [u32; 3],
-}
-
-/// A progressive photon as the photon pass appends it (64 bytes): normal oriented and
-/// flipped as the core stores it, and the photon's unique key.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct KeyedPhoton {
-    /// The photon (metres, unit normal towards the arrival side, W).
-    pub photon: PackedPhoton,
-    /// `photon_index · max_depth + depth`, unique within the iteration.
-    pub key: u32,
-    /// Padding (zero).
-    pub pad: [u32; 3],
-}
+/// The photon pass's records (defined by [`crate::photon`]): [`KeyedFootprint`] (96 bytes:
+/// a [`RawFootprint`] with the map's smoothing applied and the normal flipped below the
+/// shading plane, which flips the packed record's `row_n` exactly as the core's
+/// `orient_to_shading_side`, plus the unique photon key) and [`KeyedPhoton`] (64 bytes).
+pub use crate::photon::{KeyedFootprint, KeyedPhoton};
 
 /// Parameters of the store kernels (`StoreParams` in store.wgsl, 112 bytes).
 #[repr(C)]
@@ -389,7 +365,7 @@ pub struct MapStore {
     pub footprints: wgpu::Buffer,
     /// Their boxes (6 `f32` each: min xyz, max xyz; metres): the AABB build input.
     pub footprint_boxes: wgpu::Buffer,
-    /// Sorted progressive photons ([`PackedPhoton`], padding zero); the first
+    /// Sorted progressive photons ([`arpa_core::progressive_photon::PackedPhoton`], padding zero); the first
     /// [`StoreCounts::total_photons`] are valid, caustic first.
     pub photons: wgpu::Buffer,
     /// Their boxes (position ± padded radius).

@@ -9,6 +9,7 @@ mod camera_pass;
 mod gather;
 mod maps;
 mod naga_validate;
+mod photon_pass;
 mod ray_cast;
 mod ray_query;
 mod scene_surface;
