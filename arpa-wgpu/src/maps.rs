@@ -159,7 +159,8 @@ impl PhotonMaps {
         Ok(())
     }
 
-    /// The gather's contribution counter buffer (two `u32`).
+    /// The gather's counter buffer (four `u32`: contributions low, high word, valid query
+    /// records, zero).
     pub fn gathered_buffer(&self) -> &wgpu::Buffer {
         self.gather.total_buffer()
     }
@@ -242,7 +243,7 @@ pub fn run_from_host(
         Ok((image_buf, acc))
     })?;
     let image: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, "image", &image_buf, pixels as u64 * 16)?);
-    let total: [u32; 2] = bytemuck::pod_read_unaligned(&read_buffer(ctx, "gathered", maps.gathered_buffer(), 8)?);
+    let total: [u32; 4] = bytemuck::pod_read_unaligned(&read_buffer(ctx, "gathered", maps.gathered_buffer(), 16)?);
     let acc_pixels: Vec<AccumPixel> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, "accumulator", &acc.pixels, pixels as u64 * 32)?);
     Ok(HostRun {
         counts,

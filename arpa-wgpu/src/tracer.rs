@@ -44,9 +44,12 @@ pub enum WgpuError {
         /// What has to run first.
         needs: &'static str,
     },
-    /// A stage of this backend is not wired yet (no fake result is produced).
-    #[error("the wgpu backend cannot run {0} yet: not wired")]
-    Unsupported(&'static str),
+    /// The camera pass could not be built.
+    #[error(transparent)]
+    CameraPass(#[from] crate::camera::CameraPassError),
+    /// The photon pass could not be built or run.
+    #[error(transparent)]
+    PhotonPass(#[from] crate::photon::PhotonPassError),
     /// `u32::MAX − 1` iterations have been accumulated.
     #[error("iteration limit reached ({0} iterations)")]
     IterationLimit(u32),
@@ -55,6 +58,8 @@ pub enum WgpuError {
 use crate::accumulate::{AccumPixel, DeviceAccumulator};
 use crate::device::{AdapterChoice, GpuContext};
 use crate::maps::{PhotonMaps, read_buffer, scoped};
+use crate::camera::CameraPass;
+use crate::photon::{PhotonCounters, PhotonOutputs, PhotonPass};
 use crate::scene::GpuScene;
 use crate::store::StoreSettings;
 use arpa_core::footprint::PackedFootprint;
@@ -69,7 +74,10 @@ use std::time::Instant;
 
 /// Stored records per emitted photon the photon buffers start with (each buffer; they
 /// grow when an iteration overflows them).
-const INITIAL_RECORDS_PER_PHOTON: u32 = 2;
+pub const INITIAL_RECORDS_PER_PHOTON: u32 = 2;
+
+/// Bytes of one query record ([`QueryRecord`]).
+const QUERY_BYTES: u64 = std::mem::size_of::<QueryRecord>() as u64;
 
 /// The photon-mapping pipeline on wgpu ray queries (a GPU, or lavapipe).
 ///
@@ -80,10 +88,10 @@ const INITIAL_RECORDS_PER_PHOTON: u32 = 2;
 /// | stage | on the device | read back |
 /// |---|---|---|
 /// | [`upload_scene`](Tracer::upload_scene) | validates scene and settings ([`PreparedScene`]), uploads the scene, zeroes the accumulation | — |
-/// | [`camera_pass`](Tracer::camera_pass) | one query record per pixel (`CameraPass`, wgpu-camera) | — |
-/// | [`photon_pass`](Tracer::photon_pass) | photons traced into append buffers (`PhotonPass`, wgpu-photon); then keyed store, sort and compaction ([`crate::store::MapStore`]) | the pass's and the store's counters (overflow check, sizes for the build) |
+/// | [`camera_pass`](Tracer::camera_pass) | one query record per pixel ([`CameraPass`]) | — |
+/// | [`photon_pass`](Tracer::photon_pass) | photons traced into append buffers ([`PhotonPass`]); then keyed store, sort and compaction ([`crate::store::MapStore`]) | the pass's and the store's counters (overflow check, sizes for the build) |
 /// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | AABB BLAS per (kind, map), one TLAS ([`crate::accel`]) | — |
-/// | [`gather`](Tracer::gather) | per pixel `radiance + weight · E` ([`crate::gather::ImageGather`]) | the contribution count (8 bytes) |
+/// | [`gather`](Tracer::gather) | per pixel `radiance + weight · E` ([`crate::gather::ImageGather`]) | contribution and query-point counts (16 bytes) |
 /// | [`accumulate`](Tracer::accumulate) | compensated running sum | — |
 ///
 /// # Overflow
@@ -107,12 +115,16 @@ pub struct WgpuTracer {
     ctx: GpuContext,
     maps: PhotonMaps,
     state: Option<Box<Loaded>>,
+    initial_capacity: Option<u32>,
 }
 
 struct Loaded {
     prepared: PreparedScene,
     settings: RenderSettings,
     scene: GpuScene,
+    camera: CameraPass,
+    photon: PhotonPass,
+    outputs: PhotonOutputs,
     width: u32,
     height: u32,
     pixels: u32,
@@ -209,7 +221,14 @@ impl WgpuTracer {
     /// A tracer on an open device.
     pub fn with_context(ctx: GpuContext) -> Result<Self, WgpuError> {
         let maps = PhotonMaps::new(&ctx)?;
-        Ok(Self { ctx, maps, state: None })
+        Ok(Self { ctx, maps, state: None, initial_capacity: None })
+    }
+
+    /// Records each photon buffer holds after the next [`Tracer::upload_scene`] (`None`:
+    /// [`INITIAL_RECORDS_PER_PHOTON`] per photon of an iteration). The buffers grow when an
+    /// iteration overflows them; a small value exercises that path.
+    pub fn set_initial_capacity(&mut self, records: Option<u32>) {
+        self.initial_capacity = records;
     }
 
     /// The device.
@@ -254,12 +273,17 @@ impl Tracer for WgpuTracer {
         }
         let prepared = PreparedScene::new(scene.clone())?;
         let (width, height) = (scene.camera.width, scene.camera.height);
-        let pixels = (width as u64 * height as u64).try_into().ok().filter(|&p: &u32| (p as u64) * 48 <= self.ctx.device.limits().max_storage_buffer_binding_size);
+        let pixels = (width as u64 * height as u64).try_into().ok().filter(|&p: &u32| (p as u64) * QUERY_BYTES <= self.ctx.device.limits().max_storage_buffer_binding_size);
         let Some(pixels) = pixels else {
             return Err(WgpuError::Size(format!("image of {width}×{height} pixels exceeds one storage buffer")));
         };
         let gpu_scene = GpuScene::upload(&self.ctx, &prepared).map_err(|e| WgpuError::SceneUpload(e.to_string()))?;
         let ctx = &self.ctx;
+        let camera = CameraPass::new(ctx, &gpu_scene, &prepared, settings)?;
+        let photon = PhotonPass::new(ctx, &gpu_scene, prepared.emitters().len(), settings)?;
+        let capacity = self.initial_capacity.unwrap_or(settings.photons_per_iteration.saturating_mul(INITIAL_RECORDS_PER_PHOTON)).max(1);
+        let outputs = PhotonOutputs::new(ctx, capacity, capacity)?;
+        self.maps.bind_inputs(ctx, outputs.footprints(), outputs.photons(), capacity, capacity)?;
         let (queries, image, accumulator) = scoped(ctx, "allocating the image buffers", || {
             let buffer = |size: u64| {
                 ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -269,12 +293,15 @@ impl Tracer for WgpuTracer {
                     mapped_at_creation: false,
                 })
             };
-            Ok((buffer(pixels as u64 * 48), buffer(pixels as u64 * 16), DeviceAccumulator::new(&ctx.device, pixels)))
+            Ok((buffer(pixels as u64 * QUERY_BYTES), buffer(pixels as u64 * 16), DeviceAccumulator::new(&ctx.device, pixels)))
         })?;
         self.state = Some(Box::new(Loaded {
             prepared,
             settings: *settings,
             scene: gpu_scene,
+            camera,
+            photon,
+            outputs,
             width,
             height,
             pixels,
@@ -293,20 +320,87 @@ impl Tracer for WgpuTracer {
     }
 
     fn camera_pass(&mut self) -> Result<(), WgpuError> {
-        let st = self.loaded_mut("camera_pass")?;
+        let st = self.loaded("camera_pass")?;
         st.check_iteration_limit()?;
+        let start = Instant::now();
+        let ctx = &self.ctx;
+        scoped(ctx, "camera_pass", || {
+            let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa camera pass") });
+            st.camera.encode(&mut encoder, st.completed, &st.queries);
+            ctx.queue.submit([encoder.finish()]);
+            Ok(())
+        })?;
+        self.wait("camera_pass")?;
+        let st = self.loaded_mut("camera_pass")?;
         st.begin_stage();
-        let _ = (&st.scene, &st.queries, st.pixels);
-        Err(WgpuError::Unsupported("camera_pass (CameraPass of branch wgpu-camera not merged)"))
+        st.queries_for = Some(st.completed);
+        st.image_for = None;
+        st.stats.times.camera = start.elapsed().as_secs_f64();
+        Ok(())
     }
 
     fn photon_pass(&mut self) -> Result<(), WgpuError> {
-        let st = self.loaded_mut("photon_pass")?;
+        let start = Instant::now();
+        let st = self.state.as_deref_mut().ok_or(WgpuError::StageOrder { stage: "photon_pass", needs: "upload_scene" })?;
         st.check_iteration_limit()?;
         st.begin_stage();
+        st.store_for = None;
+        st.accel_for = None;
+        st.image_for = None;
+        let ctx = &self.ctx;
         let setup = PhotonPassSetup::new(&st.prepared, &st.settings, st.completed);
-        let _ = (setup, StoreSettings::clone, INITIAL_RECORDS_PER_PHOTON);
-        Err(WgpuError::Unsupported("photon_pass (PhotonPass of branch wgpu-photon not merged)"))
+        let mut overflowed = 0u64;
+        // Trace; on overflow discard the iteration's photons, grow the buffers and trace
+        // the same photons again.
+        let counters = loop {
+            scoped(ctx, "photon_pass", || {
+                let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa photon pass") });
+                st.photon.encode(ctx, &mut encoder, &st.scene, &setup, &st.outputs)?;
+                ctx.queue.submit([encoder.finish()]);
+                Ok(())
+            })?;
+            let c: PhotonCounters = bytemuck::pod_read_unaligned(&read_buffer(ctx, "photon counters", st.outputs.counters(), std::mem::size_of::<PhotonCounters>() as u64)?);
+            if c.overflowed() == 0 {
+                break c;
+            }
+            overflowed += c.overflowed();
+            let grow = |appends: u32, capacity: u32| {
+                if appends > capacity { capacity.saturating_mul(2).max(appends.saturating_add(appends / 4)) } else { capacity }
+            };
+            let fp_cap = grow(c.footprint_appends, st.outputs.footprint_capacity());
+            let ph_cap = grow(c.photon_appends, st.outputs.photon_capacity());
+            if crate::sort::sorted_len(fp_cap.saturating_add(ph_cap)) > crate::sort::MAX_SORT_ITEMS || fp_cap.saturating_add(ph_cap) < fp_cap {
+                return Err(WgpuError::Size(format!("{} footprints and {} photons in one iteration exceed the device sort's {} records", c.footprint_appends, c.photon_appends, crate::sort::MAX_SORT_ITEMS)));
+            }
+            // Free the old buffers before allocating the larger ones.
+            st.outputs = PhotonOutputs::new(ctx, 1, 1)?;
+            st.outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
+            self.maps.bind_inputs(ctx, st.outputs.footprints(), st.outputs.photons(), fp_cap, ph_cap)?;
+        };
+        let radii = setup.radii.map(|r| r as f32);
+        let bounds = st.prepared.bounds().to_f32_conservative();
+        let store = StoreSettings {
+            heuristics: setup.heuristics.pack(),
+            radii,
+            bounds,
+            raw_count: counters.footprints_written(),
+            photon_count: counters.photons_written(),
+        };
+        let counts = self.maps.store_sorted(ctx, &store)?;
+        let stats = &mut st.stats;
+        stats.photons_emitted = counters.emitted as u64;
+        stats.photon_segments = counters.segments as u64;
+        stats.footprints = counts.footprints.map(u64::from);
+        stats.progressive = counts.photons.map(u64::from);
+        stats.degenerate = counts.degenerate as u64;
+        stats.culled = counts.culled as u64;
+        stats.unrepresentable = counts.unrepresentable as u64;
+        stats.differential_lost = counters.differential_lost as u64;
+        stats.overflowed = overflowed;
+        stats.radii = setup.radii;
+        st.store_for = Some(st.completed);
+        st.stats.times.photon = start.elapsed().as_secs_f64();
+        Ok(())
     }
 
     fn build_acceleration_structure(&mut self) -> Result<(), WgpuError> {
@@ -335,10 +429,11 @@ impl Tracer for WgpuTracer {
             ctx.queue.submit([encoder.finish()]);
             Ok(())
         })?;
-        let total: [u32; 2] = bytemuck::pod_read_unaligned(&read_buffer(ctx, "gather counts", maps.gathered_buffer(), 8)?);
+        let total: [u32; 4] = bytemuck::pod_read_unaligned(&read_buffer(ctx, "gather counts", maps.gathered_buffer(), 16)?);
         let st = self.loaded_mut("gather")?;
         st.begin_stage();
         st.stats.gathered = total[0] as u64 | (total[1] as u64) << 32;
+        st.stats.query_points = total[2] as u64;
         st.image_for = Some(st.completed);
         st.stats.times.gather = start.elapsed().as_secs_f64();
         Ok(())
@@ -381,7 +476,7 @@ impl Tracer for WgpuTracer {
         if st.queries_for.is_none() {
             return Err(WgpuError::StageOrder { stage: "read_query_points", needs: "camera_pass" });
         }
-        Ok(bytemuck::pod_collect_to_vec(&read_buffer(&self.ctx, "read_query_points", &st.queries, st.pixels as u64 * 48)?))
+        Ok(bytemuck::pod_collect_to_vec(&read_buffer(&self.ctx, "read_query_points", &st.queries, st.pixels as u64 * QUERY_BYTES)?))
     }
 
     fn read_footprints(&self) -> Result<Vec<PackedFootprint>, WgpuError> {

@@ -41,7 +41,7 @@ struct GatherPhoton {
     pad1: u32,
 }
 
-// arpa_core::tracer::QueryRecord (48 bytes).
+// arpa_core::tracer::QueryRecord (64 bytes).
 struct GatherQueryRecord {
     position: vec3<f32>,  // metres
     pixel: u32,
@@ -67,7 +67,8 @@ struct GatherImageParams {
 @group(0) @binding(5) var<storage, read> records: array<GatherQueryRecord>;
 @group(0) @binding(6) var<storage, read_write> image: array<vec4<f32>>;
 @group(0) @binding(7) var<storage, read> image_params: GatherImageParams;
-@group(0) @binding(8) var<storage, read_write> gathered_total: array<atomic<u32>, 2>;
+// [contributions low word, high word, valid query records, 0]
+@group(0) @binding(8) var<storage, read_write> gathered_total: array<atomic<u32>, 4>;
 
 const GATHER_PHOTON_BIT: u32 = 0x800000u;
 const GATHER_INDEX_MASK: u32 = 0x7fffffu;
@@ -150,6 +151,7 @@ fn gather_image(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_work
         let g = gather_at(rec.position, rec.normal, image_params.kernel, image_params.radii);
         radiance = rec.radiance + rec.weight * (g.caustic + g.global);
         n = g.caustic_count + g.global_count;
+        atomicAdd(&gathered_total[2], 1u);
     }
     image[i] = vec4<f32>(gather_finite_or_zero(radiance), 0.0);
     if n > 0u {

@@ -16,6 +16,7 @@ mod scene_surface;
 mod scenes;
 mod sort;
 mod store;
+mod tracer;
 mod twin_differential;
 mod twin_emission;
 mod twin_footprint;
