@@ -3,7 +3,8 @@
 //! The wgpu backend of ARPA, on Vulkan ray queries (`EXPERIMENTAL_RAY_QUERY`), with
 //! lavapipe (Mesa's software Vulkan, ≥ 25) when no GPU is present.
 //!
-//! This first slice holds the foundation the tracer is built on:
+//! [`WgpuTracer`] implements [`arpa_core::tracer::Tracer`] with every stage on the device;
+//! the modules it is built from:
 //! * [`device`]: adapter choice (a real GPU with ray queries, else lavapipe, or a name
 //!   forced by the caller) and device creation, with an error naming the adapter when ray
 //!   queries are missing;
@@ -18,14 +19,21 @@
 //!   `arpa_core::photon_path::trace_photon`), appending raw footprints and progressive
 //!   photons with unique keys, with counters and overflow counting;
 //! * [`store`]: footprint store, acceleration-structure build and gather in one device
-//!   submission (deterministic slots, inactive boxes for rejected footprints);
+//!   submission (deterministic slots, inactive boxes for rejected footprints); the
+//!   tracer's keyed store on the photon pass's buffers ([`store::MapStore`]: heuristics,
+//!   fallback photons, sort keys, compaction);
+//! * [`sort`]: the device sort by `(map, Morton code, photon key)` that makes the maps
+//!   independent of the append order and spatially ordered for the AABB build;
+//! * [`accel`]: the per-iteration AABB acceleration structure over the sorted records;
 //! * [`camera`]: the camera pass (query points, emission seen, next-event estimation) on
 //!   ray queries, checked per pixel against the core's `trace_camera_path`;
 //! * [`gather`]: the gather stage on ray queries (footprint boxes in AABB acceleration
 //!   structures, one per map; point queries; the twin's exact test and kernel), checked
-//!   against the core's brute-force gather.
-//!
-//! The `Tracer` (scene upload, photon pass, footprint AS, gather) is not implemented yet.
+//!   against the core's brute-force gather; the tracer's image gather over footprints and
+//!   progressive photons ([`gather::ImageGather`]);
+//! * [`accumulate`]: the running mean on the device;
+//! * [`maps`]: store → sort → build → gather chained on device buffers;
+//! * [`tracer`]: [`WgpuTracer`] and [`WgpuError`].
 
 pub mod accel;
 pub mod accumulate;

@@ -72,12 +72,11 @@ pub fn morton_code(p: [f32; 3], lo: [f32; 3], inv_extent: [f32; 3]) -> u32 {
     };
     let cell = |i: usize| {
         let c = (p[i] - lo[i]) * inv_extent[i] * 1024.0;
-        if !(c > 0.0) {
-            0
-        } else if !(c < 1023.0) {
-            1023
-        } else {
-            c as u32
+        // NaN compares as neither: cell 0, as the WGSL `!(c > 0.0)`.
+        match c.partial_cmp(&0.0) {
+            Some(core::cmp::Ordering::Greater) if c < 1023.0 => c as u32,
+            Some(core::cmp::Ordering::Greater) => 1023,
+            _ => 0,
         }
     };
     spread(cell(0)) | (spread(cell(1)) << 1) | (spread(cell(2)) << 2)
