@@ -391,6 +391,13 @@ impl MapStore {
                 crate::sort::MAX_SORT_ITEMS
             )));
         };
+        let limits = device.limits();
+        let max_bytes = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+        for (records, size, what) in [(raw_capacity, 64u64, "footprint slots"), (total_photons, 48, "sorted photons")] {
+            if records as u64 * size > max_bytes {
+                return Err(StoreSizeError(format!("{records} {what} of {size} bytes exceed the device's {max_bytes}-byte storage binding")));
+            }
+        }
         let label = Some("arpa keyed store");
         use wgpu::BufferUsages as U;
         let buffer = |items: u32, size: u64, usage| {

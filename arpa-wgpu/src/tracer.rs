@@ -250,6 +250,17 @@ impl WgpuTracer {
     }
 }
 
+/// The most raw footprints and progressive photons one photon-pass buffer holds on this
+/// device (its storage-binding and buffer-size limits; the keyed store's 64-byte slots
+/// and the sort's item limit too).
+fn max_capacities(ctx: &GpuContext) -> (u32, u32) {
+    let limits = ctx.device.limits();
+    let bytes = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+    let fit = |record: usize| u32::try_from(bytes / record as u64).unwrap_or(u32::MAX);
+    let sort = crate::sort::MAX_SORT_ITEMS / 2;
+    (fit(std::mem::size_of::<crate::photon::KeyedFootprint>()).min(sort), fit(std::mem::size_of::<crate::photon::KeyedPhoton>()).min(sort))
+}
+
 impl Tracer for WgpuTracer {
     type Error = WgpuError;
 
@@ -281,9 +292,11 @@ impl Tracer for WgpuTracer {
         let ctx = &self.ctx;
         let camera = CameraPass::new(ctx, &gpu_scene, &prepared, settings)?;
         let photon = PhotonPass::new(ctx, &gpu_scene, prepared.emitters().len(), settings)?;
+        let (fp_max, ph_max) = max_capacities(ctx);
         let capacity = self.initial_capacity.unwrap_or(settings.photons_per_iteration.saturating_mul(INITIAL_RECORDS_PER_PHOTON)).max(1);
-        let outputs = PhotonOutputs::new(ctx, capacity, capacity)?;
-        self.maps.bind_inputs(ctx, outputs.footprints(), outputs.photons(), capacity, capacity)?;
+        let (fp_cap, ph_cap) = (capacity.min(fp_max), capacity.min(ph_max));
+        let outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
+        self.maps.bind_inputs(ctx, outputs.footprints(), outputs.photons(), fp_cap, ph_cap)?;
         let (queries, image, accumulator) = scoped(ctx, "allocating the image buffers", || {
             let buffer = |size: u64| {
                 ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -364,11 +377,20 @@ impl Tracer for WgpuTracer {
                 break c;
             }
             overflowed += c.overflowed();
-            let grow = |appends: u32, capacity: u32| {
-                if appends > capacity { capacity.saturating_mul(2).max(appends.saturating_add(appends / 4)) } else { capacity }
+            let (fp_max, ph_max) = max_capacities(ctx);
+            for (appends, max, what) in [(c.footprint_appends, fp_max, "raw footprints"), (c.photon_appends, ph_max, "progressive photons")] {
+                if appends > max {
+                    return Err(WgpuError::Size(format!(
+                        "the iteration stores {appends} {what}; adapter {:?} binds at most {max} in one storage buffer (fewer photons per iteration fit)",
+                        ctx.info.name
+                    )));
+                }
+            }
+            let grow = |appends: u32, capacity: u32, max: u32| {
+                if appends > capacity { capacity.saturating_mul(2).max(appends.saturating_add(appends / 4)).min(max) } else { capacity }
             };
-            let fp_cap = grow(c.footprint_appends, st.outputs.footprint_capacity());
-            let ph_cap = grow(c.photon_appends, st.outputs.photon_capacity());
+            let fp_cap = grow(c.footprint_appends, st.outputs.footprint_capacity(), fp_max);
+            let ph_cap = grow(c.photon_appends, st.outputs.photon_capacity(), ph_max);
             if crate::sort::sorted_len(fp_cap.saturating_add(ph_cap)) > crate::sort::MAX_SORT_ITEMS || fp_cap.saturating_add(ph_cap) < fp_cap {
                 return Err(WgpuError::Size(format!("{} footprints and {} photons in one iteration exceed the device sort's {} records", c.footprint_appends, c.photon_appends, crate::sort::MAX_SORT_ITEMS)));
             }
