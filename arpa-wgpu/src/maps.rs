@@ -125,6 +125,14 @@ impl PhotonMaps {
         })?;
         let bytes = read_buffer(ctx, "store counts", store.counts_buffer(), 32)?;
         let counts: StoreCounts = bytemuck::pod_read_unaligned(&bytes);
+        if counts.overflowed > 0 {
+            return Err(WgpuError::Size(format!(
+                "{} progressive photons in one iteration: {} more than one storage binding of adapter {:?} holds",
+                counts.total_photons(),
+                counts.overflowed,
+                ctx.info.name
+            )));
+        }
         self.counts = counts;
         self.radii = settings.radii;
         Ok(counts)

@@ -259,8 +259,9 @@ pub struct StoreCounts {
     pub culled: u32,
     /// See [`StoreCounts::degenerate`].
     pub unrepresentable: u32,
-    /// Padding.
-    pub pad: u32,
+    /// Progressive photons beyond the sorted output's capacity (not stored; the tracer
+    /// reports the iteration as too large for the device).
+    pub overflowed: u32,
 }
 
 impl StoreCounts {
@@ -393,11 +394,12 @@ impl MapStore {
         };
         let limits = device.limits();
         let max_bytes = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
-        for (records, size, what) in [(raw_capacity, 64u64, "footprint slots"), (total_photons, 48, "sorted photons")] {
-            if records as u64 * size > max_bytes {
-                return Err(StoreSizeError(format!("{records} {what} of {size} bytes exceed the device's {max_bytes}-byte storage binding")));
-            }
+        if raw_capacity as u64 * 64 > max_bytes {
+            return Err(StoreSizeError(format!("{raw_capacity} footprint slots of 64 bytes exceed the device's {max_bytes}-byte storage binding")));
         }
+        // The sorted photons: as many as one binding holds (the compaction counts any
+        // beyond in `StoreCounts::overflowed`).
+        let photons_out_capacity = total_photons.min(u32::try_from(max_bytes / 48).unwrap_or(u32::MAX));
         let label = Some("arpa keyed store");
         use wgpu::BufferUsages as U;
         let buffer = |items: u32, size: u64, usage| {
@@ -414,8 +416,8 @@ impl MapStore {
         let params = buffer(1, std::mem::size_of::<StoreParams>() as u64, U::COPY_DST);
         let footprints = buffer(raw_capacity, 64, U::COPY_SRC);
         let footprint_boxes = buffer(raw_capacity, 24, U::COPY_SRC | U::BLAS_INPUT);
-        let photons_out = buffer(total_photons, 48, U::COPY_SRC);
-        let photon_boxes = buffer(total_photons, 24, U::COPY_SRC | U::BLAS_INPUT);
+        let photons_out = buffer(photons_out_capacity, 48, U::COPY_SRC);
+        let photon_boxes = buffer(photons_out_capacity, 24, U::COPY_SRC | U::BLAS_INPUT);
         let resources = [
             raw, photons, &params, &fp_slots, &fp_box_slots, &ph_extra, &fp_items, &ph_items, &counts, &footprints, &footprint_boxes, &photons_out,
             &photon_boxes,

@@ -109,6 +109,7 @@ fn store_footprints(@builtin(global_invocation_id) gid: vec3<u32>) {
 const STORE_COUNT_FOOTPRINTS: u32 = 0u;   // + map
 const STORE_COUNT_PHOTONS: u32 = 2u;      // + map
 const STORE_COUNT_REASON: u32 = 3u;       // + ARPA_STORE_* status (1 degenerate, 2 culled, 3 unrepresentable)
+const STORE_COUNT_OVERFLOWED: u32 = 7u;   // sorted photons beyond ph_out's capacity
 const STORE_INVALID: u32 = 0xffffffffu;
 
 @group(0) @binding(5) var<storage, read> raw_in: array<KeyedFootprint>;
@@ -226,6 +227,10 @@ fn compact_photons(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_w
     }
     let item = ph_items[s];
     if item.hi == STORE_INVALID {
+        return;
+    }
+    if s >= arrayLength(&ph_out) {
+        atomicAdd(&store_counts[STORE_COUNT_OVERFLOWED], 1u);
         return;
     }
     var p: KeyedPhoton;
