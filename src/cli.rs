@@ -1,7 +1,7 @@
 //! The `arpa` command line: argument parsing (clap) and the `render` command.
 //!
 //! ```text
-//! arpa render [SCENE.xml [-D name=value ...]] [--backend cpu] [--method arpa|rtpm] [--photons N]
+//! arpa render [SCENE.xml [-D name=value ...]] [--backend cpu|wgpu [--adapter NAME]] [--method arpa|rtpm] [--photons N]
 //!             [--iterations N | --time SECONDS] [--resolution WxH] [--seed S]
 //!             [--out PATH] [--no-direct] [--smoothing-caustic S_c] [--smoothing-global S_g]
 //!             [--max-depth D] [--exposure E]
@@ -38,6 +38,8 @@ pub const KNOWN_BACKENDS: &[&str] = &["cpu", "wgpu", "vk"];
 pub const COMPILED_BACKENDS: &[&str] = &[
     #[cfg(feature = "cpu")]
     "cpu",
+    #[cfg(feature = "wgpu")]
+    "wgpu",
 ];
 
 /// Default number of iterations when neither `--iterations` nor `--time` is given.
@@ -71,6 +73,9 @@ pub enum Command {
 pub enum Backend {
     /// CPU backend on Embree 4 (`arpa-cpu`, cargo feature `cpu`).
     Cpu,
+    /// wgpu backend on Vulkan ray queries, a GPU or lavapipe (`arpa-wgpu`, cargo feature
+    /// `wgpu`).
+    Wgpu,
 }
 
 impl Backend {
@@ -78,6 +83,7 @@ impl Backend {
     pub const fn name(self) -> &'static str {
         match self {
             Backend::Cpu => "cpu",
+            Backend::Wgpu => "wgpu",
         }
     }
 }
@@ -92,6 +98,7 @@ pub fn parse_backend(s: &str) -> Result<Backend, String> {
     if COMPILED_BACKENDS.contains(&name.as_str()) {
         return match name.as_str() {
             "cpu" => Ok(Backend::Cpu),
+            "wgpu" => Ok(Backend::Wgpu),
             _ => Err(format!("backend '{s}' is not implemented; compiled backends: {}", compiled_list())),
         };
     }
@@ -213,6 +220,11 @@ pub struct RenderArgs {
     /// Rendering backend (only those compiled in are accepted).
     #[arg(long, value_name = "NAME", default_value = "cpu", value_parser = parse_backend)]
     pub backend: Backend,
+
+    /// wgpu backend: use the adapter whose name contains NAME (case-insensitive), e.g.
+    /// `llvmpipe` for lavapipe [default: a GPU with ray queries, else lavapipe].
+    #[arg(long, value_name = "NAME")]
+    pub adapter: Option<String>,
 
     /// Density-estimation method.
     #[arg(long, value_enum, default_value_t = MethodArg::Arpa)]
@@ -630,8 +642,10 @@ pub fn summary(r: &Rendered, settings: &RenderSettings) -> String {
 }
 
 /// Runs a backend on `scene`.
+#[allow(clippy::too_many_arguments)]
 fn render_on_backend(
     backend: Backend,
+    adapter: Option<&str>,
     scene: &Scene,
     settings: &RenderSettings,
     budget: Budget,
@@ -639,8 +653,27 @@ fn render_on_backend(
     checkpoints: Checkpoints,
     observer: &mut dyn Observer,
 ) -> anyhow::Result<Rendered> {
+    if adapter.is_some() && backend != Backend::Wgpu {
+        bail!("--adapter applies to --backend wgpu only (backend '{}' given)", backend.name());
+    }
     // One arm per backend; each compiles without its feature and then reports it missing.
     match backend {
+        Backend::Wgpu => {
+            #[cfg(feature = "wgpu")]
+            {
+                let choice = match adapter {
+                    Some(name) => arpa_wgpu::AdapterChoice::NameContains(name.to_string()),
+                    None => arpa_wgpu::AdapterChoice::Auto,
+                };
+                let mut tracer = arpa_wgpu::WgpuTracer::new(&choice).context("cannot start the wgpu backend")?;
+                render_observed(&mut tracer, scene, settings, budget, progress, checkpoints, observer)
+            }
+            #[cfg(not(feature = "wgpu"))]
+            {
+                let _ = (scene, settings, budget, progress, checkpoints, observer);
+                bail!("backend 'wgpu' is not compiled into this build (rebuild with `--features wgpu`)");
+            }
+        }
         Backend::Cpu => {
             #[cfg(feature = "cpu")]
             {
@@ -720,8 +753,8 @@ pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
 
     let progress = Progress::new(budget, std::io::stderr().is_terminal());
     let rendered = match &mut metrics {
-        Some(m) => render_on_backend(args.backend, &scene, &settings, budget, &progress, checkpoints, m)?,
-        None => render_on_backend(args.backend, &scene, &settings, budget, &progress, checkpoints, &mut NoObserver)?,
+        Some(m) => render_on_backend(args.backend, args.adapter.as_deref(), &scene, &settings, budget, &progress, checkpoints, m)?,
+        None => render_on_backend(args.backend, args.adapter.as_deref(), &scene, &settings, budget, &progress, checkpoints, &mut NoObserver)?,
     };
     if let Some(m) = &mut metrics {
         m.finish()?;
@@ -966,6 +999,10 @@ mod tests {
         }
         assert!(parse_backend("nope").unwrap_err().contains("unknown backend 'nope'"));
         assert!(parse_backend("vk").unwrap_err().contains("not compiled"));
+        #[cfg(feature = "wgpu")]
+        assert_eq!(parse_backend("WGPU"), Ok(Backend::Wgpu));
+        #[cfg(not(feature = "wgpu"))]
+        assert!(parse_backend("wgpu").unwrap_err().contains("not compiled"));
         #[cfg(feature = "cpu")]
         assert_eq!(parse_backend("cpu"), Ok(Backend::Cpu));
         assert!(parse_positive_f64("0").is_err() && parse_positive_f64("nan").is_err() && parse_positive_f64("2.5") == Ok(2.5));

@@ -174,7 +174,16 @@ impl GpuContext {
         let i = choose(&candidates, choice)?;
         let adapter = &adapters[i];
         let info = candidates[i].info.clone();
-        let limits = wgpu::Limits::default().using_acceleration_structure_values(adapter.limits());
+        // The tracer's kernels bind more storage buffers than the default 8, and its photon
+        // buffers outgrow the default 128 MiB binding: take the adapter's limits for those.
+        let have = adapter.limits();
+        let limits = wgpu::Limits {
+            max_storage_buffers_per_shader_stage: have.max_storage_buffers_per_shader_stage,
+            max_storage_buffer_binding_size: have.max_storage_buffer_binding_size,
+            max_buffer_size: have.max_buffer_size,
+            ..wgpu::Limits::default()
+        }
+        .using_acceleration_structure_values(have);
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("arpa-wgpu"),

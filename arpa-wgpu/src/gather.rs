@@ -1,11 +1,14 @@
 //! The gather stage on ray queries: footprint boxes in an AABB acceleration structure (one
 //! bottom-level structure per photon map, told apart by instance masks), a point query per
 //! query point, the exact filter-space test and kernel of the core's WGSL twin
-//! (`arpa_footprint_irradiance`), irradiance summed per map.
+//! (`arpa_footprint_irradiance`), irradiance summed per map; progressive photons (the
+//! sphere test of the progressive radius) likewise when the structure has photon instances
+//! ([`crate::accel`]).
 //!
-//! This is the building block the `Tracer`'s gather will run on device-resident buffers;
-//! here it takes host slices so that it can be checked against the core's brute-force
-//! gather ([`arpa_core::estimate::IrradianceEstimate`]).
+//! [`gather`] takes host slices so that it can be checked against the core's brute-force
+//! gather ([`arpa_core::estimate::IrradianceEstimate`]); [`ImageGather`] is the tracer's
+//! form on device buffers: camera-pass query records in, the iteration's radiance per
+//! pixel out.
 
 use crate::device::GpuContext;
 use crate::harness::{HarnessError, output_and_staging, submit_and_read};
@@ -127,8 +130,7 @@ pub fn gather(
     }
 
     // The `enable` directive must precede every declaration.
-    let source = format!("enable wgpu_ray_query;\n{}\n{}\n{}", arpa_core::shaders::KERNEL, arpa_core::shaders::FOOTPRINT, GATHER_WGSL);
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(label), source: wgpu::ShaderSource::Wgsl(source.into()) });
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(label), source: wgpu::ShaderSource::Wgsl(gather_source().into()) });
     let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
         label: Some(label),
         layout: None,
@@ -152,6 +154,7 @@ pub fn gather(
     let q_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents: bytemuck::cast_slice(&gq), usage: wgpu::BufferUsages::STORAGE });
     let out_bytes = (queries.len() * std::mem::size_of::<GatherResult>()) as u64;
     let (out_buf, staging) = output_and_staging(device, label, out_bytes);
+    let no_photons = empty_photon_buffer(device);
     let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some(label),
         layout: &pipeline.get_bind_group_layout(0),
@@ -160,6 +163,7 @@ pub fn gather(
             wgpu::BindGroupEntry { binding: 1, resource: q_buf.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 2, resource: out_buf.as_entire_binding() },
             wgpu::BindGroupEntry { binding: 3, resource: tlas.as_binding() },
+            wgpu::BindGroupEntry { binding: 4, resource: no_photons.as_entire_binding() },
         ],
     });
     let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
@@ -185,4 +189,103 @@ pub fn gather(
     encoder.copy_buffer_to_buffer(&out_buf, 0, &staging, 0, out_bytes);
     let [out] = submit_and_read(ctx, scope, encoder, label, [&staging])?;
     Ok(bytemuck::pod_collect_to_vec(&out))
+}
+
+/// The gather module's full source (`enable` directive, twin files, gather.wgsl).
+pub(crate) fn gather_source() -> String {
+    format!("enable wgpu_ray_query;\n{}\n{}\n{GATHER_WGSL}", arpa_core::shaders::KERNEL, arpa_core::shaders::FOOTPRINT)
+}
+
+/// A one-record photon buffer for gathers without photons (bindings must not be empty).
+pub(crate) fn empty_photon_buffer(device: &wgpu::Device) -> wgpu::Buffer {
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some("arpa no photons"),
+        contents: bytemuck::bytes_of(&arpa_core::progressive_photon::PackedPhoton::default()),
+        usage: wgpu::BufferUsages::STORAGE,
+    })
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct ImageParams {
+    radii: [f32; 2],
+    kernel: u32,
+    pixels: u32,
+}
+
+/// The tracer's gather: per query record (one per pixel, [`arpa_core::tracer::QueryRecord`]),
+/// `radiance + weight · (E_caustic + E_global)` with non-finite components set to 0 (as
+/// arpa-cpu's gather), written as `vec4<f32>` (RGB, 0) per pixel; the number of contributions
+/// summed into a 64-bit counter and the valid records counted ([`ImageGather::total_buffer`]).
+pub struct ImageGather {
+    pipeline: wgpu::ComputePipeline,
+    params: wgpu::Buffer,
+    total: wgpu::Buffer,
+}
+
+impl ImageGather {
+    /// Compiles the pipeline.
+    pub fn new(device: &wgpu::Device) -> Self {
+        let label = Some("arpa image gather");
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label, source: wgpu::ShaderSource::Wgsl(gather_source().into()) });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label,
+            layout: None,
+            module: &module,
+            entry_point: Some("gather_image"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        let buffer = |size, usage| device.create_buffer(&wgpu::BufferDescriptor { label, size, usage, mapped_at_creation: false });
+        use wgpu::BufferUsages as U;
+        Self { pipeline, params: buffer(16, U::STORAGE | U::COPY_DST), total: buffer(16, U::STORAGE | U::COPY_DST | U::COPY_SRC) }
+    }
+
+    /// The counters (four `u32`: contributions low and high word, valid query records,
+    /// zero), valid after the commands of
+    /// [`ImageGather::encode`] ran.
+    pub fn total_buffer(&self) -> &wgpu::Buffer {
+        &self.total
+    }
+
+    /// Records the gather of `pixels` query records `records` against the sorted
+    /// `footprints` and `photons` (records of [`crate::store::MapStore`]) in `tlas`
+    /// ([`crate::accel`]) with progressive `radii` (metres) and footprint `kernel`, into
+    /// `image` (`pixels` × 16 bytes).
+    #[allow(clippy::too_many_arguments)]
+    pub fn encode(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        footprints: &wgpu::Buffer,
+        photons: &wgpu::Buffer,
+        tlas: &wgpu::Tlas,
+        records: &wgpu::Buffer,
+        image: &wgpu::Buffer,
+        radii: [f32; 2],
+        kernel: Kernel,
+        pixels: u32,
+    ) {
+        let params = ImageParams { radii, kernel: kernel_id(kernel), pixels };
+        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        encoder.clear_buffer(&self.total, 0, None);
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("arpa image gather"),
+            layout: &self.pipeline.get_bind_group_layout(0),
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: footprints.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 3, resource: tlas.as_binding() },
+                wgpu::BindGroupEntry { binding: 4, resource: photons.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 5, resource: records.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 6, resource: image.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 7, resource: self.params.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 8, resource: self.total.as_entire_binding() },
+            ],
+        });
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("arpa image gather"), timestamp_writes: None });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &bind_group, &[]);
+        crate::store::dispatch_linear(&mut pass, pixels);
+    }
 }

@@ -55,6 +55,11 @@ fn create_cpu() -> Result<Box<dyn DynTracer>, BoxError> {
     Ok(Box::new(arpa_cpu::CpuTracer::new()?))
 }
 
+#[cfg(feature = "wgpu")]
+fn create_wgpu() -> Result<Box<dyn DynTracer>, BoxError> {
+    Ok(Box::new(arpa_wgpu::WgpuTracer::new(&arpa_wgpu::AdapterChoice::Auto)?))
+}
+
 /// The backends compiled in, in report-column order.
 #[allow(clippy::vec_init_then_push)] // one `push` per feature
 pub fn compiled() -> Vec<Backend> {
@@ -65,6 +70,13 @@ pub fn compiled() -> Vec<Backend> {
         name: "cpu",
         feature: "cpu",
         create: create_cpu,
+        expected_failures: &[],
+    });
+    #[cfg(feature = "wgpu")]
+    v.push(Backend {
+        name: "wgpu",
+        feature: "wgpu",
+        create: create_wgpu,
         expected_failures: &[],
     });
     v

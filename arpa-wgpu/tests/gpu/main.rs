@@ -4,15 +4,24 @@
 
 mod common;
 
+mod camera_pass;
+
 mod gather;
+mod maps;
 mod naga_validate;
+mod photon_pass;
 mod ray_cast;
 mod ray_query;
+mod scene_surface;
+mod scenes;
+mod sort;
 mod store;
+mod tracer;
 mod twin_differential;
 mod twin_emission;
 mod twin_footprint;
 mod twin_heuristics;
+mod twin_lambertian;
 mod twin_radius;
 mod twin_reemission;
 mod twin_rng;

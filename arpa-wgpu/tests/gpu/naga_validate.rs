@@ -73,8 +73,14 @@ fn ray_cast_kernel_validates() {
 
 #[test]
 fn store_kernel_validates() {
-    let src = format!("{}\n{}\n{}\n{}", shaders::KERNEL, shaders::FOOTPRINT, shaders::HEURISTICS, arpa_wgpu::store::STORE_WGSL);
+    let src = format!("{}\n{}\n{}\n{}\n{}", shaders::KERNEL, shaders::FOOTPRINT, shaders::HEURISTICS, arpa_wgpu::sort::MORTON_WGSL, arpa_wgpu::store::STORE_WGSL);
     validate("store.wgsl", &src);
+}
+
+#[test]
+fn sort_and_accumulate_kernels_validate() {
+    validate("sort.wgsl", arpa_wgpu::sort::SORT_WGSL);
+    validate("accumulate.wgsl", arpa_wgpu::accumulate::ACCUMULATE_WGSL);
 }
 
 #[test]
@@ -86,4 +92,30 @@ fn a_broken_file_is_rejected() {
         .ok()
         .is_some_and(|m| naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::empty()).validate(&m).is_ok());
     assert!(!ok, "a mistyped radius.wgsl validated");
+}
+
+#[test]
+fn scene_wgsl_validates() {
+    let src = format!("enable wgpu_ray_query;\n{}", arpa_wgpu::scene::SCENE_WGSL);
+    let module = naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| panic!("scene.wgsl: {}", e.emit_to_string(&src)));
+    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::RAY_QUERY)
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("scene.wgsl: {}", e.emit_to_string(&src)));
+}
+
+#[test]
+fn camera_pass_validates() {
+    let src = format!(
+        "enable wgpu_ray_query;\n{}\n{}\n{}\n{}\n{}\n{}",
+        shaders::RNG,
+        shaders::FRAME,
+        shaders::SAMPLING,
+        shaders::LAMBERTIAN,
+        arpa_wgpu::scene::SCENE_WGSL,
+        arpa_wgpu::camera::CAMERA_PASS_WGSL
+    );
+    let module = naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| panic!("camera_pass.wgsl: {}", e.emit_to_string(&src)));
+    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::RAY_QUERY)
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("camera_pass.wgsl: {}", e.emit_to_string(&src)));
 }

@@ -19,7 +19,7 @@ use proptest::prelude::*;
 
 const RADII: [f32; 2] = [0.01, 0.05];
 
-fn raw(seed: u32, n: usize) -> Vec<RawFootprint> {
+pub(crate) fn raw(seed: u32, n: usize) -> Vec<RawFootprint> {
     let mut rng = Rng::new(seed, 2, 0, StreamDomain::User);
     (0..n)
         .map(|_| {
@@ -43,17 +43,17 @@ fn raw(seed: u32, n: usize) -> Vec<RawFootprint> {
         .collect()
 }
 
-fn core_footprint(r: &RawFootprint) -> Footprint {
+pub(crate) fn core_footprint(r: &RawFootprint) -> Footprint {
     let d = |v: [f32; 3]| glam::Vec3::from_array(v).as_dvec3();
     Footprint { center: d(r.center), normal: d(r.normal), du: d(r.du), dv: d(r.dv), flux: d(r.flux), map: PhotonMap::from_index(r.map) }
 }
 
-fn scene_bounds() -> Aabb {
+pub(crate) fn scene_bounds() -> Aabb {
     Aabb { min: DVec3::new(-1.0, -1.0, -0.2), max: DVec3::new(1.0, 1.0, 0.5) }
 }
 
 /// Within 1e-3 relative of the degenerate or culling threshold.
-fn near_threshold(h: &Heuristics, fp: &Footprint, radius: f64) -> bool {
+pub(crate) fn near_threshold(h: &Heuristics, fp: &Footprint, radius: f64) -> bool {
     let ctx = HeuristicContext { radius, scene_bounds: scene_bounds() };
     let fp = h.clamp_h_max(h.dampen(*fp, &ctx), &ctx);
     let near = |x: f64, t: f64| (x / t - 1.0).abs() < 1e-3;

@@ -1,0 +1,476 @@
+//! The photon pass on the device: one invocation per photon, the twin of
+//! [`arpa_core::photon_path::trace_photon`] (emission from the iteration's prepared lights,
+//! specular chains with ray differentials and the Fresnel choice, diffuse store with the
+//! adjoint shading-normal ratio, re-emission with the virtual distance, caustic/global
+//! classification, Russian roulette, `max_depth`), for both methods.
+//!
+//! What a photon stores goes into [`PhotonOutputs`] by atomic append, each record tagged with
+//! the unique key `photon_index · max_depth + depth` (`depth`: 0-based index of the ray
+//! segment that ended at the hit), so sorting by key gives an order independent of the
+//! append order:
+//! * [`KeyedFootprint`]s: photons stored as footprints (method ARPA with the differential
+//!   intact), *before* the heuristics: `D_u`, `D_v` projected into the tangent plane and
+//!   already scaled by the map's smoothing factor (`S_c`, `S_g`). The store stage
+//!   ([`crate::store`], `heuristics.wgsl`'s `arpa_store`) applies only the heuristics, and a
+//!   footprint it rejects becomes a progressive photon at its centre with the same flux,
+//!   normal and map (as [`arpa_core::store::store_footprint_resolved`] does);
+//! * [`KeyedPhoton`]s: progressive photons (method RTPM, or a lost differential);
+//! * [`PhotonCounters`].
+//!
+//! An append beyond a buffer's capacity is dropped and counted in
+//! [`PhotonCounters::footprint_overflowed`] / [`PhotonCounters::photon_overflowed`]; nothing
+//! is written out of bounds. Where the photon arrived from below the shading plane the
+//! stored normal is flipped (photon path's `orient_to_shading_side`: the packed record's
+//! `row_n` and the fallback photon's normal then come out flipped too, exactly).
+
+use crate::device::GpuContext;
+use crate::harness::{HarnessError, submit_and_read};
+use crate::scene::{GpuScene, SCENE_WGSL};
+use crate::store::RawFootprint;
+use arpa_core::emission::PackedLight;
+use arpa_core::photon_path::PhotonPassSetup;
+use arpa_core::progressive_photon::PackedPhoton;
+use arpa_core::tracer::{Method, RenderSettings};
+
+/// WGSL of the photon pass (entry point `photon_pass`, bind group 1), after the core's twin
+/// files it needs ([`photon_pass_source`] assembles the whole module).
+pub const PHOTON_PASS_WGSL: &str = include_str!("shaders/photon_pass.wgsl");
+
+/// Workgroup size of the photon pass (photons per workgroup).
+pub const PHOTON_WORKGROUP_SIZE: u32 = 64;
+
+/// The complete WGSL module of the photon pass: `enable wgpu_ray_query;`, the core's twin
+/// files it uses, the scene ([`SCENE_WGSL`], bind group 0) and [`PHOTON_PASS_WGSL`].
+pub fn photon_pass_source() -> String {
+    use arpa_core::shaders as s;
+    let twin = [s::RNG, s::DIFFERENTIAL, s::FRAME, s::SAMPLING, s::EMISSION, s::REEMISSION, s::LAMBERTIAN].join("\n");
+    format!("enable wgpu_ray_query;\n{twin}\n{SCENE_WGSL}\n{PHOTON_PASS_WGSL}")
+}
+
+/// A raw footprint with its key: the footprint buffer's element (96 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct KeyedFootprint {
+    /// The footprint (metres, unit normal towards the arriving photon, tangent-plane
+    /// differentials with the map's smoothing applied, W).
+    pub footprint: RawFootprint,
+    /// `photon_index · max_depth + depth`, unique within the iteration.
+    pub key: u32,
+    /// Padding (zero).
+    pub pad: [u32; 3],
+}
+
+/// A progressive photon with its key: the photon buffer's element (64 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct KeyedPhoton {
+    /// The photon (metres, unit normal towards the arrival side, W).
+    pub photon: PackedPhoton,
+    /// `photon_index · max_depth + depth`, unique within the iteration.
+    pub key: u32,
+    /// Padding (zero).
+    pub pad: [u32; 3],
+}
+
+/// What the photon pass counted (48 bytes, the WGSL `PhotonCounters`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct PhotonCounters {
+    /// Photons traced (the iteration's photon count; also those whose emitter could not
+    /// emit, as the CPU backend counts them).
+    pub emitted: u32,
+    /// Ray segments cast.
+    pub segments: u32,
+    /// Raw footprints stored, caustic map (appends attempted, overflowed ones included).
+    pub footprints_caustic: u32,
+    /// Raw footprints stored, global map.
+    pub footprints_global: u32,
+    /// Progressive photons stored, caustic map (appends attempted).
+    pub progressive_caustic: u32,
+    /// Progressive photons stored, global map.
+    pub progressive_global: u32,
+    /// Progressive photons stored because the differential was lost (method ARPA).
+    pub differential_lost: u32,
+    /// Footprint appends attempted (= footprints_caustic + footprints_global); the first
+    /// `min(footprint_appends, capacity)` slots of the footprint buffer are written.
+    pub footprint_appends: u32,
+    /// Photon appends attempted; the first `min(photon_appends, capacity)` slots are written.
+    pub photon_appends: u32,
+    /// Footprints dropped because the buffer was full.
+    pub footprint_overflowed: u32,
+    /// Progressive photons dropped because the buffer was full.
+    pub photon_overflowed: u32,
+    /// Padding (zero).
+    pub pad: u32,
+}
+
+impl PhotonCounters {
+    /// Footprints written to the buffer.
+    pub fn footprints_written(&self) -> u32 {
+        self.footprint_appends - self.footprint_overflowed
+    }
+
+    /// Progressive photons written to the buffer.
+    pub fn photons_written(&self) -> u32 {
+        self.photon_appends - self.photon_overflowed
+    }
+
+    /// Appends dropped for lack of capacity, both buffers.
+    pub fn overflowed(&self) -> u64 {
+        self.footprint_overflowed as u64 + self.photon_overflowed as u64
+    }
+}
+
+// The WGSL structs of photon_pass.wgsl have exactly these sizes.
+const _: () = assert!(size_of::<KeyedFootprint>() == 96 && size_of::<KeyedPhoton>() == 64 && size_of::<PhotonCounters>() == 48);
+const _: () = assert!(size_of::<PhotonParams>() == 48 && size_of::<EmitterRange>() == 16);
+
+/// Per-iteration uniforms (the WGSL `PhotonParams`, 48 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+struct PhotonParams {
+    photon_count: u32,
+    iteration: u32,
+    seed: u32,
+    max_depth: u32,
+    method: u32,
+    direct_lighting: u32,
+    emitter_count: u32,
+    pad0: u32,
+    smoothing: [f32; 2],
+    pad1: [f32; 2],
+}
+
+/// Global photon range of one emitter (the WGSL `PhotonEmitterRange`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct EmitterRange {
+    first_index: u32,
+    count: u32,
+    valid: u32,
+    pad: u32,
+}
+
+/// Why the photon pass could not be built or encoded.
+#[derive(Debug, thiserror::Error)]
+pub enum PhotonPassError {
+    /// The keys `photon_index · max_depth + depth` (and the segment count, at most
+    /// `photons · max_depth`) would not fit in `u32`.
+    #[error("photon pass: {photons} photons with max depth {max_depth} exceed the u32 record keys (photons x max depth must stay below 2^32)")]
+    KeyRange {
+        /// Photons of the iteration.
+        photons: u32,
+        /// Interactions per photon.
+        max_depth: u32,
+    },
+    /// More photons than one dispatch covers.
+    #[error("photon pass: {photons} photons exceed one dispatch of this device ({max} workgroups of {PHOTON_WORKGROUP_SIZE} per dimension)")]
+    TooManyPhotons {
+        /// Photons of the iteration.
+        photons: u32,
+        /// The device's workgroups per dimension.
+        max: u32,
+    },
+    /// The setup's emitters are not the scene's.
+    #[error("photon pass: the setup has {got} emitters, the pass was built for {expected}")]
+    EmitterCount {
+        /// Emitters in the setup.
+        got: usize,
+        /// Emitters the pass was built for.
+        expected: usize,
+    },
+    /// A capacity is zero or larger than a storage binding of this device holds.
+    #[error("photon pass: {what} capacity {capacity} is zero or exceeds this device's storage binding ({max_bytes} bytes)")]
+    Capacity {
+        /// Which buffer.
+        what: &'static str,
+        /// Records asked for.
+        capacity: u64,
+        /// The device's largest storage binding.
+        max_bytes: u64,
+    },
+    /// wgpu rejected the module or pipeline, or a read-back failed.
+    #[error(transparent)]
+    Device(#[from] HarnessError),
+}
+
+/// The output buffers of the photon pass, allocated for fixed capacities (records).
+pub struct PhotonOutputs {
+    footprints: wgpu::Buffer,
+    photons: wgpu::Buffer,
+    counters: wgpu::Buffer,
+    footprint_capacity: u32,
+    photon_capacity: u32,
+}
+
+/// What [`PhotonOutputs::read`] read back.
+#[derive(Clone, Debug, Default)]
+pub struct PhotonReadback {
+    /// The counters.
+    pub counters: PhotonCounters,
+    /// The footprints written, in append order (not deterministic; sort by key).
+    pub footprints: Vec<KeyedFootprint>,
+    /// The progressive photons written, in append order.
+    pub photons: Vec<KeyedPhoton>,
+}
+
+impl PhotonOutputs {
+    /// Buffers for `footprint_capacity` footprints and `photon_capacity` progressive
+    /// photons (each at least 1 and within the device's storage binding size).
+    /// Usage: `STORAGE | COPY_SRC | COPY_DST`.
+    pub fn new(ctx: &GpuContext, footprint_capacity: u32, photon_capacity: u32) -> Result<Self, PhotonPassError> {
+        let device = &ctx.device;
+        let max_bytes = device.limits().max_storage_buffer_binding_size;
+        let check = |what: &'static str, capacity: u32, size: usize| {
+            let bytes = capacity as u64 * size as u64;
+            if capacity == 0 || bytes > max_bytes || bytes > device.limits().max_buffer_size {
+                Err(PhotonPassError::Capacity { what, capacity: capacity as u64, max_bytes })
+            } else {
+                Ok(bytes)
+            }
+        };
+        let fp_bytes = check("footprint", footprint_capacity, size_of::<KeyedFootprint>())?;
+        let ph_bytes = check("progressive photon", photon_capacity, size_of::<KeyedPhoton>())?;
+        let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST;
+        let buffer = |label: &str, size: u64| device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage, mapped_at_creation: false });
+        Ok(Self {
+            footprints: buffer("photon pass footprints", fp_bytes),
+            photons: buffer("photon pass progressive photons", ph_bytes),
+            counters: buffer("photon pass counters", size_of::<PhotonCounters>() as u64),
+            footprint_capacity,
+            photon_capacity,
+        })
+    }
+
+    /// The footprint buffer (`array<KeyedFootprint>`, capacity records).
+    pub fn footprints(&self) -> &wgpu::Buffer {
+        &self.footprints
+    }
+
+    /// The progressive-photon buffer (`array<KeyedPhoton>`, capacity records).
+    pub fn photons(&self) -> &wgpu::Buffer {
+        &self.photons
+    }
+
+    /// The counters buffer (one [`PhotonCounters`]).
+    pub fn counters(&self) -> &wgpu::Buffer {
+        &self.counters
+    }
+
+    /// Footprint capacity (records).
+    pub fn footprint_capacity(&self) -> u32 {
+        self.footprint_capacity
+    }
+
+    /// Progressive-photon capacity (records).
+    pub fn photon_capacity(&self) -> u32 {
+        self.photon_capacity
+    }
+
+    /// Reads the counters and the written records back (waits for the device). For tests
+    /// and read-backs; the tracer keeps them on the device.
+    pub fn read(&self, ctx: &GpuContext) -> Result<PhotonReadback, HarnessError> {
+        let label = "photon pass read-back";
+        let device = &ctx.device;
+        let staging = |bytes: u64| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
+        let c = staging(size_of::<PhotonCounters>() as u64);
+        encoder.copy_buffer_to_buffer(&self.counters, 0, &c, 0, c.size());
+        let [counters] = submit_and_read(ctx, scope, encoder, label, [&c])?;
+        let counters: PhotonCounters = bytemuck::pod_read_unaligned(&counters);
+        let nf = counters.footprint_appends.min(self.footprint_capacity) as u64;
+        let np = counters.photon_appends.min(self.photon_capacity) as u64;
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
+        // Staging buffers of at least 4 bytes (no zero-size copies).
+        let f = staging((nf * size_of::<KeyedFootprint>() as u64).max(4));
+        let p = staging((np * size_of::<KeyedPhoton>() as u64).max(4));
+        if nf > 0 {
+            encoder.copy_buffer_to_buffer(&self.footprints, 0, &f, 0, f.size());
+        }
+        if np > 0 {
+            encoder.copy_buffer_to_buffer(&self.photons, 0, &p, 0, p.size());
+        }
+        let [fb, pb] = submit_and_read(ctx, scope, encoder, label, [&f, &p])?;
+        Ok(PhotonReadback {
+            counters,
+            footprints: bytemuck::pod_collect_to_vec(&fb[..nf as usize * size_of::<KeyedFootprint>()]),
+            photons: bytemuck::pod_collect_to_vec(&pb[..np as usize * size_of::<KeyedPhoton>()]),
+        })
+    }
+}
+
+/// The settings the photon pass takes from [`RenderSettings`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct PassSettings {
+    method: u32,
+    seed: u32,
+    max_depth: u32,
+    direct_lighting: u32,
+    smoothing: [f32; 2],
+}
+
+/// The photon pass's pipeline and per-iteration input buffers for one scene.
+pub struct PhotonPass {
+    pipeline: wgpu::ComputePipeline,
+    layout: wgpu::BindGroupLayout,
+    params: wgpu::Buffer,
+    lights: wgpu::Buffer,
+    ranges: wgpu::Buffer,
+    emitters: usize,
+    settings: PassSettings,
+}
+
+impl PhotonPass {
+    /// Compiles the pass for `scene` (uploaded with its bind group 0) with `emitters`
+    /// emitters (the prepared scene's [`arpa_core::prepared_scene::PreparedScene::emitters`]
+    /// count) and the method, seed, `max_depth`, direct-lighting flag and smoothing of
+    /// `settings`.
+    pub fn new(ctx: &GpuContext, scene: &GpuScene, emitters: usize, settings: &RenderSettings) -> Result<Self, PhotonPassError> {
+        let device = &ctx.device;
+        let label = "photon pass";
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(label), source: wgpu::ShaderSource::Wgsl(photon_pass_source().into()) });
+        let storage = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only }, has_dynamic_offset: false, min_binding_size: None },
+            count: None,
+        };
+        let uniform = wgpu::BindGroupLayoutEntry {
+            binding: 0,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
+            count: None,
+        };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some(label),
+            entries: &[uniform, storage(1, true), storage(2, true), storage(3, false), storage(4, false), storage(5, false)],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some(label),
+            bind_group_layouts: &[Some(scene.bind_group_layout()), Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(label),
+            layout: Some(&pipeline_layout),
+            module: &module,
+            entry_point: Some("photon_pass"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(HarnessError::Shader { label: label.into(), message: e.to_string() }.into());
+        }
+        let buffer = |size: u64, usage: wgpu::BufferUsages| {
+            device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage: usage | wgpu::BufferUsages::COPY_DST, mapped_at_creation: false })
+        };
+        let n = emitters.max(1) as u64;
+        let settings = PassSettings {
+            method: match settings.method {
+                Method::Arpa => 0,
+                Method::Rtpm => 1,
+            },
+            seed: settings.seed,
+            max_depth: settings.max_depth,
+            direct_lighting: settings.direct_lighting as u32,
+            smoothing: [settings.smoothing.caustic as f32, settings.smoothing.global as f32],
+        };
+        Ok(Self {
+            pipeline,
+            layout,
+            params: buffer(size_of::<PhotonParams>() as u64, wgpu::BufferUsages::UNIFORM),
+            lights: buffer(n * size_of::<PackedLight>() as u64, wgpu::BufferUsages::STORAGE),
+            ranges: buffer(n * size_of::<EmitterRange>() as u64, wgpu::BufferUsages::STORAGE),
+            emitters,
+            settings,
+        })
+    }
+
+    /// Uploads `setup` (the iteration's photon allocation, prepared lights with their
+    /// lattice shift, iteration number; [`PhotonPassSetup::new`] with the same settings
+    /// the pass was built with) with `queue.write_buffer` and records, in `encoder`, the
+    /// clearing of `out`'s counters and the photon pass writing into `out`. `scene` must be
+    /// the scene the pass was built for (its bind group 0).
+    ///
+    /// The upload takes effect at the next `queue.submit`: submit `encoder` before encoding
+    /// the next iteration.
+    pub fn encode(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &GpuScene,
+        setup: &PhotonPassSetup,
+        out: &PhotonOutputs,
+    ) -> Result<(), PhotonPassError> {
+        if setup.lights.len() != self.emitters || setup.allocation.len() != self.emitters || setup.first_index.len() != self.emitters {
+            return Err(PhotonPassError::EmitterCount { got: setup.lights.len(), expected: self.emitters });
+        }
+        let photons = setup.photon_count();
+        let s = &self.settings;
+        if photons as u64 * s.max_depth as u64 > u32::MAX as u64 {
+            return Err(PhotonPassError::KeyRange { photons, max_depth: s.max_depth });
+        }
+        let max = ctx.device.limits().max_compute_workgroups_per_dimension;
+        let groups = photons.div_ceil(PHOTON_WORKGROUP_SIZE);
+        let (gx, gy) = if groups <= max { (groups, 1) } else { (max, groups.div_ceil(max)) };
+        if gy > max {
+            return Err(PhotonPassError::TooManyPhotons { photons, max });
+        }
+        let mut lights = vec![PackedLight::default(); self.emitters.max(1)];
+        let mut ranges = vec![EmitterRange::default(); self.emitters.max(1)];
+        for (e, light) in setup.lights.iter().enumerate() {
+            ranges[e] = EmitterRange { first_index: setup.first_index[e], count: setup.allocation[e], valid: light.is_some() as u32, pad: 0 };
+            if let Some(l) = light {
+                lights[e] = l.pack();
+            }
+        }
+        let params = PhotonParams {
+            photon_count: photons,
+            iteration: setup.iteration,
+            seed: s.seed,
+            max_depth: s.max_depth,
+            method: s.method,
+            direct_lighting: s.direct_lighting,
+            emitter_count: self.emitters as u32,
+            pad0: 0,
+            smoothing: s.smoothing,
+            pad1: [0.0; 2],
+        };
+        let queue = &ctx.queue;
+        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        queue.write_buffer(&self.lights, 0, bytemuck::cast_slice(&lights));
+        queue.write_buffer(&self.ranges, 0, bytemuck::cast_slice(&ranges));
+        let bind_group = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("photon pass"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: self.params.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: self.lights.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: self.ranges.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 3, resource: out.footprints.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 4, resource: out.photons.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 5, resource: out.counters.as_entire_binding() },
+            ],
+        });
+        encoder.clear_buffer(&out.counters, 0, None);
+        if photons == 0 {
+            return Ok(());
+        }
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("photon pass"), timestamp_writes: None });
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, scene.bind_group(), &[]);
+        pass.set_bind_group(1, &bind_group, &[]);
+        pass.dispatch_workgroups(gx, gy, 1);
+        Ok(())
+    }
+}

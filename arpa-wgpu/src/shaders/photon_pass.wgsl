@@ -1,0 +1,514 @@
+// Photon pass on the device: one invocation per photon of the iteration, the WGSL twin of
+// arpa_core::photon_path::trace_photon. Emission from the iteration's prepared lights
+// (arpa_core::emission::PackedLight, lattice shift drawn on the host as PhotonPassSetup does),
+// transfer / reflection / refraction of the ray differential (differential.wgsl), Fresnel
+// choice, Russian roulette, diffuse store with the adjoint shading-normal ratio and lobe
+// re-emission (arpa_core::lambertian), re-emission with the virtual distance
+// (reemission.wgsl), caustic/global classification (arpa_core::classify), max_depth.
+//
+// Needs, before it: rng.wgsl, differential.wgsl, frame.wgsl, sampling.wgsl, emission.wgsl,
+// reemission.wgsl, lambertian.wgsl (the core's twin) and the scene (group 0: arpa_scene_intersect,
+// arpa_scene_surface, arpa_scene_triangle_vertices / _normals, arpa_offset_origin).
+//
+// Outputs (group 1), appended with atomics, each record tagged with the unique key
+// photon_index * max_depth + depth (depth = 0-based index of the ray segment that ended at
+// the hit), so a later sort by key gives an order independent of the append order:
+// * raw footprints (arpa-wgpu store.rs RawFootprint + key): photons stored as footprints
+//   (method arpa, differential intact), with D_u, D_v projected into the tangent plane and
+//   already scaled by the map's smoothing factor S_c / S_g; the store stage applies only the
+//   heuristics (heuristics.wgsl arpa_store), and turns a rejected footprint into a
+//   progressive photon at its centre (arpa_core::store's fallback).
+// * progressive photons (arpa_core::progressive_photon::PackedPhoton + key): method rtpm,
+//   or a lost differential.
+// An append beyond a buffer's capacity (its arrayLength) is dropped and counted; nothing is
+// written out of bounds.
+//
+// Precision: f32 (the core: f64). Decisions taken by comparing a random draw with a
+// probability (Fresnel choice, Russian roulette) compare the full 32-bit draw with the
+// probability exactly as the core's next_f64() < p does, so they differ from the core only
+// where the f32 probability itself differs (Fresnel: a few eps32; Russian roulette: never,
+// the albedo is f32 in both). Directions drawn from 2-D samples use the 24-bit draws of
+// rng.wgsl (within 2^-24 of the core's).
+
+// Method (PhotonParams::method).
+const ARPA_PHOTON_METHOD_ARPA: u32 = 0u;
+const ARPA_PHOTON_METHOD_RTPM: u32 = 1u;
+// Largest finite f32: an unbounded ray (the core casts with t_max = infinity).
+const ARPA_PHOTON_T_MAX: f32 = 3.40282347e38;
+
+// Per-iteration parameters (photon.rs PhotonParams).
+struct PhotonParams {
+    photon_count: u32,     // photons of the iteration
+    iteration: u32,        // 0-based
+    seed: u32,
+    max_depth: u32,        // surface interactions per photon
+    method: u32,           // ARPA_PHOTON_METHOD_*
+    direct_lighting: u32,  // 1: first diffuse hits of direct paths are not stored
+    emitter_count: u32,
+    pad0: u32,
+    smoothing: vec2<f32>,  // S_c, S_g (dimensionless)
+    pad1: vec2<f32>,
+}
+
+// Per emitter: its global photon range and whether it emits (photon.rs EmitterRange).
+struct PhotonEmitterRange {
+    first_index: u32,
+    count: u32,
+    valid: u32,
+    pad: u32,
+}
+
+// arpa-wgpu store.rs RawFootprint (80 B) + key: photon.rs KeyedFootprint (96 B).
+struct PhotonKeyedFootprint {
+    center: vec3<f32>,  // metres
+    map: u32,           // 0 caustic, 1 global
+    normal: vec3<f32>,  // unit, towards the arriving photon (flipped below the shading plane)
+    pad0: u32,
+    du: vec3<f32>,      // metres, tangent plane, smoothing applied
+    pad1: u32,
+    dv: vec3<f32>,
+    pad2: u32,
+    flux: vec3<f32>,    // W, RGB
+    pad3: u32,
+    key: u32,
+    pad4: u32,
+    pad5: u32,
+    pad6: u32,
+}
+
+// arpa_core PackedPhoton (48 B) + key: photon.rs KeyedPhoton (64 B).
+struct PhotonKeyedPhoton {
+    position: vec3<f32>, // metres
+    map: u32,
+    normal: vec3<f32>,   // unit, towards the arrival side (flipped below the shading plane)
+    pad0: u32,
+    flux: vec3<f32>,     // W, RGB
+    pad1: u32,
+    key: u32,
+    pad2: u32,
+    pad3: u32,
+    pad4: u32,
+}
+
+// photon.rs PhotonCounters.
+struct PhotonCounters {
+    emitted: atomic<u32>,
+    segments: atomic<u32>,
+    footprints_caustic: atomic<u32>,
+    footprints_global: atomic<u32>,
+    progressive_caustic: atomic<u32>,
+    progressive_global: atomic<u32>,
+    differential_lost: atomic<u32>,
+    footprint_appends: atomic<u32>,
+    photon_appends: atomic<u32>,
+    footprint_overflowed: atomic<u32>,
+    photon_overflowed: atomic<u32>,
+    pad: atomic<u32>,
+}
+
+@group(1) @binding(0) var<uniform> photon_params: PhotonParams;
+@group(1) @binding(1) var<storage, read> photon_lights: array<ArpaLight>;
+@group(1) @binding(2) var<storage, read> photon_ranges: array<PhotonEmitterRange>;
+@group(1) @binding(3) var<storage, read_write> photon_footprints: array<PhotonKeyedFootprint>;
+@group(1) @binding(4) var<storage, read_write> photon_photons: array<PhotonKeyedPhoton>;
+@group(1) @binding(5) var<storage, read_write> photon_counters: PhotonCounters;
+
+var<workgroup> photon_wg_emitted: atomic<u32>;
+var<workgroup> photon_wg_segments: atomic<u32>;
+
+fn photon_finite3(v: vec3<f32>) -> bool {
+    return arpa_diff_finite3(v);
+}
+
+fn photon_max3(v: vec3<f32>) -> f32 {
+    return max(v.x, max(v.y, v.z));
+}
+
+// `rng.next_f64() < p` of the core, bit-exact for an f32 p: the draw is the 32-bit word w
+// over 2^32, and w / 2^32 < p <=> w < ceil(p 2^32) for p in (0, 1).
+fn photon_draw_below(rng: ptr<function, ArpaRng>, p: f32) -> bool {
+    let w = arpa_rng_next_u32(rng);
+    if p >= 1.0 {
+        return true;
+    }
+    if !(p > 0.0) {
+        return false;
+    }
+    return w < u32(ceil(p * 4294967296.0));
+}
+
+// arpa_core::fresnel::dielectric_reflectance.
+fn photon_dielectric_reflectance(cos_i: f32, ior: f32) -> f32 {
+    if !(ior > 0.0) || !photon_finite3(vec3<f32>(ior, cos_i, 0.0)) {
+        return 1.0;
+    }
+    var eta = ior;
+    if cos_i < 0.0 {
+        eta = 1.0 / ior;
+    }
+    let ci = min(abs(cos_i), 1.0);
+    let sin_t2 = eta * eta * (1.0 - ci * ci);
+    if sin_t2 >= 1.0 {
+        return 1.0;
+    }
+    let ct = sqrt(1.0 - sin_t2);
+    let rs = (eta * ci - ct) / (eta * ci + ct);
+    let rp = (ci - eta * ct) / (ci + eta * ct);
+    return clamp(0.5 * (rs * rs + rp * rp), 0.0, 1.0);
+}
+
+// arpa_core::differential::refract_direction: the refracted (or, under total internal
+// reflection, reflected) unit direction and the event (ARPA_REFRACTION_*).
+struct PhotonRefracted {
+    dir: vec3<f32>,
+    event: u32,
+}
+
+fn photon_refract_direction(d: vec3<f32>, n_in: vec3<f32>, ior: f32) -> PhotonRefracted {
+    var n = n_in;
+    var eta = 1.0 / ior;
+    if dot(d, n_in) > 0.0 {
+        n = -n_in;
+        eta = ior;
+    }
+    if !(eta > 0.0) || !photon_finite3(vec3<f32>(eta)) {
+        return PhotonRefracted(d, ARPA_REFRACTION_TRANSMITTED);
+    }
+    let cos_i = dot(d, n);
+    let k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
+    if k < 0.0 {
+        return PhotonRefracted(arpa_reflect_direction(d, n), ARPA_REFRACTION_TIR);
+    }
+    let mu = eta * cos_i + sqrt(k);
+    return PhotonRefracted(arpa_diff_normalize_or(eta * d - mu * n, d), ARPA_REFRACTION_TRANSMITTED);
+}
+
+// A ray without a usable differential (photon_path's lost_differential).
+fn photon_lost(p: vec3<f32>, d: vec3<f32>) -> ArpaRayDiff {
+    let z = vec3<f32>(0.0);
+    return ArpaRayDiff(p, arpa_diff_normalize_or(d, vec3<f32>(0.0, 0.0, 1.0)), z, z, z, z);
+}
+
+// PreparedScene::shading_normal: the interpolated unit shading normal with its derivatives
+// along dp_du, dp_dv (ShadedTriangle::normal_differential), oriented like the geometric
+// normal; flat (zero derivatives) for meshes without vertex normals.
+struct PhotonNormal {
+    nd: ArpaNormalDiff,
+    ok: bool,
+}
+
+fn photon_shading_normal(s: ArpaSurface, dp_du: vec3<f32>, dp_dv: vec3<f32>) -> PhotonNormal {
+    var out: PhotonNormal;
+    let zero = vec3<f32>(0.0);
+    out.nd = ArpaNormalDiff(s.geometric_normal, zero, zero);
+    out.ok = true;
+    if s.mesh_has_normals == 0u {
+        return out;
+    }
+    out.ok = false;
+    let p = arpa_scene_triangle_vertices(s.mesh, s.triangle);
+    let ns = arpa_scene_triangle_normals(s.mesh, s.triangle);
+    let c = cross(p[1] - p[0], p[2] - p[0]);
+    let twice_area = arpa_diff_length(c);
+    if !(twice_area > 0.0) || !photon_finite3(vec3<f32>(twice_area)) {
+        return out;
+    }
+    let ng = c / twice_area;
+    let g0 = cross(ng, p[2] - p[1]) / twice_area;
+    let g1 = cross(ng, p[0] - p[2]) / twice_area;
+    let g2 = cross(ng, p[1] - p[0]) / twice_area;
+    let b = s.barycentric;
+    let m = ns[0] * b.x + ns[1] * b.y + ns[2] * b.z;
+    let len = arpa_diff_length(m);
+    if !(len > 0.0) || !photon_finite3(vec3<f32>(len)) {
+        return out;
+    }
+    let n = m / len;
+    let dm_u = ns[0] * dot(g0, dp_du) + ns[1] * dot(g1, dp_du) + ns[2] * dot(g2, dp_du);
+    let dm_v = ns[0] * dot(g0, dp_dv) + ns[1] * dot(g1, dp_dv) + ns[2] * dot(g2, dp_dv);
+    var nd = ArpaNormalDiff(n, (dm_u - n * dot(n, dm_u)) / len, (dm_v - n * dot(n, dm_v)) / len);
+    if !photon_finite3(nd.dn_du) || !photon_finite3(nd.dn_dv) {
+        return out;
+    }
+    if dot(nd.n, s.geometric_normal) < 0.0 {
+        nd = ArpaNormalDiff(-nd.n, -nd.dn_du, -nd.dn_dv);
+    }
+    out.nd = nd;
+    out.ok = true;
+    return out;
+}
+
+// Appends a progressive photon (store_progressive): the normal oriented against the
+// direction of travel `incoming`, flipped when the photon came from below the shading plane.
+fn photon_append_progressive(position: vec3<f32>, normal: vec3<f32>, incoming: vec3<f32>, flux: vec3<f32>,
+                             map: u32, below: bool, key: u32) {
+    var n = arpa_diff_normalize_or(normal, -arpa_diff_normalize_or(incoming, vec3<f32>(0.0, 0.0, 1.0)));
+    if dot(incoming, n) > 0.0 {
+        n = -n;
+    }
+    if below {
+        n = -n;
+    }
+    if map == 0u {
+        atomicAdd(&photon_counters.progressive_caustic, 1u);
+    } else {
+        atomicAdd(&photon_counters.progressive_global, 1u);
+    }
+    let slot = atomicAdd(&photon_counters.photon_appends, 1u);
+    if slot >= arrayLength(&photon_photons) {
+        atomicAdd(&photon_counters.photon_overflowed, 1u);
+        return;
+    }
+    photon_photons[slot] = PhotonKeyedPhoton(position, map, n, 0u, flux, 0u, key, 0u, 0u, 0u);
+}
+
+// photon_path's store: a raw footprint (method arpa, differential intact; Footprint::from_hit
+// with the smoothing of Smoothing::apply) or a progressive photon.
+fn photon_store(at: ArpaRayDiff, normal: vec3<f32>, flux: vec3<f32>, map: u32, valid: bool, below: bool, key: u32) {
+    if photon_params.method == ARPA_PHOTON_METHOD_RTPM {
+        photon_append_progressive(at.p, normal, at.d, flux, map, below, key);
+        return;
+    }
+    let n0 = arpa_diff_normalize_or(normal, vec3<f32>(0.0));
+    if !valid || all(n0 == vec3<f32>(0.0)) {
+        atomicAdd(&photon_counters.differential_lost, 1u);
+        photon_append_progressive(at.p, normal, at.d, flux, map, below, key);
+        return;
+    }
+    let du = at.dp_du - n0 * dot(n0, at.dp_du);
+    let dv = at.dp_dv - n0 * dot(n0, at.dp_dv);
+    var n = n0;
+    if dot(at.d, n0) > 0.0 {
+        n = -n0;
+    }
+    if below {
+        n = -n;
+    }
+    let s = photon_params.smoothing[min(map, 1u)];
+    if map == 0u {
+        atomicAdd(&photon_counters.footprints_caustic, 1u);
+    } else {
+        atomicAdd(&photon_counters.footprints_global, 1u);
+    }
+    let slot = atomicAdd(&photon_counters.footprint_appends, 1u);
+    if slot >= arrayLength(&photon_footprints) {
+        atomicAdd(&photon_counters.footprint_overflowed, 1u);
+        return;
+    }
+    photon_footprints[slot] = PhotonKeyedFootprint(at.p, map, n, 0u, du * s, 0u, dv * s, 0u, flux, 0u, key, 0u, 0u, 0u);
+}
+
+// Emitter of global photon `index` (PhotonPassSetup::locate): the last emitter whose first
+// index is <= index, if the index lies within its count. Returns emitter_count when none.
+fn photon_locate(index: u32) -> u32 {
+    let n = photon_params.emitter_count;
+    var lo = 0u;
+    var hi = n;
+    // partition_point(first_index <= index)
+    while lo < hi {
+        let mid = lo + (hi - lo) / 2u;
+        if photon_ranges[mid].first_index <= index {
+            lo = mid + 1u;
+        } else {
+            hi = mid;
+        }
+    }
+    if lo == 0u {
+        return n;
+    }
+    let e = lo - 1u;
+    if index - photon_ranges[e].first_index < photon_ranges[e].count {
+        return e;
+    }
+    return n;
+}
+
+// trace_photon for global photon `index`; returns the segments cast.
+fn photon_trace(index: u32) -> u32 {
+    var segments = 0u;
+    let e = photon_locate(index);
+    if e >= photon_params.emitter_count || photon_ranges[e].valid == 0u {
+        return segments;
+    }
+    let local = index - photon_ranges[e].first_index;
+    var rng = arpa_rng_new(photon_params.seed, photon_params.iteration, index, ARPA_DOMAIN_PHOTON);
+    let emitted = arpa_emit(photon_lights[e], local, &rng);
+    if emitted.status != ARPA_DIFF_OK {
+        return segments;
+    }
+    let reemission_length = emitted.reemission_length;
+    var ray = emitted.ray;
+    var valid = true;
+    var flux = emitted.flux;
+    var specular_events = 0u;
+    var diffuse_events = 0u;
+    var origin = ray.p;
+    if emitted.has_surface_normal != 0u {
+        origin = arpa_offset_origin(ray.p, emitted.surface_normal);
+    }
+    let max_depth = photon_params.max_depth;
+    for (var depth = 0u; depth < max_depth; depth++) {
+        let d = ray.d;
+        segments += 1u;
+        let hit = arpa_scene_intersect(origin, d, ARPA_PHOTON_T_MAX);
+        if hit.hit == 0u {
+            break;
+        }
+        let s = arpa_scene_surface(hit);
+        let t = max(dot(s.position - ray.p, d), 0.0);
+        var at: ArpaRayDiff;
+        var moved_ok = false;
+        if valid {
+            let moved = arpa_diff_transfer(ray, t, s.geometric_normal);
+            if moved.status == ARPA_DIFF_OK {
+                at = moved.ray;
+                moved_ok = true;
+            }
+        }
+        if !moved_ok {
+            valid = false;
+            at = photon_lost(s.position, d);
+        }
+        var front = -s.geometric_normal;
+        if dot(d, s.geometric_normal) < 0.0 {
+            front = s.geometric_normal;
+        }
+        let key = index * max_depth + depth;
+        if s.kind == ARPA_SCATTER_DIFFUSE {
+            var map = 1u;
+            if specular_events > 0u && diffuse_events == 0u {
+                map = 0u;
+            }
+            diffuse_events += 1u;
+            let first_interaction = diffuse_events == 1u && specular_events == 0u;
+            // DiffuseShading::new(front, shading normal, -d) and its adjoint ratio.
+            var shading: ArpaDiffuseShading;
+            let shaded = s.has_shading_normals != 0u;
+            if shaded {
+                shading = arpa_diffuse_shading_new(front, s.shading_normal, -d);
+                if shading.valid == 0u {
+                    break;
+                }
+                flux *= arpa_diffuse_adjoint_ratio(shading, -d);
+                if !(photon_max3(flux) > 0.0) {
+                    break;
+                }
+            }
+            if !(photon_params.direct_lighting != 0u && first_interaction) {
+                let below = shaded && arpa_diffuse_below_shading_plane(shading);
+                photon_store(at, s.geometric_normal, flux, map, valid, below, key);
+            }
+            let survive = min(photon_max3(s.color), 1.0);
+            if !photon_draw_below(&rng, survive) {
+                break;
+            }
+            flux *= s.color / survive;
+            var dir: vec3<f32>;
+            if shaded {
+                let r = arpa_diffuse_sample_reemission(shading, arpa_rng_next_2d(&rng));
+                if r.valid == 0u {
+                    break;
+                }
+                dir = r.direction;
+            } else {
+                dir = arpa_diffuse_direction(front, arpa_rng_next_2d(&rng));
+            }
+            var reemitted_ok = false;
+            if valid {
+                let r = arpa_reemit(s.position, at.dp_du, at.dp_dv, dir, reemission_length);
+                if r.status == ARPA_DIFF_OK {
+                    ray = r.ray;
+                    reemitted_ok = true;
+                }
+            }
+            if !reemitted_ok {
+                valid = false;
+                ray = photon_lost(s.position, dir);
+            }
+            origin = arpa_offset_origin(s.position, front);
+        } else if s.kind == ARPA_SCATTER_MIRROR {
+            specular_events += 1u;
+            flux *= s.color;
+            let nd = photon_shading_normal(s, at.dp_du, at.dp_dv);
+            let r = photon_reflect(at, valid, nd, s.geometric_normal);
+            ray = r.ray;
+            valid = r.valid;
+            origin = arpa_offset_origin(s.position, front);
+        } else {
+            specular_events += 1u;
+            let nd = photon_shading_normal(s, at.dp_du, at.dp_dv);
+            var n = s.geometric_normal;
+            if nd.ok {
+                n = nd.nd.n;
+            }
+            let fresnel = photon_dielectric_reflectance(dot(d, n), s.ior);
+            if photon_draw_below(&rng, fresnel) {
+                let r = photon_reflect(at, valid, nd, s.geometric_normal);
+                ray = r.ray;
+                valid = r.valid;
+                origin = arpa_offset_origin(s.position, front);
+            } else {
+                flux *= s.color;
+                let rd = photon_refract_direction(d, n, s.ior);
+                var refracted_ok = false;
+                if valid && nd.ok {
+                    let r = arpa_diff_refract(at, nd.nd, s.ior);
+                    if r.status == ARPA_DIFF_OK && r.event == rd.event {
+                        ray = r.ray;
+                        refracted_ok = true;
+                    }
+                }
+                if !refracted_ok {
+                    valid = false;
+                    ray = photon_lost(s.position, rd.dir);
+                }
+                var side = front;
+                if rd.event == ARPA_REFRACTION_TRANSMITTED {
+                    side = -front;
+                }
+                origin = arpa_offset_origin(s.position, side);
+            }
+        }
+        if !(photon_max3(flux) > 0.0) || !photon_finite3(flux) {
+            break;
+        }
+    }
+    return segments;
+}
+
+// PathState::reflect: specular reflection of `at` about the shading normal `nd`, or about
+// the normal `geometric` (when nd could not be formed) without differential.
+struct PhotonReflected {
+    ray: ArpaRayDiff,
+    valid: bool,
+}
+
+fn photon_reflect(at: ArpaRayDiff, valid: bool, nd: PhotonNormal, geometric: vec3<f32>) -> PhotonReflected {
+    if valid && nd.ok {
+        let r = arpa_diff_reflect(at, nd.nd);
+        if r.status == ARPA_DIFF_OK {
+            return PhotonReflected(r.ray, true);
+        }
+    }
+    var n = geometric;
+    if nd.ok {
+        n = nd.nd.n;
+    }
+    return PhotonReflected(photon_lost(at.p, arpa_reflect_direction(at.d, n)), false);
+}
+
+@compute @workgroup_size(64)
+fn photon_pass(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32,
+               @builtin(num_workgroups) groups: vec3<u32>) {
+    let index = gid.x + gid.y * groups.x * 64u;
+    if index < photon_params.photon_count {
+        let segments = photon_trace(index);
+        atomicAdd(&photon_wg_emitted, 1u);
+        atomicAdd(&photon_wg_segments, segments);
+    }
+    workgroupBarrier();
+    if lid == 0u {
+        atomicAdd(&photon_counters.emitted, atomicLoad(&photon_wg_emitted));
+        atomicAdd(&photon_counters.segments, atomicLoad(&photon_wg_segments));
+    }
+}

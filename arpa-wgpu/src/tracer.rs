@@ -1,0 +1,523 @@
+//! [`WgpuTracer`]: the wgpu backend of [`arpa_core::tracer::Tracer`] on ray queries.
+
+use crate::device::DeviceError;
+
+/// Errors of the wgpu backend.
+#[derive(Debug, thiserror::Error)]
+pub enum WgpuError {
+    /// No usable adapter or device (the message names the adapter).
+    #[error(transparent)]
+    Adapter(#[from] DeviceError),
+    /// The scene failed validation.
+    #[error("invalid scene: {0}")]
+    Scene(#[from] arpa_core::scene::SceneError),
+    /// The scene could not be uploaded to the device.
+    #[error("scene upload: {0}")]
+    SceneUpload(String),
+    /// A render setting is out of range.
+    #[error("invalid render settings: {0}")]
+    Settings(String),
+    /// wgpu reported a validation or out-of-memory error while recording `stage`.
+    #[error("wgpu error in {stage}: {message}")]
+    Device {
+        /// The stage.
+        stage: &'static str,
+        /// wgpu's message.
+        message: String,
+    },
+    /// Reading a buffer back failed.
+    #[error("reading back {stage} failed: {message}")]
+    Readback {
+        /// What was read.
+        stage: &'static str,
+        /// What failed.
+        message: String,
+    },
+    /// A size beyond what a buffer, dispatch or acceleration structure takes.
+    #[error("size limit: {0}")]
+    Size(String),
+    /// A stage was called before the stage it depends on (in this iteration).
+    #[error("{stage} called before {needs}")]
+    StageOrder {
+        /// The stage called.
+        stage: &'static str,
+        /// What has to run first.
+        needs: &'static str,
+    },
+    /// The camera pass could not be built.
+    #[error(transparent)]
+    CameraPass(#[from] crate::camera::CameraPassError),
+    /// The photon pass could not be built or run.
+    #[error(transparent)]
+    PhotonPass(#[from] crate::photon::PhotonPassError),
+    /// `u32::MAX − 1` iterations have been accumulated.
+    #[error("iteration limit reached ({0} iterations)")]
+    IterationLimit(u32),
+}
+
+use crate::accumulate::{AccumPixel, DeviceAccumulator};
+use crate::device::{AdapterChoice, GpuContext};
+use crate::maps::{PhotonMaps, read_buffer, scoped};
+use crate::camera::CameraPass;
+use crate::photon::{PhotonCounters, PhotonOutputs, PhotonPass};
+use crate::scene::GpuScene;
+use crate::store::StoreSettings;
+use arpa_core::footprint::PackedFootprint;
+use arpa_core::heuristics::DampenReference;
+use arpa_core::photon_path::PhotonPassSetup;
+use arpa_core::prepared_scene::PreparedScene;
+use arpa_core::progressive_photon::PackedPhoton;
+use arpa_core::radius::RadiusSpec;
+use arpa_core::scene::Scene;
+use arpa_core::tracer::{Capabilities, Image, IterationStats, Method, QueryRecord, RenderSettings, Tracer};
+use std::time::Instant;
+
+/// Stored records per emitted photon the photon buffers start with (each buffer; they
+/// grow when an iteration overflows them).
+pub const INITIAL_RECORDS_PER_PHOTON: u32 = 2;
+
+/// Bytes of one query record ([`QueryRecord`]).
+const QUERY_BYTES: u64 = std::mem::size_of::<QueryRecord>() as u64;
+
+/// The photon-mapping pipeline on wgpu ray queries (a GPU, or lavapipe).
+///
+/// Every buffer lives on the device: scene ([`GpuScene`]), query records, the photon
+/// pass's append buffers, the sorted maps and their acceleration structure
+/// ([`PhotonMaps`]), the iteration image and the running mean ([`DeviceAccumulator`]).
+///
+/// | stage | on the device | read back |
+/// |---|---|---|
+/// | [`upload_scene`](Tracer::upload_scene) | validates scene and settings ([`PreparedScene`]), uploads the scene, zeroes the accumulation | — |
+/// | [`camera_pass`](Tracer::camera_pass) | one query record per pixel ([`CameraPass`]) | — |
+/// | [`photon_pass`](Tracer::photon_pass) | photons traced into append buffers ([`PhotonPass`]); then keyed store, sort and compaction ([`crate::store::MapStore`]) | the pass's and the store's counters (overflow check, sizes for the build) |
+/// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | AABB BLAS per (kind, map), one TLAS ([`crate::accel`]) | — |
+/// | [`gather`](Tracer::gather) | per pixel `radiance + weight · E` ([`crate::gather::ImageGather`]) | contribution and query-point counts (16 bytes) |
+/// | [`accumulate`](Tracer::accumulate) | compensated running sum | — |
+///
+/// # Overflow
+/// When the photon pass drops appends because a buffer is full, the iteration's photons
+/// are discarded, the buffers grow (to 1.25× what was attempted, at least double) and the
+/// photon pass runs again with the same random streams, so the iteration is the one a
+/// large enough buffer gives (no bias); the dropped appends are counted in
+/// [`IterationStats::overflowed`].
+///
+/// # Determinism
+/// Each photon's and pixel's random stream depends only on `(seed, iteration, index)`;
+/// the stored records are sorted by `(map, Morton code, photon key)`, so the maps, their
+/// acceleration structure and the gather's traversal order do not depend on the order of
+/// the atomic appends. Images are bit-identical for the same scene, settings and seed on
+/// the same adapter and driver.
+///
+/// # Stage order
+/// As [`arpa_core::tracer::Tracer`]; a stage whose input is missing returns
+/// [`WgpuError::StageOrder`].
+pub struct WgpuTracer {
+    ctx: GpuContext,
+    maps: PhotonMaps,
+    state: Option<Box<Loaded>>,
+    initial_capacity: Option<u32>,
+}
+
+struct Loaded {
+    prepared: PreparedScene,
+    settings: RenderSettings,
+    scene: GpuScene,
+    camera: CameraPass,
+    photon: PhotonPass,
+    outputs: PhotonOutputs,
+    width: u32,
+    height: u32,
+    pixels: u32,
+    queries: wgpu::Buffer,
+    image: wgpu::Buffer,
+    accumulator: DeviceAccumulator,
+    completed: u32,
+    stats: IterationStats,
+    stats_for: Option<u32>,
+    queries_for: Option<u32>,
+    store_for: Option<u32>,
+    accel_for: Option<u32>,
+    image_for: Option<u32>,
+}
+
+impl Loaded {
+    fn begin_stage(&mut self) {
+        if self.stats_for != Some(self.completed) {
+            self.stats = IterationStats { iteration: self.completed, radii: self.stats.radii, ..IterationStats::default() };
+            self.stats_for = Some(self.completed);
+        }
+    }
+
+    fn require(&self, have: Option<u32>, stage: &'static str, needs: &'static str) -> Result<(), WgpuError> {
+        if have == Some(self.completed) { Ok(()) } else { Err(WgpuError::StageOrder { stage, needs }) }
+    }
+
+    fn check_iteration_limit(&self) -> Result<(), WgpuError> {
+        if self.completed >= u32::MAX - 1 { Err(WgpuError::IterationLimit(self.completed)) } else { Ok(()) }
+    }
+}
+
+/// Rejects settings no render can use (the checks of arpa-cpu's `validate_settings`).
+pub fn validate_settings(s: &RenderSettings) -> Result<(), WgpuError> {
+    let bad = |why: String| Err(WgpuError::Settings(why));
+    let positive = |x: f64| x > 0.0 && x.is_finite();
+    if s.photons_per_iteration == 0 {
+        return bad("photons_per_iteration must be at least 1".into());
+    }
+    if s.max_depth == 0 {
+        return bad("max_depth must be at least 1".into());
+    }
+    for (name, f) in [("smoothing.caustic", s.smoothing.caustic), ("smoothing.global", s.smoothing.global)] {
+        if !positive(f) {
+            return bad(format!("{name} must be positive and finite (got {f})"));
+        }
+    }
+    for (name, spec) in [("radii.caustic", s.radii.caustic), ("radii.global", s.radii.global)] {
+        let (RadiusSpec::Absolute(v) | RadiusSpec::RelativeToDiagonal(v)) = spec;
+        if !positive(v) {
+            return bad(format!("{name} must be positive and finite (got {v})"));
+        }
+    }
+    if !(s.radii.alpha > 0.0 && s.radii.alpha <= 1.0) {
+        return bad(format!("radii.alpha must lie in (0, 1] (got {})", s.radii.alpha));
+    }
+    let h = &s.heuristics;
+    if let Some(d) = h.dampening {
+        if !(d.exponent > 0.0 && d.exponent <= 1.0) {
+            return bad(format!("dampening exponent must lie in (0, 1] (got {})", d.exponent));
+        }
+        if let DampenReference::Absolute(l) = d.reference
+            && !positive(l)
+        {
+            return bad(format!("dampening reference length must be positive and finite (got {l})"));
+        }
+    }
+    if let Some(m) = h.h_max {
+        let (arpa_core::heuristics::LengthSpec::Absolute(v) | arpa_core::heuristics::LengthSpec::RelativeToDiagonal(v)) = m.length;
+        if !positive(v) {
+            return bad(format!("h_max length must be positive and finite (got {v})"));
+        }
+    }
+    if let Some(d) = h.degenerate
+        && !(d.fraction >= 0.0 && d.fraction.is_finite())
+    {
+        return bad(format!("degenerate-removal fraction must be finite and >= 0 (got {})", d.fraction));
+    }
+    if let Some(c) = h.culling
+        && !positive(c.fraction)
+    {
+        return bad(format!("culling fraction must be positive and finite (got {})", c.fraction));
+    }
+    Ok(())
+}
+
+impl WgpuTracer {
+    /// A tracer on the adapter `choice` selects ([`AdapterChoice::Auto`]: a GPU with ray
+    /// queries, else lavapipe); the error names the adapter when it has no ray queries.
+    pub fn new(choice: &AdapterChoice) -> Result<Self, WgpuError> {
+        Self::with_context(GpuContext::new(choice)?)
+    }
+
+    /// A tracer on an open device.
+    pub fn with_context(ctx: GpuContext) -> Result<Self, WgpuError> {
+        let maps = PhotonMaps::new(&ctx)?;
+        Ok(Self { ctx, maps, state: None, initial_capacity: None })
+    }
+
+    /// Records each photon buffer holds after the next [`Tracer::upload_scene`] (`None`:
+    /// [`INITIAL_RECORDS_PER_PHOTON`] per photon of an iteration). The buffers grow when an
+    /// iteration overflows them; a small value exercises that path.
+    pub fn set_initial_capacity(&mut self, records: Option<u32>) {
+        self.initial_capacity = records;
+    }
+
+    /// The device.
+    pub fn context(&self) -> &GpuContext {
+        &self.ctx
+    }
+
+    fn loaded(&self, stage: &'static str) -> Result<&Loaded, WgpuError> {
+        self.state.as_deref().ok_or(WgpuError::StageOrder { stage, needs: "upload_scene" })
+    }
+
+    fn loaded_mut(&mut self, stage: &'static str) -> Result<&mut Loaded, WgpuError> {
+        self.state.as_deref_mut().ok_or(WgpuError::StageOrder { stage, needs: "upload_scene" })
+    }
+
+    /// Waits until the device has finished the submitted work (stage timings).
+    fn wait(&self, stage: &'static str) -> Result<(), WgpuError> {
+        self.ctx.device.poll(wgpu::PollType::wait_indefinitely()).map(|_| ()).map_err(|e| WgpuError::Readback { stage, message: e.to_string() })
+    }
+}
+
+/// The most raw footprints and progressive photons one photon-pass buffer holds on this
+/// device (its storage-binding and buffer-size limits; the keyed store's 64-byte slots
+/// and the sort's item limit too).
+fn max_capacities(ctx: &GpuContext) -> (u32, u32) {
+    let limits = ctx.device.limits();
+    let bytes = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+    let fit = |record: usize| u32::try_from(bytes / record as u64).unwrap_or(u32::MAX);
+    let sort = crate::sort::MAX_SORT_ITEMS / 2;
+    (fit(std::mem::size_of::<crate::photon::KeyedFootprint>()).min(sort), fit(std::mem::size_of::<crate::photon::KeyedPhoton>()).min(sort))
+}
+
+impl Tracer for WgpuTracer {
+    type Error = WgpuError;
+
+    fn capabilities(&self) -> Capabilities {
+        let i = &self.ctx.info;
+        Capabilities {
+            backend: "wgpu",
+            device: format!("{} ({:?}, {} {})", i.name, i.device_type, i.driver, i.driver_info),
+            methods: vec![Method::Arpa, Method::Rtpm],
+            max_photons_per_iteration: Some(crate::sort::MAX_SORT_ITEMS / (2 * INITIAL_RECORDS_PER_PHOTON)),
+            deterministic: true,
+        }
+    }
+
+    fn upload_scene(&mut self, scene: &Scene, settings: &RenderSettings) -> Result<(), WgpuError> {
+        self.state = None;
+        validate_settings(settings)?;
+        let max = self.capabilities().max_photons_per_iteration.unwrap_or(u32::MAX);
+        if settings.photons_per_iteration > max {
+            return Err(WgpuError::Settings(format!("photons_per_iteration {} exceeds this backend's {max}", settings.photons_per_iteration)));
+        }
+        let prepared = PreparedScene::new(scene.clone())?;
+        let (width, height) = (scene.camera.width, scene.camera.height);
+        let pixels = (width as u64 * height as u64).try_into().ok().filter(|&p: &u32| (p as u64) * QUERY_BYTES <= self.ctx.device.limits().max_storage_buffer_binding_size);
+        let Some(pixels) = pixels else {
+            return Err(WgpuError::Size(format!("image of {width}×{height} pixels exceeds one storage buffer")));
+        };
+        let gpu_scene = GpuScene::upload(&self.ctx, &prepared).map_err(|e| WgpuError::SceneUpload(e.to_string()))?;
+        let ctx = &self.ctx;
+        let camera = CameraPass::new(ctx, &gpu_scene, &prepared, settings)?;
+        let photon = PhotonPass::new(ctx, &gpu_scene, prepared.emitters().len(), settings)?;
+        let (fp_max, ph_max) = max_capacities(ctx);
+        let capacity = self.initial_capacity.unwrap_or(settings.photons_per_iteration.saturating_mul(INITIAL_RECORDS_PER_PHOTON)).max(1);
+        let (fp_cap, ph_cap) = (capacity.min(fp_max), capacity.min(ph_max));
+        let outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
+        self.maps.bind_inputs(ctx, outputs.footprints(), outputs.photons(), fp_cap, ph_cap)?;
+        let (queries, image, accumulator) = scoped(ctx, "allocating the image buffers", || {
+            let buffer = |size: u64| {
+                ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("arpa tracer"),
+                    size: size.max(16),
+                    usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                })
+            };
+            Ok((buffer(pixels as u64 * QUERY_BYTES), buffer(pixels as u64 * 16), DeviceAccumulator::new(&ctx.device, pixels)))
+        })?;
+        self.state = Some(Box::new(Loaded {
+            prepared,
+            settings: *settings,
+            scene: gpu_scene,
+            camera,
+            photon,
+            outputs,
+            width,
+            height,
+            pixels,
+            queries,
+            image,
+            accumulator,
+            completed: 0,
+            stats: IterationStats::default(),
+            stats_for: Some(0),
+            queries_for: None,
+            store_for: None,
+            accel_for: None,
+            image_for: None,
+        }));
+        Ok(())
+    }
+
+    fn camera_pass(&mut self) -> Result<(), WgpuError> {
+        let st = self.loaded("camera_pass")?;
+        st.check_iteration_limit()?;
+        let start = Instant::now();
+        let ctx = &self.ctx;
+        scoped(ctx, "camera_pass", || {
+            let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa camera pass") });
+            st.camera.encode(&mut encoder, st.completed, &st.queries);
+            ctx.queue.submit([encoder.finish()]);
+            Ok(())
+        })?;
+        self.wait("camera_pass")?;
+        let st = self.loaded_mut("camera_pass")?;
+        st.begin_stage();
+        st.queries_for = Some(st.completed);
+        st.image_for = None;
+        st.stats.times.camera = start.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    fn photon_pass(&mut self) -> Result<(), WgpuError> {
+        let start = Instant::now();
+        let st = self.state.as_deref_mut().ok_or(WgpuError::StageOrder { stage: "photon_pass", needs: "upload_scene" })?;
+        st.check_iteration_limit()?;
+        st.begin_stage();
+        st.store_for = None;
+        st.accel_for = None;
+        st.image_for = None;
+        let ctx = &self.ctx;
+        let setup = PhotonPassSetup::new(&st.prepared, &st.settings, st.completed);
+        let mut overflowed = 0u64;
+        // Trace; on overflow discard the iteration's photons, grow the buffers and trace
+        // the same photons again.
+        let counters = loop {
+            scoped(ctx, "photon_pass", || {
+                let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa photon pass") });
+                st.photon.encode(ctx, &mut encoder, &st.scene, &setup, &st.outputs)?;
+                ctx.queue.submit([encoder.finish()]);
+                Ok(())
+            })?;
+            let c: PhotonCounters = bytemuck::pod_read_unaligned(&read_buffer(ctx, "photon counters", st.outputs.counters(), std::mem::size_of::<PhotonCounters>() as u64)?);
+            if c.overflowed() == 0 {
+                break c;
+            }
+            overflowed += c.overflowed();
+            let (fp_max, ph_max) = max_capacities(ctx);
+            for (appends, max, what) in [(c.footprint_appends, fp_max, "raw footprints"), (c.photon_appends, ph_max, "progressive photons")] {
+                if appends > max {
+                    return Err(WgpuError::Size(format!(
+                        "the iteration stores {appends} {what}; adapter {:?} binds at most {max} in one storage buffer (fewer photons per iteration fit)",
+                        ctx.info.name
+                    )));
+                }
+            }
+            let grow = |appends: u32, capacity: u32, max: u32| {
+                if appends > capacity { capacity.saturating_mul(2).max(appends.saturating_add(appends / 4)).min(max) } else { capacity }
+            };
+            let fp_cap = grow(c.footprint_appends, st.outputs.footprint_capacity(), fp_max);
+            let ph_cap = grow(c.photon_appends, st.outputs.photon_capacity(), ph_max);
+            if crate::sort::sorted_len(fp_cap.saturating_add(ph_cap)) > crate::sort::MAX_SORT_ITEMS || fp_cap.saturating_add(ph_cap) < fp_cap {
+                return Err(WgpuError::Size(format!("{} footprints and {} photons in one iteration exceed the device sort's {} records", c.footprint_appends, c.photon_appends, crate::sort::MAX_SORT_ITEMS)));
+            }
+            // Free the old buffers before allocating the larger ones.
+            st.outputs = PhotonOutputs::new(ctx, 1, 1)?;
+            st.outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
+            self.maps.bind_inputs(ctx, st.outputs.footprints(), st.outputs.photons(), fp_cap, ph_cap)?;
+        };
+        let radii = setup.radii.map(|r| r as f32);
+        let bounds = st.prepared.bounds().to_f32_conservative();
+        let store = StoreSettings {
+            heuristics: setup.heuristics.pack(),
+            radii,
+            bounds,
+            raw_count: counters.footprints_written(),
+            photon_count: counters.photons_written(),
+        };
+        let counts = self.maps.store_sorted(ctx, &store)?;
+        let stats = &mut st.stats;
+        stats.photons_emitted = counters.emitted as u64;
+        stats.photon_segments = counters.segments as u64;
+        stats.footprints = counts.footprints.map(u64::from);
+        stats.progressive = counts.photons.map(u64::from);
+        stats.degenerate = counts.degenerate as u64;
+        stats.culled = counts.culled as u64;
+        stats.unrepresentable = counts.unrepresentable as u64;
+        stats.differential_lost = counters.differential_lost as u64;
+        stats.overflowed = overflowed;
+        stats.radii = setup.radii;
+        st.store_for = Some(st.completed);
+        st.stats.times.photon = start.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    fn build_acceleration_structure(&mut self) -> Result<(), WgpuError> {
+        let st = self.loaded("build_acceleration_structure")?;
+        st.require(st.store_for, "build_acceleration_structure", "photon_pass")?;
+        let start = Instant::now();
+        self.maps.build(&self.ctx)?;
+        self.wait("build_acceleration_structure")?;
+        let st = self.loaded_mut("build_acceleration_structure")?;
+        st.begin_stage();
+        st.accel_for = Some(st.completed);
+        st.image_for = None;
+        st.stats.times.build = start.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    fn gather(&mut self) -> Result<(), WgpuError> {
+        let st = self.loaded("gather")?;
+        st.require(st.queries_for, "gather", "camera_pass")?;
+        st.require(st.accel_for, "gather", "build_acceleration_structure")?;
+        let start = Instant::now();
+        let (ctx, maps) = (&self.ctx, &self.maps);
+        scoped(ctx, "gather", || {
+            let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa gather") });
+            maps.encode_gather(ctx, &mut encoder, &st.queries, &st.image, st.settings.kernel, st.pixels)?;
+            ctx.queue.submit([encoder.finish()]);
+            Ok(())
+        })?;
+        let total: [u32; 4] = bytemuck::pod_read_unaligned(&read_buffer(ctx, "gather counts", maps.gathered_buffer(), 16)?);
+        let st = self.loaded_mut("gather")?;
+        st.begin_stage();
+        st.stats.gathered = total[0] as u64 | (total[1] as u64) << 32;
+        st.stats.query_points = total[2] as u64;
+        st.image_for = Some(st.completed);
+        st.stats.times.gather = start.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    fn accumulate(&mut self) -> Result<(), WgpuError> {
+        let st = self.loaded("accumulate")?;
+        st.require(st.image_for, "accumulate", "gather")?;
+        let start = Instant::now();
+        let ctx = &self.ctx;
+        scoped(ctx, "accumulate", || {
+            let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa accumulate") });
+            st.accumulator.encode(&ctx.device, &mut encoder, &st.image);
+            ctx.queue.submit([encoder.finish()]);
+            Ok(())
+        })?;
+        self.wait("accumulate")?;
+        let st = self.loaded_mut("accumulate")?;
+        st.begin_stage();
+        st.completed += 1;
+        st.image_for = None;
+        st.stats.iteration = st.completed;
+        st.stats.times.accumulate = start.elapsed().as_secs_f64();
+        Ok(())
+    }
+
+    fn iterations(&self) -> u32 {
+        self.state.as_ref().map_or(0, |s| s.completed)
+    }
+
+    fn read_image(&self) -> Result<Image, WgpuError> {
+        let st = self.loaded("read_image")?;
+        let bytes = read_buffer(&self.ctx, "read_image", &st.accumulator.pixels, st.pixels as u64 * 32)?;
+        let acc: Vec<AccumPixel> = bytemuck::pod_collect_to_vec(&bytes);
+        Ok(Image { width: st.width, height: st.height, pixels: DeviceAccumulator::mean(&acc, st.completed) })
+    }
+
+    fn read_query_points(&self) -> Result<Vec<QueryRecord>, WgpuError> {
+        let st = self.loaded("read_query_points")?;
+        if st.queries_for.is_none() {
+            return Err(WgpuError::StageOrder { stage: "read_query_points", needs: "camera_pass" });
+        }
+        Ok(bytemuck::pod_collect_to_vec(&read_buffer(&self.ctx, "read_query_points", &st.queries, st.pixels as u64 * QUERY_BYTES)?))
+    }
+
+    fn read_footprints(&self) -> Result<Vec<PackedFootprint>, WgpuError> {
+        let st = self.loaded("read_footprints")?;
+        if st.store_for.is_none() {
+            return Err(WgpuError::StageOrder { stage: "read_footprints", needs: "photon_pass" });
+        }
+        self.maps.read_footprints(&self.ctx)
+    }
+
+    fn read_photons(&self) -> Result<Vec<PackedPhoton>, WgpuError> {
+        let st = self.loaded("read_photons")?;
+        if st.store_for.is_none() {
+            return Err(WgpuError::StageOrder { stage: "read_photons", needs: "photon_pass" });
+        }
+        self.maps.read_photons(&self.ctx)
+    }
+
+    fn read_stats(&self) -> Result<IterationStats, WgpuError> {
+        Ok(self.loaded("read_stats")?.stats)
+    }
+}
