@@ -19,12 +19,15 @@
 //!   photons with unique keys, with counters and overflow counting;
 //! * [`store`]: footprint store, acceleration-structure build and gather in one device
 //!   submission (deterministic slots, inactive boxes for rejected footprints);
+//! * [`camera`]: the camera pass (query points, emission seen, next-event estimation) on
+//!   ray queries, checked per pixel against the core's `trace_camera_path`;
 //! * [`gather`]: the gather stage on ray queries (footprint boxes in AABB acceleration
 //!   structures, one per map; point queries; the twin's exact test and kernel), checked
 //!   against the core's brute-force gather.
 //!
 //! The `Tracer` (scene upload, photon pass, footprint AS, gather) is not implemented yet.
 
+pub mod camera;
 pub mod device;
 pub mod gather;
 pub mod harness;

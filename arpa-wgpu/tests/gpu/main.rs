@@ -4,6 +4,8 @@
 
 mod common;
 
+mod camera_pass;
+
 mod gather;
 mod naga_validate;
 mod photon_pass;
