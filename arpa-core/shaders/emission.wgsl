@@ -1,7 +1,7 @@
 // WGSL twin of arpa_core::emission's per-photon step (PreparedLight::emit): photon `index`
 // of a light prepared on the host (arpa_core::emission::PackedLight, same 160-byte layout)
-// with its ray differential, flux and re-emission length. Needs rng.wgsl, frame.wgsl,
-// sampling.wgsl and differential.wgsl.
+// with its ray differential, flux and re-emission length. Needs math.wgsl, rng.wgsl,
+// frame.wgsl, sampling.wgsl and differential.wgsl.
 //
 // Precision: f32 throughout (positions to a few eps32 of their magnitude, directions and
 // differentials to a few eps32 relative); the spot falloff angle is taken as
@@ -54,19 +54,26 @@ struct ArpaEmitted {
     status: u32,                  // ARPA_DIFF_* of the initial differential
 }
 
-// Spot falloff f(theta) in [0, 1] at angle theta (rad) from the axis (SpotLight::falloff_at).
-fn arpa_spot_falloff(light: ArpaLight, theta: f32) -> f32 {
-    if theta <= light.beam_width {
+// Spot falloff f(theta) in [0, 1] at angle theta (rad) from the axis (SpotLight::falloff_at)
+// of a spot with full-intensity half-angle beam_width, cut-off half-angle cutoff (rad) and
+// curve falloff (ARPA_FALLOFF_*); for renderers that keep their spots in their own layout.
+fn arpa_spot_falloff_at(theta: f32, beam_width: f32, cutoff: f32, falloff: u32) -> f32 {
+    if theta <= beam_width {
         return 1.0;
     }
-    if theta >= light.cutoff {
+    if theta >= cutoff {
         return 0.0;
     }
-    let x = (light.cutoff - theta) / (light.cutoff - light.beam_width);
-    if light.falloff == ARPA_FALLOFF_SMOOTHSTEP {
+    let x = (cutoff - theta) / (cutoff - beam_width);
+    if falloff == ARPA_FALLOFF_SMOOTHSTEP {
         return x * x * (3.0 - 2.0 * x);
     }
     return x;
+}
+
+// Spot falloff of a prepared light (arpa_spot_falloff_at with its angles and curve).
+fn arpa_spot_falloff(light: ArpaLight, theta: f32) -> f32 {
+    return arpa_spot_falloff_at(theta, light.beam_width, light.cutoff, light.falloff);
 }
 
 // RayDifferential::new: normalises d; InvalidDirection for a zero or non-finite d.

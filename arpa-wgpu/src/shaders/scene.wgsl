@@ -77,7 +77,7 @@ struct ArpaSceneTriangle {
 struct ArpaSceneEmitter {
     // ARPA_EMITTER_*.
     kind: u32,
-    // Spot falloff: 0 linear in angle, 1 smoothstep.
+    // Spot falloff: 0 linear in angle, 1 smoothstep (ARPA_FALLOFF_* of emission.wgsl).
     falloff: u32,
     // Spot cut-off and full-intensity half-angles (rad).
     cutoff: f32,

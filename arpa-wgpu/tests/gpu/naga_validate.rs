@@ -99,15 +99,7 @@ fn scene_wgsl_validates() {
 
 #[test]
 fn camera_pass_validates() {
-    let src = format!(
-        "enable wgpu_ray_query;\n{}\n{}\n{}\n{}\n{}\n{}",
-        shaders::RNG,
-        shaders::FRAME,
-        shaders::SAMPLING,
-        shaders::LAMBERTIAN,
-        arpa_wgpu::scene::SCENE_WGSL,
-        arpa_wgpu::camera::CAMERA_PASS_WGSL
-    );
+    let src = arpa_wgpu::camera::camera_pass_source();
     let module = naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| panic!("camera_pass.wgsl: {}", e.emit_to_string(&src)));
     naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::RAY_QUERY)
         .validate(&module)

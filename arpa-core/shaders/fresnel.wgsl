@@ -1,0 +1,27 @@
+// WGSL twin of arpa_core::fresnel::dielectric_reflectance: the fraction of unpolarised light
+// a smooth dielectric interface reflects. Needs math.wgsl.
+//
+// Precision: f32 with the core's formula; the reflectance agrees with the f64 core to a few
+// eps32 for cosines given in f32, except within the f32 rounding of the critical angle,
+// where sqrt(1 - sin_t^2) amplifies the rounding (absolute error up to ~sqrt(eps32 eta^2)).
+
+// Reflected fraction in [0, 1] for the cosine cos_i = d.n between the unit direction of
+// travel and the normal (either sign; cos_i < 0 means arriving from outside, against an
+// outward normal) and the relative index ior (inside over outside). 1 under total internal
+// reflection and for a non-finite input or ior <= 0.
+fn arpa_dielectric_reflectance(cos_i: f32, ior: f32) -> f32 {
+    if !(ior > 0.0) || !arpa_finite(ior) || !arpa_finite(cos_i) {
+        return 1.0;
+    }
+    // eta = n_incident / n_transmitted.
+    let eta = select(ior, 1.0 / ior, cos_i < 0.0);
+    let ci = min(abs(cos_i), 1.0);
+    let sin_t2 = eta * eta * (1.0 - ci * ci);
+    if sin_t2 >= 1.0 {
+        return 1.0;
+    }
+    let ct = sqrt(1.0 - sin_t2);
+    let rs = (eta * ci - ct) / (eta * ci + ct);
+    let rp = (ci - eta * ct) / (ci + eta * ct);
+    return clamp(0.5 * (rs * rs + rp * rp), 0.0, 1.0);
+}
