@@ -25,3 +25,4 @@ mod twin_radius;
 mod twin_reemission;
 mod twin_rng;
 mod twin_rng_draws;
+mod twin_spot_falloff;
