@@ -194,7 +194,8 @@ fn arpa_camera_main(@builtin(global_invocation_id) gid: vec3<u32>) {
             origin = arpa_offset_origin(s.position, front);
         } else {
             let fresnel = arpa_dielectric_reflectance(dot(dir, n), s.ior);
-            if arpa_rng_next_f32(&rng) < fresnel {
+            // The core's `rng.next_f64() < fresnel`, exactly (rng.wgsl).
+            if arpa_rng_next_below(&rng, fresnel) {
                 dir = arpa_glam_normalize_or(arpa_reflect_direction(dir, n), dir);
                 origin = arpa_offset_origin(s.position, front);
             } else {
