@@ -6,8 +6,6 @@
 // parameters and the query records. Units: metres, world space; radiance W/(m^2 sr).
 
 const ARPA_CAMERA_FRAC_1_PI: f32 = 0.31830988618379067;
-// Ray extent of camera rays: the core casts them to infinity.
-const ARPA_CAMERA_T_MAX: f32 = 3.4028235e38;
 
 struct ArpaCameraParams {
     // Eye position (metres).
@@ -158,7 +156,7 @@ fn arpa_camera_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     var radiance = vec3<f32>(0.0);
     var rec = ArpaQueryRecord(vec3<f32>(0.0), pixel, vec3<f32>(0.0), 0u, vec3<f32>(0.0), 0u, vec3<f32>(0.0), 0u);
     for (var depth = 0u; depth < c.max_depth; depth++) {
-        let h = arpa_scene_intersect(origin, dir, ARPA_CAMERA_T_MAX);
+        let h = arpa_scene_intersect(origin, dir, ARPA_SCENE_T_MAX);
         if h.hit == 0u {
             break;
         }

@@ -33,8 +33,6 @@
 // Method (PhotonParams::method).
 const ARPA_PHOTON_METHOD_ARPA: u32 = 0u;
 const ARPA_PHOTON_METHOD_RTPM: u32 = 1u;
-// Largest finite f32: an unbounded ray (the core casts with t_max = infinity).
-const ARPA_PHOTON_T_MAX: f32 = 3.40282347e38;
 
 // Per-iteration parameters (photon.rs PhotonParams).
 struct PhotonParams {
@@ -287,7 +285,7 @@ fn photon_trace(index: u32) -> u32 {
     for (var depth = 0u; depth < max_depth; depth++) {
         let d = ray.d;
         segments += 1u;
-        let hit = arpa_scene_intersect(origin, d, ARPA_PHOTON_T_MAX);
+        let hit = arpa_scene_intersect(origin, d, ARPA_SCENE_T_MAX);
         if hit.hit == 0u {
             break;
         }
