@@ -4,8 +4,9 @@
 // frame.wgsl, sampling.wgsl and differential.wgsl.
 //
 // Precision: f32 throughout (positions to a few eps32 of their magnitude, directions and
-// differentials to a few eps32 relative); the spot falloff angle is taken as
-// atan2(sin, cos) of the sampled direction, which keeps narrow cones accurate. The random
+// differentials to a few eps32 relative); the spot falloff angle is math.wgsl's
+// arpa_angle_between the sampled direction and the axis, accurate to a few ulps also in
+// narrow cones (the device's atan2 may not be: lavapipe's errs by 3.3e-6 rad). The random
 // 2-D draws are the core's truncated to 24 bits (rng.wgsl).
 
 // Light kinds (PackedLight::kind).
@@ -109,7 +110,7 @@ fn arpa_emit(light: ArpaLight, index: u32, rng: ptr<function, ArpaRng>) -> ArpaE
             let local = arpa_uniform_cone(u, light.one_minus_cos_cutoff);
             let lf = ArpaFrame(light.frame_t, light.frame_b, light.frame_n);
             let d = arpa_frame_to_world(lf, local);
-            let theta = atan2(length(local.xy), local.z);
+            let theta = arpa_angle_between(local, vec3<f32>(0.0, 0.0, 1.0));
             let f = arpa_frame_from_normal(d);
             res = arpa_ray_new(light.p0, d, zero, zero, f.t * w, f.b * w);
             out.flux = light.flux * arpa_spot_falloff(light, theta);

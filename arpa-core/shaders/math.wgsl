@@ -1,6 +1,7 @@
 // WGSL twin of the scalar and vector built-ins the core takes from std, libm and glam, where
 // a device's own may differ from them: the finiteness test (f64::is_finite), acos
-// (libm::acos) to a few f32 ulps, and glam's Vec3::normalize_or. Self-contained.
+// (libm::acos) to a few f32 ulps, the angle between two directions (accurate also near 0
+// and pi), and glam's Vec3::normalize_or. Self-contained.
 //
 // Precision: arpa_acos agrees with the correctly rounded acos to ~1 ulp over [-1, 1]
 // (measured: within 4 eps32 relative); the device's built-in acos may be far less accurate
@@ -44,6 +45,24 @@ fn arpa_acos(x: f32) -> f32 {
         return 3.141592653589793 - 2.0 * arpa_asin_small(sqrt(0.5 * (1.0 + x)));
     }
     return 1.5707963267948966 - arpa_asin_small(x);
+}
+
+// The angle (rad, in [0, pi]) between the unit directions a and b, to a few f32 ulps at
+// every angle (the core: libm::acos(a.b) in f64). acos of an f32 dot product would lose
+// accuracy near 0 and pi (an ulp of a.b near 1 is 6e-8, an angle error of 6e-8 / theta), so
+// the angle comes from the chord: 2 asin(|a - b| / 2) up to pi/3, pi - 2 asin(|a + b| / 2)
+// from 2 pi/3, acos(a.b) between (|a.b| <= 1/2, well-conditioned). a and b need to be unit
+// only to a few eps32: a length error delta moves the result by about delta.
+fn arpa_angle_between(a: vec3<f32>, b: vec3<f32>) -> f32 {
+    let h = 0.5 * length(a - b);
+    if h <= 0.5 {
+        return 2.0 * arpa_asin_small(h);
+    }
+    let g = 0.5 * length(a + b);
+    if g <= 0.5 {
+        return 3.141592653589793 - 2.0 * arpa_asin_small(g);
+    }
+    return arpa_acos(clamp(dot(a, b), -0.5, 0.5));
 }
 
 // glam's Vec3::normalize_or in f32: v times the reciprocal of |v|, or `fallback` when that

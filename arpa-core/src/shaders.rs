@@ -40,7 +40,8 @@
 
 /// `math.wgsl`: `arpa_finite`, `arpa_finite3` (`is_finite` by the exponent bits),
 /// `arpa_acos` (radians, a few `f32` ulps, where a device's built-in `acos` may be off by
-/// 1e-4 rad), `arpa_glam_normalize_or` (glam's `Vec3::normalize_or`). Self-contained.
+/// 1e-4 rad), `arpa_angle_between` (radians between two unit directions, a few ulps also
+/// near 0 and π), `arpa_glam_normalize_or` (glam's `Vec3::normalize_or`). Self-contained.
 pub const MATH: &str = include_str!("../shaders/math.wgsl");
 
 /// `rng.wgsl`: `arpa_pcg4d`, `ArpaRng`, `arpa_rng_new`, `arpa_rng_next_u32`,

@@ -86,7 +86,7 @@ fn arpa_camera_direct(s: ArpaSurface, sh: ArpaDiffuseShading, rng: ptr<function,
             let cos = arpa_diffuse_cosine(sh, d / r);
             var falloff = 1.0;
             if l.kind == ARPA_EMITTER_SPOT {
-                let theta = arpa_acos(clamp(dot(-d / r, l.p1), -1.0, 1.0));
+                let theta = arpa_angle_between(-d / r, l.p1);
                 falloff = arpa_spot_falloff_at(theta, l.beam_width, l.cutoff, l.falloff);
             }
             if cos > 0.0 && falloff > 0.0 && arpa_camera_visible(shadow_origin, l.p0) {

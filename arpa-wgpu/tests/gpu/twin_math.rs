@@ -5,7 +5,10 @@
 //! Bounds (ε = f32::EPSILON; inputs are f32 values, so both sides see the same numbers):
 //! finiteness exactly; `acos` within 4ε relative to the f64 value (its own error is ~1 ulp:
 //! a Taylor series truncated below 1.2e-9 and the half-angle reduction; lavapipe's built-in
-//! `acos` errs by up to 1.6e-4 rad, which this bound rejects); a normalised vector within
+//! `acos` errs by up to 1.6e-4 rad, which this bound rejects); `arpa_angle_between` within
+//! `4ε (1 + θ)` of the f64 angle `atan2(|a × b|, a·b)` between the same f32 vectors, for
+//! angles from 0 (and 1e-7) to π (and π − 1e-7) (the chord |a ∓ b| is formed with a relative
+//! error of a few ε, the f32 unit vectors are unit to ε, and π is rounded to f32); a normalised vector within
 //! 4ε (absolute, per component) of glam's, with the same choice of the fallback. The
 //! fallback is compared where glam's choice is clear of the device's rounding: |v| between
 //! 1e-18 and 1e18 (normalised), zero, non-finite, |v| >= 1e20 (|v|² overflows, both fall
@@ -86,8 +89,48 @@ fn acos_is_accurate_on_a_grid_and_at_the_ends() {
     assert!(f(out[0][0]).is_nan());
 }
 
+fn unit() -> impl Strategy<Value = DVec3> {
+    (0.0..std::f64::consts::PI, 0.0..std::f64::consts::TAU).prop_map(|(t, p)| DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos()))
+}
+
+/// A pair of f32 unit vectors at an angle drawn uniformly, near 0 or near π.
+fn pair() -> impl Strategy<Value = (DVec3, DVec3)> {
+    let pi = std::f64::consts::PI;
+    let angle = prop_oneof![
+        2 => 0.0..=pi,
+        1 => (-7.0f64..0.0).prop_map(|e| 10f64.powf(e)),
+        1 => (-7.0f64..0.0).prop_map(move |e| pi - 10f64.powf(e)),
+        1 => prop::sample::select(vec![0.0, pi, pi / 3.0, 2.0 * pi / 3.0, pi / 2.0]),
+    ];
+    (unit(), angle, 0.0..std::f64::consts::TAU).prop_map(|(a, theta, phi)| {
+        let f = arpa_core::frame::Frame::from_normal(a);
+        let b = f.to_world(DVec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()));
+        (a.as_vec3().as_dvec3(), b.as_vec3().as_dvec3())
+    })
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 4, max_shrink_iters: 32, ..ProptestConfig::default() })]
+
+    #[test]
+    fn angle_between_matches_f64(pairs in prop::collection::vec(pair(), 4096)) {
+        let Some(ctx) = gpu() else { return Ok(()) };
+        let mut input = Vec::new();
+        for (a, b) in &pairs {
+            push3(&mut input, a.as_vec3().to_array());
+            push3(&mut input, b.as_vec3().to_array());
+        }
+        let out = run(ctx, "angle between", "out_f(ob, arpa_angle_between(in_v3(ib), in_v3(ib + 3u)));", &input, 6, 1);
+        let mut worst: f64 = 0.0;
+        for ((a, b), g) in pairs.iter().zip(&out) {
+            let want = a.cross(*b).length().atan2(a.dot(*b));
+            let got = f(g[0]) as f64;
+            let tol = 4.0 * EPS * (1.0 + want);
+            prop_assert!((got - want).abs() <= tol, "angle between {:?} and {:?}: {} vs f64 {}", a, b, got, want);
+            worst = worst.max((got - want).abs() / tol);
+        }
+        eprintln!("angle_between: worst error / bound {worst:.3}");
+    }
 
     /// Random arguments, uniform in `[-1, 1]` and clustered at ±1 (`1 − 10^-e`).
     #[test]
