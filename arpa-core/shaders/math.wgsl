@@ -2,6 +2,9 @@
 // a device's own may differ from them: the finiteness test (f64::is_finite), acos
 // (libm::acos) to a few f32 ulps, the angle between two directions (accurate also near 0
 // and pi), and glam's Vec3::normalize_or. Self-contained.
+// (kernel.wgsl, footprint.wgsl, heuristics.wgsl and radius.wgsl do not use it: the store,
+// gather and accumulate stages include them alone, so footprint.wgsl keeps its own
+// arpa_is_finite/arpa_is_finite3 and radius.wgsl its inline exponent test.)
 //
 // Precision: arpa_acos agrees with the correctly rounded acos to ~1 ulp over [-1, 1]
 // (measured: within 4 eps32 relative); the device's built-in acos may be far less accurate

@@ -9,7 +9,7 @@
 //!
 //! | file | Rust twin | what |
 //! |---|---|---|
-//! | [`MATH`] | `f64::is_finite`, `libm::acos`, glam's `normalize_or` | finiteness tests, an accurate `acos`, glam's `f32` normalisation |
+//! | [`MATH`] | `f64::is_finite`, `libm::acos`, glam's `normalize_or` | finiteness tests, an accurate `acos` and angle between directions, glam's `f32` normalisation |
 //! | [`RNG`] | [`crate::rng`] | `pcg4d`, streams; bit-identical `u32` and `f32` draws; `next_f64() < p` exactly; `next_f64() as f32` |
 //! | [`KERNEL`] | [`crate::kernel`] | constant, Epanechnikov and Silverman kernels (`f32`, as `Kernel::eval`) |
 //! | [`FOOTPRINT`] | [`crate::footprint`] | `PackedFootprint` (same 64-byte layout), `Footprint::pack` (`M_p⁻¹` rows, slab, flux density), point-in-footprint test, irradiance |
