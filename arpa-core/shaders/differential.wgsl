@@ -2,7 +2,7 @@
 // to a surface, specular reflection and refraction (with total internal reflection) of a
 // ray and its derivatives with respect to the two emission parameters u and v.
 // Same conventions as the Rust module: d is the unit direction of travel, normals may point
-// either way, `ior` is n_inside / n_outside with an outward normal. Self-contained.
+// either way, `ior` is n_inside / n_outside with an outward normal. Needs math.wgsl.
 //
 // Precision: the core propagates in f64, this twin in f32. For inputs given in f32, the
 // results agree to a norm-wise relative error of about c eps32 kappa (eps32 = 1.19e-7), with
@@ -56,21 +56,16 @@ struct ArpaDiffResult {
     event: u32,
 }
 
-fn arpa_diff_finite3(v: vec3<f32>) -> bool {
-    let e = bitcast<vec3<u32>>(v) & vec3<u32>(0x7f800000u);
-    return all(e != vec3<u32>(0x7f800000u));
-}
-
 fn arpa_diff_ray_finite(r: ArpaRayDiff) -> bool {
-    return arpa_diff_finite3(r.p) && arpa_diff_finite3(r.d) && arpa_diff_finite3(r.dp_du)
-        && arpa_diff_finite3(r.dp_dv) && arpa_diff_finite3(r.dd_du) && arpa_diff_finite3(r.dd_dv);
+    return arpa_finite3(r.p) && arpa_finite3(r.d) && arpa_finite3(r.dp_du)
+        && arpa_finite3(r.dp_dv) && arpa_finite3(r.dd_du) && arpa_finite3(r.dd_dv);
 }
 
 // |v| computed on v scaled by its largest component (no overflow of the squares).
 fn arpa_diff_length(v: vec3<f32>) -> f32 {
     let a = abs(v);
     let m = max(a.x, max(a.y, a.z));
-    if !(m > 0.0) || !arpa_diff_finite3(vec3<f32>(m)) {
+    if !(m > 0.0) || !arpa_finite(m) {
         return m;
     }
     return m * length(v / m);
@@ -79,7 +74,7 @@ fn arpa_diff_length(v: vec3<f32>) -> f32 {
 // v/|v|, or `fallback` when |v| is zero or not finite (glam normalize_or).
 fn arpa_diff_normalize_or(v: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
     let l = arpa_diff_length(v);
-    if l > 0.0 && arpa_diff_finite3(vec3<f32>(l)) && arpa_diff_finite3(v) {
+    if l > 0.0 && arpa_finite(l) && arpa_finite3(v) {
         return v / l;
     }
     return fallback;
@@ -101,6 +96,39 @@ fn arpa_reflect_direction(d: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     return d - 2.0 * dot(d, n) * n;
 }
 
+// A refracted direction (refract_direction): the unit direction, the event
+// (ARPA_REFRACTION_*; under total internal reflection `dir` is the mirror direction) and
+// eta = n_incident / n_transmitted (1 where the interface is meaningless).
+struct ArpaRefracted {
+    dir: vec3<f32>,
+    event: u32,
+    eta: f32,
+}
+
+// Refraction of the unit direction d at normal n (either orientation, unit) for relative
+// index `ior` (inside over outside, with n outward): entering uses eta = 1/ior, leaving
+// eta = ior; T = eta D - (eta cos_i + sqrt(k)) N with cos_i = D.N against the incident side,
+// k = 1 - eta^2 (1 - cos_i^2); k < 0 is total internal reflection (the mirror direction).
+// An ior <= 0 or non-finite passes straight through (d, transmitted, eta 1).
+fn arpa_refract_direction(d: vec3<f32>, n_in: vec3<f32>, ior: f32) -> ArpaRefracted {
+    var n = n_in;
+    var eta = 1.0 / ior;
+    if dot(d, n_in) > 0.0 {
+        n = -n_in;
+        eta = ior;
+    }
+    if !(eta > 0.0) || !arpa_finite(eta) {
+        return ArpaRefracted(d, ARPA_REFRACTION_TRANSMITTED, 1.0);
+    }
+    let cos_i = dot(d, n);
+    let k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
+    if k < 0.0 {
+        return ArpaRefracted(arpa_reflect_direction(d, n), ARPA_REFRACTION_TIR, eta);
+    }
+    let mu = eta * cos_i + sqrt(k);
+    return ArpaRefracted(arpa_glam_normalize_or(eta * d - mu * n, d), ARPA_REFRACTION_TRANSMITTED, eta);
+}
+
 // Removes the component of dD along D (RayDifferential::reprojected).
 fn arpa_diff_reprojected(r: ArpaRayDiff) -> ArpaRayDiff {
     var o = r;
@@ -119,11 +147,11 @@ struct ArpaNormalValidated {
 fn arpa_normal_validated(nd: ArpaNormalDiff) -> ArpaNormalValidated {
     var out: ArpaNormalValidated;
     out.ok = false;
-    if !arpa_diff_finite3(nd.n) || !arpa_diff_finite3(nd.dn_du) || !arpa_diff_finite3(nd.dn_dv) {
+    if !arpa_finite3(nd.n) || !arpa_finite3(nd.dn_du) || !arpa_finite3(nd.dn_dv) {
         return out;
     }
     let len = arpa_diff_length(nd.n);
-    if !(len > 0.0) || !arpa_diff_finite3(vec3<f32>(len)) {
+    if !(len > 0.0) || !arpa_finite(len) {
         return out;
     }
     let n = nd.n / len;
@@ -142,7 +170,7 @@ fn arpa_diff_transfer_step(dp: vec3<f32>, dd: vec3<f32>, t: f32, n: vec3<f32>, d
 // Transfer over distance t (metres) to a surface with normal n (either orientation, need
 // not be unit): dt = -[(dP + t dD).N]/(D.N), dP' = dP + t dD + dt D, dD' = dD.
 fn arpa_diff_transfer(r: ArpaRayDiff, t: f32, n_in: vec3<f32>) -> ArpaDiffResult {
-    if !(t >= 0.0) || !arpa_diff_finite3(vec3<f32>(t)) {
+    if !(t >= 0.0) || !arpa_finite(t) {
         return arpa_diff_result(r, ARPA_DIFF_INVALID_DISTANCE, 0u);
     }
     let n = arpa_diff_normalize_or(n_in, vec3<f32>(0.0));
@@ -202,7 +230,7 @@ fn arpa_diff_refract(r: ArpaRayDiff, normal: ArpaNormalDiff, ior: f32) -> ArpaDi
     if !v.ok {
         return arpa_diff_result(r, ARPA_DIFF_INVALID_NORMAL, 0u);
     }
-    if !(ior > 0.0) || !arpa_diff_finite3(vec3<f32>(ior)) {
+    if !(ior > 0.0) || !arpa_finite(ior) {
         return arpa_diff_result(r, ARPA_DIFF_NON_FINITE, 0u);
     }
     var nd = v.nd;

@@ -1,11 +1,12 @@
 // WGSL twin of arpa_core::emission's per-photon step (PreparedLight::emit): photon `index`
 // of a light prepared on the host (arpa_core::emission::PackedLight, same 160-byte layout)
-// with its ray differential, flux and re-emission length. Needs rng.wgsl, frame.wgsl,
-// sampling.wgsl and differential.wgsl.
+// with its ray differential, flux and re-emission length. Needs math.wgsl, rng.wgsl,
+// frame.wgsl, sampling.wgsl and differential.wgsl.
 //
 // Precision: f32 throughout (positions to a few eps32 of their magnitude, directions and
-// differentials to a few eps32 relative); the spot falloff angle is taken as
-// atan2(sin, cos) of the sampled direction, which keeps narrow cones accurate. The random
+// differentials to a few eps32 relative); the spot falloff angle is math.wgsl's
+// arpa_angle_between the sampled direction and the axis, accurate to a few ulps also in
+// narrow cones (the device's atan2 may not be: lavapipe's errs by 3.3e-6 rad). The random
 // 2-D draws are the core's truncated to 24 bits (rng.wgsl).
 
 // Light kinds (PackedLight::kind).
@@ -54,19 +55,26 @@ struct ArpaEmitted {
     status: u32,                  // ARPA_DIFF_* of the initial differential
 }
 
-// Spot falloff f(theta) in [0, 1] at angle theta (rad) from the axis (SpotLight::falloff_at).
-fn arpa_spot_falloff(light: ArpaLight, theta: f32) -> f32 {
-    if theta <= light.beam_width {
+// Spot falloff f(theta) in [0, 1] at angle theta (rad) from the axis (SpotLight::falloff_at)
+// of a spot with full-intensity half-angle beam_width, cut-off half-angle cutoff (rad) and
+// curve falloff (ARPA_FALLOFF_*); for renderers that keep their spots in their own layout.
+fn arpa_spot_falloff_at(theta: f32, beam_width: f32, cutoff: f32, falloff: u32) -> f32 {
+    if theta <= beam_width {
         return 1.0;
     }
-    if theta >= light.cutoff {
+    if theta >= cutoff {
         return 0.0;
     }
-    let x = (light.cutoff - theta) / (light.cutoff - light.beam_width);
-    if light.falloff == ARPA_FALLOFF_SMOOTHSTEP {
+    let x = (cutoff - theta) / (cutoff - beam_width);
+    if falloff == ARPA_FALLOFF_SMOOTHSTEP {
         return x * x * (3.0 - 2.0 * x);
     }
     return x;
+}
+
+// Spot falloff of a prepared light (arpa_spot_falloff_at with its angles and curve).
+fn arpa_spot_falloff(light: ArpaLight, theta: f32) -> f32 {
+    return arpa_spot_falloff_at(theta, light.beam_width, light.cutoff, light.falloff);
 }
 
 // RayDifferential::new: normalises d; InvalidDirection for a zero or non-finite d.
@@ -102,7 +110,7 @@ fn arpa_emit(light: ArpaLight, index: u32, rng: ptr<function, ArpaRng>) -> ArpaE
             let local = arpa_uniform_cone(u, light.one_minus_cos_cutoff);
             let lf = ArpaFrame(light.frame_t, light.frame_b, light.frame_n);
             let d = arpa_frame_to_world(lf, local);
-            let theta = atan2(length(local.xy), local.z);
+            let theta = arpa_angle_between(local, vec3<f32>(0.0, 0.0, 1.0));
             let f = arpa_frame_from_normal(d);
             res = arpa_ray_new(light.p0, d, zero, zero, f.t * w, f.b * w);
             out.flux = light.flux * arpa_spot_falloff(light, theta);

@@ -1,5 +1,5 @@
 // WGSL twin of arpa_core::frame: right-handed orthonormal frames (t, b, n), t x b = n.
-// Self-contained.
+// Needs math.wgsl.
 //
 // Precision: f32; frames are orthonormal to a few eps32. from_normal_and_hint treats hints
 // within sin ~ 1e-6 of the normal as parallel (the f64 core: 1e-12), since f32 cannot
@@ -16,7 +16,7 @@ struct ArpaFrame {
 fn arpa_frame_normalize_or(v: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
     let a = abs(v);
     let m = max(a.x, max(a.y, a.z));
-    let finite = all((bitcast<vec3<u32>>(v) & vec3<u32>(0x7f800000u)) != vec3<u32>(0x7f800000u));
+    let finite = arpa_finite3(v);
     if !(m > 0.0) || !finite {
         return fallback;
     }
@@ -43,7 +43,7 @@ fn arpa_frame_from_normal_and_hint(n_in: vec3<f32>, hint_in: vec3<f32>) -> ArpaF
     let n = arpa_frame_normalize_or(n_in, vec3<f32>(0.0, 0.0, 1.0));
     let ah = abs(hint_in);
     let m = max(ah.x, max(ah.y, ah.z));
-    let finite = all((bitcast<vec3<u32>>(hint_in) & vec3<u32>(0x7f800000u)) != vec3<u32>(0x7f800000u));
+    let finite = arpa_finite3(hint_in);
     if !(m > 0.0) || !finite {
         return arpa_frame_from_normal(n);
     }

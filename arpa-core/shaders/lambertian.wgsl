@@ -1,6 +1,6 @@
 // WGSL twin of arpa_core::lambertian: the two-sided Lambertian frame with interpolated
 // shading normals (Mitsuba 3's twosided + diffuse), for both directions of transport.
-// Needs frame.wgsl and sampling.wgsl before it.
+// Needs math.wgsl, frame.wgsl and sampling.wgsl before it.
 //
 // Precision: f32. Cosines and ratios agree with the core to a few eps32 (the adjoint ratio
 // to a few eps32 / |w.n_g| relative); decisions at a threshold (direction in the shading
@@ -20,19 +20,11 @@ struct ArpaDiffuseShading {
     pad: u32,
 }
 
-fn arpa_lambertian_finite3(v: vec3<f32>) -> bool {
-    return all((bitcast<vec3<u32>>(v) & vec3<u32>(0x7f800000u)) != vec3<u32>(0x7f800000u));
-}
-
-fn arpa_lambertian_finite(x: f32) -> bool {
-    return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;
-}
-
 // DiffuseShading::new(geometric, shading, toward): all unit vectors, world space.
 fn arpa_diffuse_shading_new(geometric: vec3<f32>, shading: vec3<f32>, toward: vec3<f32>) -> ArpaDiffuseShading {
     let c = dot(toward, shading);
-    if c == 0.0 || !arpa_lambertian_finite(c) || !arpa_lambertian_finite3(toward) || !arpa_lambertian_finite3(shading)
-        || !arpa_lambertian_finite3(geometric) {
+    if c == 0.0 || !arpa_finite(c) || !arpa_finite3(toward) || !arpa_finite3(shading)
+        || !arpa_finite3(geometric) {
         return ArpaDiffuseShading(geometric, 0u, shading, 0u);
     }
     return ArpaDiffuseShading(geometric, 1u, select(-shading, shading, c > 0.0), 0u);
@@ -57,9 +49,9 @@ fn arpa_diffuse_cosine(s: ArpaDiffuseShading, w: vec3<f32>) -> f32 {
 fn arpa_diffuse_adjoint_ratio(s: ArpaDiffuseShading, w_in: vec3<f32>) -> f32 {
     let sn = abs(dot(w_in, s.shading));
     let g = abs(dot(w_in, s.geometric));
-    if !arpa_lambertian_finite(sn) || !arpa_lambertian_finite(g) {
+    if !arpa_finite(sn) || !arpa_finite(g) {
         // inf/finite = inf -> MAX; anything with NaN or inf/inf -> NaN -> 0.
-        if arpa_lambertian_finite(g) && sn == sn && !arpa_lambertian_finite(sn) {
+        if arpa_finite(g) && sn == sn && !arpa_finite(sn) {
             return ARPA_MAX_ADJOINT_RATIO;
         }
         return 0.0;

@@ -1,5 +1,5 @@
 // WGSL twin of arpa_core::reemission (Fabianowski 2011, ARPA eq. 2): absorb at a diffuse
-// hit and re-emit from a virtual point emitter v behind it. Needs frame.wgsl,
+// hit and re-emit from a virtual point emitter v behind it. Needs math.wgsl, frame.wgsl,
 // sampling.wgsl and differential.wgsl.
 //
 // Precision: f32. The virtual distance sqrt(|D_u x D_v|)/l is formed from the scaled
@@ -16,13 +16,13 @@ struct ArpaReemitted {
 // Virtual distance v = sqrt(parallelogram_area) / reemission_length (metres), or a negative
 // value when either input is not finite or out of range (virtual_distance's error).
 fn arpa_virtual_distance(parallelogram_area: f32, reemission_length: f32) -> f32 {
-    let ok = reemission_length > 0.0 && arpa_diff_finite3(vec3<f32>(reemission_length))
-        && parallelogram_area >= 0.0 && arpa_diff_finite3(vec3<f32>(parallelogram_area));
+    let ok = reemission_length > 0.0 && arpa_finite(reemission_length)
+        && parallelogram_area >= 0.0 && arpa_finite(parallelogram_area);
     if !ok {
         return -1.0;
     }
     let v = sqrt(parallelogram_area) / reemission_length;
-    if arpa_diff_finite3(vec3<f32>(v)) {
+    if arpa_finite(v) {
         return v;
     }
     return -1.0;
@@ -40,19 +40,19 @@ fn arpa_reemit(hit: vec3<f32>, dp_du: vec3<f32>, dp_dv: vec3<f32>, direction: ve
     if sa > 0.0 && sb > 0.0 {
         root_area = sqrt(sa) * sqrt(sb) * sqrt(length(cross(dp_du / sa, dp_dv / sb)));
     }
-    let finite_in = arpa_diff_finite3(dp_du) && arpa_diff_finite3(dp_dv);
-    let ok_len = reemission_length > 0.0 && arpa_diff_finite3(vec3<f32>(reemission_length));
+    let finite_in = arpa_finite3(dp_du) && arpa_finite3(dp_dv);
+    let ok_len = reemission_length > 0.0 && arpa_finite(reemission_length);
     if !finite_in || !ok_len {
         out.status = ARPA_DIFF_NON_FINITE;
         return out;
     }
     let v = root_area / reemission_length;
-    if !arpa_diff_finite3(vec3<f32>(v)) {
+    if !arpa_finite(v) {
         out.status = ARPA_DIFF_NON_FINITE;
         return out;
     }
     let f = arpa_frame_from_normal(direction);
-    if !arpa_diff_finite3(direction) || !(length(direction) > 0.0) {
+    if !arpa_finite3(direction) || !(length(direction) > 0.0) {
         out.status = ARPA_DIFF_INVALID_DIRECTION;
         return out;
     }

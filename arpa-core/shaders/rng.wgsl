@@ -62,3 +62,36 @@ fn arpa_rng_next_2d(rng: ptr<function, ArpaRng>) -> vec2<f32> {
     let y = arpa_rng_next_f32(rng);
     return vec2<f32>(x, y);
 }
+
+// `rng.next_f64() < p` of the core (Rng::next_f64 = word / 2^32, exact in f64), bit-exact
+// for an f32 probability p: word / 2^32 < p <=> word < ceil(p 2^32) for p in (0, 1) (p 2^32
+// is exact in f32). Always consumes one draw, as the core does; p >= 1 is always true, p <= 0
+// or NaN never. The decisions it takes (Fresnel choice, Russian roulette) differ from the
+// core's only where the f32 p differs from the core's f64 p.
+fn arpa_rng_next_below(rng: ptr<function, ArpaRng>, p: f32) -> bool {
+    let w = arpa_rng_next_u32(rng);
+    if p >= 1.0 {
+        return true;
+    }
+    if !(p > 0.0) {
+        return false;
+    }
+    return w < u32(ceil(p * 4294967296.0));
+}
+
+// The core's `rng.next_f64() as f32` (word / 2^32 rounded to the nearest f32, ties to even;
+// may round up to 1.0), in integer arithmetic so that no conversion rounding mode is assumed.
+fn arpa_rng_next_f64_as_f32(rng: ptr<function, ArpaRng>) -> f32 {
+    let word = arpa_rng_next_u32(rng);
+    if word < 0x01000000u {
+        return f32(word) * 2.3283064365386963e-10;
+    }
+    let drop = 8u - countLeadingZeros(word);
+    var m = word >> drop;
+    let rem = word & ((1u << drop) - 1u);
+    let half = 1u << (drop - 1u);
+    if rem > half || (rem == half && (m & 1u) == 1u) {
+        m += 1u;
+    }
+    return ldexp(f32(m), i32(drop) - 32);
+}

@@ -9,11 +9,13 @@
 //!
 //! | file | Rust twin | what |
 //! |---|---|---|
-//! | [`RNG`] | [`crate::rng`] | `pcg4d`, streams; bit-identical `u32` and `f32` draws |
+//! | [`MATH`] | `f64::is_finite`, `libm::acos`, glam's `normalize_or` | finiteness tests, an accurate `acos` and angle between directions, glam's `f32` normalisation |
+//! | [`RNG`] | [`crate::rng`] | `pcg4d`, streams; bit-identical `u32` and `f32` draws; `next_f64() < p` exactly; `next_f64() as f32` |
 //! | [`KERNEL`] | [`crate::kernel`] | constant, Epanechnikov and Silverman kernels (`f32`, as `Kernel::eval`) |
 //! | [`FOOTPRINT`] | [`crate::footprint`] | `PackedFootprint` (same 64-byte layout), `Footprint::pack` (`M_p⁻¹` rows, slab, flux density), point-in-footprint test, irradiance |
 //! | [`RADIUS`] | [`crate::radius`] | progressive radius, closed form and recurrence |
-//! | [`DIFFERENTIAL`] | [`crate::differential`] | transfer, reflection, refraction with total internal reflection |
+//! | [`DIFFERENTIAL`] | [`crate::differential`] | transfer, reflection, refraction with total internal reflection; `refract_direction` |
+//! | [`FRESNEL`] | [`crate::fresnel`] | `dielectric_reflectance` |
 //! | [`FRAME`] | [`crate::frame`] | orthonormal frames (Duff et al.; with a tangent hint) |
 //! | [`SAMPLING`] | [`crate::sampling`] | sphere, cone, concentric disc, cosine hemisphere, triangle, Fibonacci lattice |
 //! | [`EMISSION`] | [`crate::emission`] | `PreparedLight::emit` from a [`crate::emission::PackedLight`] (same 160-byte layout) |
@@ -36,8 +38,16 @@
 //! `arpa-wgpu`'s tests run every function on a GPU (or lavapipe) against the Rust
 //! functions over random and stress inputs.
 
+/// `math.wgsl`: `arpa_finite`, `arpa_finite3` (`is_finite` by the exponent bits),
+/// `arpa_acos` (radians, a few `f32` ulps, where a device's built-in `acos` may be off by
+/// 1e-4 rad), `arpa_angle_between` (radians between two unit directions, a few ulps also
+/// near 0 and π), `arpa_glam_normalize_or` (glam's `Vec3::normalize_or`). Self-contained.
+pub const MATH: &str = include_str!("../shaders/math.wgsl");
+
 /// `rng.wgsl`: `arpa_pcg4d`, `ArpaRng`, `arpa_rng_new`, `arpa_rng_next_u32`,
-/// `arpa_rng_next_f32` (24-bit `[0, 1)`), `arpa_rng_next_2d`.
+/// `arpa_rng_next_f32` (24-bit `[0, 1)`), `arpa_rng_next_2d`, `arpa_rng_next_below`
+/// (the core's `next_f64() < p`, bit-exact for an `f32` `p`), `arpa_rng_next_f64_as_f32`
+/// (the core's `next_f64() as f32`, bit-exact).
 pub const RNG: &str = include_str!("../shaders/rng.wgsl");
 
 /// `kernel.wgsl`: `arpa_kernel_eval(kernel_id, r²)`, per unit filter-space area.
@@ -51,11 +61,18 @@ pub const FOOTPRINT: &str = include_str!("../shaders/footprint.wgsl");
 /// `radius.wgsl`: `arpa_radius(r₁, α, iteration)` and `arpa_radius_next`, metres.
 pub const RADIUS: &str = include_str!("../shaders/radius.wgsl");
 
-/// `differential.wgsl`: `ArpaRayDiff`, `ArpaNormalDiff`, `arpa_diff_transfer`,
-/// `arpa_diff_reflect`, `arpa_diff_refract`, `arpa_reflect_direction`. World space, metres.
+/// `differential.wgsl` (needs [`MATH`]): `ArpaRayDiff`, `ArpaNormalDiff`, `arpa_diff_transfer`,
+/// `arpa_diff_reflect`, `arpa_diff_refract`, `arpa_reflect_direction`, `ArpaRefracted`,
+/// `arpa_refract_direction` ([`crate::differential::refract_direction`]). World space,
+/// metres, unit directions.
 pub const DIFFERENTIAL: &str = include_str!("../shaders/differential.wgsl");
 
-/// `frame.wgsl`: `ArpaFrame`, `arpa_frame_from_normal`, `arpa_frame_from_normal_and_hint`,
+/// `fresnel.wgsl` (needs [`MATH`]): `arpa_dielectric_reflectance(cos_i, ior)`
+/// ([`crate::fresnel::dielectric_reflectance`]; `cos_i` of the unit direction of travel
+/// with the normal, either sign; `ior` inside over outside; a fraction in `[0, 1]`).
+pub const FRESNEL: &str = include_str!("../shaders/fresnel.wgsl");
+
+/// `frame.wgsl` (needs [`MATH`]): `ArpaFrame`, `arpa_frame_from_normal`, `arpa_frame_from_normal_and_hint`,
 /// `arpa_frame_to_world`, `arpa_frame_to_local`.
 pub const FRAME: &str = include_str!("../shaders/frame.wgsl");
 
@@ -64,19 +81,20 @@ pub const FRAME: &str = include_str!("../shaders/frame.wgsl");
 /// `arpa_fibonacci_lattice`.
 pub const SAMPLING: &str = include_str!("../shaders/sampling.wgsl");
 
-/// `emission.wgsl` (needs [`RNG`], [`FRAME`], [`SAMPLING`], [`DIFFERENTIAL`]): `ArpaLight`
-/// (= [`crate::emission::PackedLight`]), `ArpaEmitted`, `arpa_emit`, `arpa_spot_falloff`.
+/// `emission.wgsl` (needs [`MATH`], [`RNG`], [`FRAME`], [`SAMPLING`], [`DIFFERENTIAL`]): `ArpaLight`
+/// (= [`crate::emission::PackedLight`]), `ArpaEmitted`, `arpa_emit`, `arpa_spot_falloff`,
+/// `arpa_spot_falloff_at` (angles in radians).
 pub const EMISSION: &str = include_str!("../shaders/emission.wgsl");
 
 /// `heuristics.wgsl` (needs [`FOOTPRINT`], [`KERNEL`]): `ArpaHeuristics`
 /// (= [`crate::heuristics::PackedHeuristics`]), `ArpaStored`, `arpa_store`.
 pub const HEURISTICS: &str = include_str!("../shaders/heuristics.wgsl");
 
-/// `reemission.wgsl` (needs [`DIFFERENTIAL`], [`FRAME`], [`SAMPLING`]): `ArpaReemitted`,
+/// `reemission.wgsl` (needs [`MATH`], [`DIFFERENTIAL`], [`FRAME`], [`SAMPLING`]): `ArpaReemitted`,
 /// `arpa_virtual_distance`, `arpa_reemit`, `arpa_diffuse_direction`.
 pub const REEMISSION: &str = include_str!("../shaders/reemission.wgsl");
 
-/// `lambertian.wgsl` (needs [`FRAME`], [`SAMPLING`]): `ArpaDiffuseShading`
+/// `lambertian.wgsl` (needs [`MATH`], [`FRAME`], [`SAMPLING`]): `ArpaDiffuseShading`
 /// (= [`crate::lambertian::DiffuseShading`], `valid = 0` for `None`),
 /// `arpa_diffuse_shading_new`, `arpa_diffuse_below_shading_plane`, `arpa_diffuse_cosine`,
 /// `arpa_diffuse_adjoint_ratio`, `ArpaReemissionDirection`, `arpa_diffuse_sample_reemission`,
@@ -85,12 +103,14 @@ pub const LAMBERTIAN: &str = include_str!("../shaders/lambertian.wgsl");
 
 /// Every file as `(file name, source)`, in an order in which concatenation satisfies each
 /// file's dependencies.
-pub const ALL: [(&str, &str); 11] = [
+pub const ALL: [(&str, &str); 13] = [
+    ("math.wgsl", MATH),
     ("rng.wgsl", RNG),
     ("kernel.wgsl", KERNEL),
     ("footprint.wgsl", FOOTPRINT),
     ("radius.wgsl", RADIUS),
     ("differential.wgsl", DIFFERENTIAL),
+    ("fresnel.wgsl", FRESNEL),
     ("frame.wgsl", FRAME),
     ("sampling.wgsl", SAMPLING),
     ("emission.wgsl", EMISSION),
@@ -103,10 +123,12 @@ pub const ALL: [(&str, &str); 11] = [
 pub fn dependencies(file: &str) -> &'static [&'static str] {
     match file {
         "footprint.wgsl" => &["kernel.wgsl"],
-        "emission.wgsl" => &["rng.wgsl", "differential.wgsl", "frame.wgsl", "sampling.wgsl"],
+        "fresnel.wgsl" => &["math.wgsl"],
+        "differential.wgsl" | "frame.wgsl" => &["math.wgsl"],
+        "emission.wgsl" => &["math.wgsl", "rng.wgsl", "differential.wgsl", "frame.wgsl", "sampling.wgsl"],
         "heuristics.wgsl" => &["kernel.wgsl", "footprint.wgsl"],
-        "reemission.wgsl" => &["differential.wgsl", "frame.wgsl", "sampling.wgsl"],
-        "lambertian.wgsl" => &["frame.wgsl", "sampling.wgsl"],
+        "reemission.wgsl" => &["math.wgsl", "differential.wgsl", "frame.wgsl", "sampling.wgsl"],
+        "lambertian.wgsl" => &["math.wgsl", "frame.wgsl", "sampling.wgsl"],
         _ => &[],
     }
 }

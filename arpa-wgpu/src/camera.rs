@@ -19,9 +19,19 @@ use arpa_core::tracer::{QueryRecord, RenderSettings};
 use wgpu::util::DeviceExt;
 
 /// WGSL of the camera pass (`shaders/camera_pass.wgsl`, entry point `arpa_camera_main`),
-/// to be placed after `enable wgpu_ray_query;`, the twin files `rng`, `frame`, `sampling`,
-/// `lambertian` ([`arpa_core::shaders`]) and [`SCENE_WGSL`].
+/// after the core's twin files it needs and [`SCENE_WGSL`] ([`camera_pass_source`]
+/// assembles the whole module).
 pub const CAMERA_PASS_WGSL: &str = include_str!("shaders/camera_pass.wgsl");
+
+/// The complete WGSL module of the camera pass: `enable wgpu_ray_query;`, the core's twin
+/// files it uses ([`arpa_core::shaders`] `math`, `rng`, `differential`, `fresnel`, `frame`,
+/// `sampling`, `emission`, `lambertian`, in the order of [`arpa_core::shaders::ALL`]), the scene
+/// ([`SCENE_WGSL`], bind group 0) and [`CAMERA_PASS_WGSL`].
+pub fn camera_pass_source() -> String {
+    use arpa_core::shaders as s;
+    let twin = [s::MATH, s::RNG, s::DIFFERENTIAL, s::FRESNEL, s::FRAME, s::SAMPLING, s::EMISSION, s::LAMBERTIAN].join("\n");
+    format!("enable wgpu_ray_query;\n{twin}\n{SCENE_WGSL}\n{CAMERA_PASS_WGSL}")
+}
 
 /// Bytes of one query record on the device (= `size_of::<QueryRecord>()`).
 pub const QUERY_RECORD_BYTES: u64 = std::mem::size_of::<QueryRecord>() as u64;
@@ -118,8 +128,7 @@ impl CameraPass {
         };
         let label = "camera pass";
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        use arpa_core::shaders as twin;
-        let source = format!("enable wgpu_ray_query;\n{}\n{}\n{}\n{}\n{SCENE_WGSL}\n{CAMERA_PASS_WGSL}", twin::RNG, twin::FRAME, twin::SAMPLING, twin::LAMBERTIAN);
+        let source = camera_pass_source();
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(label), source: wgpu::ShaderSource::Wgsl(source.into()) });
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some(label),

@@ -43,7 +43,7 @@ pub const PHOTON_WORKGROUP_SIZE: u32 = 64;
 /// files it uses, the scene ([`SCENE_WGSL`], bind group 0) and [`PHOTON_PASS_WGSL`].
 pub fn photon_pass_source() -> String {
     use arpa_core::shaders as s;
-    let twin = [s::RNG, s::DIFFERENTIAL, s::FRAME, s::SAMPLING, s::EMISSION, s::REEMISSION, s::LAMBERTIAN].join("\n");
+    let twin = [s::MATH, s::RNG, s::DIFFERENTIAL, s::FRESNEL, s::FRAME, s::SAMPLING, s::EMISSION, s::REEMISSION, s::LAMBERTIAN].join("\n");
     format!("enable wgpu_ray_query;\n{twin}\n{SCENE_WGSL}\n{PHOTON_PASS_WGSL}")
 }
 

@@ -20,8 +20,9 @@ use wgpu::util::DeviceExt;
 /// [`GpuScene::bind_group_layout`] and `arpa_scene_intersect`, `arpa_scene_occluded`,
 /// `arpa_scene_surface` (`ArpaSurface`), `arpa_scene_triangle_vertices`,
 /// `arpa_scene_triangle_normals`, `arpa_offset_origin`, the emitters
-/// (`arpa_scene_emitters`, `ArpaSceneEmitter`) and `arpa_scene_info`. Needs
-/// `enable wgpu_ray_query;` at the top of the module; self-contained otherwise.
+/// (`arpa_scene_emitters`, `ArpaSceneEmitter`), `arpa_scene_info` and `ARPA_SCENE_T_MAX`
+/// (the extent of an unbounded ray). Needs `enable wgpu_ray_query;` at the top of the
+/// module and the core twin's [`arpa_core::shaders::MATH`] before it.
 pub const SCENE_WGSL: &str = include_str!("shaders/scene.wgsl");
 
 /// WGSL of the ray-cast kernel (entry point `cast_rays`), after `enable wgpu_ray_query;`.

@@ -6,8 +6,8 @@
 // re-emission (arpa_core::lambertian), re-emission with the virtual distance
 // (reemission.wgsl), caustic/global classification (arpa_core::classify), max_depth.
 //
-// Needs, before it: rng.wgsl, differential.wgsl, frame.wgsl, sampling.wgsl, emission.wgsl,
-// reemission.wgsl, lambertian.wgsl (the core's twin) and the scene (group 0: arpa_scene_intersect,
+// Needs, before it: math.wgsl, rng.wgsl, differential.wgsl, fresnel.wgsl, frame.wgsl,
+// sampling.wgsl, emission.wgsl, reemission.wgsl, lambertian.wgsl (the core's twin) and the scene (group 0: arpa_scene_intersect,
 // arpa_scene_surface, arpa_scene_triangle_vertices / _normals, arpa_offset_origin).
 //
 // Outputs (group 1), appended with atomics, each record tagged with the unique key
@@ -25,7 +25,7 @@
 //
 // Precision: f32 (the core: f64). Decisions taken by comparing a random draw with a
 // probability (Fresnel choice, Russian roulette) compare the full 32-bit draw with the
-// probability exactly as the core's next_f64() < p does, so they differ from the core only
+// probability exactly as the core's next_f64() < p does (arpa_rng_next_below), so they differ from the core only
 // where the f32 probability itself differs (Fresnel: a few eps32; Russian roulette: never,
 // the albedo is f32 in both). Directions drawn from 2-D samples use the 24-bit draws of
 // rng.wgsl (within 2^-24 of the core's).
@@ -33,8 +33,6 @@
 // Method (PhotonParams::method).
 const ARPA_PHOTON_METHOD_ARPA: u32 = 0u;
 const ARPA_PHOTON_METHOD_RTPM: u32 = 1u;
-// Largest finite f32: an unbounded ray (the core casts with t_max = infinity).
-const ARPA_PHOTON_T_MAX: f32 = 3.40282347e38;
 
 // Per-iteration parameters (photon.rs PhotonParams).
 struct PhotonParams {
@@ -116,71 +114,8 @@ struct PhotonCounters {
 var<workgroup> photon_wg_emitted: atomic<u32>;
 var<workgroup> photon_wg_segments: atomic<u32>;
 
-fn photon_finite3(v: vec3<f32>) -> bool {
-    return arpa_diff_finite3(v);
-}
-
 fn photon_max3(v: vec3<f32>) -> f32 {
     return max(v.x, max(v.y, v.z));
-}
-
-// `rng.next_f64() < p` of the core, bit-exact for an f32 p: the draw is the 32-bit word w
-// over 2^32, and w / 2^32 < p <=> w < ceil(p 2^32) for p in (0, 1).
-fn photon_draw_below(rng: ptr<function, ArpaRng>, p: f32) -> bool {
-    let w = arpa_rng_next_u32(rng);
-    if p >= 1.0 {
-        return true;
-    }
-    if !(p > 0.0) {
-        return false;
-    }
-    return w < u32(ceil(p * 4294967296.0));
-}
-
-// arpa_core::fresnel::dielectric_reflectance.
-fn photon_dielectric_reflectance(cos_i: f32, ior: f32) -> f32 {
-    if !(ior > 0.0) || !photon_finite3(vec3<f32>(ior, cos_i, 0.0)) {
-        return 1.0;
-    }
-    var eta = ior;
-    if cos_i < 0.0 {
-        eta = 1.0 / ior;
-    }
-    let ci = min(abs(cos_i), 1.0);
-    let sin_t2 = eta * eta * (1.0 - ci * ci);
-    if sin_t2 >= 1.0 {
-        return 1.0;
-    }
-    let ct = sqrt(1.0 - sin_t2);
-    let rs = (eta * ci - ct) / (eta * ci + ct);
-    let rp = (ci - eta * ct) / (ci + eta * ct);
-    return clamp(0.5 * (rs * rs + rp * rp), 0.0, 1.0);
-}
-
-// arpa_core::differential::refract_direction: the refracted (or, under total internal
-// reflection, reflected) unit direction and the event (ARPA_REFRACTION_*).
-struct PhotonRefracted {
-    dir: vec3<f32>,
-    event: u32,
-}
-
-fn photon_refract_direction(d: vec3<f32>, n_in: vec3<f32>, ior: f32) -> PhotonRefracted {
-    var n = n_in;
-    var eta = 1.0 / ior;
-    if dot(d, n_in) > 0.0 {
-        n = -n_in;
-        eta = ior;
-    }
-    if !(eta > 0.0) || !photon_finite3(vec3<f32>(eta)) {
-        return PhotonRefracted(d, ARPA_REFRACTION_TRANSMITTED);
-    }
-    let cos_i = dot(d, n);
-    let k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
-    if k < 0.0 {
-        return PhotonRefracted(arpa_reflect_direction(d, n), ARPA_REFRACTION_TIR);
-    }
-    let mu = eta * cos_i + sqrt(k);
-    return PhotonRefracted(arpa_diff_normalize_or(eta * d - mu * n, d), ARPA_REFRACTION_TRANSMITTED);
 }
 
 // A ray without a usable differential (photon_path's lost_differential).
@@ -210,7 +145,7 @@ fn photon_shading_normal(s: ArpaSurface, dp_du: vec3<f32>, dp_dv: vec3<f32>) -> 
     let ns = arpa_scene_triangle_normals(s.mesh, s.triangle);
     let c = cross(p[1] - p[0], p[2] - p[0]);
     let twice_area = arpa_diff_length(c);
-    if !(twice_area > 0.0) || !photon_finite3(vec3<f32>(twice_area)) {
+    if !(twice_area > 0.0) || !arpa_finite3(vec3<f32>(twice_area)) {
         return out;
     }
     let ng = c / twice_area;
@@ -220,14 +155,14 @@ fn photon_shading_normal(s: ArpaSurface, dp_du: vec3<f32>, dp_dv: vec3<f32>) -> 
     let b = s.barycentric;
     let m = ns[0] * b.x + ns[1] * b.y + ns[2] * b.z;
     let len = arpa_diff_length(m);
-    if !(len > 0.0) || !photon_finite3(vec3<f32>(len)) {
+    if !(len > 0.0) || !arpa_finite3(vec3<f32>(len)) {
         return out;
     }
     let n = m / len;
     let dm_u = ns[0] * dot(g0, dp_du) + ns[1] * dot(g1, dp_du) + ns[2] * dot(g2, dp_du);
     let dm_v = ns[0] * dot(g0, dp_dv) + ns[1] * dot(g1, dp_dv) + ns[2] * dot(g2, dp_dv);
     var nd = ArpaNormalDiff(n, (dm_u - n * dot(n, dm_u)) / len, (dm_v - n * dot(n, dm_v)) / len);
-    if !photon_finite3(nd.dn_du) || !photon_finite3(nd.dn_dv) {
+    if !arpa_finite3(nd.dn_du) || !arpa_finite3(nd.dn_dv) {
         return out;
     }
     if dot(nd.n, s.geometric_normal) < 0.0 {
@@ -350,7 +285,7 @@ fn photon_trace(index: u32) -> u32 {
     for (var depth = 0u; depth < max_depth; depth++) {
         let d = ray.d;
         segments += 1u;
-        let hit = arpa_scene_intersect(origin, d, ARPA_PHOTON_T_MAX);
+        let hit = arpa_scene_intersect(origin, d, ARPA_SCENE_T_MAX);
         if hit.hit == 0u {
             break;
         }
@@ -399,7 +334,7 @@ fn photon_trace(index: u32) -> u32 {
                 photon_store(at, s.geometric_normal, flux, map, valid, below, key);
             }
             let survive = min(photon_max3(s.color), 1.0);
-            if !photon_draw_below(&rng, survive) {
+            if !arpa_rng_next_below(&rng, survive) {
                 break;
             }
             flux *= s.color / survive;
@@ -441,15 +376,15 @@ fn photon_trace(index: u32) -> u32 {
             if nd.ok {
                 n = nd.nd.n;
             }
-            let fresnel = photon_dielectric_reflectance(dot(d, n), s.ior);
-            if photon_draw_below(&rng, fresnel) {
+            let fresnel = arpa_dielectric_reflectance(dot(d, n), s.ior);
+            if arpa_rng_next_below(&rng, fresnel) {
                 let r = photon_reflect(at, valid, nd, s.geometric_normal);
                 ray = r.ray;
                 valid = r.valid;
                 origin = arpa_offset_origin(s.position, front);
             } else {
                 flux *= s.color;
-                let rd = photon_refract_direction(d, n, s.ior);
+                let rd = arpa_refract_direction(d, n, s.ior);
                 var refracted_ok = false;
                 if valid && nd.ok {
                     let r = arpa_diff_refract(at, nd.nd, s.ior);
@@ -469,7 +404,7 @@ fn photon_trace(index: u32) -> u32 {
                 origin = arpa_offset_origin(s.position, side);
             }
         }
-        if !(photon_max3(flux) > 0.0) || !photon_finite3(flux) {
+        if !(photon_max3(flux) > 0.0) || !arpa_finite3(flux) {
             break;
         }
     }

@@ -2,7 +2,8 @@
 // (one BLAS per mesh, instance custom data = mesh index), per-mesh materials with the
 // scene's roughness cut-off resolved on the host, per-triangle geometry, and the emitters
 // for next-event estimation. Mirrors arpa_core::prepared_scene::PreparedScene.
-// Self-contained; the module must start with `enable wgpu_ray_query;`. Units: metres,
+// Needs the core twin's math.wgsl (arpa_core::shaders::MATH) before it; the module must
+// start with `enable wgpu_ray_query;`. Units: metres,
 // world space; radiance W/(m^2 sr), intensity W/sr, irradiance W/m^2 (linear RGB).
 
 // Scattering kinds (arpa_core::scene::Scattering).
@@ -16,6 +17,10 @@ const ARPA_EMITTER_SPOT: u32 = 1u;
 const ARPA_EMITTER_DIRECTIONAL: u32 = 2u;
 const ARPA_EMITTER_TRIANGLE: u32 = 3u;
 const ARPA_EMITTER_QUAD: u32 = 4u;
+
+// Ray extent standing for the core's unbounded rays (t_max = infinity): the largest
+// finite f32 (metres).
+const ARPA_SCENE_T_MAX: f32 = 3.40282347e38;
 
 // Per-triangle flags.
 // The triangle has vertex normals that differ from its face normal
@@ -77,7 +82,7 @@ struct ArpaSceneTriangle {
 struct ArpaSceneEmitter {
     // ARPA_EMITTER_*.
     kind: u32,
-    // Spot falloff: 0 linear in angle, 1 smoothstep.
+    // Spot falloff: 0 linear in angle, 1 smoothstep (ARPA_FALLOFF_* of emission.wgsl).
     falloff: u32,
     // Spot cut-off and full-intensity half-angles (rad).
     cutoff: f32,
@@ -171,10 +176,6 @@ struct ArpaSurface {
     mesh_has_normals: u32,
 }
 
-fn arpa_scene_finite3(v: vec3<f32>) -> bool {
-    return all((bitcast<vec3<u32>>(v) & vec3<u32>(0x7f800000u)) != vec3<u32>(0x7f800000u));
-}
-
 // Index of a mesh's triangle in arpa_scene_triangles.
 fn arpa_scene_triangle_index(mesh: u32, triangle: u32) -> u32 {
     return arpa_scene_meshes[mesh].first_triangle + triangle;
@@ -198,7 +199,7 @@ fn arpa_scene_interpolated_normal(t: ArpaSceneTriangle, b: vec3<f32>) -> vec3<f3
     let m = t.n0 * b.x + t.n1 * b.y + t.n2 * b.z;
     let a = abs(m);
     let s = max(a.x, max(a.y, a.z));
-    if !(s > 0.0) || !arpa_scene_finite3(m) {
+    if !(s > 0.0) || !arpa_finite3(m) {
         return t.normal;
     }
     let w = m / s;

@@ -28,7 +28,7 @@ use arpa_core::prepared_scene::PreparedScene;
 use arpa_core::ray_cast::BruteForceCaster;
 use arpa_core::scene::Scene;
 use arpa_core::tracer::{QueryRecord, RenderSettings};
-use arpa_wgpu::camera::CameraPass;
+use arpa_wgpu::camera::{CameraPass, CameraPassError};
 use arpa_wgpu::scene::GpuScene;
 use arpa_wgpu::GpuContext;
 use glam::Vec3;
@@ -180,4 +180,37 @@ fn same_seed_is_bit_identical_and_iterations_differ() {
     let c = device_queries(ctx, &prepared, &settings(5, true), 4);
     assert_eq!(bytemuck::cast_slice::<QueryRecord, u32>(&a), bytemuck::cast_slice::<QueryRecord, u32>(&b));
     assert_ne!(bytemuck::cast_slice::<QueryRecord, u32>(&a), bytemuck::cast_slice::<QueryRecord, u32>(&c));
+    // Two iterations encoded into one command buffer keep their own iteration numbers.
+    let scene = GpuScene::upload(ctx, &prepared).expect("upload");
+    let pass = CameraPass::new(ctx, &scene, &prepared, &settings(5, true)).expect("camera pass");
+    let bytes = pass.query_buffer_bytes();
+    let (q3, q4) = (pass.create_query_buffer(wgpu::BufferUsages::COPY_SRC), pass.create_query_buffer(wgpu::BufferUsages::COPY_SRC));
+    let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: 2 * bytes,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    pass.encode(&mut encoder, 3, &q3);
+    pass.encode(&mut encoder, 4, &q4);
+    encoder.copy_buffer_to_buffer(&q3, 0, &staging, 0, bytes);
+    encoder.copy_buffer_to_buffer(&q4, 0, &staging, bytes, bytes);
+    ctx.queue.submit([encoder.finish()]);
+    staging.map_async(wgpu::MapMode::Read, .., |r| r.expect("map"));
+    ctx.device.poll(wgpu::PollType::wait_indefinitely()).expect("poll");
+    let both = staging.get_mapped_range(..).expect("mapped").to_vec();
+    assert_eq!(&both[..bytes as usize], bytemuck::cast_slice::<QueryRecord, u8>(&a));
+    assert_eq!(&both[bytes as usize..], bytemuck::cast_slice::<QueryRecord, u8>(&c));
+}
+
+#[test]
+fn oversized_images_are_refused_with_their_size() {
+    let Some(ctx) = gpu() else { return };
+    let mut scene = scenes::cornell(8);
+    (scene.camera.width, scene.camera.height) = (100_000, 100_000);
+    let prepared = PreparedScene::new(scene).expect("valid scene");
+    let gpu_scene = GpuScene::upload(ctx, &prepared).expect("upload");
+    let e = CameraPass::new(ctx, &gpu_scene, &prepared, &settings(0, true)).err().expect("10^10 pixels");
+    assert!(matches!(e, CameraPassError::TooManyPixels { .. }) && e.to_string().contains("100000 x 100000"), "{e}");
 }

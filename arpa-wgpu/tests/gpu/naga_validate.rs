@@ -96,7 +96,7 @@ fn a_broken_file_is_rejected() {
 
 #[test]
 fn scene_wgsl_validates() {
-    let src = format!("enable wgpu_ray_query;\n{}", arpa_wgpu::scene::SCENE_WGSL);
+    let src = format!("enable wgpu_ray_query;\n{}\n{}", shaders::MATH, arpa_wgpu::scene::SCENE_WGSL);
     let module = naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| panic!("scene.wgsl: {}", e.emit_to_string(&src)));
     naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::RAY_QUERY)
         .validate(&module)
@@ -105,15 +105,7 @@ fn scene_wgsl_validates() {
 
 #[test]
 fn camera_pass_validates() {
-    let src = format!(
-        "enable wgpu_ray_query;\n{}\n{}\n{}\n{}\n{}\n{}",
-        shaders::RNG,
-        shaders::FRAME,
-        shaders::SAMPLING,
-        shaders::LAMBERTIAN,
-        arpa_wgpu::scene::SCENE_WGSL,
-        arpa_wgpu::camera::CAMERA_PASS_WGSL
-    );
+    let src = arpa_wgpu::camera::camera_pass_source();
     let module = naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| panic!("camera_pass.wgsl: {}", e.emit_to_string(&src)));
     naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::RAY_QUERY)
         .validate(&module)

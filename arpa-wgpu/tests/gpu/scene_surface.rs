@@ -103,7 +103,7 @@ fn surfaces_match_prepared_scene() {
         push3(&mut input, d.to_array());
         input.push(fb(*t));
     }
-    let source = format!("enable wgpu_ray_query;\n{SCENE_WGSL}\n{KERNEL}");
+    let source = format!("enable wgpu_ray_query;\n{}\n{SCENE_WGSL}\n{KERNEL}", arpa_core::shaders::MATH);
     let out = run_scene_kernel(ctx, &scene, "scene surface", &source, "main", &input, rs.len() as u32, rs.len() * OUT).unwrap_or_else(|e| panic!("{e}"));
     let meshes = &prepared.scene().meshes;
     let (mut hits, mut agree, mut differ) = (0usize, 0usize, 0usize);
