@@ -279,6 +279,20 @@ impl PreparedScene {
         }
     }
 
+    /// Power of every emitter as the photon allocation and the area-emitter pick weigh
+    /// it (luminance of the emitted power, W; ≥ 0), in [`PreparedScene::emitters`] order.
+    pub fn emitter_powers(&self) -> &[f64] {
+        &self.emitter_power
+    }
+
+    /// The area emitters (triangles and quads) in the order
+    /// [`PreparedScene::pick_area_emitter`] searches them: their indices into
+    /// [`PreparedScene::emitters`] and the running sum of their powers (W; the last entry is
+    /// the total). For backends that mirror the pick.
+    pub fn area_emitter_cdf(&self) -> (&[usize], &[f64]) {
+        (&self.area_emitters, &self.area_cdf)
+    }
+
     /// Picks an area emitter for next-event estimation with probability proportional to
     /// its power from the uniform number `u`: `(emitter index, probability)`.
     pub fn pick_area_emitter(&self, u: f64) -> Option<(usize, f64)> {

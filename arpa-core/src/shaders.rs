@@ -18,6 +18,7 @@
 //! | [`SAMPLING`] | [`crate::sampling`] | sphere, cone, concentric disc, cosine hemisphere, triangle, Fibonacci lattice |
 //! | [`EMISSION`] | [`crate::emission`] | `PreparedLight::emit` from a [`crate::emission::PackedLight`] (same 160-byte layout) |
 //! | [`REEMISSION`] | [`crate::reemission`] | virtual distance, `reemit`, cosine-distributed diffuse direction |
+//! | [`LAMBERTIAN`] | [`crate::lambertian`] | two-sided Lambertian shading frame: cosine, adjoint ratio, re-emission direction |
 //! | [`HEURISTICS`] | [`crate::heuristics`] | `ResolvedHeuristics::store` from a [`crate::heuristics::PackedHeuristics`]: dampening, H-max, degenerate removal, box, culling, record |
 //!
 //! ## Precision
@@ -75,9 +76,16 @@ pub const HEURISTICS: &str = include_str!("../shaders/heuristics.wgsl");
 /// `arpa_virtual_distance`, `arpa_reemit`, `arpa_diffuse_direction`.
 pub const REEMISSION: &str = include_str!("../shaders/reemission.wgsl");
 
+/// `lambertian.wgsl` (needs [`FRAME`], [`SAMPLING`]): `ArpaDiffuseShading`
+/// (= [`crate::lambertian::DiffuseShading`], `valid = 0` for `None`),
+/// `arpa_diffuse_shading_new`, `arpa_diffuse_below_shading_plane`, `arpa_diffuse_cosine`,
+/// `arpa_diffuse_adjoint_ratio`, `ArpaReemissionDirection`, `arpa_diffuse_sample_reemission`,
+/// `ARPA_MAX_ADJOINT_RATIO`. Unit vectors, world space.
+pub const LAMBERTIAN: &str = include_str!("../shaders/lambertian.wgsl");
+
 /// Every file as `(file name, source)`, in an order in which concatenation satisfies each
 /// file's dependencies.
-pub const ALL: [(&str, &str); 10] = [
+pub const ALL: [(&str, &str); 11] = [
     ("rng.wgsl", RNG),
     ("kernel.wgsl", KERNEL),
     ("footprint.wgsl", FOOTPRINT),
@@ -88,6 +96,7 @@ pub const ALL: [(&str, &str); 10] = [
     ("emission.wgsl", EMISSION),
     ("heuristics.wgsl", HEURISTICS),
     ("reemission.wgsl", REEMISSION),
+    ("lambertian.wgsl", LAMBERTIAN),
 ];
 
 /// The files each file needs before it (by name), for renderers that include a subset.
@@ -97,6 +106,7 @@ pub fn dependencies(file: &str) -> &'static [&'static str] {
         "emission.wgsl" => &["rng.wgsl", "differential.wgsl", "frame.wgsl", "sampling.wgsl"],
         "heuristics.wgsl" => &["kernel.wgsl", "footprint.wgsl"],
         "reemission.wgsl" => &["differential.wgsl", "frame.wgsl", "sampling.wgsl"],
+        "lambertian.wgsl" => &["frame.wgsl", "sampling.wgsl"],
         _ => &[],
     }
 }

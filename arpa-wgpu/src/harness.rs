@@ -110,6 +110,87 @@ pub fn run_kernel(
     Ok(bytemuck::pod_collect_to_vec(&out))
 }
 
+/// [`run_kernel`] for kernels that read the scene: `source` (which must start with
+/// `enable wgpu_ray_query;` and include [`crate::scene::SCENE_WGSL`]) gets `scene`'s bind
+/// group as group 0 and declares its input and output buffers in **group 1**
+/// (`@group(1) @binding(0)` input, `@group(1) @binding(1)` output), otherwise as
+/// [`run_kernel`].
+#[allow(clippy::too_many_arguments)]
+pub fn run_scene_kernel(
+    ctx: &GpuContext,
+    scene: &crate::scene::GpuScene,
+    label: &str,
+    source: &str,
+    entry: &str,
+    input: &[u32],
+    items: u32,
+    output_words: usize,
+) -> Result<Vec<u32>, HarnessError> {
+    use wgpu::util::DeviceExt;
+    let device = &ctx.device;
+    let size_err = |message: String| HarnessError::Size { label: label.into(), message };
+    if output_words == 0 {
+        return Err(size_err("empty output".into()));
+    }
+    let groups = items.div_ceil(WORKGROUP_SIZE);
+    if groups > device.limits().max_compute_workgroups_per_dimension {
+        return Err(size_err(format!("{items} items need {groups} workgroups, more than one dispatch allows")));
+    }
+    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(label), source: wgpu::ShaderSource::Wgsl(source.into()) });
+    let buffer_entry = |binding, read_only| wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only }, has_dynamic_offset: false, min_binding_size: None },
+        count: None,
+    };
+    let io_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(label),
+        entries: &[buffer_entry(0, true), buffer_entry(1, false)],
+    });
+    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &[Some(scene.bind_group_layout()), Some(&io_layout)],
+        immediate_size: 0,
+    });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(label),
+        layout: Some(&pipeline_layout),
+        module: &module,
+        entry_point: Some(entry),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    let pad = [0u32];
+    let input_words: &[u32] = if input.is_empty() { &pad } else { input };
+    let input_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: bytemuck::cast_slice(input_words),
+        usage: wgpu::BufferUsages::STORAGE,
+    });
+    let out_bytes = (output_words * 4) as u64;
+    let (output_buf, staging) = output_and_staging(device, label, out_bytes);
+    let io = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout: &io_layout,
+        entries: &[
+            wgpu::BindGroupEntry { binding: 0, resource: input_buf.as_entire_binding() },
+            wgpu::BindGroupEntry { binding: 1, resource: output_buf.as_entire_binding() },
+        ],
+    });
+    let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
+    {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(label), timestamp_writes: None });
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, scene.bind_group(), &[]);
+        pass.set_bind_group(1, &io, &[]);
+        pass.dispatch_workgroups(groups.max(1), 1, 1);
+    }
+    encoder.copy_buffer_to_buffer(&output_buf, 0, &staging, 0, out_bytes);
+    let [out] = submit_and_read(ctx, scope, encoder, label, [&staging])?;
+    Ok(bytemuck::pod_collect_to_vec(&out))
+}
+
 /// A kernel's output buffer of `bytes` (`STORAGE | COPY_SRC`) and the `MAP_READ` staging
 /// buffer of the same size it is copied into for [`submit_and_read`].
 pub(crate) fn output_and_staging(device: &wgpu::Device, label: &str, bytes: u64) -> (wgpu::Buffer, wgpu::Buffer) {

@@ -11,7 +11,9 @@
 //!   [`arpa_core::shaders`]) over input buffers and reads the results back, used by the
 //!   tests that compare the twin with the Rust core;
 //! * [`scene`]: scene upload (a triangle BLAS per mesh, one TLAS) and closest-hit ray
-//!   casting on ray queries, checked against the core's brute-force caster;
+//!   casting on ray queries, checked against the core's brute-force caster; the prepared
+//!   scene (materials, normals, emitters) as bind group 0 of every pass with its WGSL
+//!   ([`scene::SCENE_WGSL`]), checked against `PreparedScene`;
 //! * [`store`]: footprint store, acceleration-structure build and gather in one device
 //!   submission (deterministic slots, inactive boxes for rejected footprints);
 //! * [`gather`]: the gather stage on ray queries (footprint boxes in AABB acceleration

@@ -1,15 +1,28 @@
 //! Scene upload: the triangles of every mesh into a bottom-level acceleration structure of
 //! their own (positions `f32`, world space, metres), one instance per mesh (custom data =
-//! mesh index) in a top-level structure; and closest-hit ray casting against it on ray
-//! queries, the device side of [`arpa_core::ray_cast::RayCaster`], checked against
-//! [`arpa_core::ray_cast::BruteForceCaster`].
+//! mesh index) in a top-level structure ([`GpuGeometry`]); closest-hit ray casting against
+//! it on ray queries, the device side of [`arpa_core::ray_cast::RayCaster`], checked
+//! against [`arpa_core::ray_cast::BruteForceCaster`]; and the whole prepared scene
+//! ([`GpuScene`]: geometry, materials, vertex normals, emitters) as bind group 0 of every
+//! pass, read by the WGSL of [`SCENE_WGSL`].
 
 use crate::device::GpuContext;
 use crate::harness::{HarnessError, output_and_staging, submit_and_read};
+use arpa_core::emission::{Light, SpotFalloff};
+use arpa_core::glam::{DVec3, Vec3};
+use arpa_core::prepared_scene::PreparedScene;
 use arpa_core::ray_cast::RayHit;
-use arpa_core::scene::TriangleMesh;
-use arpa_core::glam::Vec3;
+use arpa_core::scene::{Scattering, TriangleMesh};
+use arpa_core::shading_normal::ShadedTriangle;
 use wgpu::util::DeviceExt;
+
+/// WGSL of the scene on the device (`shaders/scene.wgsl`): the group-0 bindings of
+/// [`GpuScene::bind_group_layout`] and `arpa_scene_intersect`, `arpa_scene_occluded`,
+/// `arpa_scene_surface` (`ArpaSurface`), `arpa_scene_triangle_vertices`,
+/// `arpa_scene_triangle_normals`, `arpa_offset_origin`, the emitters
+/// (`arpa_scene_emitters`, `ArpaSceneEmitter`) and `arpa_scene_info`. Needs
+/// `enable wgpu_ray_query;` at the top of the module; self-contained otherwise.
+pub const SCENE_WGSL: &str = include_str!("shaders/scene.wgsl");
 
 /// WGSL of the ray-cast kernel (entry point `cast_rays`), after `enable wgpu_ray_query;`.
 pub const RAY_CAST_WGSL: &str = include_str!("shaders/ray_cast.wgsl");
@@ -45,13 +58,16 @@ pub enum SceneUploadError {
         /// Limit.
         max: u32,
     },
+    /// More triangles in all than a `u32` counts.
+    #[error("the scene has more than 2^32 - 1 triangles")]
+    TooManyTriangles,
     /// The device rejected a build.
     #[error(transparent)]
     Device(#[from] HarnessError),
 }
 
-/// The scene's geometry on the device.
-pub struct GpuScene {
+/// The scene's triangles on the device: one BLAS per non-empty mesh and a TLAS.
+pub struct GpuGeometry {
     blases: Vec<wgpu::Blas>,
     tlas: wgpu::Tlas,
     /// Triangles per mesh (empty meshes get no instance).
@@ -78,7 +94,7 @@ struct CastHit {
     pad: [u32; 3],
 }
 
-impl GpuScene {
+impl GpuGeometry {
     /// Builds the acceleration structures of `meshes` (validated here: indices in range,
     /// finite vertices) and waits for the build.
     pub fn upload(ctx: &GpuContext, meshes: &[TriangleMesh]) -> Result<Self, SceneUploadError> {
@@ -222,5 +238,254 @@ impl GpuScene {
             .iter()
             .map(|h| (h.mesh != u32::MAX).then_some(RayHit { t: h.t, mesh: h.mesh, triangle: h.triangle, b1: h.b1, b2: h.b2 }))
             .collect())
+    }
+}
+
+/// `ArpaSceneInfo` of `scene.wgsl` (uniform, 32 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+struct SceneInfo {
+    mesh_count: u32,
+    delta_count: u32,
+    area_count: u32,
+    pad0: u32,
+    sphere_centre: [f32; 3],
+    sphere_radius: f32,
+}
+
+/// `ArpaSceneMesh` of `scene.wgsl` (48 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct SceneMesh {
+    first_triangle: u32,
+    triangle_count: u32,
+    kind: u32,
+    emissive: u32,
+    color: [f32; 3],
+    ior: f32,
+    emission: [f32; 3],
+    has_normals: u32,
+}
+
+/// `ArpaSceneTriangle` of `scene.wgsl` (112 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct SceneTriangle {
+    p0: [f32; 3],
+    flags: u32,
+    p1: [f32; 3],
+    pad1: u32,
+    p2: [f32; 3],
+    pad2: u32,
+    normal: [f32; 3],
+    pad3: u32,
+    n0: [f32; 3],
+    pad4: u32,
+    n1: [f32; 3],
+    pad5: u32,
+    n2: [f32; 3],
+    pad6: u32,
+}
+
+/// `ArpaSceneEmitter` of `scene.wgsl` (80 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+struct SceneEmitter {
+    kind: u32,
+    falloff: u32,
+    cutoff: f32,
+    beam_width: f32,
+    p0: [f32; 3],
+    cdf: f32,
+    p1: [f32; 3],
+    probability: f32,
+    p2: [f32; 3],
+    pad0: f32,
+    color: [f32; 3],
+    pad1: f32,
+}
+
+const TRIANGLE_SHADED: u32 = 1;
+const TRIANGLE_NORMALS: u32 = 2;
+
+/// The prepared scene on the device: the [`GpuGeometry`] plus what the passes read at a
+/// hit (materials with the roughness cut-off resolved, vertex positions and normals,
+/// geometric normals, emission) and the emitters for next-event estimation, all in bind
+/// group 0 ([`GpuScene::bind_group_layout`], declared by [`SCENE_WGSL`]). Every value is
+/// the core's rounded once to `f32`.
+pub struct GpuScene {
+    geometry: GpuGeometry,
+    layout: wgpu::BindGroupLayout,
+    bind_group: wgpu::BindGroup,
+    /// Emitters in the device's order: delta lights, then area emitters (indices into
+    /// [`arpa_core::prepared_scene::PreparedScene::emitters`]).
+    pub emitter_order: Vec<usize>,
+}
+
+impl GpuScene {
+    /// Uploads `scene` (already validated by [`PreparedScene::new`]) and waits for the
+    /// acceleration-structure build.
+    pub fn upload(ctx: &GpuContext, scene: &PreparedScene) -> Result<Self, SceneUploadError> {
+        let geometry = GpuGeometry::upload(ctx, &scene.scene().meshes)?;
+        let device = &ctx.device;
+        let label = "scene tables";
+        let s = scene.scene();
+        let f3 = |v: DVec3| v.as_vec3().to_array();
+        let mut meshes = Vec::with_capacity(s.meshes.len());
+        let mut triangles = Vec::new();
+        for (mi, m) in s.meshes.iter().enumerate() {
+            let (kind, color, ior) = match s.materials[m.material as usize].scattering(s.roughness_cutoff) {
+                Scattering::Diffuse(c) => (0, c, 1.0),
+                Scattering::Mirror(c) => (1, c, 1.0),
+                Scattering::Refractive(ior, c) => (2, c, ior),
+            };
+            let first_triangle = u32::try_from(triangles.len()).map_err(|_| SceneUploadError::TooManyTriangles)?;
+            meshes.push(SceneMesh {
+                first_triangle,
+                triangle_count: m.indices.len() as u32,
+                kind,
+                emissive: m.emission.is_some() as u32,
+                color: color.to_array(),
+                ior,
+                emission: m.emission.unwrap_or(Vec3::ZERO).to_array(),
+                has_normals: m.normals.is_some() as u32,
+            });
+            for (ti, idx) in m.indices.iter().enumerate() {
+                let p = scene.triangle(mi as u32, ti as u32);
+                let probe = scene.surface(&RayHit { t: 1.0, mesh: mi as u32, triangle: ti as u32, b1: 0.0, b2: 0.0 });
+                let normal = probe.geometric_normal;
+                let (n, normals_usable) = match &m.normals {
+                    Some(ns) => {
+                        let n = idx.map(|i| ns[i as usize]);
+                        let usable = ShadedTriangle { p, n: n.map(|v| v.as_dvec3()) }.barycentric_gradients().is_ok();
+                        (n.map(|v| v.to_array()), usable)
+                    }
+                    None => ([f3(normal); 3], false),
+                };
+                let flags = if scene.has_shading_normals(&probe) { TRIANGLE_SHADED } else { 0 } | if normals_usable { TRIANGLE_NORMALS } else { 0 };
+                triangles.push(SceneTriangle {
+                    p0: f3(p[0]),
+                    p1: f3(p[1]),
+                    p2: f3(p[2]),
+                    flags,
+                    normal: f3(normal),
+                    n0: n[0],
+                    n1: n[1],
+                    n2: n[2],
+                    ..SceneTriangle::default()
+                });
+            }
+        }
+        let emitters = scene.emitters();
+        let powers = scene.emitter_powers();
+        let (area, cdf) = scene.area_emitter_cdf();
+        let total = cdf.last().copied().unwrap_or(0.0);
+        let mut order: Vec<usize> = (0..emitters.len()).filter(|&i| !matches!(emitters[i], Light::Triangle(_) | Light::Quad(_))).collect();
+        let delta_count = order.len();
+        // Without positive total power the core picks no area emitter: upload none.
+        let area_count = if total > 0.0 { area.len() } else { 0 };
+        order.extend(&area[..area_count]);
+        let packed: Vec<SceneEmitter> = order
+            .iter()
+            .enumerate()
+            .map(|(slot, &i)| {
+                let (cdf, probability) = if slot >= delta_count { ((cdf[slot - delta_count] / total) as f32, (powers[i] / total) as f32) } else { (0.0, 0.0) };
+                let e = SceneEmitter { cdf, probability, ..SceneEmitter::default() };
+                match emitters[i] {
+                    Light::Point(l) => SceneEmitter { kind: 0, p0: f3(l.position), color: f3(l.intensity), ..e },
+                    Light::Spot(l) => SceneEmitter {
+                        kind: 1,
+                        falloff: match l.falloff {
+                            SpotFalloff::LinearAngle => 0,
+                            SpotFalloff::SmoothstepAngle => 1,
+                        },
+                        cutoff: l.cutoff as f32,
+                        beam_width: l.beam_width as f32,
+                        p0: f3(l.position),
+                        p1: f3(l.direction.normalize_or(DVec3::Z)),
+                        color: f3(l.intensity),
+                        ..e
+                    },
+                    Light::Directional(l) => SceneEmitter { kind: 2, p0: f3(l.direction.normalize_or(DVec3::Z)), color: f3(l.irradiance), ..e },
+                    Light::Triangle(l) => SceneEmitter { kind: 3, p0: f3(l.p[0]), p1: f3(l.p[1]), p2: f3(l.p[2]), color: f3(l.radiance), ..e },
+                    Light::Quad(l) => SceneEmitter { kind: 4, p0: f3(l.origin), p1: f3(l.edge_u), p2: f3(l.edge_v), color: f3(l.radiance), ..e },
+                }
+            })
+            .collect();
+        let (centre, radius) = scene.bounding_sphere();
+        let info = SceneInfo {
+            mesh_count: s.meshes.len() as u32,
+            delta_count: delta_count as u32,
+            area_count: area_count as u32,
+            pad0: 0,
+            sphere_centre: f3(centre),
+            sphere_radius: radius as f32,
+        };
+        // Storage bindings must not be empty: one zeroed element where a table is.
+        fn non_empty<T: Default + Clone>(mut v: Vec<T>) -> Vec<T> {
+            if v.is_empty() {
+                v.push(T::default());
+            }
+            v
+        }
+        let init = |contents: &[u8], usage| device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(label), contents, usage });
+        let info_buf = init(bytemuck::bytes_of(&info), wgpu::BufferUsages::UNIFORM);
+        let mesh_buf = init(bytemuck::cast_slice(&non_empty(meshes)), wgpu::BufferUsages::STORAGE);
+        let tri_buf = init(bytemuck::cast_slice(&non_empty(triangles)), wgpu::BufferUsages::STORAGE);
+        let emitter_buf = init(bytemuck::cast_slice(&non_empty(packed)), wgpu::BufferUsages::STORAGE);
+        let storage = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only: true }, has_dynamic_offset: false, min_binding_size: None },
+            count: None,
+        };
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("scene (group 0)"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::AccelerationStructure { vertex_return: false },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
+                    count: None,
+                },
+                storage(2),
+                storage(3),
+                storage(4),
+            ],
+        });
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("scene (group 0)"),
+            layout: &layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: geometry.tlas.as_binding() },
+                wgpu::BindGroupEntry { binding: 1, resource: info_buf.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 2, resource: mesh_buf.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 3, resource: tri_buf.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 4, resource: emitter_buf.as_entire_binding() },
+            ],
+        });
+        Ok(Self { geometry, layout, bind_group, emitter_order: order })
+    }
+
+    /// Layout of bind group 0 (what [`SCENE_WGSL`] declares): TLAS, scene info (uniform),
+    /// meshes, triangles, emitters (read-only storage); compute stage.
+    pub fn bind_group_layout(&self) -> &wgpu::BindGroupLayout {
+        &self.layout
+    }
+
+    /// Bind group 0 of every pass pipeline.
+    pub fn bind_group(&self) -> &wgpu::BindGroup {
+        &self.bind_group
+    }
+
+    /// The acceleration structures.
+    pub fn geometry(&self) -> &GpuGeometry {
+        &self.geometry
     }
 }

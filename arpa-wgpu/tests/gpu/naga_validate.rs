@@ -87,3 +87,12 @@ fn a_broken_file_is_rejected() {
         .is_some_and(|m| naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::empty()).validate(&m).is_ok());
     assert!(!ok, "a mistyped radius.wgsl validated");
 }
+
+#[test]
+fn scene_wgsl_validates() {
+    let src = format!("enable wgpu_ray_query;\n{}", arpa_wgpu::scene::SCENE_WGSL);
+    let module = naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| panic!("scene.wgsl: {}", e.emit_to_string(&src)));
+    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::RAY_QUERY)
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("scene.wgsl: {}", e.emit_to_string(&src)));
+}

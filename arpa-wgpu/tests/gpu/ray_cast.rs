@@ -1,4 +1,4 @@
-//! Scene upload and closest-hit ray casting on ray queries (`GpuScene`) against the core's
+//! Scene upload and closest-hit ray casting on ray queries (`GpuGeometry`) against the core's
 //! `BruteForceCaster` (Möller–Trumbore in f64) on a closed box with an icosphere and a
 //! tilted panel inside: random rays from inside the box, all kinds of hits.
 //!
@@ -13,7 +13,7 @@ use arpa_core::ray_cast::{BruteForceCaster, RayCaster};
 use arpa_core::rng::{Rng, StreamDomain};
 use arpa_core::scene::{Camera, Material, Scene, TriangleMesh};
 use arpa_core::shapes::{icosphere, parallelogram};
-use arpa_wgpu::scene::{GpuScene, SceneUploadError};
+use arpa_wgpu::scene::{GpuGeometry, SceneUploadError};
 use glam::{DVec3, Vec3};
 use proptest::prelude::*;
 
@@ -62,7 +62,7 @@ proptest! {
         let scene = scene();
         let prepared = PreparedScene::new(scene.clone()).expect("valid test scene");
         let reference = BruteForceCaster::new(&prepared);
-        let gpu_scene = GpuScene::upload(ctx, &scene.meshes).map_err(|e| TestCaseError::fail(e.to_string()))?;
+        let gpu_scene = GpuGeometry::upload(ctx, &scene.meshes).map_err(|e| TestCaseError::fail(e.to_string()))?;
         prop_assert_eq!(gpu_scene.instance_count(), scene.meshes.len() - 1);
         let rs = rays(seed, 5000);
         let got = gpu_scene.intersect(ctx, &rs).map_err(|e| TestCaseError::fail(e.to_string()))?;
@@ -101,10 +101,10 @@ fn bad_meshes_are_named() {
     let Some(ctx) = gpu() else { return };
     let mut s = scene();
     s.meshes[8].indices.push([0, 1, 9]);
-    let e = GpuScene::upload(ctx, &s.meshes).err().expect("index out of range");
+    let e = GpuGeometry::upload(ctx, &s.meshes).err().expect("index out of range");
     assert!(matches!(e, SceneUploadError::IndexOutOfRange { .. }) && e.to_string().contains("panel") && e.to_string().contains('9'), "{e}");
     let mut s = scene();
     s.meshes[7].positions[3].y = f32::NAN;
-    let e = GpuScene::upload(ctx, &s.meshes).err().expect("non-finite vertex");
+    let e = GpuGeometry::upload(ctx, &s.meshes).err().expect("non-finite vertex");
     assert!(e.to_string().contains("sphere") && e.to_string().contains("vertex 3"), "{e}");
 }

@@ -1,0 +1,245 @@
+// The scene on the device (bind group 0 of every pass): the triangle acceleration structure
+// (one BLAS per mesh, instance custom data = mesh index), per-mesh materials with the
+// scene's roughness cut-off resolved on the host, per-triangle geometry, and the emitters
+// for next-event estimation. Mirrors arpa_core::prepared_scene::PreparedScene.
+// Self-contained; the module must start with `enable wgpu_ray_query;`. Units: metres,
+// world space; radiance W/(m^2 sr), intensity W/sr, irradiance W/m^2 (linear RGB).
+
+// Scattering kinds (arpa_core::scene::Scattering).
+const ARPA_SCATTER_DIFFUSE: u32 = 0u;
+const ARPA_SCATTER_MIRROR: u32 = 1u;
+const ARPA_SCATTER_REFRACTIVE: u32 = 2u;
+
+// Emitter kinds (arpa_core::emission::Light).
+const ARPA_EMITTER_POINT: u32 = 0u;
+const ARPA_EMITTER_SPOT: u32 = 1u;
+const ARPA_EMITTER_DIRECTIONAL: u32 = 2u;
+const ARPA_EMITTER_TRIANGLE: u32 = 3u;
+const ARPA_EMITTER_QUAD: u32 = 4u;
+
+// Per-triangle flags.
+// The triangle has vertex normals that differ from its face normal
+// (PreparedScene::has_shading_normals).
+const ARPA_TRIANGLE_SHADED: u32 = 1u;
+// The mesh has vertex normals and the triangle a non-zero area, so
+// PreparedScene::shading_normal interpolates them (specular bounces).
+const ARPA_TRIANGLE_NORMALS: u32 = 2u;
+
+struct ArpaSceneInfo {
+    mesh_count: u32,
+    // Emitters: first the delta lights (point, spot, directional) in the core's emitter
+    // order, then the area emitters (triangles, quads) in PreparedScene's area order.
+    delta_count: u32,
+    area_count: u32,
+    pad0: u32,
+    // Bounding sphere (PreparedScene::bounding_sphere).
+    sphere_centre: vec3<f32>,
+    sphere_radius: f32,
+}
+
+struct ArpaSceneMesh {
+    first_triangle: u32,
+    triangle_count: u32,
+    // ARPA_SCATTER_*.
+    kind: u32,
+    // 1 if the mesh emits `emission` on its geometric-normal side.
+    emissive: u32,
+    // Albedo (diffuse), reflectance (mirror) or transmittance (refractive).
+    color: vec3<f32>,
+    // Interior over exterior index of refraction (refractive only).
+    ior: f32,
+    emission: vec3<f32>,
+    // 1 if the mesh has vertex normals.
+    has_normals: u32,
+}
+
+struct ArpaSceneTriangle {
+    p0: vec3<f32>,
+    // ARPA_TRIANGLE_* bits.
+    flags: u32,
+    p1: vec3<f32>,
+    pad1: u32,
+    p2: vec3<f32>,
+    pad2: u32,
+    // Unit geometric normal (p1 - p0) x (p2 - p0) / |...| computed in f64 (+y if degenerate).
+    normal: vec3<f32>,
+    pad3: u32,
+    // Vertex normals as the mesh stores them (not normalised); the geometric normal for
+    // meshes without normals.
+    n0: vec3<f32>,
+    pad4: u32,
+    n1: vec3<f32>,
+    pad5: u32,
+    n2: vec3<f32>,
+    pad6: u32,
+}
+
+struct ArpaSceneEmitter {
+    // ARPA_EMITTER_*.
+    kind: u32,
+    // Spot falloff: 0 linear in angle, 1 smoothstep.
+    falloff: u32,
+    // Spot cut-off and full-intensity half-angles (rad).
+    cutoff: f32,
+    beam_width: f32,
+    // Point/spot position, directional unit direction of travel, triangle vertex 0, quad origin.
+    p0: vec3<f32>,
+    // Area emitters: cumulative power up to and including this one over the total (the
+    // core's area CDF divided by its last entry).
+    cdf: f32,
+    // Spot unit axis, triangle vertex 1, quad edge_u.
+    p1: vec3<f32>,
+    // Area emitters: probability of being picked (power / total).
+    probability: f32,
+    // Triangle vertex 2, quad edge_v.
+    p2: vec3<f32>,
+    pad0: f32,
+    // Intensity (point, spot), irradiance (directional), radiance (area).
+    color: vec3<f32>,
+    pad1: f32,
+}
+
+@group(0) @binding(0) var arpa_scene_tlas: acceleration_structure;
+@group(0) @binding(1) var<uniform> arpa_scene_info: ArpaSceneInfo;
+@group(0) @binding(2) var<storage, read> arpa_scene_meshes: array<ArpaSceneMesh>;
+@group(0) @binding(3) var<storage, read> arpa_scene_triangles: array<ArpaSceneTriangle>;
+@group(0) @binding(4) var<storage, read> arpa_scene_emitters: array<ArpaSceneEmitter>;
+
+// A closest hit (RayHit): t (metres along the unit direction), mesh, triangle within the
+// mesh, barycentric weights b1, b2 of vertices 1 and 2; hit = 0: no hit.
+struct ArpaSceneHit {
+    t: f32,
+    mesh: u32,
+    triangle: u32,
+    b1: f32,
+    b2: f32,
+    hit: u32,
+}
+
+// Closest hit along origin + t dir, 0 < t <= t_max (RayCaster::intersect).
+fn arpa_scene_intersect(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> ArpaSceneHit {
+    var rq: ray_query;
+    rayQueryInitialize(&rq, arpa_scene_tlas, RayDesc(RAY_FLAG_FORCE_OPAQUE, 0xffu, 0.0, t_max, origin, dir));
+    while rayQueryProceed(&rq) {}
+    let h = rayQueryGetCommittedIntersection(&rq);
+    if h.kind == RAY_QUERY_INTERSECTION_TRIANGLE && h.t > 0.0 {
+        return ArpaSceneHit(h.t, h.instance_custom_data, h.primitive_index, h.barycentrics.x, h.barycentrics.y, 1u);
+    }
+    return ArpaSceneHit(0.0, 0xffffffffu, 0u, 0.0, 0.0, 0u);
+}
+
+// Whether anything lies along origin + t dir, 0 < t <= t_max (RayCaster::occluded).
+fn arpa_scene_occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
+    var rq: ray_query;
+    rayQueryInitialize(&rq, arpa_scene_tlas,
+        RayDesc(RAY_FLAG_FORCE_OPAQUE | RAY_FLAG_TERMINATE_ON_FIRST_HIT, 0xffu, 0.0, t_max, origin, dir));
+    while rayQueryProceed(&rq) {}
+    let h = rayQueryGetCommittedIntersection(&rq);
+    return h.kind == RAY_QUERY_INTERSECTION_TRIANGLE && h.t > 0.0;
+}
+
+// A surface point (SurfacePoint plus its normals).
+struct ArpaSurface {
+    // Interpolated position (metres).
+    position: vec3<f32>,
+    // ARPA_SCATTER_*.
+    kind: u32,
+    // Unit geometric normal (not oriented).
+    geometric_normal: vec3<f32>,
+    // PreparedScene::has_shading_normals (0/1).
+    has_shading_normals: u32,
+    // PreparedScene::shading_normal_at: unit interpolated vertex normal oriented like the
+    // geometric one, or the geometric normal.
+    shading_normal: vec3<f32>,
+    // Interior over exterior index of refraction (refractive only).
+    ior: f32,
+    // Albedo (diffuse), reflectance (mirror) or transmittance (refractive).
+    color: vec3<f32>,
+    // 1 if the mesh emits `emission` on the geometric-normal side.
+    emissive: u32,
+    emission: vec3<f32>,
+    mesh: u32,
+    // Barycentric weights of the three vertices.
+    barycentric: vec3<f32>,
+    triangle: u32,
+    // PreparedScene::shading_normal(s, 0, 0).n, or the geometric normal where the core
+    // falls back to it: the unit interpolated vertex normal whenever the mesh has vertex
+    // normals (also on flat-shaded triangles), oriented like the geometric one. The normal
+    // of specular bounces.
+    specular_normal: vec3<f32>,
+    // 1 if the mesh has vertex normals.
+    mesh_has_normals: u32,
+}
+
+fn arpa_scene_finite3(v: vec3<f32>) -> bool {
+    return all((bitcast<vec3<u32>>(v) & vec3<u32>(0x7f800000u)) != vec3<u32>(0x7f800000u));
+}
+
+// Index of a mesh's triangle in arpa_scene_triangles.
+fn arpa_scene_triangle_index(mesh: u32, triangle: u32) -> u32 {
+    return arpa_scene_meshes[mesh].first_triangle + triangle;
+}
+
+// The vertices of a triangle (metres).
+fn arpa_scene_triangle_vertices(mesh: u32, triangle: u32) -> array<vec3<f32>, 3> {
+    let t = arpa_scene_triangles[arpa_scene_triangle_index(mesh, triangle)];
+    return array<vec3<f32>, 3>(t.p0, t.p1, t.p2);
+}
+
+// The vertex normals of a triangle as the mesh stores them (not normalised); the unit
+// geometric normal three times for meshes without vertex normals.
+fn arpa_scene_triangle_normals(mesh: u32, triangle: u32) -> array<vec3<f32>, 3> {
+    let t = arpa_scene_triangles[arpa_scene_triangle_index(mesh, triangle)];
+    return array<vec3<f32>, 3>(t.n0, t.n1, t.n2);
+}
+
+// sum b_i n_i normalised and oriented like `geometric`; `geometric` where it vanishes.
+fn arpa_scene_interpolated_normal(t: ArpaSceneTriangle, b: vec3<f32>) -> vec3<f32> {
+    let m = t.n0 * b.x + t.n1 * b.y + t.n2 * b.z;
+    let a = abs(m);
+    let s = max(a.x, max(a.y, a.z));
+    if !(s > 0.0) || !arpa_scene_finite3(m) {
+        return t.normal;
+    }
+    let w = m / s;
+    let n = w / length(w);
+    return select(n, -n, dot(n, t.normal) < 0.0);
+}
+
+// The surface point of a hit (PreparedScene::surface, shading_normal_at,
+// has_shading_normals, shading_normal without derivatives). h.hit must be 1.
+fn arpa_scene_surface(h: ArpaSceneHit) -> ArpaSurface {
+    let m = arpa_scene_meshes[h.mesh];
+    let t = arpa_scene_triangles[m.first_triangle + h.triangle];
+    let b = vec3<f32>(1.0 - h.b1 - h.b2, h.b1, h.b2);
+    var s: ArpaSurface;
+    s.position = t.p0 * b.x + t.p1 * b.y + t.p2 * b.z;
+    s.kind = m.kind;
+    s.geometric_normal = t.normal;
+    s.has_shading_normals = select(0u, 1u, (t.flags & ARPA_TRIANGLE_SHADED) != 0u);
+    s.shading_normal = t.normal;
+    if s.has_shading_normals != 0u {
+        s.shading_normal = arpa_scene_interpolated_normal(t, b);
+    }
+    s.specular_normal = t.normal;
+    if (t.flags & ARPA_TRIANGLE_NORMALS) != 0u {
+        s.specular_normal = arpa_scene_interpolated_normal(t, b);
+    }
+    s.ior = m.ior;
+    s.color = m.color;
+    s.emissive = m.emissive;
+    s.emission = m.emission;
+    s.mesh = h.mesh;
+    s.triangle = h.triangle;
+    s.barycentric = b;
+    s.mesh_has_normals = m.has_normals;
+    return s;
+}
+
+// A ray origin offset off the surface point p along the unit normal n (oriented to the side
+// the ray leaves towards), prepared_scene::offset_origin.
+fn arpa_offset_origin(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    let a = abs(p);
+    let scale = 1e-5 * (1.0 + max(a.x, max(a.y, a.z)));
+    return p + n * scale;
+}
