@@ -21,6 +21,8 @@
 //! Run it with `cargo run -p arpa-conformance --profile test [-- --out FILE]` (opt-level 2;
 //! writes `target/conformance.md` by default) or `cargo test -p arpa-conformance` (asserts
 //! that nothing failed unexpectedly, and writes the same file).
+//! Add `--features wgpu` for the wgpu backend (its WGSL-twin cases run on lavapipe without a
+//! GPU; `--test twin` runs only them, with their sabotage check).
 //!
 //! ## Reference cases: reduced and full set, missing data
 //!

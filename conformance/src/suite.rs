@@ -459,6 +459,118 @@ mod tests {
         assert!(run.report.to_markdown().contains("no such backend"));
     }
 
+    /// A runner that returns zeros (the kernel-case tests below never look at them).
+    struct ZeroRunner;
+
+    impl KernelRunner for ZeroRunner {
+        fn device(&self) -> String {
+            "zeros".into()
+        }
+        fn run(&self, job: &crate::KernelJob<'_>) -> Result<Vec<u32>, BoxError> {
+            Ok(vec![0; job.output_words])
+        }
+    }
+
+    fn zero_runner() -> Result<Box<dyn KernelRunner>, BoxError> {
+        Ok(Box::new(ZeroRunner))
+    }
+
+    fn no_runner() -> Result<Box<dyn KernelRunner>, BoxError> {
+        Err("no adapter for kernels".into())
+    }
+
+    fn kernel_case(run: fn(&dyn KernelRunner) -> CaseResult) -> Case {
+        Case {
+            id: "twin-x",
+            title: "twin x",
+            needs: None,
+            run: CaseBody::Kernels(run),
+        }
+    }
+
+    fn runs_one_kernel(r: &dyn KernelRunner) -> CaseResult {
+        let out = r
+            .run(&crate::KernelJob {
+                label: "x",
+                source: "",
+                entry: "main",
+                input: &[],
+                invocations: 1,
+                output_words: 3,
+            })
+            .map_err(|e| e.to_string())?;
+        if out.len() == 3 {
+            Ok("3 words".into())
+        } else {
+            Err(format!("{} words", out.len()))
+        }
+    }
+
+    fn always_fails(_: &dyn KernelRunner) -> CaseResult {
+        Err("twin differs".into())
+    }
+
+    #[test]
+    fn kernel_cases_are_not_applicable_without_a_runner() {
+        let backends = [fake("cpu", &[])];
+        let run = run_suite_with(
+            &backends,
+            &[kernel_case(always_fails)],
+            &SuiteOptions::default(),
+        );
+        let md = run.to_markdown();
+        // Neither a failure (even though the body would fail) nor a pass, and said so.
+        assert!(run.report.all_ok(), "{md}");
+        assert_eq!(run.report.not_applicable(), 1, "{md}");
+        assert_eq!(run.report.passed(), 0, "{md}");
+        assert_eq!(run.report.skipped(), 0, "{md}");
+        assert!(md.contains("| twin x | n/a (cpu runs no WGSL"), "{md}");
+        assert!(md.contains("1 not applicable"), "{md}");
+    }
+
+    #[test]
+    fn kernel_cases_run_on_the_runner_even_without_a_tracer() {
+        let backend = Backend {
+            kernel_runner: Some(zero_runner),
+            ..fake("wgpu", &[])
+        };
+        let run = run_suite_with(
+            &[backend],
+            &[kernel_case(runs_one_kernel)],
+            &SuiteOptions::default(),
+        );
+        assert!(run.report.all_ok(), "{}", run.report.to_markdown());
+        assert_eq!(run.report.passed(), 1);
+        assert!(run.devices.iter().any(|(b, d)| b == "wgpu kernel runner" && d == "zeros"));
+        // A failing body on a runner is a failure.
+        let run = run_suite_with(
+            &[backend],
+            &[kernel_case(always_fails)],
+            &SuiteOptions::default(),
+        );
+        assert!(!run.report.all_ok());
+        assert!(run.report.to_markdown().contains("**FAIL** (twin differs)"));
+    }
+
+    #[test]
+    fn a_runner_that_cannot_start_fails_only_when_required() {
+        let backend = Backend {
+            kernel_runner: Some(no_runner),
+            ..fake("wgpu", &[])
+        };
+        let cases = [kernel_case(runs_one_kernel)];
+        let run = run_suite_with(&[backend], &cases, &SuiteOptions::default());
+        assert!(run.report.all_ok(), "{}", run.report.to_markdown());
+        assert!(run.report.to_markdown().contains("kernel runner failed to initialise: no adapter for kernels"));
+        let required = SuiteOptions {
+            required: vec!["wgpu".into()],
+            filter: vec![],
+        };
+        let run = run_suite_with(&[backend], &cases, &required);
+        assert!(!run.report.all_ok());
+        assert!(run.report.to_markdown().contains("required by ARPA_REQUIRE_BACKENDS but its kernel runner failed"));
+    }
+
     #[test]
     fn missing_data_skips_outside_ci_and_fails_in_ci() {
         let v = missing_data("../shared absent".into(), false);

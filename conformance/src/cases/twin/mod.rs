@@ -9,8 +9,11 @@
 //! within the bound each module states and explains (the twin is f32, the core f64).
 //!
 //! **Inputs are deterministic.** Random inputs come from proptest's `TestRunner` seeded
-//! with the case's id (its bytes, zero-padded to 32, ChaCha; [`proptest_batches`]): the same
-//! inputs on every run and every backend, so a failure reproduces. A batch (thousands of
+//! with a fixed name (the case's id, e.g. `twin-rng`; `twin-footprint-pack` and
+//! `twin-footprint-gather` for the footprint case's two checks), its bytes zero-padded to
+//! 32 for ChaCha ([`proptest_batches`]): the same inputs on every run and every backend, so
+//! a failure reproduces. `PROPTEST_*` environment variables change neither the seed nor the
+//! number of batches. A batch (thousands of
 //! items) is one dispatch; there is no shrinking: the failure message names the failing
 //! item, the batch and the seed.
 //!
