@@ -2,7 +2,7 @@
 //! cases each is expected to fail (every expectation carries its reason).
 
 use crate::dyn_tracer::{BoxError, DynTracer};
-use crate::kernel_runner::KernelRunner;
+use crate::kernel_runner::MakeKernelRunner;
 
 /// Every backend name the project knows, compiled in or not. `ARPA_REQUIRE_BACKENDS`
 /// may only name these.
@@ -32,7 +32,7 @@ pub struct Backend {
     /// Creates the backend's WGSL kernel runner (what the cases of the core's WGSL twin
     /// run on); `None` for a backend that runs no WGSL (the twin cases are then not
     /// applicable to it). An error means the runner cannot run here.
-    pub kernel_runner: Option<fn() -> Result<Box<dyn KernelRunner>, BoxError>>,
+    pub kernel_runner: Option<MakeKernelRunner>,
 }
 
 impl core::fmt::Debug for Backend {

@@ -42,6 +42,10 @@ pub struct KernelJob<'a> {
     pub output_words: usize,
 }
 
+/// Creates a backend's kernel runner (the registry's
+/// [`crate::backends::Backend::kernel_runner`]); an error means it cannot run here.
+pub type MakeKernelRunner = fn() -> Result<Box<dyn KernelRunner>, BoxError>;
+
 /// Runs WGSL compute kernels on a backend's device (object-safe).
 pub trait KernelRunner {
     /// The device the kernels run on, in words (adapter name and type).

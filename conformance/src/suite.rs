@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use crate::backends::{Backend, KNOWN_BACKENDS};
 use crate::dyn_tracer::{BoxError, DynTracer};
-use crate::kernel_runner::KernelRunner;
+use crate::kernel_runner::{KernelRunner, MakeKernelRunner};
 use crate::{Report, Verdict};
 
 /// What a case body returns: the measured metric when its assertion held, else what was
@@ -195,9 +195,7 @@ fn create(backend: &Backend) -> Result<Box<dyn DynTracer>, String> {
     }
 }
 
-fn create_runner(
-    make: fn() -> Result<Box<dyn KernelRunner>, BoxError>,
-) -> Result<Box<dyn KernelRunner>, String> {
+fn create_runner(make: MakeKernelRunner) -> Result<Box<dyn KernelRunner>, String> {
     match catch_unwind(make) {
         Ok(Ok(r)) => Ok(r),
         Ok(Err(e)) => Err(e.to_string()),
@@ -316,11 +314,15 @@ pub fn run_suite_with(backends: &[Backend], cases: &[Case], options: &SuiteOptio
                         Err(e) => {
                             let v = if required {
                                 Verdict::Fail {
-                                    detail: format!("required by {REQUIRE_ENV} but its kernel runner failed to initialise: {e}"),
+                                    detail: format!(
+                                        "required by {REQUIRE_ENV} but its kernel runner failed to initialise: {e}"
+                                    ),
                                 }
                             } else {
                                 Verdict::ExpectedFail {
-                                    reason: format!("not required by {REQUIRE_ENV}; kernel runner failed to initialise: {e}"),
+                                    reason: format!(
+                                        "not required by {REQUIRE_ENV}; kernel runner failed to initialise: {e}"
+                                    ),
                                     measured: String::new(),
                                 }
                             };
@@ -541,7 +543,11 @@ mod tests {
         );
         assert!(run.report.all_ok(), "{}", run.report.to_markdown());
         assert_eq!(run.report.passed(), 1);
-        assert!(run.devices.iter().any(|(b, d)| b == "wgpu kernel runner" && d == "zeros"));
+        assert!(
+            run.devices
+                .iter()
+                .any(|(b, d)| b == "wgpu kernel runner" && d == "zeros")
+        );
         // A failing body on a runner is a failure.
         let run = run_suite_with(
             &[backend],
@@ -561,14 +567,22 @@ mod tests {
         let cases = [kernel_case(runs_one_kernel)];
         let run = run_suite_with(&[backend], &cases, &SuiteOptions::default());
         assert!(run.report.all_ok(), "{}", run.report.to_markdown());
-        assert!(run.report.to_markdown().contains("kernel runner failed to initialise: no adapter for kernels"));
+        assert!(
+            run.report
+                .to_markdown()
+                .contains("kernel runner failed to initialise: no adapter for kernels")
+        );
         let required = SuiteOptions {
             required: vec!["wgpu".into()],
             filter: vec![],
         };
         let run = run_suite_with(&[backend], &cases, &required);
         assert!(!run.report.all_ok());
-        assert!(run.report.to_markdown().contains("required by ARPA_REQUIRE_BACKENDS but its kernel runner failed"));
+        assert!(
+            run.report
+                .to_markdown()
+                .contains("required by ARPA_REQUIRE_BACKENDS but its kernel runner failed")
+        );
     }
 
     #[test]

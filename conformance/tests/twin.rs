@@ -7,7 +7,7 @@
 
 use arpa_conformance::kernel_runner::wgpu_kernel_runner;
 use arpa_conformance::suite::ci_is_set;
-use arpa_conformance::{BoxError, Case, CaseBody, KernelJob, KernelRunner, cases};
+use arpa_conformance::{BoxError, Case, CaseBody, CaseResult, KernelJob, KernelRunner, cases};
 
 /// The wgpu kernel runner, or `None` (with a loud message) without an adapter outside CI.
 fn runner() -> Option<Box<dyn KernelRunner>> {
@@ -18,14 +18,19 @@ fn runner() -> Option<Box<dyn KernelRunner>> {
         }
         Err(e) if ci_is_set() => panic!("CI needs a ray-query adapter (lavapipe): {e}"),
         Err(e) => {
-            eprintln!("\n*** SKIPPING the WGSL-twin cases: {e}\n*** (run `bash scripts/setup-debian.sh` to install lavapipe)\n");
+            eprintln!(
+                "\n*** SKIPPING the WGSL-twin cases: {e}\n*** (run `bash scripts/setup-debian.sh` to install lavapipe)\n"
+            );
             None
         }
     }
 }
 
+/// A kernel case's body.
+type KernelBody = fn(&dyn KernelRunner) -> CaseResult;
+
 /// Every kernel case of the suite; they are the eight twin files' cases.
-fn twin_cases() -> Vec<(Case, fn(&dyn KernelRunner) -> Result<String, String>)> {
+fn twin_cases() -> Vec<(Case, KernelBody)> {
     let v: Vec<_> = cases::all()
         .into_iter()
         .filter_map(|c| match c.run {
@@ -82,7 +87,11 @@ fn flipped_output_bits_fail_every_twin_case() {
     for (case, body) in twin_cases() {
         match body(&flipped) {
             Ok(m) => panic!("flipped bits not caught by {}: {m}", case.id),
-            Err(e) => eprintln!("flipped bits caught by {}: {}", case.id, e.chars().take(300).collect::<String>()),
+            Err(e) => eprintln!(
+                "flipped bits caught by {}: {}",
+                case.id,
+                e.chars().take(300).collect::<String>()
+            ),
         }
     }
 }

@@ -20,7 +20,8 @@
 use std::cell::Cell;
 
 use arpa_core::emission::{
-    DirectionalLight, EmissionParams, Light, PackedLight, PointLight, QuadLight, SpotFalloff, SpotLight, TriangleLight,
+    DirectionalLight, EmissionParams, Light, PackedLight, PointLight, QuadLight, SpotFalloff,
+    SpotLight, TriangleLight,
 };
 use arpa_core::glam::{DVec2, DVec3};
 use arpa_core::rng::{Rng, StreamDomain};
@@ -41,7 +42,8 @@ const ITEMS: usize = 2048;
 const BATCHES: u32 = 4;
 
 fn dir() -> impl Strategy<Value = DVec3> {
-    (0.0..std::f64::consts::PI, 0.0..std::f64::consts::TAU).prop_map(|(t, p)| DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos()))
+    (0.0..std::f64::consts::PI, 0.0..std::f64::consts::TAU)
+        .prop_map(|(t, p)| DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos()))
 }
 
 fn point(lo: f64, hi: f64) -> impl Strategy<Value = DVec3> {
@@ -54,22 +56,60 @@ fn colour() -> impl Strategy<Value = DVec3> {
 
 fn light() -> impl Strategy<Value = Light> {
     prop_oneof![
-        (point(-2.0, 2.0), colour()).prop_map(|(position, intensity)| Light::Point(PointLight { position, intensity })),
-        (point(-2.0, 2.0), point(-3.0, 3.0), colour(), prop_oneof![(1e-3f64..0.1), (0.1f64..std::f64::consts::PI)], 0.0f64..1.0, any::<bool>()).prop_map(
-            |(position, direction, intensity, cutoff, beam, smooth)| Light::Spot(SpotLight {
-                position,
+        (point(-2.0, 2.0), colour()).prop_map(|(position, intensity)| Light::Point(PointLight {
+            position,
+            intensity
+        })),
+        (
+            point(-2.0, 2.0),
+            point(-3.0, 3.0),
+            colour(),
+            prop_oneof![(1e-3f64..0.1), (0.1f64..std::f64::consts::PI)],
+            0.0f64..1.0,
+            any::<bool>()
+        )
+            .prop_map(
+                |(position, direction, intensity, cutoff, beam, smooth)| Light::Spot(SpotLight {
+                    position,
+                    direction,
+                    intensity,
+                    cutoff,
+                    beam_width: cutoff * beam,
+                    falloff: if smooth {
+                        SpotFalloff::SmoothstepAngle
+                    } else {
+                        SpotFalloff::LinearAngle
+                    },
+                })
+            ),
+        (dir(), colour()).prop_map(|(direction, irradiance)| Light::Directional(
+            DirectionalLight {
                 direction,
-                intensity,
-                cutoff,
-                beam_width: cutoff * beam,
-                falloff: if smooth { SpotFalloff::SmoothstepAngle } else { SpotFalloff::LinearAngle },
-            })
-        ),
-        (dir(), colour()).prop_map(|(direction, irradiance)| Light::Directional(DirectionalLight { direction, irradiance })),
-        (point(-2.0, 2.0), point(-2.0, 1.0), point(-2.0, 1.0), colour())
-            .prop_map(|(p0, a, b, radiance)| Light::Triangle(TriangleLight { p: [p0, p0 + a, p0 + b], radiance })),
-        (point(-2.0, 2.0), point(-2.0, 1.0), point(-2.0, 1.0), colour())
-            .prop_map(|(origin, edge_u, edge_v, radiance)| Light::Quad(QuadLight { origin, edge_u, edge_v, radiance })),
+                irradiance
+            }
+        )),
+        (
+            point(-2.0, 2.0),
+            point(-2.0, 1.0),
+            point(-2.0, 1.0),
+            colour()
+        )
+            .prop_map(|(p0, a, b, radiance)| Light::Triangle(TriangleLight {
+                p: [p0, p0 + a, p0 + b],
+                radiance
+            })),
+        (
+            point(-2.0, 2.0),
+            point(-2.0, 1.0),
+            point(-2.0, 1.0),
+            colour()
+        )
+            .prop_map(|(origin, edge_u, edge_v, radiance)| Light::Quad(QuadLight {
+                origin,
+                edge_u,
+                edge_v,
+                radiance
+            })),
     ]
 }
 
@@ -132,7 +172,9 @@ fn scale_of(l: &Light, p: &EmissionParams) -> f64 {
 pub fn matches_core(runner: &dyn KernelRunner) -> CaseResult {
     let stats = random_lights(runner)?;
     lattice_is_accurate_for_large_indices(runner)?;
-    Ok(format!("{stats}; Fibonacci lattice up to index 2^32 - 2 within bound"))
+    Ok(format!(
+        "{stats}; Fibonacci lattice up to index 2^32 - 2 within bound"
+    ))
 }
 
 fn random_lights(runner: &dyn KernelRunner) -> Result<String, String> {
@@ -143,33 +185,60 @@ fn random_lights(runner: &dyn KernelRunner) -> Result<String, String> {
         let mut input = Vec::new();
         let mut kept = Vec::new();
         for c in &cases {
-            let Ok(prepared) = c.light.prepare(&c.params) else { continue };
+            let Ok(prepared) = c.light.prepare(&c.params) else {
+                continue;
+            };
             let packed: PackedLight = prepared.pack();
-            input.extend_from_slice(bytemuck::cast_slice::<PackedLight, u32>(std::slice::from_ref(&packed)));
+            input.extend_from_slice(bytemuck::cast_slice::<PackedLight, u32>(
+                std::slice::from_ref(&packed),
+            ));
             input.extend([c.index, c.stream.0, c.stream.1]);
             kept.push((c.clone(), prepared));
         }
-        prop_assert!(kept.len() > cases.len() * 9 / 10, "only {} of {} lights prepared", kept.len(), cases.len());
+        prop_assert!(
+            kept.len() > cases.len() * 9 / 10,
+            "only {} of {} lights prepared",
+            kept.len(),
+            cases.len()
+        );
         let out = run_prop(runner, "emission", HELPERS, BODY, &input, 43, 27)?;
         let (mut compared, mut worst_dir) = (0, 0.0f64);
         for ((c, prepared), g) in kept.iter().zip(&out) {
             let u = fibonacci_lattice(c.index, c.params.photon_count, c.params.lattice_shift);
-            if [u.x, u.y].iter().any(|&x| !(1e-5..=1.0 - 1e-5).contains(&x)) {
+            if [u.x, u.y]
+                .iter()
+                .any(|&x| !(1e-5..=1.0 - 1e-5).contains(&x))
+            {
                 continue;
             }
             let mut rng = Rng::new(c.stream.0, c.stream.1, c.index, StreamDomain::Photon);
             let want = prepared.emit(c.index, &mut rng);
             let Ok(w) = want else {
-                prop_assert!(g[26] != 0, "core failed ({:?}) but twin succeeded for {:?}", want, c);
+                prop_assert!(
+                    g[26] != 0,
+                    "core failed ({:?}) but twin succeeded for {:?}",
+                    want,
+                    c
+                );
                 continue;
             };
             prop_assert_eq!(g[26], 0, "twin status for {:?}", c);
             compared += 1;
             let s = scale_of(&c.light, &c.params);
-            let close = |what: &str, got: DVec3, want: DVec3, tol: f64| -> Result<(), TestCaseError> {
-                prop_assert!((got - want).length() <= tol, "{}: twin {:?} core {:?} (|diff| {:e} > {:e}) for {:?}", what, got, want, (got - want).length(), tol, c);
-                Ok(())
-            };
+            let close =
+                |what: &str, got: DVec3, want: DVec3, tol: f64| -> Result<(), TestCaseError> {
+                    prop_assert!(
+                        (got - want).length() <= tol,
+                        "{}: twin {:?} core {:?} (|diff| {:e} > {:e}) for {:?}",
+                        what,
+                        got,
+                        want,
+                        (got - want).length(),
+                        tol,
+                        c
+                    );
+                    Ok(())
+                };
             // Sensitivity of the direction to its unit-square sample (the twin's samples
             // differ from the core's by up to DU: f32 lattice, 24-bit draws), singular where
             // the warp is: at the poles of the sphere and cone, at the rim of the hemisphere.
@@ -179,10 +248,19 @@ fn random_lights(runner: &dyn KernelRunner) -> Result<String, String> {
             let d = w.ray.d;
             let area = matches!(c.light, Light::Triangle(_) | Light::Quad(_));
             let (jacobian, frame_k) = match c.light {
-                Light::Point(_) => (std::f64::consts::TAU + 4.0 / d.cross(DVec3::Z).length().max(1e-9), 1.0),
-                Light::Spot(_) => (std::f64::consts::TAU + 4.0 / d.cross(axis).length().max(1e-9), 1.0),
+                Light::Point(_) => (
+                    std::f64::consts::TAU + 4.0 / d.cross(DVec3::Z).length().max(1e-9),
+                    1.0,
+                ),
+                Light::Spot(_) => (
+                    std::f64::consts::TAU + 4.0 / d.cross(axis).length().max(1e-9),
+                    1.0,
+                ),
                 Light::Directional(_) => (0.0, 1.0),
-                _ => (std::f64::consts::TAU + 4.0 / d.dot(axis).abs().max(1e-9), 1.0 + 1.0 / d.cross(t_hint).length().max(1e-12)),
+                _ => (
+                    std::f64::consts::TAU + 4.0 / d.dot(axis).abs().max(1e-9),
+                    1.0 + 1.0 / d.cross(t_hint).length().max(1e-12),
+                ),
             };
             // Where the core's own frame construction branches (Duff's frame at d.z = 0,
             // the hint's parallel fallback), rounding picks the branch: skip.
@@ -195,10 +273,30 @@ fn random_lights(runner: &dyn KernelRunner) -> Result<String, String> {
             worst_dir = worst_dir.max(dd / dir_tol);
             close("direction", v3(g, 3), w.ray.d, dir_tol)?;
             let lengths = prepared.lengths();
-            close("dP/du", v3(g, 6), w.ray.dp_du, 16.0 * EPS * lengths.positional)?;
-            close("dP/dv", v3(g, 9), w.ray.dp_dv, 16.0 * EPS * lengths.positional)?;
-            close("dD/du", v3(g, 12), w.ray.dd_du, dir_tol * lengths.directional * frame_k)?;
-            close("dD/dv", v3(g, 15), w.ray.dd_dv, dir_tol * lengths.directional * frame_k)?;
+            close(
+                "dP/du",
+                v3(g, 6),
+                w.ray.dp_du,
+                16.0 * EPS * lengths.positional,
+            )?;
+            close(
+                "dP/dv",
+                v3(g, 9),
+                w.ray.dp_dv,
+                16.0 * EPS * lengths.positional,
+            )?;
+            close(
+                "dD/du",
+                v3(g, 12),
+                w.ray.dd_du,
+                dir_tol * lengths.directional * frame_k,
+            )?;
+            close(
+                "dD/dv",
+                v3(g, 15),
+                w.ray.dd_dv,
+                dir_tol * lengths.directional * frame_k,
+            )?;
             let mut flux_tol = 1e-5 * w.flux.length();
             if let Light::Spot(l) = c.light {
                 let flux0 = DVec3::from_array(prepared.pack().flux.map(f64::from)).length();
@@ -213,7 +311,12 @@ fn random_lights(runner: &dyn KernelRunner) -> Result<String, String> {
                 close("surface normal", v3(g, 22), n, 2.0 * EPS)?;
             }
         }
-        prop_assert!(compared > kept.len() * 9 / 10, "compared {} of {}", compared, kept.len());
+        prop_assert!(
+            compared > kept.len() * 9 / 10,
+            "compared {} of {}",
+            compared,
+            kept.len()
+        );
         total.set(total.get() + compared);
         worst_all.set(worst_all.get().max(worst_dir));
         Ok(())
@@ -230,9 +333,21 @@ fn random_lights(runner: &dyn KernelRunner) -> Result<String, String> {
 /// the shift's f32 rounding, and the core's own rounding of the f64 product `i φ` (half an
 /// ulp, up to 2.4e-7 at i ~ 2³²).
 fn lattice_is_accurate_for_large_indices(runner: &dyn KernelRunner) -> Result<(), String> {
-    let idx: Vec<u32> = vec![0, 1, 2, 1000, 1 << 20, (1 << 24) + 1, 123_456_789, u32::MAX - 1];
+    let idx: Vec<u32> = vec![
+        0,
+        1,
+        2,
+        1000,
+        1 << 20,
+        (1 << 24) + 1,
+        123_456_789,
+        u32::MAX - 1,
+    ];
     let n = u32::MAX;
-    let input: Vec<u32> = idx.iter().flat_map(|&i| [i, n, fb(0.25), fb(0.5)]).collect();
+    let input: Vec<u32> = idx
+        .iter()
+        .flat_map(|&i| [i, n, fb(0.25), fb(0.5)])
+        .collect();
     let out = run(
         runner,
         "lattice",
@@ -243,10 +358,16 @@ fn lattice_is_accurate_for_large_indices(runner: &dyn KernelRunner) -> Result<()
     )?;
     for (&i, g) in idx.iter().zip(&out) {
         let w = fibonacci_lattice(i, n, DVec2::new(0.25, 0.5));
-        for (k, (got, want)) in [(f(g[0]) as f64, w.x), (f(g[1]) as f64, w.y)].into_iter().enumerate() {
+        for (k, (got, want)) in [(f(g[0]) as f64, w.x), (f(g[1]) as f64, w.y)]
+            .into_iter()
+            .enumerate()
+        {
             let d = (got - want).abs();
             let tol = 1.3e-7 + i as f64 * 0.62 * f64::EPSILON;
-            check!(d.min(1.0 - d) < tol, "index {i} coordinate {k}: twin {got} core {want} (diff {d:e} > {tol:e})");
+            check!(
+                d.min(1.0 - d) < tol,
+                "index {i} coordinate {k}: twin {got} core {want} (diff {d:e} > {tol:e})"
+            );
         }
     }
     Ok(())

@@ -45,7 +45,11 @@ struct Case {
 }
 
 fn unit(theta: f64, phi: f64) -> DVec3 {
-    DVec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+    DVec3::new(
+        theta.sin() * phi.cos(),
+        theta.sin() * phi.sin(),
+        theta.cos(),
+    )
 }
 
 fn f3(v: DVec3) -> [f32; 3] {
@@ -134,12 +138,17 @@ fn near_threshold(fp: &Footprint) -> bool {
     let scale = fp.center.abs().max_element().max(1e-30) * 64.0 * EPS;
     let den = cross.dot(fp.normal);
     let dens = fp.flux * (4.0 / den.abs());
-    let rows = [fp.dv.cross(fp.normal) * (2.0 / den), fp.normal.cross(fp.du) * (2.0 / den)];
+    let rows = [
+        fp.dv.cross(fp.normal) * (2.0 / den),
+        fp.normal.cross(fp.du) * (2.0 / den),
+    ];
     let near = |x: f64, t: f64| x.is_finite() && (x / t - 1.0).abs() < 1e-3;
     near(bound, scale)
         || (0..3).any(|c| fp.flux[c] != 0.0 && near(dens[c], f32::MIN_POSITIVE as f64))
         || (0..3).any(|c| near(dens[c].abs(), f32::MAX as f64))
-        || rows.iter().any(|r| (0..3).any(|c| near(r[c].abs(), f32::MAX as f64)))
+        || rows
+            .iter()
+            .any(|r| (0..3).any(|c| near(r[c].abs(), f32::MAX as f64)))
 }
 
 fn sin_theta(fp: &Footprint) -> f64 {
@@ -148,7 +157,15 @@ fn sin_theta(fp: &Footprint) -> f64 {
 
 fn check_close(what: &str, got: DVec3, want: DVec3, tol: f64) -> Result<(), TestCaseError> {
     let err = (got - want).length();
-    prop_assert!(err <= tol * want.length(), "{}: twin {:?} core {:?}: error {:e} > {:e} relative", what, got, want, err / want.length(), tol);
+    prop_assert!(
+        err <= tol * want.length(),
+        "{}: twin {:?} core {:?}: error {:e} > {:e} relative",
+        what,
+        got,
+        want,
+        err / want.length(),
+        tol
+    );
     Ok(())
 }
 
@@ -158,7 +175,9 @@ pub fn matches_core(runner: &dyn KernelRunner) -> CaseResult {
     let pack = pack_matches_core(runner)?;
     parallel_zero_and_bad_inputs_are_labelled_like_core(runner)?;
     let gather = gather_matches_core(runner)?;
-    Ok(format!("pack: {pack}; labels as the core; gather: {gather}"))
+    Ok(format!(
+        "pack: {pack}; labels as the core; gather: {gather}"
+    ))
 }
 
 fn pack_matches_core(runner: &dyn KernelRunner) -> Result<String, String> {
@@ -166,7 +185,15 @@ fn pack_matches_core(runner: &dyn KernelRunner) -> Result<String, String> {
     let worst_all = Cell::new(0.0f64);
     let strategy = prop::collection::vec(case(), ITEMS);
     proptest_batches("twin-footprint-pack", BATCHES, &strategy, |cases| {
-        let out = run_prop(runner, "footprint pack", "", PACK_BODY, &pack_input(&cases), 17, 17)?;
+        let out = run_prop(
+            runner,
+            "footprint pack",
+            "",
+            PACK_BODY,
+            &pack_input(&cases),
+            17,
+            17,
+        )?;
         let (mut ok, mut compared, mut worst) = (0, 0, 0.0f64);
         for (c, g) in cases.iter().zip(&out) {
             let fp = core_footprint(c);
@@ -188,13 +215,25 @@ fn pack_matches_core(runner: &dyn KernelRunner) -> Result<String, String> {
             let gd = DVec3::new(f(g[7]) as f64, f(g[11]) as f64, f(g[15]) as f64);
             let wd = p.flux_density().as_dvec3();
             for k in 0..3 {
-                prop_assert!((gd[k] - wd[k]).abs() <= tol * wd[k].abs(), "density {}: twin {} core {} ({:?})", k, gd[k], wd[k], c);
+                prop_assert!(
+                    (gd[k] - wd[k]).abs() <= tol * wd[k].abs(),
+                    "density {}: twin {} core {} ({:?})",
+                    k,
+                    gd[k],
+                    wd[k],
+                    c
+                );
             }
             let rel = (v3(g, 4) - d3(p.row_u)).length() / d3(p.row_u).length();
             worst = worst.max(rel * sin_theta(&fp));
         }
         // The generator must exercise both outcomes, or the test proves little.
-        prop_assert!(ok > cases.len() / 4 && ok < compared, "{} ok of {} compared", ok, compared);
+        prop_assert!(
+            ok > cases.len() / 4 && ok < compared,
+            "{} ok of {} compared",
+            ok,
+            compared
+        );
         let (t_ok, t_compared) = totals.get();
         totals.set((t_ok + ok, t_compared + compared));
         worst_all.set(worst_all.get().max(worst));
@@ -208,7 +247,9 @@ fn pack_matches_core(runner: &dyn KernelRunner) -> Result<String, String> {
     ))
 }
 
-fn parallel_zero_and_bad_inputs_are_labelled_like_core(runner: &dyn KernelRunner) -> Result<(), String> {
+fn parallel_zero_and_bad_inputs_are_labelled_like_core(
+    runner: &dyn KernelRunner,
+) -> Result<(), String> {
     let base = Case {
         center: [0.5, 0.0, -0.25],
         normal: [0.0, 1.0, 0.0],
@@ -220,18 +261,52 @@ fn parallel_zero_and_bad_inputs_are_labelled_like_core(runner: &dyn KernelRunner
     };
     let cases = vec![
         base.clone(),
-        Case { dv: [0.02, 0.0, 0.0], ..base.clone() },       // parallel (exactly, in f32 and f64)
-        Case { dv: [0.0; 3], ..base.clone() },               // zero
-        Case { du: [f32::NAN, 0.0, 0.0], ..base.clone() },   // not finite
-        Case { du: [f32::INFINITY, 0.0, 0.0], ..base.clone() },
-        Case { du: [1e-12, 0.0, 0.0], ..base.clone() },      // thinner than f32 resolves at x_p
-        Case { flux: [1e-30, 0.0, 0.0], du: [1e10, 0.0, 0.0], dv: [0.0, 0.0, 1e10], center: [1e9, 0.0, 0.0], ..base.clone() }, // density underflows
+        Case {
+            dv: [0.02, 0.0, 0.0],
+            ..base.clone()
+        }, // parallel (exactly, in f32 and f64)
+        Case {
+            dv: [0.0; 3],
+            ..base.clone()
+        }, // zero
+        Case {
+            du: [f32::NAN, 0.0, 0.0],
+            ..base.clone()
+        }, // not finite
+        Case {
+            du: [f32::INFINITY, 0.0, 0.0],
+            ..base.clone()
+        },
+        Case {
+            du: [1e-12, 0.0, 0.0],
+            ..base.clone()
+        }, // thinner than f32 resolves at x_p
+        Case {
+            flux: [1e-30, 0.0, 0.0],
+            du: [1e10, 0.0, 0.0],
+            dv: [0.0, 0.0, 1e10],
+            center: [1e9, 0.0, 0.0],
+            ..base.clone()
+        }, // density underflows
     ];
-    let out = run(runner, "footprint labels", PACK_BODY, &pack_input(&cases), 17, 17)?;
+    let out = run(
+        runner,
+        "footprint labels",
+        PACK_BODY,
+        &pack_input(&cases),
+        17,
+        17,
+    )?;
     let labels: Vec<u32> = out.iter().map(|g| g[16]).collect();
-    let core: Vec<u32> = cases.iter().map(|c| status_of(&core_footprint(c).pack(c.radius as f64))).collect();
+    let core: Vec<u32> = cases
+        .iter()
+        .map(|c| status_of(&core_footprint(c).pack(c.radius as f64)))
+        .collect();
     check!(labels == core, "labels: twin {labels:?}, core {core:?}");
-    check!(labels == [0, 1, 1, 1, 1, 2, 2], "labels (valid, parallel, zero, NaN, inf, too thin, density underflow): twin {labels:?}, expected [0, 1, 1, 1, 1, 2, 2]");
+    check!(
+        labels == [0, 1, 1, 1, 1, 2, 2],
+        "labels (valid, parallel, zero, NaN, inf, too thin, density underflow): twin {labels:?}, expected [0, 1, 1, 1, 1, 2, 2]"
+    );
     Ok(())
 }
 
@@ -275,58 +350,106 @@ const GATHER_BODY: &str = "
 
 fn gather_matches_core(runner: &dyn KernelRunner) -> Result<String, String> {
     let totals = Cell::new((0usize, 0usize, 0usize));
-    let strategy = (prop::collection::vec(query(), ITEMS), prop::collection::vec(-0.5f32..1.5, ITEMS));
-    proptest_batches("twin-footprint-gather", BATCHES, &strategy, |(queries, r2s)| {
-        let qs: Vec<(Query, f32)> = queries.into_iter().zip(r2s).filter_map(|(q, r2)| q.map(|q| (q, r2))).collect();
-        prop_assert!(qs.len() > 1000, "only {} packable footprints", qs.len());
-        let mut input = Vec::new();
-        for (q, r2) in &qs {
-            input.extend_from_slice(bytemuck::cast_slice::<PackedFootprint, u32>(std::slice::from_ref(&q.fp)));
-            push3(&mut input, q.q);
-            push3(&mut input, q.nq);
-            input.push(q.kernel);
-            input.push(fb(*r2));
-        }
-        let out = run_prop(runner, "footprint gather", "", GATHER_BODY, &input, 24, 9)?;
-        let (mut inside, mut decided) = (0, 0);
-        for ((q, kr2), g) in qs.iter().zip(&out) {
-            let (qv, nq) = (Vec3::from_array(q.q), Vec3::from_array(q.nq));
-            let kernel = KERNELS[q.kernel as usize];
-            let y = q.fp.filter_coords(qv);
-            let delta = (qv - Vec3::from_array(q.fp.center)).as_dvec3().length();
-            let rows = [q.fp.row_u, q.fp.row_v, q.fp.row_n].map(|r| d3(r).length());
-            let gy = v3(g, 0);
-            for k in 0..3 {
-                let tol = 4.0 * EPS * rows[k] * delta + f64::from(f32::MIN_POSITIVE);
-                prop_assert!((gy[k] - y[k] as f64).abs() <= tol, "filter coordinate {}: twin {} core {} ({:?})", k, gy[k], y[k], q);
+    let strategy = (
+        prop::collection::vec(query(), ITEMS),
+        prop::collection::vec(-0.5f32..1.5, ITEMS),
+    );
+    proptest_batches(
+        "twin-footprint-gather",
+        BATCHES,
+        &strategy,
+        |(queries, r2s)| {
+            let qs: Vec<(Query, f32)> = queries
+                .into_iter()
+                .zip(r2s)
+                .filter_map(|(q, r2)| q.map(|q| (q, r2)))
+                .collect();
+            prop_assert!(qs.len() > 1000, "only {} packable footprints", qs.len());
+            let mut input = Vec::new();
+            for (q, r2) in &qs {
+                input.extend_from_slice(bytemuck::cast_slice::<PackedFootprint, u32>(
+                    std::slice::from_ref(&q.fp),
+                ));
+                push3(&mut input, q.q);
+                push3(&mut input, q.nq);
+                input.push(q.kernel);
+                input.push(fb(*r2));
             }
-            prop_assert_eq!(g[4] == 1, q.fp.faces(nq));
-            let r2 = (y.x * y.x + y.y * y.y) as f64;
-            let margin_r2 = 2.0 * (y.x.abs() as f64 + y.y.abs() as f64 + 1.0) * 4.0 * EPS * (rows[0] + rows[1]) * delta;
-            let margin_z = 4.0 * EPS * rows[2] * delta;
-            let decisive = (r2 - 1.0).abs() > margin_r2 + 4.0 * EPS && ((y.z.abs() as f64) - 1.0).abs() > margin_z + 2.0 * EPS;
-            if decisive {
-                decided += 1;
-                prop_assert_eq!(g[3] == 1, q.fp.contains(qv), "containment of {:?}", q);
-                let want = q.fp.irradiance(qv, nq, kernel).as_dvec3();
-                let got = v3(g, 5);
-                let dens = q.fp.flux_density().as_dvec3();
+            let out = run_prop(runner, "footprint gather", "", GATHER_BODY, &input, 24, 9)?;
+            let (mut inside, mut decided) = (0, 0);
+            for ((q, kr2), g) in qs.iter().zip(&out) {
+                let (qv, nq) = (Vec3::from_array(q.q), Vec3::from_array(q.nq));
+                let kernel = KERNELS[q.kernel as usize];
+                let y = q.fp.filter_coords(qv);
+                let delta = (qv - Vec3::from_array(q.fp.center)).as_dvec3().length();
+                let rows = [q.fp.row_u, q.fp.row_v, q.fp.row_n].map(|r| d3(r).length());
+                let gy = v3(g, 0);
                 for k in 0..3 {
-                    let tol = dens[k].abs() * (1e-6 + 2.0 * margin_r2);
-                    prop_assert!((got[k] - want[k]).abs() <= tol, "irradiance {}: twin {} core {} ({:?})", k, got[k], want[k], q);
+                    let tol = 4.0 * EPS * rows[k] * delta + f64::from(f32::MIN_POSITIVE);
+                    prop_assert!(
+                        (gy[k] - y[k] as f64).abs() <= tol,
+                        "filter coordinate {}: twin {} core {} ({:?})",
+                        k,
+                        gy[k],
+                        y[k],
+                        q
+                    );
                 }
-                if q.fp.contains(qv) {
-                    inside += 1;
+                prop_assert_eq!(g[4] == 1, q.fp.faces(nq));
+                let r2 = (y.x * y.x + y.y * y.y) as f64;
+                let margin_r2 = 2.0
+                    * (y.x.abs() as f64 + y.y.abs() as f64 + 1.0)
+                    * 4.0
+                    * EPS
+                    * (rows[0] + rows[1])
+                    * delta;
+                let margin_z = 4.0 * EPS * rows[2] * delta;
+                let decisive = (r2 - 1.0).abs() > margin_r2 + 4.0 * EPS
+                    && ((y.z.abs() as f64) - 1.0).abs() > margin_z + 2.0 * EPS;
+                if decisive {
+                    decided += 1;
+                    prop_assert_eq!(g[3] == 1, q.fp.contains(qv), "containment of {:?}", q);
+                    let want = q.fp.irradiance(qv, nq, kernel).as_dvec3();
+                    let got = v3(g, 5);
+                    let dens = q.fp.flux_density().as_dvec3();
+                    for k in 0..3 {
+                        let tol = dens[k].abs() * (1e-6 + 2.0 * margin_r2);
+                        prop_assert!(
+                            (got[k] - want[k]).abs() <= tol,
+                            "irradiance {}: twin {} core {} ({:?})",
+                            k,
+                            got[k],
+                            want[k],
+                            q
+                        );
+                    }
+                    if q.fp.contains(qv) {
+                        inside += 1;
+                    }
                 }
+                let kv = kernel.eval(*kr2) as f64;
+                prop_assert!(
+                    (f(g[8]) as f64 - kv).abs() <= 1e-6 * kernel.peak(),
+                    "kernel {:?}({}): twin {} core {}",
+                    kernel,
+                    kr2,
+                    f(g[8]),
+                    kv
+                );
             }
-            let kv = kernel.eval(*kr2) as f64;
-            prop_assert!((f(g[8]) as f64 - kv).abs() <= 1e-6 * kernel.peak(), "kernel {:?}({}): twin {} core {}", kernel, kr2, f(g[8]), kv);
-        }
-        prop_assert!(inside > decided / 10 && inside < decided, "{} inside of {} decided", inside, decided);
-        let (t_q, t_d, t_i) = totals.get();
-        totals.set((t_q + qs.len(), t_d + decided, t_i + inside));
-        Ok(())
-    })?;
+            prop_assert!(
+                inside > decided / 10 && inside < decided,
+                "{} inside of {} decided",
+                inside,
+                decided
+            );
+            let (t_q, t_d, t_i) = totals.get();
+            totals.set((t_q + qs.len(), t_d + decided, t_i + inside));
+            Ok(())
+        },
+    )?;
     let (queries, decided, inside) = totals.get();
-    Ok(format!("{queries} queries, {decided} decided, {inside} inside"))
+    Ok(format!(
+        "{queries} queries, {decided} decided, {inside} inside"
+    ))
 }

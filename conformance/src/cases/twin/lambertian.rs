@@ -29,7 +29,11 @@ const ITEMS: usize = 4096;
 const BATCHES: u32 = 4;
 
 fn dir() -> impl Strategy<Value = DVec3> {
-    (0.0..std::f64::consts::PI, 0.0..std::f64::consts::TAU).prop_map(|(t, p)| DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos()).as_vec3().as_dvec3())
+    (0.0..std::f64::consts::PI, 0.0..std::f64::consts::TAU).prop_map(|(t, p)| {
+        DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
+            .as_vec3()
+            .as_dvec3()
+    })
 }
 
 #[derive(Clone, Debug)]
@@ -79,7 +83,9 @@ fn input(cases: &[Case]) -> Vec<u32> {
 pub fn matches_core(runner: &dyn KernelRunner) -> CaseResult {
     let stats = random_shading(runner)?;
     edge_cases_are_labelled_like_core(runner)?;
-    Ok(format!("{stats}; edge cases (shading plane, NaN, grazing, clamped ratio) as the core"))
+    Ok(format!(
+        "{stats}; edge cases (shading plane, NaN, grazing, clamped ratio) as the core"
+    ))
 }
 
 fn random_shading(runner: &dyn KernelRunner) -> Result<String, String> {
@@ -101,64 +107,146 @@ fn random_shading(runner: &dyn KernelRunner) -> Result<String, String> {
             below += s.below_shading_plane() as usize;
             if c.w.dot(s.shading).abs() > 1e-5 && c.w.dot(s.geometric).abs() > 1e-5 {
                 let want = s.cosine(c.w);
-                prop_assert!((f(g[5]) as f64 - want).abs() <= 4.0 * EPS, "cosine {} vs {} for {:?}", f(g[5]), want, c);
+                prop_assert!(
+                    (f(g[5]) as f64 - want).abs() <= 4.0 * EPS,
+                    "cosine {} vs {} for {:?}",
+                    f(g[5]),
+                    want,
+                    c
+                );
             }
             let want = s.adjoint_ratio(c.w);
             let cg = c.w.dot(s.geometric).abs();
             if want < MAX_ADJOINT_RATIO * (1.0 - 1e-4) {
                 let tol = 8.0 * EPS * (1.0 + 1.0 / cg) * want.max(1.0);
-                prop_assert!((f(g[6]) as f64 - want).abs() <= tol, "adjoint ratio {} vs {} for {:?}", f(g[6]), want, c);
-            } else if want == MAX_ADJOINT_RATIO && c.w.dot(s.shading).abs() > MAX_ADJOINT_RATIO * cg * (1.0 + 1e-4) {
+                prop_assert!(
+                    (f(g[6]) as f64 - want).abs() <= tol,
+                    "adjoint ratio {} vs {} for {:?}",
+                    f(g[6]),
+                    want,
+                    c
+                );
+            } else if want == MAX_ADJOINT_RATIO
+                && c.w.dot(s.shading).abs() > MAX_ADJOINT_RATIO * cg * (1.0 + 1e-4)
+            {
                 prop_assert_eq!(f(g[6]) as f64, MAX_ADJOINT_RATIO);
             }
             if s.geometric.z.abs() > 1e-5 {
                 let want = s.sample_reemission(c.u);
                 let d = v3(g, 7);
-                if want.is_some_and(|w| w.dot(s.shading).abs() < 1e-5) || d.dot(s.shading).abs() < 1e-5 {
+                if want.is_some_and(|w| w.dot(s.shading).abs() < 1e-5)
+                    || d.dot(s.shading).abs() < 1e-5
+                {
                     continue;
                 }
-                prop_assert_eq!(g[10] == 1, want.is_some(), "re-emission validity for {:?}", c);
+                prop_assert_eq!(
+                    g[10] == 1,
+                    want.is_some(),
+                    "re-emission validity for {:?}",
+                    c
+                );
                 if let Some(w) = want {
                     reemitted += 1;
                     let tol = 1e-5 + 2.0 * EPS / w.dot(s.geometric);
-                    prop_assert!((d - w).length() <= tol, "re-emission {:?} vs {:?} for {:?}", d, w, c);
+                    prop_assert!(
+                        (d - w).length() <= tol,
+                        "re-emission {:?} vs {:?} for {:?}",
+                        d,
+                        w,
+                        c
+                    );
                 }
             }
         }
-        prop_assert!(compared > 3500 && reemitted > 2000 && below > 100, "compared {}, re-emitted {}, below {}", compared, reemitted, below);
+        prop_assert!(
+            compared > 3500 && reemitted > 2000 && below > 100,
+            "compared {}, re-emitted {}, below {}",
+            compared,
+            reemitted,
+            below
+        );
         let (tc, tr, tb) = totals.get();
         totals.set((tc + compared, tr + reemitted, tb + below));
         Ok(())
     })?;
     let (compared, reemitted, below) = totals.get();
-    Ok(format!("compared {compared}, re-emitted {reemitted}, below the shading plane {below}"))
+    Ok(format!(
+        "compared {compared}, re-emitted {reemitted}, below the shading plane {below}"
+    ))
 }
 
 fn edge_cases_are_labelled_like_core(runner: &dyn KernelRunner) -> Result<(), String> {
     let tilted = DVec3::new(0.6, 0.8, 0.0);
     let cases = vec![
         // Viewer exactly in the shading plane: no lobe.
-        Case { geometric: DVec3::Y, shading: DVec3::X, toward: DVec3::Y, w: DVec3::Y, u: DVec2::splat(0.3) },
+        Case {
+            geometric: DVec3::Y,
+            shading: DVec3::X,
+            toward: DVec3::Y,
+            w: DVec3::Y,
+            u: DVec2::splat(0.3),
+        },
         // Non-finite shading normal.
-        Case { geometric: DVec3::Y, shading: DVec3::new(f64::NAN, 1.0, 0.0), toward: DVec3::Y, w: DVec3::Y, u: DVec2::splat(0.3) },
+        Case {
+            geometric: DVec3::Y,
+            shading: DVec3::new(f64::NAN, 1.0, 0.0),
+            toward: DVec3::Y,
+            w: DVec3::Y,
+            u: DVec2::splat(0.3),
+        },
         // Grazing photon under a tilted normal: clamped ratio.
-        Case { geometric: DVec3::Y, shading: tilted, toward: DVec3::Y, w: DVec3::new(1.0, 1e-7, 0.0), u: DVec2::splat(0.3) },
+        Case {
+            geometric: DVec3::Y,
+            shading: tilted,
+            toward: DVec3::Y,
+            w: DVec3::new(1.0, 1e-7, 0.0),
+            u: DVec2::splat(0.3),
+        },
         // Photon in the geometric plane: ratio 1/0 clamped; 0/0 (w = 0) is 0.
-        Case { geometric: DVec3::Y, shading: tilted, toward: DVec3::Y, w: DVec3::X, u: DVec2::splat(0.3) },
-        Case { geometric: DVec3::Y, shading: tilted, toward: DVec3::Y, w: DVec3::ZERO, u: DVec2::splat(0.3) },
+        Case {
+            geometric: DVec3::Y,
+            shading: tilted,
+            toward: DVec3::Y,
+            w: DVec3::X,
+            u: DVec2::splat(0.3),
+        },
+        Case {
+            geometric: DVec3::Y,
+            shading: tilted,
+            toward: DVec3::Y,
+            w: DVec3::ZERO,
+            u: DVec2::splat(0.3),
+        },
         // No tilt: ratio exactly 1.
-        Case { geometric: DVec3::Y, shading: DVec3::Y, toward: DVec3::Y, w: DVec3::new(0.6, 0.8, 0.0), u: DVec2::splat(0.3) },
+        Case {
+            geometric: DVec3::Y,
+            shading: DVec3::Y,
+            toward: DVec3::Y,
+            w: DVec3::new(0.6, 0.8, 0.0),
+            u: DVec2::splat(0.3),
+        },
     ];
     let out = run(runner, "lambertian edges", BODY, &input(&cases), 14, 11)?;
     for (c, g) in cases.iter().zip(&out) {
         let core = DiffuseShading::new(c.geometric, c.shading, c.toward);
-        check!((g[0] == 1) == core.is_some(), "validity of {c:?}: twin {}, core {core:?}", g[0]);
+        check!(
+            (g[0] == 1) == core.is_some(),
+            "validity of {c:?}: twin {}, core {core:?}",
+            g[0]
+        );
         if let Some(s) = core {
             let want = s.adjoint_ratio(c.w);
-            check!(f(g[6]) as f64 == want, "adjoint ratio of {c:?}: twin {}, core {want}", f(g[6]));
+            check!(
+                f(g[6]) as f64 == want,
+                "adjoint ratio of {c:?}: twin {}, core {want}",
+                f(g[6])
+            );
         }
     }
     let ratios = [f(out[2][6]), f(out[3][6]), f(out[4][6]), f(out[5][6])];
-    check!(ratios == [100.0, 100.0, 0.0, 1.0], "ratios (grazing, in-plane, w = 0, no tilt): twin {ratios:?}, expected [100, 100, 0, 1]");
+    check!(
+        ratios == [100.0, 100.0, 0.0, 1.0],
+        "ratios (grazing, in-plane, w = 0, no tilt): twin {ratios:?}, expected [100, 100, 0, 1]"
+    );
     Ok(())
 }

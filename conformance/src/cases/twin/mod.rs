@@ -44,7 +44,8 @@ pub mod rng;
 /// function unless `condition` holds.
 macro_rules! check {
     ($cond:expr, $($msg:tt)+) => {
-        if !$cond {
+        let holds: bool = $cond;
+        if !holds {
             return Err(format!($($msg)+));
         }
     };
@@ -83,7 +84,8 @@ pub(crate) fn run_with(
         ));
     }
     let items = input.len() / in_stride;
-    let invocations = u32::try_from(items).map_err(|_| format!("kernel {label:?}: {items} items"))?;
+    let invocations =
+        u32::try_from(items).map_err(|_| format!("kernel {label:?}: {items} items"))?;
     let twin: String = arpa_core::shaders::ALL
         .iter()
         .map(|(_, s)| *s)
@@ -134,7 +136,8 @@ pub(crate) fn run_prop(
     in_stride: usize,
     out_stride: usize,
 ) -> Result<Vec<Vec<u32>>, TestCaseError> {
-    run_with(runner, label, helpers, body, input, in_stride, out_stride).map_err(TestCaseError::fail)
+    run_with(runner, label, helpers, body, input, in_stride, out_stride)
+        .map_err(TestCaseError::fail)
 }
 
 /// Runs `test` on `batches` values of `strategy`, drawn by proptest's `TestRunner` from the

@@ -26,7 +26,11 @@ const ITEMS: usize = 4096;
 const BATCHES: u32 = 4;
 
 fn iteration() -> impl Strategy<Value = u32> {
-    prop_oneof![0u32..40, (1.0f64..32.0).prop_map(|e| 2f64.powf(e).min(u32::MAX as f64) as u32), Just(u32::MAX)]
+    prop_oneof![
+        0u32..40,
+        (1.0f64..32.0).prop_map(|e| 2f64.powf(e).min(u32::MAX as f64) as u32),
+        Just(u32::MAX)
+    ]
 }
 
 fn alpha() -> impl Strategy<Value = f32> {
@@ -59,18 +63,38 @@ fn random_schedules(runner: &dyn KernelRunner) -> Result<f64, String> {
         let out = run_prop(runner, "radius", "", BODY, &input, 3, 2)?;
         let mut worst = 0.0f64;
         for (&(r, a, i), g) in cases.iter().zip(&out) {
-            let s = RadiusSchedule { initial: r as f64, alpha: a as f64 };
+            let s = RadiusSchedule {
+                initial: r as f64,
+                alpha: a as f64,
+            };
             let want = s.radius(i);
             let got = f(g[0]) as f64;
             let rel = (got - want).abs() / want;
             worst = worst.max(rel);
 
             let tol = 2e-6 + 4.0 * f64::EPSILON * libm::lgamma(i.max(1) as f64 + 1.0);
-            prop_assert!(rel <= tol, "radius(r1 {}, alpha {}, i {}): twin {} core {} ({:e} relative)", r, a, i, got, want, rel);
+            prop_assert!(
+                rel <= tol,
+                "radius(r1 {}, alpha {}, i {}): twin {} core {} ({:e} relative)",
+                r,
+                a,
+                i,
+                got,
+                want,
+                rel
+            );
             prop_assert!(got >= MIN_RADIUS as f32 as f64);
             let want_next = s.next(r as f64, i);
             let got_next = f(g[1]) as f64;
-            prop_assert!((got_next - want_next).abs() <= 1e-6 * want_next, "next(r {}, alpha {}, i {}): twin {} core {}", r, a, i, got_next, want_next);
+            prop_assert!(
+                (got_next - want_next).abs() <= 1e-6 * want_next,
+                "next(r {}, alpha {}, i {}): twin {} core {}",
+                r,
+                a,
+                i,
+                got_next,
+                want_next
+            );
         }
         worst_all.set(worst_all.get().max(worst));
         Ok(())
@@ -90,7 +114,10 @@ fn closed_form_follows_its_own_recurrence(runner: &dyn KernelRunner) -> Result<(
         let (ri, rj) = (f(a[0]) as f64, f(b[0]) as f64);
         let ratio = (rj * rj) / (ri * ri);
         let exact = (i as f64 + alpha as f64) / (i as f64 + 1.0);
-        check!((ratio - exact).abs() <= 4e-6, "i {i}: r_(i+1)^2/r_i^2 = {ratio}, want {exact}");
+        check!(
+            (ratio - exact).abs() <= 4e-6,
+            "i {i}: r_(i+1)^2/r_i^2 = {ratio}, want {exact}"
+        );
     }
     Ok(())
 }

@@ -24,7 +24,11 @@ const ITEMS: usize = 4096;
 const BATCHES: u32 = 4;
 
 fn dir() -> impl Strategy<Value = DVec3> {
-    (0.0..std::f64::consts::PI, 0.0..std::f64::consts::TAU).prop_map(|(t, p)| DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos()).as_vec3().as_dvec3())
+    (0.0..std::f64::consts::PI, 0.0..std::f64::consts::TAU).prop_map(|(t, p)| {
+        DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
+            .as_vec3()
+            .as_dvec3()
+    })
 }
 
 fn vec_in(lo: f64, hi: f64) -> impl Strategy<Value = DVec3> {
@@ -71,7 +75,9 @@ fn input(cases: &[Case]) -> Vec<u32> {
 pub fn matches_core(runner: &dyn KernelRunner) -> CaseResult {
     let compared = random_reemissions(runner)?;
     bad_inputs_are_labelled_like_core(runner)?;
-    Ok(format!("{compared} re-emissions and diffuse directions compared; bad-input labels as the core"))
+    Ok(format!(
+        "{compared} re-emissions and diffuse directions compared; bad-input labels as the core"
+    ))
 }
 
 fn random_reemissions(runner: &dyn KernelRunner) -> Result<usize, String> {
@@ -86,25 +92,60 @@ fn random_reemissions(runner: &dyn KernelRunner) -> Result<usize, String> {
             }
             compared += 1;
             let w = reemit(c.hit, c.dp_du, c.dp_dv, c.direction, c.length);
-            prop_assert_eq!(g[18] == 0, w.is_ok(), "status {} vs core {:?} for {:?}", g[18], w, c);
+            prop_assert_eq!(
+                g[18] == 0,
+                w.is_ok(),
+                "status {} vs core {:?} for {:?}",
+                g[18],
+                w,
+                c
+            );
             // Every random footprint is a valid input: the core must succeed.
-            let w = w.map_err(|e| TestCaseError::fail(format!("the core's reemit failed ({e:?}) for {c:?}")))?;
-            let close = |what: &str, got: DVec3, want: DVec3, tol: f64| -> Result<(), TestCaseError> {
-                prop_assert!((got - want).length() <= tol, "{}: twin {:?} core {:?} (|diff| {:e} > {:e}) for {:?}", what, got, want, (got - want).length(), tol, c);
-                Ok(())
-            };
+            let w = w.map_err(|e| {
+                TestCaseError::fail(format!("the core's reemit failed ({e:?}) for {c:?}"))
+            })?;
+            let close =
+                |what: &str, got: DVec3, want: DVec3, tol: f64| -> Result<(), TestCaseError> {
+                    prop_assert!(
+                        (got - want).length() <= tol,
+                        "{}: twin {:?} core {:?} (|diff| {:e} > {:e}) for {:?}",
+                        what,
+                        got,
+                        want,
+                        (got - want).length(),
+                        tol,
+                        c
+                    );
+                    Ok(())
+                };
             prop_assert_eq!(v3(g, 0), w.p);
             close("d", v3(g, 3), w.d, 8.0 * EPS)?;
             let sin = c.dp_du.cross(c.dp_dv).length() / (c.dp_du.length() * c.dp_dv.length());
             // Parallel differentials: v = 0 and both sides give exact zeros.
-            let kp = |l: f64| if l == 0.0 { 0.0 } else { 16.0 * EPS * (1.0 + 1.0 / sin) * l };
+            let kp = |l: f64| {
+                if l == 0.0 {
+                    0.0
+                } else {
+                    16.0 * EPS * (1.0 + 1.0 / sin) * l
+                }
+            };
             close("dP/du", v3(g, 6), w.dp_du, kp(w.dp_du.length()))?;
             close("dP/dv", v3(g, 9), w.dp_dv, kp(w.dp_dv.length()))?;
             close("dD/du", v3(g, 12), w.dd_du, 16.0 * EPS * c.length)?;
             close("dD/dv", v3(g, 15), w.dd_dv, 16.0 * EPS * c.length)?;
-            close("diffuse direction", v3(g, 19), diffuse_direction(c.direction, c.u), 1e-5)?;
+            close(
+                "diffuse direction",
+                v3(g, 19),
+                diffuse_direction(c.direction, c.u),
+                1e-5,
+            )?;
         }
-        prop_assert!(compared > 4000, "only {} of {} compared", compared, cases.len());
+        prop_assert!(
+            compared > 4000,
+            "only {} of {} compared",
+            compared,
+            cases.len()
+        );
         total.set(total.get() + compared);
         Ok(())
     })?;
@@ -112,21 +153,49 @@ fn random_reemissions(runner: &dyn KernelRunner) -> Result<usize, String> {
 }
 
 fn bad_inputs_are_labelled_like_core(runner: &dyn KernelRunner) -> Result<(), String> {
-    let base = Case { hit: DVec3::ONE, dp_du: DVec3::X * 0.01, dp_dv: DVec3::Y * 0.02, direction: DVec3::Z, length: 0.1, u: DVec2::splat(0.3) };
+    let base = Case {
+        hit: DVec3::ONE,
+        dp_du: DVec3::X * 0.01,
+        dp_dv: DVec3::Y * 0.02,
+        direction: DVec3::Z,
+        length: 0.1,
+        u: DVec2::splat(0.3),
+    };
     let cases = vec![
-        Case { length: 0.0, ..base.clone() },
-        Case { length: -1.0, ..base.clone() },
-        Case { dp_du: DVec3::new(f64::NAN, 0.0, 0.0), ..base.clone() },
-        Case { direction: DVec3::ZERO, ..base.clone() },
-        Case { dp_dv: DVec3::X * 0.5, ..base.clone() }, // parallel: v = 0, still a valid (point) emitter
+        Case {
+            length: 0.0,
+            ..base.clone()
+        },
+        Case {
+            length: -1.0,
+            ..base.clone()
+        },
+        Case {
+            dp_du: DVec3::new(f64::NAN, 0.0, 0.0),
+            ..base.clone()
+        },
+        Case {
+            direction: DVec3::ZERO,
+            ..base.clone()
+        },
+        Case {
+            dp_dv: DVec3::X * 0.5,
+            ..base.clone()
+        }, // parallel: v = 0, still a valid (point) emitter
         base,
     ];
     let out = run(runner, "reemission labels", BODY, &input(&cases), 15, 22)?;
     let codes: Vec<u32> = out.iter().map(|g| g[18]).collect();
-    check!(codes == [6, 6, 6, 1, 0, 0], "labels (length 0, length < 0, NaN dP, zero direction, parallel, valid): twin {codes:?}, expected [6, 6, 6, 1, 0, 0]");
+    check!(
+        codes == [6, 6, 6, 1, 0, 0],
+        "labels (length 0, length < 0, NaN dP, zero direction, parallel, valid): twin {codes:?}, expected [6, 6, 6, 1, 0, 0]"
+    );
     for (c, &code) in cases.iter().zip(&codes) {
         let core = reemit(c.hit, c.dp_du, c.dp_dv, c.direction, c.length);
-        check!(core.is_ok() == (code == 0), "{c:?}: core {core:?}, twin label {code}");
+        check!(
+            core.is_ok() == (code == 0),
+            "{c:?}: core {core:?}, twin label {code}"
+        );
     }
     Ok(())
 }
