@@ -61,8 +61,8 @@ fn create_cpu() -> Result<Box<dyn DynTracer>, BoxError> {
     Ok(Box::new(arpa_cpu::CpuTracer::new()?))
 }
 
-/// The wgpu Tracer is not on this branch (helper C's `wgpu-tracer` adds it as
-/// `create_wgpu`); until it is merged, only the wgpu kernel runner is wired.
+/// Not wired yet: the wgpu Tracer comes with branch `wgpu-tracer` (which replaces this
+/// function); until then only the wgpu kernel runner is, and the tracer's cases do not run.
 #[cfg(feature = "wgpu")]
 fn create_wgpu() -> Result<Box<dyn DynTracer>, BoxError> {
     Err("the wgpu Tracer is not wired on this branch yet (only its kernel runner is)".into())

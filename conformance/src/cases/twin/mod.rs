@@ -198,3 +198,46 @@ pub(crate) fn v3(words: &[u32], i: usize) -> DVec3 {
         f(words[i + 2]) as f64,
     )
 }
+
+#[cfg(test)]
+mod tests {
+    use std::cell::RefCell;
+
+    use proptest::prelude::*;
+
+    use super::proptest_batches;
+
+    fn draw(seed: &str) -> Vec<u64> {
+        let v = RefCell::new(Vec::new());
+        proptest_batches(seed, 3, &any::<u64>(), |x| {
+            v.borrow_mut().push(x);
+            Ok(())
+        })
+        .expect("no failure");
+        v.into_inner()
+    }
+
+    #[test]
+    fn batches_come_from_the_fixed_seed() {
+        let a = draw("twin-a");
+        assert_eq!(a.len(), 3);
+        assert_eq!(a, draw("twin-a"));
+        assert_ne!(a, draw("twin-b"));
+    }
+
+    #[test]
+    fn a_failure_names_its_batch_and_seed_and_is_not_shrunk() {
+        let runs = RefCell::new(0);
+        let e = proptest_batches("twin-c", 4, &(0u32..1000), |x| {
+            *runs.borrow_mut() += 1;
+            prop_assert!(*runs.borrow() < 2, "value {}", x);
+            Ok(())
+        })
+        .expect_err("the second batch fails");
+        assert!(
+            e.contains("(batch 2 of 4, proptest seed \"twin-c\")"),
+            "{e}"
+        );
+        assert_eq!(runs.into_inner(), 2, "no shrinking runs");
+    }
+}
