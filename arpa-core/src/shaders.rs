@@ -35,7 +35,8 @@
 //! Labels decided at a threshold (degenerate footprint, grazing, total internal reflection)
 //! can differ from the core's within the `f32` rounding of the tested quantity; the
 //! footprint's degenerate test uses `16 ε₃₂` where the core uses `16 ε₆₄`.
-//! `arpa-wgpu`'s tests run every function on a GPU (or lavapipe) against the Rust
+//! The conformance suite's twin cases (`arpa-conformance`, `cases::twin`) run every
+//! function on each backend's WGSL kernel runner (a GPU, or lavapipe) against the Rust
 //! functions over random and stress inputs.
 
 /// `math.wgsl`: `arpa_finite`, `arpa_finite3` (`is_finite` by the exponent bits),

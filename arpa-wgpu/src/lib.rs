@@ -9,8 +9,9 @@
 //!   forced by the caller) and device creation, with an error naming the adapter when ray
 //!   queries are missing;
 //! * [`harness`]: a compute harness that runs WGSL functions (the core's WGSL twin,
-//!   [`arpa_core::shaders`]) over input buffers and reads the results back, used by the
-//!   tests that compare the twin with the Rust core;
+//!   [`arpa_core::shaders`]) over input buffers and reads the results back; the
+//!   conformance suite's WGSL-twin cases (`arpa-conformance`, feature `wgpu`) compare the
+//!   twin with the Rust core through it;
 //! * [`scene`]: scene upload (a triangle BLAS per mesh, one TLAS) and closest-hit ray
 //!   casting on ray queries, checked against the core's brute-force caster; the prepared
 //!   scene (materials, normals, emitters) as bind group 0 of every pass with its WGSL

@@ -2,6 +2,7 @@
 //! cases each is expected to fail (every expectation carries its reason).
 
 use crate::dyn_tracer::{BoxError, DynTracer};
+use crate::kernel_runner::MakeKernelRunner;
 
 /// Every backend name the project knows, compiled in or not. `ARPA_REQUIRE_BACKENDS`
 /// may only name these.
@@ -28,6 +29,10 @@ pub struct Backend {
     pub create: fn() -> Result<Box<dyn DynTracer>, BoxError>,
     /// Cases it is expected to fail.
     pub expected_failures: &'static [ExpectedFailure],
+    /// Creates the backend's WGSL kernel runner (what the cases of the core's WGSL twin
+    /// run on); `None` for a backend that runs no WGSL (the twin cases are then not
+    /// applicable to it). An error means the runner cannot run here.
+    pub kernel_runner: Option<MakeKernelRunner>,
 }
 
 impl core::fmt::Debug for Backend {
@@ -36,6 +41,7 @@ impl core::fmt::Debug for Backend {
             .field("name", &self.name)
             .field("feature", &self.feature)
             .field("expected_failures", &self.expected_failures)
+            .field("kernel_runner", &self.kernel_runner.is_some())
             .finish()
     }
 }
@@ -71,6 +77,7 @@ pub fn compiled() -> Vec<Backend> {
         feature: "cpu",
         create: create_cpu,
         expected_failures: &[],
+        kernel_runner: None,
     });
     #[cfg(feature = "wgpu")]
     v.push(Backend {
@@ -78,6 +85,7 @@ pub fn compiled() -> Vec<Backend> {
         feature: "wgpu",
         create: create_wgpu,
         expected_failures: &[],
+        kernel_runner: Some(crate::kernel_runner::wgpu_kernel_runner),
     });
     v
 }

@@ -12,13 +12,17 @@
 //!   through a mirror and a glass slab against exact optics, analytic scenes (plane,
 //!   furnace, glass slab, mirror caustic), independent references (each scene of
 //!   `../shared/scenes` against its Mitsuba 3 / LuxCore ground truth), determinism, bad
-//!   input).
+//!   input, and the core's WGSL twin against the Rust core ([`cases::twin`])).
+//! * [`KernelRunner`]: the capability the WGSL-twin cases need, offered per backend by the
+//!   registry; a backend without one (cpu) reports them [`Verdict::NotApplicable`].
 //! * [`suite`]: the runner. `ARPA_REQUIRE_BACKENDS=cpu,wgpu` makes a listed backend that
 //!   is unknown, not compiled in or unable to initialise a failure.
 //!
 //! Run it with `cargo run -p arpa-conformance --profile test [-- --out FILE]` (opt-level 2;
 //! writes `target/conformance.md` by default) or `cargo test -p arpa-conformance` (asserts
 //! that nothing failed unexpectedly, and writes the same file).
+//! Add `--features wgpu` for the wgpu backend (its WGSL-twin cases run on lavapipe without a
+//! GPU; `--test twin` runs only them, with their sabotage check).
 //!
 //! ## Reference cases: reduced and full set, missing data
 //!
@@ -37,11 +41,13 @@ use std::fmt::Write as _;
 pub mod backends;
 pub mod cases;
 pub mod dyn_tracer;
+pub mod kernel_runner;
 pub mod scenes;
 pub mod suite;
 
 pub use dyn_tracer::{BoxError, DynTracer};
-pub use suite::{Case, CaseResult, SuiteOptions, SuiteRun, run_suite, run_suite_with};
+pub use kernel_runner::{KernelJob, KernelRunner};
+pub use suite::{Case, CaseBody, CaseResult, SuiteOptions, SuiteRun, run_suite, run_suite_with};
 
 /// Outcome of one case on one backend.
 #[derive(Clone, Debug, PartialEq)]
@@ -69,6 +75,14 @@ pub enum Verdict {
         /// What is missing.
         reason: String,
     },
+    /// Not run because the case does not apply to this backend: it needs a capability the
+    /// backend does not offer (the WGSL-twin cases on a backend without a
+    /// [`KernelRunner`], such as cpu, which runs the Rust reference itself). Neither a
+    /// pass nor a failure, with or without `CI`.
+    NotApplicable {
+        /// Why the case does not apply.
+        reason: String,
+    },
 }
 
 impl Verdict {
@@ -88,6 +102,7 @@ impl Verdict {
                 format!("xfail ({reason}; measured: {measured})")
             }
             Verdict::Skipped { reason } => format!("**SKIPPED** ({reason})"),
+            Verdict::NotApplicable { reason } => format!("n/a ({reason})"),
         }
     }
 }
@@ -133,10 +148,24 @@ impl Report {
 
     /// Number of [`Verdict::Skipped`] cells.
     pub fn skipped(&self) -> usize {
+        self.count(|v| matches!(v, Verdict::Skipped { .. }))
+    }
+
+    /// Number of [`Verdict::NotApplicable`] cells.
+    pub fn not_applicable(&self) -> usize {
+        self.count(|v| matches!(v, Verdict::NotApplicable { .. }))
+    }
+
+    /// Number of [`Verdict::Pass`] cells.
+    pub fn passed(&self) -> usize {
+        self.count(|v| matches!(v, Verdict::Pass { .. }))
+    }
+
+    fn count(&self, pred: impl Fn(&Verdict) -> bool) -> usize {
         self.rows
             .iter()
             .flat_map(|(_, cells)| cells.iter().flatten())
-            .filter(|v| matches!(v, Verdict::Skipped { .. }))
+            .filter(|v| pred(v))
             .count()
     }
 

@@ -6,11 +6,23 @@ use std::time::Instant;
 
 use crate::backends::{Backend, KNOWN_BACKENDS};
 use crate::dyn_tracer::{BoxError, DynTracer};
+use crate::kernel_runner::{KernelRunner, MakeKernelRunner};
 use crate::{Report, Verdict};
 
 /// What a case body returns: the measured metric when its assertion held, else what was
 /// measured and what was expected.
 pub type CaseResult = Result<String, String>;
+
+/// A case's body, by the capability of the backend it needs.
+#[derive(Clone, Copy)]
+pub enum CaseBody {
+    /// Drives the backend's tracer. It uploads its own scene (which resets the tracer) and
+    /// must not assume anything about the tracer's state.
+    Tracer(fn(&mut dyn DynTracer) -> CaseResult),
+    /// Runs WGSL kernels on the backend's [`KernelRunner`]
+    /// ([`Backend::kernel_runner`]); [`Verdict::NotApplicable`] on a backend without one.
+    Kernels(fn(&dyn KernelRunner) -> CaseResult),
+}
 
 /// A backend-agnostic case: one body for every backend.
 #[derive(Clone, Copy)]
@@ -19,9 +31,8 @@ pub struct Case {
     pub id: &'static str,
     /// Row label of the report.
     pub title: &'static str,
-    /// The case. It uploads its own scene (which resets the tracer) and must not assume
-    /// anything about the tracer's state.
-    pub run: fn(&mut dyn DynTracer) -> CaseResult,
+    /// The case.
+    pub run: CaseBody,
     /// Checked before the case runs on any backend: `Err(what is missing)` when data the
     /// case reads (the shared scenes) is absent. The case is then skipped loudly, or fails
     /// when env `CI` is set ([`ci_is_set`]). `None`: the case needs nothing external.
@@ -111,8 +122,9 @@ impl SuiteRun {
             s.push_str(&format!("- `{b}`: {d}\n"));
         }
         let skipped = self.report.skipped();
+        let not_applicable = self.report.not_applicable();
         s.push_str(&format!(
-            "- total {:.1} s; {}{}\n\n",
+            "- total {:.1} s; {}{}{}\n\n",
             self.seconds,
             if self.report.all_ok() {
                 "all cases pass (or fail as expected, with a reason)"
@@ -121,6 +133,13 @@ impl SuiteRun {
             },
             if skipped > 0 {
                 format!("; **{skipped} skipped** (shared scenes absent)")
+            } else {
+                String::new()
+            },
+            if not_applicable > 0 {
+                format!(
+                    "; {not_applicable} not applicable (n/a: the backend lacks what the case needs; not a pass)"
+                )
             } else {
                 String::new()
             }
@@ -176,6 +195,14 @@ fn create(backend: &Backend) -> Result<Box<dyn DynTracer>, String> {
     }
 }
 
+fn create_runner(make: MakeKernelRunner) -> Result<Box<dyn KernelRunner>, String> {
+    match catch_unwind(make) {
+        Ok(Ok(r)) => Ok(r),
+        Ok(Err(e)) => Err(e.to_string()),
+        Err(p) => Err(format!("panicked: {}", panic_message(&*p))),
+    }
+}
+
 /// Runs `cases` on every backend of `backends` under `options`. Progress goes to stderr.
 ///
 /// * A backend named in `options.required` that is not a known backend, or not in
@@ -183,6 +210,10 @@ fn create(backend: &Backend) -> Result<Box<dyn DynTracer>, String> {
 ///   A backend that is compiled in but not required and cannot initialise is recorded as
 ///   an expected failure with the error as reason, and its cases do not run.
 /// * A panicking case fails (on that backend only); the backend is then re-created.
+/// * [`CaseBody::Kernels`] cases run on the backend's kernel runner, created at the first
+///   such case (even when the tracer cannot initialise); a backend without one records
+///   them [`Verdict::NotApplicable`]. A runner that cannot initialise fails them when the
+///   backend is required, else records an expected failure with the error as reason.
 pub fn run_suite_with(backends: &[Backend], cases: &[Case], options: &SuiteOptions) -> SuiteRun {
     let start = Instant::now();
     let mut report = Report::default();
@@ -224,8 +255,26 @@ pub fn run_suite_with(backends: &[Backend], cases: &[Case], options: &SuiteOptio
                 None
             }
         };
+        // The kernel runner, created at the first kernel case.
+        let mut runner: Option<Result<Box<dyn KernelRunner>, String>> = None;
         for case in cases.iter().filter(|c| options.selects(c)) {
-            let Some(t) = tracer.as_mut() else { continue };
+            match case.run {
+                CaseBody::Tracer(_) if tracer.is_none() => continue,
+                CaseBody::Kernels(_) if backend.kernel_runner.is_none() => {
+                    report.record(
+                        case.title,
+                        backend.name,
+                        Verdict::NotApplicable {
+                            reason: format!(
+                                "{} runs no WGSL (no kernel runner); the Rust core is the twin's reference",
+                                backend.name
+                            ),
+                        },
+                    );
+                    continue;
+                }
+                _ => {}
+            }
             if let Some(Err(missing)) = case.needs.map(|f| f()) {
                 let v = missing_data(missing, ci_is_set());
                 if let Verdict::Skipped { reason } = &v {
@@ -238,13 +287,57 @@ pub fn run_suite_with(backends: &[Backend], cases: &[Case], options: &SuiteOptio
                 continue;
             }
             let t0 = Instant::now();
-            let outcome = match catch_unwind(AssertUnwindSafe(|| (case.run)(t.as_mut()))) {
-                Ok(r) => r,
-                Err(p) => {
-                    let msg = format!("panicked: {}", panic_message(&*p));
-                    // The tracer may be in any state after a panic: start afresh.
-                    tracer = create(backend).ok();
-                    Err(msg)
+            let outcome = match (case.run, backend.kernel_runner) {
+                (CaseBody::Tracer(body), _) => {
+                    let Some(t) = tracer.as_mut() else { continue };
+                    match catch_unwind(AssertUnwindSafe(|| body(t.as_mut()))) {
+                        Ok(r) => r,
+                        Err(p) => {
+                            let msg = format!("panicked: {}", panic_message(&*p));
+                            // The tracer may be in any state after a panic: start afresh.
+                            tracer = create(backend).ok();
+                            Err(msg)
+                        }
+                    }
+                }
+                (CaseBody::Kernels(_), None) => continue, // recorded above
+                (CaseBody::Kernels(body), Some(make)) => {
+                    let r = runner.get_or_insert_with(|| {
+                        let r = create_runner(make);
+                        if let Ok(r) = &r {
+                            devices.push((format!("{} kernel runner", backend.name), r.device()));
+                        }
+                        r
+                    });
+                    let r = match r {
+                        Ok(r) => r,
+                        Err(e) => {
+                            let v = if required {
+                                Verdict::Fail {
+                                    detail: format!(
+                                        "required by {REQUIRE_ENV} but its kernel runner failed to initialise: {e}"
+                                    ),
+                                }
+                            } else {
+                                Verdict::ExpectedFail {
+                                    reason: format!(
+                                        "not required by {REQUIRE_ENV}; kernel runner failed to initialise: {e}"
+                                    ),
+                                    measured: String::new(),
+                                }
+                            };
+                            report.record(case.title, backend.name, v);
+                            continue;
+                        }
+                    };
+                    match catch_unwind(AssertUnwindSafe(|| body(r.as_ref()))) {
+                        Ok(r) => r,
+                        Err(p) => {
+                            // The device may be in any state after a panic: start afresh.
+                            runner = None;
+                            Err(format!("panicked: {}", panic_message(&*p)))
+                        }
+                    }
                 }
             };
             let secs = t0.elapsed().as_secs_f64();
@@ -308,6 +401,7 @@ mod tests {
             feature: name,
             create: no_device,
             expected_failures,
+            kernel_runner: None,
         }
     }
 
@@ -365,6 +459,130 @@ mod tests {
         );
         assert!(!run.report.all_ok());
         assert!(run.report.to_markdown().contains("no such backend"));
+    }
+
+    /// A runner that returns zeros (the kernel-case tests below never look at them).
+    struct ZeroRunner;
+
+    impl KernelRunner for ZeroRunner {
+        fn device(&self) -> String {
+            "zeros".into()
+        }
+        fn run(&self, job: &crate::KernelJob<'_>) -> Result<Vec<u32>, BoxError> {
+            Ok(vec![0; job.output_words])
+        }
+    }
+
+    fn zero_runner() -> Result<Box<dyn KernelRunner>, BoxError> {
+        Ok(Box::new(ZeroRunner))
+    }
+
+    fn no_runner() -> Result<Box<dyn KernelRunner>, BoxError> {
+        Err("no adapter for kernels".into())
+    }
+
+    fn kernel_case(run: fn(&dyn KernelRunner) -> CaseResult) -> Case {
+        Case {
+            id: "twin-x",
+            title: "twin x",
+            needs: None,
+            run: CaseBody::Kernels(run),
+        }
+    }
+
+    fn runs_one_kernel(r: &dyn KernelRunner) -> CaseResult {
+        let out = r
+            .run(&crate::KernelJob {
+                label: "x",
+                source: "",
+                entry: "main",
+                input: &[],
+                invocations: 1,
+                output_words: 3,
+            })
+            .map_err(|e| e.to_string())?;
+        if out.len() == 3 {
+            Ok("3 words".into())
+        } else {
+            Err(format!("{} words", out.len()))
+        }
+    }
+
+    fn always_fails(_: &dyn KernelRunner) -> CaseResult {
+        Err("twin differs".into())
+    }
+
+    #[test]
+    fn kernel_cases_are_not_applicable_without_a_runner() {
+        let backends = [fake("cpu", &[])];
+        let run = run_suite_with(
+            &backends,
+            &[kernel_case(always_fails)],
+            &SuiteOptions::default(),
+        );
+        let md = run.to_markdown();
+        // Neither a failure (even though the body would fail) nor a pass, and said so.
+        assert!(run.report.all_ok(), "{md}");
+        assert_eq!(run.report.not_applicable(), 1, "{md}");
+        assert_eq!(run.report.passed(), 0, "{md}");
+        assert_eq!(run.report.skipped(), 0, "{md}");
+        assert!(md.contains("| twin x | n/a (cpu runs no WGSL"), "{md}");
+        assert!(md.contains("1 not applicable"), "{md}");
+    }
+
+    #[test]
+    fn kernel_cases_run_on_the_runner_even_without_a_tracer() {
+        let backend = Backend {
+            kernel_runner: Some(zero_runner),
+            ..fake("wgpu", &[])
+        };
+        let run = run_suite_with(
+            &[backend],
+            &[kernel_case(runs_one_kernel)],
+            &SuiteOptions::default(),
+        );
+        assert!(run.report.all_ok(), "{}", run.report.to_markdown());
+        assert_eq!(run.report.passed(), 1);
+        assert!(
+            run.devices
+                .iter()
+                .any(|(b, d)| b == "wgpu kernel runner" && d == "zeros")
+        );
+        // A failing body on a runner is a failure.
+        let run = run_suite_with(
+            &[backend],
+            &[kernel_case(always_fails)],
+            &SuiteOptions::default(),
+        );
+        assert!(!run.report.all_ok());
+        assert!(run.report.to_markdown().contains("**FAIL** (twin differs)"));
+    }
+
+    #[test]
+    fn a_runner_that_cannot_start_fails_only_when_required() {
+        let backend = Backend {
+            kernel_runner: Some(no_runner),
+            ..fake("wgpu", &[])
+        };
+        let cases = [kernel_case(runs_one_kernel)];
+        let run = run_suite_with(&[backend], &cases, &SuiteOptions::default());
+        assert!(run.report.all_ok(), "{}", run.report.to_markdown());
+        assert!(
+            run.report
+                .to_markdown()
+                .contains("kernel runner failed to initialise: no adapter for kernels")
+        );
+        let required = SuiteOptions {
+            required: vec!["wgpu".into()],
+            filter: vec![],
+        };
+        let run = run_suite_with(&[backend], &cases, &required);
+        assert!(!run.report.all_ok());
+        assert!(
+            run.report
+                .to_markdown()
+                .contains("required by ARPA_REQUIRE_BACKENDS but its kernel runner failed")
+        );
     }
 
     #[test]

@@ -3,7 +3,7 @@
 #![cfg(feature = "cpu")]
 
 use arpa_conformance::suite::ci_is_set;
-use arpa_conformance::{BoxError, Case, DynTracer, backends, cases};
+use arpa_conformance::{BoxError, Case, CaseBody, DynTracer, backends, cases};
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::progressive_photon::PackedPhoton;
 use arpa_core::scene::Scene;
@@ -146,7 +146,10 @@ fn run(fault: Fault, case: &str) -> Result<String, String> {
         .into_iter()
         .find(|c| c.id == case)
         .expect("case");
-    (c.run)(&mut t)
+    match c.run {
+        CaseBody::Tracer(body) => body(&mut t),
+        CaseBody::Kernels(_) => panic!("{case} runs kernels, not the tracer"),
+    }
 }
 
 #[test]

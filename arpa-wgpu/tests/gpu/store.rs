@@ -1,10 +1,10 @@
 //! Store → acceleration structure → gather on the device in one submission
 //! (`arpa_wgpu::store::store_and_gather`), against the core: every raw footprint's outcome
-//! equals `ResolvedHeuristics::store`'s (except within 1e-3 of a threshold, as in
-//! `twin_heuristics`), the stored records' centres are the core's, the gather over the
-//! device-built structure (rejected footprints as far zero-size boxes) equals the brute-force
-//! gather over the device's records within `gather`'s bound, and a second run is
-//! bit-identical (deterministic slots, no atomics).
+//! equals `ResolvedHeuristics::store`'s (except within 1e-3 of a threshold, as in the
+//! conformance case `twin-heuristics`), the stored records' centres are the core's, the
+//! gather over the device-built structure (rejected footprints as far zero-size boxes)
+//! equals the brute-force gather over the device's records within `gather`'s bound, and a
+//! second run is bit-identical (deterministic slots, no atomics).
 
 use crate::common::*;
 use crate::gather::{check, queries};

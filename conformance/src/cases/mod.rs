@@ -2,7 +2,7 @@
 //! `arpa-core`'s reference computation; none compares with an image the code produced
 //! itself.
 
-use crate::suite::Case;
+use crate::suite::{Case, CaseBody};
 
 pub mod analytic;
 pub mod bad_input;
@@ -12,6 +12,7 @@ pub mod gather;
 pub mod optics;
 pub mod reference;
 pub mod stage;
+pub mod twin;
 
 /// Every case, in report-row order.
 pub fn all() -> Vec<Case> {
@@ -20,133 +21,181 @@ pub fn all() -> Vec<Case> {
             id: "stage-photon-pass",
             title: "photon pass = core trace_photon (glass slab + mirror)",
             needs: None,
-            run: stage::photon_pass_agreement,
+            run: CaseBody::Tracer(stage::photon_pass_agreement),
         },
         Case {
             id: "gather-exact-arpa-biweight",
             title: "gather = gather_brute_force (arpa, biweight)",
             needs: None,
-            run: gather::arpa_biweight,
+            run: CaseBody::Tracer(gather::arpa_biweight),
         },
         Case {
             id: "gather-exact-arpa-constant",
             title: "gather = gather_brute_force (arpa, constant kernel)",
             needs: None,
-            run: gather::arpa_constant,
+            run: CaseBody::Tracer(gather::arpa_constant),
         },
         Case {
             id: "gather-exact-rtpm",
             title: "gather = gather_brute_force (rtpm)",
             needs: None,
-            run: gather::rtpm,
+            run: CaseBody::Tracer(gather::rtpm),
         },
         Case {
             id: "analytic-plane-arpa",
             title: "point light over plane, photons only (arpa)",
             needs: None,
-            run: analytic::plane_arpa,
+            run: CaseBody::Tracer(analytic::plane_arpa),
         },
         Case {
             id: "analytic-plane-rtpm",
             title: "point light over plane, photons only (rtpm)",
             needs: None,
-            run: analytic::plane_rtpm,
+            run: CaseBody::Tracer(analytic::plane_rtpm),
         },
         Case {
             id: "camera-mirror",
             title: "camera pass: query points through a plane mirror = geometric optics",
             needs: None,
-            run: camera::mirror,
+            run: CaseBody::Tracer(camera::mirror),
         },
         Case {
             id: "camera-glass-slab",
             title: "camera pass: query points through a glass slab = geometric optics + Fresnel",
             needs: None,
-            run: camera::glass_slab,
+            run: CaseBody::Tracer(camera::glass_slab),
         },
         Case {
             id: "analytic-glass-slab-arpa",
             title: "point light through glass slab: two-interface Fresnel transmittance (arpa)",
             needs: None,
-            run: analytic::glass_slab_arpa,
+            run: CaseBody::Tracer(analytic::glass_slab_arpa),
         },
         Case {
             id: "analytic-glass-slab-rtpm",
             title: "point light through glass slab: two-interface Fresnel transmittance (rtpm)",
             needs: None,
-            run: analytic::glass_slab_rtpm,
+            run: CaseBody::Tracer(analytic::glass_slab_rtpm),
         },
         Case {
             id: "analytic-mirror-caustic-arpa",
             title: "point light and plane mirror: image-source caustic (arpa)",
             needs: None,
-            run: analytic::mirror_caustic_arpa,
+            run: CaseBody::Tracer(analytic::mirror_caustic_arpa),
         },
         Case {
             id: "analytic-mirror-caustic-rtpm",
             title: "point light and plane mirror: image-source caustic (rtpm)",
             needs: None,
-            run: analytic::mirror_caustic_rtpm,
+            run: CaseBody::Tracer(analytic::mirror_caustic_rtpm),
         },
         Case {
             id: "analytic-furnace-arpa-direct",
             title: "point light in closed sphere, all bounces (arpa, next-event)",
             needs: None,
-            run: analytic::furnace_arpa_direct,
+            run: CaseBody::Tracer(analytic::furnace_arpa_direct),
         },
         Case {
             id: "analytic-furnace-rtpm-photons",
             title: "point light in closed sphere, all bounces (rtpm, photons only)",
             needs: None,
-            run: analytic::furnace_rtpm_photons_only,
+            run: CaseBody::Tracer(analytic::furnace_rtpm_photons_only),
         },
         Case {
             id: "reference-cornell-caustic",
             title: "cornell-caustic vs Mitsuba path (ground truth)",
             needs: Some(reference::cornell_caustic_data),
-            run: reference::cornell_caustic,
+            run: CaseBody::Tracer(reference::cornell_caustic),
         },
         Case {
             id: "reference-caustic-glass",
             title: "caustic-glass vs LuxCore PhotonGI (ground truth)",
             needs: Some(reference::caustic_glass_data),
-            run: reference::caustic_glass,
+            run: CaseBody::Tracer(reference::caustic_glass),
         },
         Case {
             id: "reference-water-caustic",
             title: "water-caustic vs LuxCore PhotonGI (ground truth)",
             needs: Some(reference::water_caustic_data),
-            run: reference::water_caustic,
+            run: CaseBody::Tracer(reference::water_caustic),
         },
         Case {
             id: "reference-veach-bidir",
             title: "veach-bidir vs Mitsuba path (ground truth)",
             needs: Some(reference::veach_bidir_data),
-            run: reference::veach_bidir,
+            run: CaseBody::Tracer(reference::veach_bidir),
         },
         Case {
             id: "reference-sponza-standin",
             title: "sponza-standin vs Mitsuba path (ground truth)",
             needs: Some(reference::sponza_standin_data),
-            run: reference::sponza_standin,
+            run: CaseBody::Tracer(reference::sponza_standin),
         },
         Case {
             id: "determinism",
             title: "same seed twice: bit-identical image",
             needs: None,
-            run: determinism::same_seed_twice,
+            run: CaseBody::Tracer(determinism::same_seed_twice),
         },
         Case {
             id: "determinism-threads",
             title: "1 vs 2 host threads: bit-identical image",
             needs: None,
-            run: determinism::thread_count_invariant,
+            run: CaseBody::Tracer(determinism::thread_count_invariant),
         },
         Case {
             id: "bad-input",
             title: "bad scenes rejected by upload_scene (no panic)",
             needs: None,
-            run: bad_input::rejected,
+            run: CaseBody::Tracer(bad_input::rejected),
+        },
+        Case {
+            id: "twin-rng",
+            title: "WGSL twin rng.wgsl = arpa_core::rng (known answers and random streams, bit-exact)",
+            needs: None,
+            run: CaseBody::Kernels(twin::rng::matches_core),
+        },
+        Case {
+            id: "twin-differential",
+            title: "WGSL twin differential.wgsl = arpa_core::differential (transfer, reflect, refract, TIR)",
+            needs: None,
+            run: CaseBody::Kernels(twin::differential::matches_core),
+        },
+        Case {
+            id: "twin-emission",
+            title: "WGSL twin emission.wgsl = arpa_core::emission (every light kind, Fibonacci lattice)",
+            needs: None,
+            run: CaseBody::Kernels(twin::emission::matches_core),
+        },
+        Case {
+            id: "twin-reemission",
+            title: "WGSL twin reemission.wgsl = arpa_core::reemission",
+            needs: None,
+            run: CaseBody::Kernels(twin::reemission::matches_core),
+        },
+        Case {
+            id: "twin-lambertian",
+            title: "WGSL twin lambertian.wgsl = arpa_core::lambertian (shading frame, adjoint ratio, re-emission)",
+            needs: None,
+            run: CaseBody::Kernels(twin::lambertian::matches_core),
+        },
+        Case {
+            id: "twin-footprint",
+            title: "WGSL twin footprint.wgsl + kernel.wgsl = arpa_core::footprint, kernel (record, M_p^-1, gather test)",
+            needs: None,
+            run: CaseBody::Kernels(twin::footprint::matches_core),
+        },
+        Case {
+            id: "twin-heuristics",
+            title: "WGSL twin heuristics.wgsl = ResolvedHeuristics::store",
+            needs: None,
+            run: CaseBody::Kernels(twin::heuristics::matches_core),
+        },
+        Case {
+            id: "twin-radius",
+            title: "WGSL twin radius.wgsl = arpa_core::radius (progressive radius schedule)",
+            needs: None,
+            run: CaseBody::Kernels(twin::radius::matches_core),
         },
     ]
 }

@@ -1,6 +1,7 @@
 //! emission.wgsl (with frame.wgsl, sampling.wgsl) against arpa_core::emission: random
 //! lights of every kind, prepared on the host (`PreparedLight::pack`), photon `index` of N
-//! emitted on the GPU and by `PreparedLight::emit`.
+//! emitted on the device and by `PreparedLight::emit`; the Fibonacci lattice at large
+//! indices.
 //!
 //! Bounds (ε = f32::EPSILON): the twin is f32 with the core's formulas (cancellation-free
 //! where the core's f64 could afford cancellation). Its sin/cos are the device's: lavapipe's
@@ -16,22 +17,33 @@
 //! whose lattice point lies within 1e-5 of the unit square's edge are skipped (the wrap of
 //! the shifted lattice is decided by rounding there).
 
+use std::cell::Cell;
 
-use arpa_core::emission::{DirectionalLight, Light, PackedLight, PointLight, QuadLight, SpotFalloff, SpotLight, TriangleLight, EmissionParams};
+use arpa_core::emission::{
+    DirectionalLight, EmissionParams, Light, PackedLight, PointLight, QuadLight, SpotFalloff,
+    SpotLight, TriangleLight,
+};
+use arpa_core::glam::{DVec2, DVec3};
 use arpa_core::rng::{Rng, StreamDomain};
 use arpa_core::sampling::fibonacci_lattice;
-use crate::common::*;
-use glam::{DVec2, DVec3};
 use proptest::prelude::*;
+
+use super::{check, f, fb, proptest_batches, run, run_prop, v3};
+use crate::kernel_runner::KernelRunner;
+use crate::suite::CaseResult;
 
 const EPS: f64 = f32::EPSILON as f64;
 const DIR_TOL: f64 = 2e-5;
 /// Largest difference between the twin's and the core's unit-square samples: the f32
 /// lattice (a few ulps below 2) and the 24-bit random draws (2⁻²⁴).
 const DU: f64 = 2.5e-7;
+/// Random lights per batch, and batches.
+const ITEMS: usize = 2048;
+const BATCHES: u32 = 4;
 
 fn dir() -> impl Strategy<Value = DVec3> {
-    (0.0..std::f64::consts::PI, 0.0..std::f64::consts::TAU).prop_map(|(t, p)| DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos()))
+    (0.0..std::f64::consts::PI, 0.0..std::f64::consts::TAU)
+        .prop_map(|(t, p)| DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos()))
 }
 
 fn point(lo: f64, hi: f64) -> impl Strategy<Value = DVec3> {
@@ -44,22 +56,60 @@ fn colour() -> impl Strategy<Value = DVec3> {
 
 fn light() -> impl Strategy<Value = Light> {
     prop_oneof![
-        (point(-2.0, 2.0), colour()).prop_map(|(position, intensity)| Light::Point(PointLight { position, intensity })),
-        (point(-2.0, 2.0), point(-3.0, 3.0), colour(), prop_oneof![(1e-3f64..0.1), (0.1f64..std::f64::consts::PI)], 0.0f64..1.0, any::<bool>()).prop_map(
-            |(position, direction, intensity, cutoff, beam, smooth)| Light::Spot(SpotLight {
-                position,
+        (point(-2.0, 2.0), colour()).prop_map(|(position, intensity)| Light::Point(PointLight {
+            position,
+            intensity
+        })),
+        (
+            point(-2.0, 2.0),
+            point(-3.0, 3.0),
+            colour(),
+            prop_oneof![(1e-3f64..0.1), (0.1f64..std::f64::consts::PI)],
+            0.0f64..1.0,
+            any::<bool>()
+        )
+            .prop_map(
+                |(position, direction, intensity, cutoff, beam, smooth)| Light::Spot(SpotLight {
+                    position,
+                    direction,
+                    intensity,
+                    cutoff,
+                    beam_width: cutoff * beam,
+                    falloff: if smooth {
+                        SpotFalloff::SmoothstepAngle
+                    } else {
+                        SpotFalloff::LinearAngle
+                    },
+                })
+            ),
+        (dir(), colour()).prop_map(|(direction, irradiance)| Light::Directional(
+            DirectionalLight {
                 direction,
-                intensity,
-                cutoff,
-                beam_width: cutoff * beam,
-                falloff: if smooth { SpotFalloff::SmoothstepAngle } else { SpotFalloff::LinearAngle },
-            })
-        ),
-        (dir(), colour()).prop_map(|(direction, irradiance)| Light::Directional(DirectionalLight { direction, irradiance })),
-        (point(-2.0, 2.0), point(-2.0, 1.0), point(-2.0, 1.0), colour())
-            .prop_map(|(p0, a, b, radiance)| Light::Triangle(TriangleLight { p: [p0, p0 + a, p0 + b], radiance })),
-        (point(-2.0, 2.0), point(-2.0, 1.0), point(-2.0, 1.0), colour())
-            .prop_map(|(origin, edge_u, edge_v, radiance)| Light::Quad(QuadLight { origin, edge_u, edge_v, radiance })),
+                irradiance
+            }
+        )),
+        (
+            point(-2.0, 2.0),
+            point(-2.0, 1.0),
+            point(-2.0, 1.0),
+            colour()
+        )
+            .prop_map(|(p0, a, b, radiance)| Light::Triangle(TriangleLight {
+                p: [p0, p0 + a, p0 + b],
+                radiance
+            })),
+        (
+            point(-2.0, 2.0),
+            point(-2.0, 1.0),
+            point(-2.0, 1.0),
+            colour()
+        )
+            .prop_map(|(origin, edge_u, edge_v, radiance)| Light::Quad(QuadLight {
+                origin,
+                edge_u,
+                edge_v,
+                radiance
+            })),
     ]
 }
 
@@ -75,7 +125,7 @@ prop_compose! {
     fn case()(light in light(), n_exp in 0.0f64..6.5, scale in 0.5f64..2.0, centre in point(-1.0, 2.0), r_exp in -1.0f64..3.0,
               shift in (0.0f64..1.0, 0.0f64..1.0), frac in 0.0f64..1.0, stream in (any::<u32>(), any::<u32>())) -> Case {
         let photon_count = 10f64.powf(n_exp) as u32;
-        // The shift as the GPU sees it (f32), so both sides start from the same lattice.
+        // The shift as the device sees it (f32), so both sides start from the same lattice.
         let lattice_shift = DVec2::new(shift.0, shift.1).as_vec2().as_dvec2();
         let params = EmissionParams { photon_count, scale, scene_sphere: (centre, 10f64.powf(r_exp) as f32 as f64), lattice_shift };
         Case { light, params, index: ((photon_count as f64 * frac) as u32).min(photon_count - 1), stream }
@@ -118,42 +168,77 @@ fn scale_of(l: &Light, p: &EmissionParams) -> f64 {
     }
 }
 
-proptest! {
-    #![proptest_config(ProptestConfig { cases: 4, max_shrink_iters: 32, ..ProptestConfig::default() })]
+/// Random lights within the bounds of the module docs, then the lattice at large indices.
+pub fn matches_core(runner: &dyn KernelRunner) -> CaseResult {
+    let stats = random_lights(runner)?;
+    lattice_is_accurate_for_large_indices(runner)?;
+    Ok(format!(
+        "{stats}; Fibonacci lattice up to index 2^32 - 2 within bound"
+    ))
+}
 
-    #[test]
-    fn emission_matches_core(cases in prop::collection::vec(case(), 2048)) {
-        let Some(ctx) = gpu() else { return Ok(()) };
+fn random_lights(runner: &dyn KernelRunner) -> Result<String, String> {
+    let total = Cell::new(0usize);
+    let worst_all = Cell::new(0.0f64);
+    let strategy = prop::collection::vec(case(), ITEMS);
+    proptest_batches("twin-emission", BATCHES, &strategy, |cases| {
         let mut input = Vec::new();
         let mut kept = Vec::new();
         for c in &cases {
-            let Ok(prepared) = c.light.prepare(&c.params) else { continue };
+            let Ok(prepared) = c.light.prepare(&c.params) else {
+                continue;
+            };
             let packed: PackedLight = prepared.pack();
-            input.extend_from_slice(bytemuck::cast_slice::<PackedLight, u32>(std::slice::from_ref(&packed)));
+            input.extend_from_slice(bytemuck::cast_slice::<PackedLight, u32>(
+                std::slice::from_ref(&packed),
+            ));
             input.extend([c.index, c.stream.0, c.stream.1]);
             kept.push((c.clone(), prepared));
         }
-        prop_assert!(kept.len() > cases.len() * 9 / 10, "only {} of {} lights prepared", kept.len(), cases.len());
-        let out = run_with(ctx, "emission", HELPERS, BODY, &input, 43, 27);
+        prop_assert!(
+            kept.len() > cases.len() * 9 / 10,
+            "only {} of {} lights prepared",
+            kept.len(),
+            cases.len()
+        );
+        let out = run_prop(runner, "emission", HELPERS, BODY, &input, 43, 27)?;
         let (mut compared, mut worst_dir) = (0, 0.0f64);
         for ((c, prepared), g) in kept.iter().zip(&out) {
             let u = fibonacci_lattice(c.index, c.params.photon_count, c.params.lattice_shift);
-            if [u.x, u.y].iter().any(|&x| !(1e-5..=1.0 - 1e-5).contains(&x)) {
+            if [u.x, u.y]
+                .iter()
+                .any(|&x| !(1e-5..=1.0 - 1e-5).contains(&x))
+            {
                 continue;
             }
             let mut rng = Rng::new(c.stream.0, c.stream.1, c.index, StreamDomain::Photon);
             let want = prepared.emit(c.index, &mut rng);
             let Ok(w) = want else {
-                prop_assert!(g[26] != 0, "core failed ({:?}) but twin succeeded for {:?}", want, c);
+                prop_assert!(
+                    g[26] != 0,
+                    "core failed ({:?}) but twin succeeded for {:?}",
+                    want,
+                    c
+                );
                 continue;
             };
             prop_assert_eq!(g[26], 0, "twin status for {:?}", c);
             compared += 1;
             let s = scale_of(&c.light, &c.params);
-            let close = |what: &str, got: DVec3, want: DVec3, tol: f64| -> Result<(), TestCaseError> {
-                prop_assert!((got - want).length() <= tol, "{}: twin {:?} core {:?} (|diff| {:e} > {:e}) for {:?}", what, got, want, (got - want).length(), tol, c);
-                Ok(())
-            };
+            let close =
+                |what: &str, got: DVec3, want: DVec3, tol: f64| -> Result<(), TestCaseError> {
+                    prop_assert!(
+                        (got - want).length() <= tol,
+                        "{}: twin {:?} core {:?} (|diff| {:e} > {:e}) for {:?}",
+                        what,
+                        got,
+                        want,
+                        (got - want).length(),
+                        tol,
+                        c
+                    );
+                    Ok(())
+                };
             // Sensitivity of the direction to its unit-square sample (the twin's samples
             // differ from the core's by up to DU: f32 lattice, 24-bit draws), singular where
             // the warp is: at the poles of the sphere and cone, at the rim of the hemisphere.
@@ -163,10 +248,19 @@ proptest! {
             let d = w.ray.d;
             let area = matches!(c.light, Light::Triangle(_) | Light::Quad(_));
             let (jacobian, frame_k) = match c.light {
-                Light::Point(_) => (std::f64::consts::TAU + 4.0 / d.cross(DVec3::Z).length().max(1e-9), 1.0),
-                Light::Spot(_) => (std::f64::consts::TAU + 4.0 / d.cross(axis).length().max(1e-9), 1.0),
+                Light::Point(_) => (
+                    std::f64::consts::TAU + 4.0 / d.cross(DVec3::Z).length().max(1e-9),
+                    1.0,
+                ),
+                Light::Spot(_) => (
+                    std::f64::consts::TAU + 4.0 / d.cross(axis).length().max(1e-9),
+                    1.0,
+                ),
                 Light::Directional(_) => (0.0, 1.0),
-                _ => (std::f64::consts::TAU + 4.0 / d.dot(axis).abs().max(1e-9), 1.0 + 1.0 / d.cross(t_hint).length().max(1e-12)),
+                _ => (
+                    std::f64::consts::TAU + 4.0 / d.dot(axis).abs().max(1e-9),
+                    1.0 + 1.0 / d.cross(t_hint).length().max(1e-12),
+                ),
             };
             // Where the core's own frame construction branches (Duff's frame at d.z = 0,
             // the hint's parallel fallback), rounding picks the branch: skip.
@@ -179,10 +273,30 @@ proptest! {
             worst_dir = worst_dir.max(dd / dir_tol);
             close("direction", v3(g, 3), w.ray.d, dir_tol)?;
             let lengths = prepared.lengths();
-            close("dP/du", v3(g, 6), w.ray.dp_du, 16.0 * EPS * lengths.positional)?;
-            close("dP/dv", v3(g, 9), w.ray.dp_dv, 16.0 * EPS * lengths.positional)?;
-            close("dD/du", v3(g, 12), w.ray.dd_du, dir_tol * lengths.directional * frame_k)?;
-            close("dD/dv", v3(g, 15), w.ray.dd_dv, dir_tol * lengths.directional * frame_k)?;
+            close(
+                "dP/du",
+                v3(g, 6),
+                w.ray.dp_du,
+                16.0 * EPS * lengths.positional,
+            )?;
+            close(
+                "dP/dv",
+                v3(g, 9),
+                w.ray.dp_dv,
+                16.0 * EPS * lengths.positional,
+            )?;
+            close(
+                "dD/du",
+                v3(g, 12),
+                w.ray.dd_du,
+                dir_tol * lengths.directional * frame_k,
+            )?;
+            close(
+                "dD/dv",
+                v3(g, 15),
+                w.ray.dd_dv,
+                dir_tol * lengths.directional * frame_k,
+            )?;
             let mut flux_tol = 1e-5 * w.flux.length();
             if let Light::Spot(l) = c.light {
                 let flux0 = DVec3::from_array(prepared.pack().flux.map(f64::from)).length();
@@ -197,28 +311,64 @@ proptest! {
                 close("surface normal", v3(g, 22), n, 2.0 * EPS)?;
             }
         }
-        prop_assert!(compared > kept.len() * 9 / 10, "compared {} of {}", compared, kept.len());
-        eprintln!("emission: compared {compared}; worst direction error / bound {worst_dir:.3}");
-    }
+        prop_assert!(
+            compared > kept.len() * 9 / 10,
+            "compared {} of {}",
+            compared,
+            kept.len()
+        );
+        total.set(total.get() + compared);
+        worst_all.set(worst_all.get().max(worst_dir));
+        Ok(())
+    })?;
+    Ok(format!(
+        "{} photons compared; worst direction error / bound {:.3}",
+        total.get(),
+        worst_all.get()
+    ))
 }
 
 /// The 64-bit fixed-point Fibonacci lattice keeps its fractional bits for large indices,
 /// where an f32 product `i φ` would have none. Bound: the twin's 24-bit truncation (6e-8),
 /// the shift's f32 rounding, and the core's own rounding of the f64 product `i φ` (half an
 /// ulp, up to 2.4e-7 at i ~ 2³²).
-#[test]
-fn lattice_is_accurate_for_large_indices() {
-    let Some(ctx) = gpu() else { return };
-    let idx: Vec<u32> = vec![0, 1, 2, 1000, 1 << 20, (1 << 24) + 1, 123_456_789, u32::MAX - 1];
+fn lattice_is_accurate_for_large_indices(runner: &dyn KernelRunner) -> Result<(), String> {
+    let idx: Vec<u32> = vec![
+        0,
+        1,
+        2,
+        1000,
+        1 << 20,
+        (1 << 24) + 1,
+        123_456_789,
+        u32::MAX - 1,
+    ];
     let n = u32::MAX;
-    let input: Vec<u32> = idx.iter().flat_map(|&i| [i, n, fb(0.25), fb(0.5)]).collect();
-    let out = run(ctx, "lattice", "let u = arpa_fibonacci_lattice(in_u(ib), in_u(ib + 1u), vec2<f32>(in_f(ib + 2u), in_f(ib + 3u))); out_f(ob, u.x); out_f(ob + 1u, u.y);", &input, 4, 2);
+    let input: Vec<u32> = idx
+        .iter()
+        .flat_map(|&i| [i, n, fb(0.25), fb(0.5)])
+        .collect();
+    let out = run(
+        runner,
+        "lattice",
+        "let u = arpa_fibonacci_lattice(in_u(ib), in_u(ib + 1u), vec2<f32>(in_f(ib + 2u), in_f(ib + 3u))); out_f(ob, u.x); out_f(ob + 1u, u.y);",
+        &input,
+        4,
+        2,
+    )?;
     for (&i, g) in idx.iter().zip(&out) {
         let w = fibonacci_lattice(i, n, DVec2::new(0.25, 0.5));
-        for (k, (got, want)) in [(f(g[0]) as f64, w.x), (f(g[1]) as f64, w.y)].into_iter().enumerate() {
+        for (k, (got, want)) in [(f(g[0]) as f64, w.x), (f(g[1]) as f64, w.y)]
+            .into_iter()
+            .enumerate()
+        {
             let d = (got - want).abs();
             let tol = 1.3e-7 + i as f64 * 0.62 * f64::EPSILON;
-            assert!(d.min(1.0 - d) < tol, "index {i} coordinate {k}: twin {got} core {want} (diff {d:e} > {tol:e})");
+            check!(
+                d.min(1.0 - d) < tol,
+                "index {i} coordinate {k}: twin {got} core {want} (diff {d:e} > {tol:e})"
+            );
         }
     }
+    Ok(())
 }

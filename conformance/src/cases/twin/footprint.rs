@@ -1,7 +1,7 @@
 //! footprint.wgsl + kernel.wgsl against arpa_core::footprint and arpa_core::kernel, over
 //! random footprints whose scale spans 1e-30 … 1e30 (the f32 range leaves room for the
 //! products the record needs), centres up to 1e6 and angles between the differentials down
-//! to sin θ = 1e-3.
+//! to sin θ = 1e-3; parallel, zero and bad inputs labelled like the core.
 //!
 //! Bounds (ε = f32::EPSILON):
 //! * the record (`Footprint::pack`): the core rounds an f64 result once, the twin computes
@@ -15,15 +15,22 @@
 //!   `4 ε |row| |q − x_p|`; containment exactly outside that margin; irradiance within
 //!   `1e-6` of the density plus the kernel's slope times that margin.
 
+use std::cell::Cell;
 
 use arpa_core::footprint::{Footprint, FootprintError, PackedFootprint, PhotonMap};
+use arpa_core::glam::{DVec3, Vec3};
 use arpa_core::kernel::Kernel;
-use crate::common::*;
-use glam::{DVec3, Vec3};
 use proptest::prelude::*;
+
+use super::{check, f, fb, proptest_batches, push3, run, run_prop, v3};
+use crate::kernel_runner::KernelRunner;
+use crate::suite::CaseResult;
 
 const EPS: f64 = f32::EPSILON as f64;
 const ROW_K: f64 = 32.0;
+/// Random footprints (and queries) per batch, and batches of each.
+const ITEMS: usize = 4096;
+const BATCHES: u32 = 4;
 
 /// One random footprint: f32 inputs and the sin θ they were built with.
 #[derive(Clone, Debug)]
@@ -38,7 +45,11 @@ struct Case {
 }
 
 fn unit(theta: f64, phi: f64) -> DVec3 {
-    DVec3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+    DVec3::new(
+        theta.sin() * phi.cos(),
+        theta.sin() * phi.sin(),
+        theta.cos(),
+    )
 }
 
 fn f3(v: DVec3) -> [f32; 3] {
@@ -127,12 +138,17 @@ fn near_threshold(fp: &Footprint) -> bool {
     let scale = fp.center.abs().max_element().max(1e-30) * 64.0 * EPS;
     let den = cross.dot(fp.normal);
     let dens = fp.flux * (4.0 / den.abs());
-    let rows = [fp.dv.cross(fp.normal) * (2.0 / den), fp.normal.cross(fp.du) * (2.0 / den)];
+    let rows = [
+        fp.dv.cross(fp.normal) * (2.0 / den),
+        fp.normal.cross(fp.du) * (2.0 / den),
+    ];
     let near = |x: f64, t: f64| x.is_finite() && (x / t - 1.0).abs() < 1e-3;
     near(bound, scale)
         || (0..3).any(|c| fp.flux[c] != 0.0 && near(dens[c], f32::MIN_POSITIVE as f64))
         || (0..3).any(|c| near(dens[c].abs(), f32::MAX as f64))
-        || rows.iter().any(|r| (0..3).any(|c| near(r[c].abs(), f32::MAX as f64)))
+        || rows
+            .iter()
+            .any(|r| (0..3).any(|c| near(r[c].abs(), f32::MAX as f64)))
 }
 
 fn sin_theta(fp: &Footprint) -> f64 {
@@ -141,17 +157,43 @@ fn sin_theta(fp: &Footprint) -> f64 {
 
 fn check_close(what: &str, got: DVec3, want: DVec3, tol: f64) -> Result<(), TestCaseError> {
     let err = (got - want).length();
-    prop_assert!(err <= tol * want.length(), "{}: twin {:?} core {:?}: error {:e} > {:e} relative", what, got, want, err / want.length(), tol);
+    prop_assert!(
+        err <= tol * want.length(),
+        "{}: twin {:?} core {:?}: error {:e} > {:e} relative",
+        what,
+        got,
+        want,
+        err / want.length(),
+        tol
+    );
     Ok(())
 }
 
-proptest! {
-    #![proptest_config(ProptestConfig { cases: 4, max_shrink_iters: 32, ..ProptestConfig::default() })]
+/// Random records, the labels of parallel, zero and bad inputs, then the gather test on
+/// random records and query points, within the bounds of the module docs.
+pub fn matches_core(runner: &dyn KernelRunner) -> CaseResult {
+    let pack = pack_matches_core(runner)?;
+    parallel_zero_and_bad_inputs_are_labelled_like_core(runner)?;
+    let gather = gather_matches_core(runner)?;
+    Ok(format!(
+        "pack: {pack}; labels as the core; gather: {gather}"
+    ))
+}
 
-    #[test]
-    fn pack_matches_core(cases in prop::collection::vec(case(), 4096)) {
-        let Some(ctx) = gpu() else { return Ok(()) };
-        let out = run(ctx, "footprint pack", PACK_BODY, &pack_input(&cases), 17, 17);
+fn pack_matches_core(runner: &dyn KernelRunner) -> Result<String, String> {
+    let totals = Cell::new((0usize, 0usize));
+    let worst_all = Cell::new(0.0f64);
+    let strategy = prop::collection::vec(case(), ITEMS);
+    proptest_batches("twin-footprint-pack", BATCHES, &strategy, |cases| {
+        let out = run_prop(
+            runner,
+            "footprint pack",
+            "",
+            PACK_BODY,
+            &pack_input(&cases),
+            17,
+            17,
+        )?;
         let (mut ok, mut compared, mut worst) = (0, 0, 0.0f64);
         for (c, g) in cases.iter().zip(&out) {
             let fp = core_footprint(c);
@@ -173,20 +215,41 @@ proptest! {
             let gd = DVec3::new(f(g[7]) as f64, f(g[11]) as f64, f(g[15]) as f64);
             let wd = p.flux_density().as_dvec3();
             for k in 0..3 {
-                prop_assert!((gd[k] - wd[k]).abs() <= tol * wd[k].abs(), "density {}: twin {} core {} ({:?})", k, gd[k], wd[k], c);
+                prop_assert!(
+                    (gd[k] - wd[k]).abs() <= tol * wd[k].abs(),
+                    "density {}: twin {} core {} ({:?})",
+                    k,
+                    gd[k],
+                    wd[k],
+                    c
+                );
             }
             let rel = (v3(g, 4) - d3(p.row_u)).length() / d3(p.row_u).length();
             worst = worst.max(rel * sin_theta(&fp));
         }
         // The generator must exercise both outcomes, or the test proves little.
-        prop_assert!(ok > cases.len() / 4 && ok < compared, "{} ok of {} compared", ok, compared);
-        eprintln!("pack: {ok} ok of {compared}; worst row error x sin(theta) = {worst:e} ({:.1} eps)", worst / EPS);
-    }
+        prop_assert!(
+            ok > cases.len() / 4 && ok < compared,
+            "{} ok of {} compared",
+            ok,
+            compared
+        );
+        let (t_ok, t_compared) = totals.get();
+        totals.set((t_ok + ok, t_compared + compared));
+        worst_all.set(worst_all.get().max(worst));
+        Ok(())
+    })?;
+    let (ok, compared) = totals.get();
+    let worst = worst_all.get();
+    Ok(format!(
+        "{ok} ok of {compared} compared, worst row error x sin(theta) = {worst:.2e} ({:.1} eps)",
+        worst / EPS
+    ))
 }
 
-#[test]
-fn parallel_zero_and_bad_inputs_are_labelled_like_core() {
-    let Some(ctx) = gpu() else { return };
+fn parallel_zero_and_bad_inputs_are_labelled_like_core(
+    runner: &dyn KernelRunner,
+) -> Result<(), String> {
     let base = Case {
         center: [0.5, 0.0, -0.25],
         normal: [0.0, 1.0, 0.0],
@@ -198,18 +261,53 @@ fn parallel_zero_and_bad_inputs_are_labelled_like_core() {
     };
     let cases = vec![
         base.clone(),
-        Case { dv: [0.02, 0.0, 0.0], ..base.clone() },       // parallel (exactly, in f32 and f64)
-        Case { dv: [0.0; 3], ..base.clone() },               // zero
-        Case { du: [f32::NAN, 0.0, 0.0], ..base.clone() },   // not finite
-        Case { du: [f32::INFINITY, 0.0, 0.0], ..base.clone() },
-        Case { du: [1e-12, 0.0, 0.0], ..base.clone() },      // thinner than f32 resolves at x_p
-        Case { flux: [1e-30, 0.0, 0.0], du: [1e10, 0.0, 0.0], dv: [0.0, 0.0, 1e10], center: [1e9, 0.0, 0.0], ..base.clone() }, // density underflows
+        Case {
+            dv: [0.02, 0.0, 0.0],
+            ..base.clone()
+        }, // parallel (exactly, in f32 and f64)
+        Case {
+            dv: [0.0; 3],
+            ..base.clone()
+        }, // zero
+        Case {
+            du: [f32::NAN, 0.0, 0.0],
+            ..base.clone()
+        }, // not finite
+        Case {
+            du: [f32::INFINITY, 0.0, 0.0],
+            ..base.clone()
+        },
+        Case {
+            du: [1e-12, 0.0, 0.0],
+            ..base.clone()
+        }, // thinner than f32 resolves at x_p
+        Case {
+            flux: [1e-30, 0.0, 0.0],
+            du: [1e10, 0.0, 0.0],
+            dv: [0.0, 0.0, 1e10],
+            center: [1e9, 0.0, 0.0],
+            ..base.clone()
+        }, // density underflows
     ];
-    let out = run(ctx, "footprint labels", PACK_BODY, &pack_input(&cases), 17, 17);
+    let out = run(
+        runner,
+        "footprint labels",
+        PACK_BODY,
+        &pack_input(&cases),
+        17,
+        17,
+    )?;
     let labels: Vec<u32> = out.iter().map(|g| g[16]).collect();
-    let core: Vec<u32> = cases.iter().map(|c| status_of(&core_footprint(c).pack(c.radius as f64))).collect();
-    assert_eq!(labels, core);
-    assert_eq!(labels, [0, 1, 1, 1, 1, 2, 2]);
+    let core: Vec<u32> = cases
+        .iter()
+        .map(|c| status_of(&core_footprint(c).pack(c.radius as f64)))
+        .collect();
+    check!(labels == core, "labels: twin {labels:?}, core {core:?}");
+    check!(
+        labels == [0, 1, 1, 1, 1, 2, 2],
+        "labels (valid, parallel, zero, NaN, inf, too thin, density underflow): twin {labels:?}, expected [0, 1, 1, 1, 1, 2, 2]"
+    );
+    Ok(())
 }
 
 /// A record from the core and query points around it (filter coordinates up to 1.4 in the
@@ -250,55 +348,108 @@ const GATHER_BODY: &str = "
     out_v3(ob + 5u, arpa_footprint_irradiance(fp, q, nq, kernel));
     out_f(ob + 8u, arpa_kernel_eval(kernel, in_f(ib + 23u)));";
 
-proptest! {
-    #![proptest_config(ProptestConfig { cases: 4, max_shrink_iters: 32, ..ProptestConfig::default() })]
-
-    #[test]
-    fn gather_matches_core(queries in prop::collection::vec(query(), 4096), r2s in prop::collection::vec(-0.5f32..1.5, 4096)) {
-        let Some(ctx) = gpu() else { return Ok(()) };
-        let qs: Vec<(Query, f32)> = queries.into_iter().zip(r2s).filter_map(|(q, r2)| q.map(|q| (q, r2))).collect();
-        prop_assert!(qs.len() > 1000, "only {} packable footprints", qs.len());
-        let mut input = Vec::new();
-        for (q, r2) in &qs {
-            input.extend_from_slice(bytemuck::cast_slice::<PackedFootprint, u32>(std::slice::from_ref(&q.fp)));
-            push3(&mut input, q.q);
-            push3(&mut input, q.nq);
-            input.push(q.kernel);
-            input.push(fb(*r2));
-        }
-        let out = run(ctx, "footprint gather", GATHER_BODY, &input, 24, 9);
-        let (mut inside, mut decided) = (0, 0);
-        for ((q, kr2), g) in qs.iter().zip(&out) {
-            let (qv, nq) = (Vec3::from_array(q.q), Vec3::from_array(q.nq));
-            let kernel = KERNELS[q.kernel as usize];
-            let y = q.fp.filter_coords(qv);
-            let delta = (qv - Vec3::from_array(q.fp.center)).as_dvec3().length();
-            let rows = [q.fp.row_u, q.fp.row_v, q.fp.row_n].map(|r| d3(r).length());
-            let gy = v3(g, 0);
-            for k in 0..3 {
-                let tol = 4.0 * EPS * rows[k] * delta + f64::from(f32::MIN_POSITIVE);
-                prop_assert!((gy[k] - y[k] as f64).abs() <= tol, "filter coordinate {}: twin {} core {} ({:?})", k, gy[k], y[k], q);
+fn gather_matches_core(runner: &dyn KernelRunner) -> Result<String, String> {
+    let totals = Cell::new((0usize, 0usize, 0usize));
+    let strategy = (
+        prop::collection::vec(query(), ITEMS),
+        prop::collection::vec(-0.5f32..1.5, ITEMS),
+    );
+    proptest_batches(
+        "twin-footprint-gather",
+        BATCHES,
+        &strategy,
+        |(queries, r2s)| {
+            let qs: Vec<(Query, f32)> = queries
+                .into_iter()
+                .zip(r2s)
+                .filter_map(|(q, r2)| q.map(|q| (q, r2)))
+                .collect();
+            prop_assert!(qs.len() > 1000, "only {} packable footprints", qs.len());
+            let mut input = Vec::new();
+            for (q, r2) in &qs {
+                input.extend_from_slice(bytemuck::cast_slice::<PackedFootprint, u32>(
+                    std::slice::from_ref(&q.fp),
+                ));
+                push3(&mut input, q.q);
+                push3(&mut input, q.nq);
+                input.push(q.kernel);
+                input.push(fb(*r2));
             }
-            prop_assert_eq!(g[4] == 1, q.fp.faces(nq));
-            let r2 = (y.x * y.x + y.y * y.y) as f64;
-            let margin_r2 = 2.0 * (y.x.abs() as f64 + y.y.abs() as f64 + 1.0) * 4.0 * EPS * (rows[0] + rows[1]) * delta;
-            let margin_z = 4.0 * EPS * rows[2] * delta;
-            let decisive = (r2 - 1.0).abs() > margin_r2 + 4.0 * EPS && ((y.z.abs() as f64) - 1.0).abs() > margin_z + 2.0 * EPS;
-            if decisive {
-                decided += 1;
-                prop_assert_eq!(g[3] == 1, q.fp.contains(qv), "containment of {:?}", q);
-                let want = q.fp.irradiance(qv, nq, kernel).as_dvec3();
-                let got = v3(g, 5);
-                let dens = q.fp.flux_density().as_dvec3();
+            let out = run_prop(runner, "footprint gather", "", GATHER_BODY, &input, 24, 9)?;
+            let (mut inside, mut decided) = (0, 0);
+            for ((q, kr2), g) in qs.iter().zip(&out) {
+                let (qv, nq) = (Vec3::from_array(q.q), Vec3::from_array(q.nq));
+                let kernel = KERNELS[q.kernel as usize];
+                let y = q.fp.filter_coords(qv);
+                let delta = (qv - Vec3::from_array(q.fp.center)).as_dvec3().length();
+                let rows = [q.fp.row_u, q.fp.row_v, q.fp.row_n].map(|r| d3(r).length());
+                let gy = v3(g, 0);
                 for k in 0..3 {
-                    let tol = dens[k].abs() * (1e-6 + 2.0 * margin_r2);
-                    prop_assert!((got[k] - want[k]).abs() <= tol, "irradiance {}: twin {} core {} ({:?})", k, got[k], want[k], q);
+                    let tol = 4.0 * EPS * rows[k] * delta + f64::from(f32::MIN_POSITIVE);
+                    prop_assert!(
+                        (gy[k] - y[k] as f64).abs() <= tol,
+                        "filter coordinate {}: twin {} core {} ({:?})",
+                        k,
+                        gy[k],
+                        y[k],
+                        q
+                    );
                 }
-                if q.fp.contains(qv) { inside += 1; }
+                prop_assert_eq!(g[4] == 1, q.fp.faces(nq));
+                let r2 = (y.x * y.x + y.y * y.y) as f64;
+                let margin_r2 = 2.0
+                    * (y.x.abs() as f64 + y.y.abs() as f64 + 1.0)
+                    * 4.0
+                    * EPS
+                    * (rows[0] + rows[1])
+                    * delta;
+                let margin_z = 4.0 * EPS * rows[2] * delta;
+                let decisive = (r2 - 1.0).abs() > margin_r2 + 4.0 * EPS
+                    && ((y.z.abs() as f64) - 1.0).abs() > margin_z + 2.0 * EPS;
+                if decisive {
+                    decided += 1;
+                    prop_assert_eq!(g[3] == 1, q.fp.contains(qv), "containment of {:?}", q);
+                    let want = q.fp.irradiance(qv, nq, kernel).as_dvec3();
+                    let got = v3(g, 5);
+                    let dens = q.fp.flux_density().as_dvec3();
+                    for k in 0..3 {
+                        let tol = dens[k].abs() * (1e-6 + 2.0 * margin_r2);
+                        prop_assert!(
+                            (got[k] - want[k]).abs() <= tol,
+                            "irradiance {}: twin {} core {} ({:?})",
+                            k,
+                            got[k],
+                            want[k],
+                            q
+                        );
+                    }
+                    if q.fp.contains(qv) {
+                        inside += 1;
+                    }
+                }
+                let kv = kernel.eval(*kr2) as f64;
+                prop_assert!(
+                    (f(g[8]) as f64 - kv).abs() <= 1e-6 * kernel.peak(),
+                    "kernel {:?}({}): twin {} core {}",
+                    kernel,
+                    kr2,
+                    f(g[8]),
+                    kv
+                );
             }
-            let kv = kernel.eval(*kr2) as f64;
-            prop_assert!((f(g[8]) as f64 - kv).abs() <= 1e-6 * kernel.peak(), "kernel {:?}({}): twin {} core {}", kernel, kr2, f(g[8]), kv);
-        }
-        prop_assert!(inside > decided / 10 && inside < decided, "{} inside of {} decided", inside, decided);
-    }
+            prop_assert!(
+                inside > decided / 10 && inside < decided,
+                "{} inside of {} decided",
+                inside,
+                decided
+            );
+            let (t_q, t_d, t_i) = totals.get();
+            totals.set((t_q + qs.len(), t_d + decided, t_i + inside));
+            Ok(())
+        },
+    )?;
+    let (queries, decided, inside) = totals.get();
+    Ok(format!(
+        "{queries} queries, {decided} decided, {inside} inside"
+    ))
 }

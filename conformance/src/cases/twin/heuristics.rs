@@ -12,19 +12,26 @@
 //! 1e-5; the box within 2e-5 of the core's extent, and it contains the twin's own elliptic
 //! slab (rounded outwards).
 
+use std::cell::Cell;
+use std::f64::consts::{PI, TAU};
 
 use arpa_core::aabb::Aabb;
 use arpa_core::footprint::{Footprint, PackedFootprint, PhotonMap};
+use arpa_core::glam::{DVec3, Vec3};
 use arpa_core::heuristics::{
-    BoundingBoxCulling, CullMetric, DampenReference, Dampening, DegenerateRemoval, HMax, HMaxMode, HeuristicContext, Heuristics, LengthSpec,
-    PackedHeuristics, Rejection, StoreRejection,
+    BoundingBoxCulling, CullMetric, DampenReference, Dampening, DegenerateRemoval, HMax, HMaxMode,
+    HeuristicContext, Heuristics, LengthSpec, PackedHeuristics, Rejection, StoreRejection,
 };
-use crate::common::*;
-use glam::DVec3;
 use proptest::prelude::*;
-use std::f64::consts::{PI, TAU};
+
+use super::{f, fb, proptest_batches, push3, run_prop, v3};
+use crate::kernel_runner::KernelRunner;
+use crate::suite::CaseResult;
 
 const EPS: f64 = f32::EPSILON as f64;
+/// Random footprints per batch, and batches.
+const ITEMS: usize = 4096;
+const BATCHES: u32 = 4;
 
 #[derive(Clone, Debug)]
 struct Case {
@@ -65,7 +72,14 @@ fn heuristics() -> impl Strategy<Value = Heuristics> {
             metric: [CullMetric::LargestExtent, CullMetric::Diagonal, CullMetric::SurfaceArea][m as usize],
         })),
     ];
-    (dampening, h_max, degenerate, culling).prop_map(|(dampening, h_max, degenerate, culling)| Heuristics { dampening, h_max, degenerate, culling })
+    (dampening, h_max, degenerate, culling).prop_map(|(dampening, h_max, degenerate, culling)| {
+        Heuristics {
+            dampening,
+            h_max,
+            degenerate,
+            culling,
+        }
+    })
 }
 
 prop_compose! {
@@ -116,9 +130,15 @@ fn status(r: &Result<(Footprint, PackedFootprint, Aabb), StoreRejection>) -> u32
 
 /// `true` when one of the store's decisions lies within 1e-3 relative of its threshold.
 fn near_threshold(c: &Case) -> bool {
-    let ctx = HeuristicContext { radius: c.radius, scene_bounds: c.scene };
-    let fp = c.heuristics.clamp_h_max(c.heuristics.dampen(c.fp, &ctx), &ctx);
-    let near = |x: f64, t: f64| x.is_finite() && t.is_finite() && t != 0.0 && (x / t - 1.0).abs() < 1e-3;
+    let ctx = HeuristicContext {
+        radius: c.radius,
+        scene_bounds: c.scene,
+    };
+    let fp = c
+        .heuristics
+        .clamp_h_max(c.heuristics.dampen(c.fp, &ctx), &ctx);
+    let near =
+        |x: f64, t: f64| x.is_finite() && t.is_finite() && t != 0.0 && (x / t - 1.0).abs() < 1e-3;
     let (major, _) = fp.major_minor();
     if let Some(d) = c.heuristics.degenerate
         && near(fp.parallelogram_area(), d.fraction * major * major)
@@ -142,59 +162,120 @@ fn near_threshold(c: &Case) -> bool {
     near(bound, scale)
 }
 
-proptest! {
-    #![proptest_config(ProptestConfig { cases: 4, max_shrink_iters: 32, ..ProptestConfig::default() })]
-
-    #[test]
-    fn store_matches_core(cases in prop::collection::vec(case(), 4096)) {
-        let Some(ctx) = gpu() else { return Ok(()) };
+/// Random footprints under random configurations, within the bounds of the module docs;
+/// every outcome must occur more than 25 times per batch.
+pub fn matches_core(runner: &dyn KernelRunner) -> CaseResult {
+    let totals = Cell::new([0usize; 4]);
+    let strategy = prop::collection::vec(case(), ITEMS);
+    proptest_batches("twin-heuristics", BATCHES, &strategy, |cases| {
         let mut input = Vec::new();
         for c in &cases {
             let packed: PackedHeuristics = c.heuristics.resolve(&c.scene).pack();
-            input.extend_from_slice(bytemuck::cast_slice::<PackedHeuristics, u32>(std::slice::from_ref(&packed)));
+            input.extend_from_slice(bytemuck::cast_slice::<PackedHeuristics, u32>(
+                std::slice::from_ref(&packed),
+            ));
             for v in [c.fp.center, c.fp.normal, c.fp.du, c.fp.dv, c.fp.flux] {
                 push3(&mut input, v.as_vec3().to_array());
             }
             input.push(c.fp.map as u32);
             input.push(fb(c.radius as f32));
         }
-        let out = run(ctx, "heuristics store", BODY, &input, 29, 29);
+        let out = run_prop(runner, "heuristics store", "", BODY, &input, 29, 29)?;
         let mut counts = [0usize; 4];
         for (c, g) in cases.iter().zip(&out) {
             if near_threshold(c) {
                 continue;
             }
             let want = c.heuristics.resolve(&c.scene).store(c.fp, c.radius);
-            prop_assert_eq!(g[28], status(&want), "outcome of {:?}: core {:?}", c, want.as_ref().err());
+            prop_assert_eq!(
+                g[28],
+                status(&want),
+                "outcome of {:?}: core {:?}",
+                c,
+                want.as_ref().err()
+            );
             counts[g[28] as usize] += 1;
             let Ok((fp, p, bounds)) = want else { continue };
-            let close = |what: &str, got: DVec3, want: DVec3, tol: f64| -> Result<(), TestCaseError> {
-                prop_assert!((got - want).length() <= tol * want.length(), "{}: twin {:?} core {:?} ({:e} relative > {:e}) in {:?}", what, got, want, (got - want).length() / want.length(), tol, c);
-                Ok(())
-            };
+            let close =
+                |what: &str, got: DVec3, want: DVec3, tol: f64| -> Result<(), TestCaseError> {
+                    prop_assert!(
+                        (got - want).length() <= tol * want.length(),
+                        "{}: twin {:?} core {:?} ({:e} relative > {:e}) in {:?}",
+                        what,
+                        got,
+                        want,
+                        (got - want).length() / want.length(),
+                        tol,
+                        c
+                    );
+                    Ok(())
+                };
             close("du", v3(g, 0), fp.du, 1e-5)?;
             close("dv", v3(g, 3), fp.dv, 1e-5)?;
             let sin = fp.du.cross(fp.dv).dot(fp.normal).abs() / (fp.du.length() * fp.dv.length());
             let tol = 1e-5 + 32.0 * EPS * (1.0 + 1.0 / sin);
-            let d3 = |a: [f32; 3]| glam::Vec3::from_array(a).as_dvec3();
+            let d3 = |a: [f32; 3]| Vec3::from_array(a).as_dvec3();
             prop_assert_eq!(v3(g, 6), d3(p.center));
             prop_assert_eq!(g[9], p.map);
             close("row_u", v3(g, 10), d3(p.row_u), tol)?;
             close("row_v", v3(g, 14), d3(p.row_v), tol)?;
             close("row_n", v3(g, 18), d3(p.row_n), 1e-5)?;
-            close("density", DVec3::new(f(g[13]) as f64, f(g[17]) as f64, f(g[21]) as f64), p.flux_density().as_dvec3(), 2.0 * tol)?;
+            close(
+                "density",
+                DVec3::new(f(g[13]) as f64, f(g[17]) as f64, f(g[21]) as f64),
+                p.flux_density().as_dvec3(),
+                2.0 * tol,
+            )?;
             // The box: close to the core's, and containing the twin's own elliptic slab.
             let (bmin, bmax) = (v3(g, 22), v3(g, 25));
             let ext = bounds.max - bounds.min;
             for k in 0..3 {
-                prop_assert!((bmin[k] - bounds.min[k]).abs() <= 2e-5 * ext.length() + 4.0 * EPS * fp.center.abs()[k], "box min {} in {:?}", k, c);
-                prop_assert!((bmax[k] - bounds.max[k]).abs() <= 2e-5 * ext.length() + 4.0 * EPS * fp.center.abs()[k], "box max {} in {:?}", k, c);
+                prop_assert!(
+                    (bmin[k] - bounds.min[k]).abs()
+                        <= 2e-5 * ext.length() + 4.0 * EPS * fp.center.abs()[k],
+                    "box min {} in {:?}",
+                    k,
+                    c
+                );
+                prop_assert!(
+                    (bmax[k] - bounds.max[k]).abs()
+                        <= 2e-5 * ext.length() + 4.0 * EPS * fp.center.abs()[k],
+                    "box max {} in {:?}",
+                    k,
+                    c
+                );
             }
-            let twin_fp = Footprint { du: v3(g, 0), dv: v3(g, 3), ..fp };
+            let twin_fp = Footprint {
+                du: v3(g, 0),
+                dv: v3(g, 3),
+                ..fp
+            };
             let own = twin_fp.aabb(c.radius);
-            prop_assert!(bmin.cmple(own.min).all() && bmax.cmpge(own.max).all(), "twin box {:?}..{:?} does not contain its slab {:?} in {:?}", bmin, bmax, own, c);
+            prop_assert!(
+                bmin.cmple(own.min).all() && bmax.cmpge(own.max).all(),
+                "twin box {:?}..{:?} does not contain its slab {:?} in {:?}",
+                bmin,
+                bmax,
+                own,
+                c
+            );
         }
-        prop_assert!(counts.iter().all(|&n| n > 25), "outcomes (stored, degenerate, culled, unrepresentable): {:?}", counts);
-        eprintln!("heuristics: outcomes (stored, degenerate, culled, unrepresentable) = {counts:?}");
-    }
+        prop_assert!(
+            counts.iter().all(|&n| n > 25),
+            "outcomes (stored, degenerate, culled, unrepresentable): {:?}",
+            counts
+        );
+        let t = totals.get();
+        totals.set([
+            t[0] + counts[0],
+            t[1] + counts[1],
+            t[2] + counts[2],
+            t[3] + counts[3],
+        ]);
+        Ok(())
+    })?;
+    Ok(format!(
+        "outcomes (stored, degenerate, culled, unrepresentable) = {:?}",
+        totals.get()
+    ))
 }
