@@ -13,6 +13,4 @@ cargo build -p arpa-core --no-default-features
 cargo build -p arpa-core --no-default-features --features alloc
 # Unit, integration and benchmark targets (benchmarks run once each, as smoke tests).
 cargo test --workspace --all-targets
-# The conformance suite's WGSL-twin cases on the wgpu kernel runner (lavapipe without a
-# GPU), and their sabotage check (`--test twin`; a missing adapter fails under CI).
 cargo test --workspace --doc
