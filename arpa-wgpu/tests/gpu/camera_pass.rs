@@ -28,7 +28,7 @@ use arpa_core::prepared_scene::PreparedScene;
 use arpa_core::ray_cast::BruteForceCaster;
 use arpa_core::scene::Scene;
 use arpa_core::tracer::{QueryRecord, RenderSettings};
-use arpa_wgpu::camera::CameraPass;
+use arpa_wgpu::camera::{CameraPass, CameraPassError};
 use arpa_wgpu::scene::GpuScene;
 use arpa_wgpu::GpuContext;
 use glam::Vec3;
@@ -180,4 +180,56 @@ fn same_seed_is_bit_identical_and_iterations_differ() {
     let c = device_queries(ctx, &prepared, &settings(5, true), 4);
     assert_eq!(bytemuck::cast_slice::<QueryRecord, u32>(&a), bytemuck::cast_slice::<QueryRecord, u32>(&b));
     assert_ne!(bytemuck::cast_slice::<QueryRecord, u32>(&a), bytemuck::cast_slice::<QueryRecord, u32>(&c));
+    // Two iterations encoded into one command buffer keep their own iteration numbers.
+    let scene = GpuScene::upload(ctx, &prepared).expect("upload");
+    let pass = CameraPass::new(ctx, &scene, &prepared, &settings(5, true)).expect("camera pass");
+    let bytes = pass.query_buffer_bytes();
+    let (q3, q4) = (pass.create_query_buffer(wgpu::BufferUsages::COPY_SRC), pass.create_query_buffer(wgpu::BufferUsages::COPY_SRC));
+    let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: 2 * bytes,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    pass.encode(&mut encoder, 3, &q3);
+    pass.encode(&mut encoder, 4, &q4);
+    encoder.copy_buffer_to_buffer(&q3, 0, &staging, 0, bytes);
+    encoder.copy_buffer_to_buffer(&q4, 0, &staging, bytes, bytes);
+    ctx.queue.submit([encoder.finish()]);
+    staging.map_async(wgpu::MapMode::Read, .., |r| r.expect("map"));
+    ctx.device.poll(wgpu::PollType::wait_indefinitely()).expect("poll");
+    let both = staging.get_mapped_range(..).expect("mapped").to_vec();
+    assert_eq!(&both[..bytes as usize], bytemuck::cast_slice::<QueryRecord, u8>(&a));
+    assert_eq!(&both[bytes as usize..], bytemuck::cast_slice::<QueryRecord, u8>(&c));
+}
+
+#[test]
+fn oversized_images_are_refused_with_their_size() {
+    let Some(ctx) = gpu() else { return };
+    let mut scene = scenes::cornell(8);
+    (scene.camera.width, scene.camera.height) = (100_000, 100_000);
+    let prepared = PreparedScene::new(scene).expect("valid scene");
+    let gpu_scene = GpuScene::upload(ctx, &prepared).expect("upload");
+    let e = CameraPass::new(ctx, &gpu_scene, &prepared, &settings(0, true)).err().expect("10^10 pixels");
+    assert!(matches!(e, CameraPassError::TooManyPixels { .. }) && e.to_string().contains("100000 x 100000"), "{e}");
+}
+
+/// The pass's own `arpa_camera_acos` (the spot falloff's angle) against f64 `acos` over
+/// `[-1, 1]`: within 4ε relative (lavapipe's built-in `acos` errs by up to 1.6e-4 rad).
+#[test]
+fn acos_is_accurate() {
+    let Some(ctx) = gpu() else { return };
+    let src = arpa_wgpu::camera::CAMERA_PASS_WGSL;
+    let helpers = &src[src.find("fn arpa_camera_asin_small").expect("asin")..src.find("// spot falloff").expect("falloff")];
+    let n = 100_000;
+    let mut xs: Vec<f32> = (0..n).map(|i| -1.0 + 2.0 * (i as f32 + 0.5) / n as f32).collect();
+    xs.extend([-1.0, -0.5, 0.0, 0.5, 1.0, 1.0 - EPS / 2.0, -1.0 + EPS]);
+    let input: Vec<u32> = xs.iter().map(|&x| fb(x)).collect();
+    let out = run_with(ctx, "acos", helpers, "out_f(ob, arpa_camera_acos(in_f(ib)));", &input, 1, 1);
+    for (x, g) in xs.iter().zip(&out) {
+        let want = (*x as f64).acos();
+        let got = f(g[0]) as f64;
+        assert!((got - want).abs() <= 4.0 * EPS as f64 * want.max(1e-7), "acos({x}) = {got}, f64 {want}");
+    }
 }

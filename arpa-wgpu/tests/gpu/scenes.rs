@@ -1,7 +1,7 @@
 //! Small test scenes shared by the scene-data and camera-pass tests.
 #![allow(dead_code)]
 
-use arpa_core::emission::{DirectionalLight, Light, PointLight, SpotFalloff, SpotLight};
+use arpa_core::emission::{DirectionalLight, Light, PointLight, QuadLight, SpotFalloff, SpotLight};
 use arpa_core::scene::{Camera, Material, Scene, TriangleMesh};
 use arpa_core::shapes::{icosphere, parallelogram};
 use glam::{DVec3, Vec3};
@@ -13,8 +13,9 @@ use glam::{DVec3, Vec3};
 /// normals equal its face normals on some triangles only (flat-shaded detection), a panel
 /// on the back wall whose vertex normals lean ~80° sideways (the camera sees it from below
 /// its shading plane: flipped query normals and shading frames), an
-/// emissive ceiling quad facing down, a point light, a spot light and a directional light
-/// (shadowed by the box: it must contribute nothing on both sides).
+/// emissive ceiling quad facing down and a smaller emissive wall quad, a point light, a spot
+/// light, a directional light (shadowed by the box: it must contribute nothing on both
+/// sides) and an analytic quad light facing down.
 pub fn mixed_scene(width: u32, height: u32) -> Scene {
     let s = 1.0;
     let mut light = parallelogram("light", Vec3::new(-0.3, 1.98, -0.3), Vec3::new(0.6, 0.0, 0.0), Vec3::new(0.0, 0.0, 0.6), 0);
@@ -61,6 +62,12 @@ pub fn mixed_scene(width: u32, height: u32) -> Scene {
                 falloff: SpotFalloff::SmoothstepAngle,
             }),
             Light::Directional(DirectionalLight { direction: DVec3::new(0.3, -1.0, 0.2).normalize(), irradiance: DVec3::splat(1.0) }),
+            Light::Quad(QuadLight {
+                origin: DVec3::new(-0.6, 1.9, 0.2),
+                edge_u: DVec3::new(0.4, 0.0, 0.0),
+                edge_v: DVec3::new(0.0, 0.0, 0.3),
+                radiance: DVec3::new(2.0, 1.5, 1.0),
+            }),
         ],
         camera: Camera { position: Vec3::new(0.0, 1.0, 0.95), target: Vec3::new(0.0, 0.7, 0.0), up: Vec3::Y, vertical_fov: 1.4, width, height },
         roughness_cutoff: 0.5,
