@@ -117,22 +117,20 @@ impl PhotonMaps {
     pub fn store_sorted(&mut self, ctx: &GpuContext, settings: &StoreSettings) -> Result<StoreCounts, WgpuError> {
         self.accel = None;
         let store = self.store("photon_pass")?;
-        scoped(ctx, "store and sort", || {
+        scoped(ctx, "store", || {
             let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa store") });
-            store.encode(&ctx.device, &ctx.queue, &self.pipelines, &mut encoder, settings).map_err(|e| WgpuError::Size(e.to_string()))?;
+            store.encode_store(&ctx.queue, &self.pipelines, &mut encoder, settings).map_err(|e| WgpuError::Size(e.to_string()))?;
             ctx.queue.submit([encoder.finish()]);
             Ok(())
         })?;
-        let bytes = read_buffer(ctx, "store counts", store.counts_buffer(), 32)?;
+        let bytes = read_buffer(ctx, "store counts", store.counts_buffer(), std::mem::size_of::<StoreCounts>() as u64)?;
         let counts: StoreCounts = bytemuck::pod_read_unaligned(&bytes);
-        if counts.overflowed > 0 {
-            return Err(WgpuError::Size(format!(
-                "{} progressive photons in one iteration: {} more than one storage binding of adapter {:?} holds",
-                counts.total_photons(),
-                counts.overflowed,
-                ctx.info.name
-            )));
-        }
+        scoped(ctx, "sort", || {
+            let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa sort") });
+            store.encode_sort(&ctx.device, &ctx.queue, &self.pipelines, &mut encoder, settings, &counts).map_err(|e| WgpuError::Size(e.to_string()))?;
+            ctx.queue.submit([encoder.finish()]);
+            Ok(())
+        })?;
         self.counts = counts;
         self.radii = settings.radii;
         Ok(counts)

@@ -75,7 +75,8 @@ struct StoreParams {
     photon_count: u32,
     fp_sorted: u32,
     ph_sorted: u32,
-    pad: [u32; 2],
+    fp_count: u32,
+    ph_count: u32,
 }
 const _: () = assert!(std::mem::size_of::<StoreParams>() == 112);
 
@@ -244,7 +245,7 @@ fn store_source() -> String {
     format!("{KERNEL}\n{FOOTPRINT}\n{HEURISTICS}\n{}\n{STORE_WGSL}", crate::sort::MORTON_WGSL)
 }
 
-/// What the keyed store counted (read back after [`MapStore::encode`]): sizes of the
+/// What the keyed store counted (read back after [`MapStore::encode_store`]): sizes of the
 /// sorted maps and why footprints fell back to progressive photons.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
@@ -259,9 +260,15 @@ pub struct StoreCounts {
     pub culled: u32,
     /// See [`StoreCounts::degenerate`].
     pub unrepresentable: u32,
-    /// Progressive photons beyond the sorted output's capacity (not stored; the tracer
-    /// reports the iteration as too large for the device).
+    /// Progressive photons beyond the sorted output's capacity (0 unless the device's
+    /// binding limit was hit; guarded, never written out of bounds).
     pub overflowed: u32,
+    /// Footprint sort items appended (= both maps' footprints).
+    pub footprint_items: u32,
+    /// Photon sort items appended (= both maps' photons).
+    pub photon_items: u32,
+    /// Padding.
+    pub pad: [u32; 2],
 }
 
 impl StoreCounts {
@@ -298,6 +305,7 @@ pub struct StorePipelines {
     photon_keys: wgpu::ComputePipeline,
     compact_footprints: wgpu::ComputePipeline,
     compact_photons: wgpu::ComputePipeline,
+    pad_items: wgpu::ComputePipeline,
     sorter: crate::sort::Sorter,
 }
 
@@ -330,6 +338,7 @@ impl StorePipelines {
             photon_keys: pipeline("photon_keys"),
             compact_footprints: pipeline("compact_footprints"),
             compact_photons: pipeline("compact_photons"),
+            pad_items: pipeline("pad_items"),
             sorter: crate::sort::Sorter::new(device),
             layout,
         }
@@ -361,6 +370,7 @@ pub struct MapStore {
     counts: wgpu::Buffer,
     fp_items: wgpu::Buffer,
     ph_items: wgpu::Buffer,
+    photons_out_capacity: u32,
     /// Sorted footprint records ([`PackedFootprint`]); the first
     /// [`StoreCounts::total_footprints`] are valid, caustic first.
     pub footprints: wgpu::Buffer,
@@ -412,7 +422,7 @@ impl MapStore {
         let ph_extra = buffer(raw_capacity, 64, U::empty());
         let fp_items = buffer(fp_sorted, 12, U::empty());
         let ph_items = buffer(ph_sorted, 12, U::empty());
-        let counts = buffer(1, 32, U::COPY_SRC | U::COPY_DST);
+        let counts = buffer(1, 48, U::COPY_SRC | U::COPY_DST);
         let params = buffer(1, std::mem::size_of::<StoreParams>() as u64, U::COPY_DST);
         let footprints = buffer(raw_capacity, 64, U::COPY_SRC);
         let footprint_boxes = buffer(raw_capacity, 24, U::COPY_SRC | U::BLAS_INPUT);
@@ -431,6 +441,7 @@ impl MapStore {
             counts,
             fp_items,
             ph_items,
+            photons_out_capacity,
             footprints,
             footprint_boxes,
             photons: photons_out,
@@ -444,36 +455,20 @@ impl MapStore {
         (self.raw_capacity, self.photon_capacity)
     }
 
-    /// The counters buffer ([`StoreCounts`], 32 bytes; `COPY_SRC`), valid after the
-    /// commands of [`MapStore::encode`] ran.
+    /// The counters buffer ([`StoreCounts`], 48 bytes; `COPY_SRC`), valid after the
+    /// commands of [`MapStore::encode_store`] ran.
     pub fn counts_buffer(&self) -> &wgpu::Buffer {
         &self.counts
     }
 
-    /// Writes this iteration's parameters (through `queue`, before the next submission)
-    /// and records store, key, sort and compaction into `encoder`.
-    pub fn encode(
-        &self,
-        device: &wgpu::Device,
-        queue: &wgpu::Queue,
-        pipelines: &StorePipelines,
-        encoder: &mut wgpu::CommandEncoder,
-        settings: &StoreSettings,
-    ) -> Result<(), StoreSizeError> {
-        if settings.raw_count > self.raw_capacity || settings.photon_count > self.photon_capacity {
-            return Err(StoreSizeError(format!(
-                "{} raw footprints / {} photons given for capacities {} / {}",
-                settings.raw_count, settings.photon_count, self.raw_capacity, self.photon_capacity
-            )));
-        }
+    fn params(&self, settings: &StoreSettings, counts: Option<&StoreCounts>) -> StoreParams {
         let (lo, hi) = settings.bounds;
         let inv = |k: usize| {
             let e = hi[k] - lo[k];
             if e > 0.0 && (1.0 / e).is_finite() { 1.0 / e } else { 0.0 }
         };
-        let fp_sorted = crate::sort::sorted_len(settings.raw_count);
-        let ph_sorted = crate::sort::sorted_len(settings.raw_count + settings.photon_count);
-        let params = StoreParams {
+        let (fp_count, ph_count) = counts.map_or((0, 0), |c| (c.total_footprints(), c.total_photons()));
+        StoreParams {
             heuristics: settings.heuristics,
             radii: settings.radii,
             pad0: [0.0; 2],
@@ -481,30 +476,68 @@ impl MapStore {
             raw_count: settings.raw_count,
             scene_inv: [inv(0), inv(1), inv(2)],
             photon_count: settings.photon_count,
-            fp_sorted,
-            ph_sorted,
-            pad: [0; 2],
-        };
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+            fp_sorted: crate::sort::sorted_len(fp_count),
+            ph_sorted: crate::sort::sorted_len(ph_count),
+            fp_count,
+            ph_count,
+        }
+    }
+
+    /// First half: writes this iteration's parameters (through `queue`, before the next
+    /// submission) and records the store and the appending of the sort items. Submit it
+    /// and read the counts ([`MapStore::counts_buffer`]) before [`MapStore::encode_sort`].
+    pub fn encode_store(&self, queue: &wgpu::Queue, pipelines: &StorePipelines, encoder: &mut wgpu::CommandEncoder, settings: &StoreSettings) -> Result<(), StoreSizeError> {
+        if settings.raw_count > self.raw_capacity || settings.photon_count > self.photon_capacity {
+            return Err(StoreSizeError(format!(
+                "{} raw footprints / {} photons given for capacities {} / {}",
+                settings.raw_count, settings.photon_count, self.raw_capacity, self.photon_capacity
+            )));
+        }
+        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&self.params(settings, None)));
         encoder.clear_buffer(&self.counts, 0, None);
-        {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("arpa keyed store"), timestamp_writes: None });
-            pass.set_bind_group(0, &self.bind_group, &[]);
-            pass.set_pipeline(&pipelines.keyed);
-            dispatch_linear(&mut pass, fp_sorted);
-            pass.set_pipeline(&pipelines.photon_keys);
-            dispatch_linear(&mut pass, ph_sorted);
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("arpa keyed store"), timestamp_writes: None });
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        pass.set_pipeline(&pipelines.keyed);
+        dispatch_linear(&mut pass, settings.raw_count);
+        pass.set_pipeline(&pipelines.photon_keys);
+        dispatch_linear(&mut pass, settings.photon_count);
+        Ok(())
+    }
+
+    /// Second half, with the `counts` read back after [`MapStore::encode_store`]: pads the
+    /// appended items to their sorted lengths, sorts them and compacts the records.
+    pub fn encode_sort(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        pipelines: &StorePipelines,
+        encoder: &mut wgpu::CommandEncoder,
+        settings: &StoreSettings,
+        counts: &StoreCounts,
+    ) -> Result<(), StoreSizeError> {
+        if counts.total_photons() > self.photons_out_capacity {
+            return Err(StoreSizeError(format!(
+                "{} progressive photons in one iteration; one storage binding of this device holds {}",
+                counts.total_photons(),
+                self.photons_out_capacity
+            )));
         }
-        pipelines.sorter.encode(device, encoder, &self.fp_items, fp_sorted);
-        pipelines.sorter.encode(device, encoder, &self.ph_items, ph_sorted);
+        let params = self.params(settings, Some(counts));
+        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("arpa compaction"), timestamp_writes: None });
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("arpa sort padding"), timestamp_writes: None });
             pass.set_bind_group(0, &self.bind_group, &[]);
-            pass.set_pipeline(&pipelines.compact_footprints);
-            dispatch_linear(&mut pass, fp_sorted);
-            pass.set_pipeline(&pipelines.compact_photons);
-            dispatch_linear(&mut pass, ph_sorted);
+            pass.set_pipeline(&pipelines.pad_items);
+            dispatch_linear(&mut pass, params.fp_sorted.max(params.ph_sorted));
         }
+        pipelines.sorter.encode(device, encoder, &self.fp_items, params.fp_sorted);
+        pipelines.sorter.encode(device, encoder, &self.ph_items, params.ph_sorted);
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("arpa compaction"), timestamp_writes: None });
+        pass.set_bind_group(0, &self.bind_group, &[]);
+        pass.set_pipeline(&pipelines.compact_footprints);
+        dispatch_linear(&mut pass, params.fp_sorted);
+        pass.set_pipeline(&pipelines.compact_photons);
+        dispatch_linear(&mut pass, params.ph_sorted);
         Ok(())
     }
 }

@@ -409,6 +409,8 @@ impl Tracer for WgpuTracer {
             photon_count: counters.photons_written(),
         };
         let counts = self.maps.store_sorted(ctx, &store)?;
+        // The sort's device time belongs to this stage.
+        ctx.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| WgpuError::Readback { stage: "photon_pass", message: e.to_string() })?;
         let stats = &mut st.stats;
         stats.photons_emitted = counters.emitted as u64;
         stats.photon_segments = counters.segments as u64;

@@ -62,8 +62,8 @@ struct StoreParams {
     photon_count: u32,     // progressive photons appended by the photon pass
     fp_sorted: u32,        // sorted length of the footprint items (power of two)
     ph_sorted: u32,        // sorted length of the photon items
-    pad0: u32,
-    pad1: u32,
+    fp_count: u32,         // footprint items appended by store_keyed
+    ph_count: u32,         // photon items appended by store_keyed and photon_keys
 }
 
 struct StoreSortItem {
@@ -110,6 +110,8 @@ const STORE_COUNT_FOOTPRINTS: u32 = 0u;   // + map
 const STORE_COUNT_PHOTONS: u32 = 2u;      // + map
 const STORE_COUNT_REASON: u32 = 3u;       // + ARPA_STORE_* status (1 degenerate, 2 culled, 3 unrepresentable)
 const STORE_COUNT_OVERFLOWED: u32 = 7u;   // sorted photons beyond ph_out's capacity
+const STORE_COUNT_FP_ITEMS: u32 = 8u;     // footprint sort items appended
+const STORE_COUNT_PH_ITEMS: u32 = 9u;     // photon sort items appended
 const STORE_INVALID: u32 = 0xffffffffu;
 
 @group(0) @binding(5) var<storage, read> raw_in: array<KeyedFootprint>;
@@ -120,7 +122,7 @@ const STORE_INVALID: u32 = 0xffffffffu;
 @group(0) @binding(10) var<storage, read_write> ph_extra: array<KeyedPhoton>;
 @group(0) @binding(11) var<storage, read_write> fp_items: array<StoreSortItem>;
 @group(0) @binding(12) var<storage, read_write> ph_items: array<StoreSortItem>;
-@group(0) @binding(13) var<storage, read_write> store_counts: array<atomic<u32>, 8>;
+@group(0) @binding(13) var<storage, read_write> store_counts: array<atomic<u32>, 12>;
 @group(0) @binding(14) var<storage, read_write> fp_out: array<ArpaPackedFootprint>;
 @group(0) @binding(15) var<storage, read_write> fp_box_out: array<f32>;
 // PackedPhoton (48 bytes): the sorted output.
@@ -146,53 +148,61 @@ fn store_item(map: u32, p: vec3<f32>, key: u32, slot: u32) -> StoreSortItem {
 
 const STORE_INVALID_ITEM: StoreSortItem = StoreSortItem(0xffffffffu, 0xffffffffu, 0xffffffffu);
 
+// Stores raw footprint i (i < raw_count) into its slot and appends its sort item: to
+// fp_items when stored, else (the fallback photon, slot photon_count + i) to ph_items.
 @compute @workgroup_size(64)
 fn store_keyed(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let i = store_index(gid, groups);
-    if i >= kparams.fp_sorted {
-        return;
-    }
     if i >= kparams.raw_count {
-        fp_items[i] = STORE_INVALID_ITEM;
         return;
     }
     let keyed = raw_in[i];
     let f = keyed.fp;
     let map = min(f.map, 1u);
     let st = arpa_store(kparams.heuristics, f.center, f.normal, f.du, f.dv, f.flux, map, kparams.radii[map]);
-    let photon_slot = kparams.photon_count + i;
     if st.status == ARPA_STORE_OK {
         fp_slots[i] = st.record;
         let b = 6u * i;
         fp_box_slots[b] = st.box_min.x; fp_box_slots[b + 1u] = st.box_min.y; fp_box_slots[b + 2u] = st.box_min.z;
         fp_box_slots[b + 3u] = st.box_max.x; fp_box_slots[b + 4u] = st.box_max.y; fp_box_slots[b + 5u] = st.box_max.z;
-        fp_items[i] = store_item(map, 0.5 * (st.box_min + st.box_max), keyed.key, i);
-        ph_items[photon_slot] = STORE_INVALID_ITEM;
+        let at = atomicAdd(&store_counts[STORE_COUNT_FP_ITEMS], 1u);
+        fp_items[at] = store_item(map, 0.5 * (st.box_min + st.box_max), keyed.key, i);
         atomicAdd(&store_counts[STORE_COUNT_FOOTPRINTS + map], 1u);
     } else {
         // The core's fallback: a progressive photon at the (smoothed) footprint's centre
         // with its normal and flux.
         ph_extra[i] = KeyedPhoton(f.center, map, f.normal, 0u, f.flux, 0u, keyed.key, 0u, 0u, 0u);
-        ph_items[photon_slot] = store_item(map, f.center, keyed.key, photon_slot);
-        fp_items[i] = STORE_INVALID_ITEM;
+        let slot = kparams.photon_count + i;
+        let at = atomicAdd(&store_counts[STORE_COUNT_PH_ITEMS], 1u);
+        ph_items[at] = store_item(map, f.center, keyed.key, slot);
         atomicAdd(&store_counts[STORE_COUNT_PHOTONS + map], 1u);
         atomicAdd(&store_counts[STORE_COUNT_REASON + min(st.status, 3u)], 1u);
     }
 }
 
+// Appends the sort item of the photon pass's photon j (j < photon_count).
 @compute @workgroup_size(64)
 fn photon_keys(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let j = store_index(gid, groups);
-    if j >= kparams.ph_sorted {
+    if j >= kparams.photon_count {
         return;
     }
-    if j < kparams.photon_count {
-        let p = photons_in[j];
-        let map = min(p.map, 1u);
-        ph_items[j] = store_item(map, p.position, p.key, j);
-        atomicAdd(&store_counts[STORE_COUNT_PHOTONS + map], 1u);
-    } else if j >= kparams.photon_count + kparams.raw_count {
-        ph_items[j] = STORE_INVALID_ITEM;
+    let p = photons_in[j];
+    let map = min(p.map, 1u);
+    let at = atomicAdd(&store_counts[STORE_COUNT_PH_ITEMS], 1u);
+    ph_items[at] = store_item(map, p.position, p.key, j);
+    atomicAdd(&store_counts[STORE_COUNT_PHOTONS + map], 1u);
+}
+
+// Fills the items after the appended ones up to the sorted lengths with invalid items.
+@compute @workgroup_size(64)
+fn pad_items(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = store_index(gid, groups);
+    if i >= kparams.fp_count && i < kparams.fp_sorted {
+        fp_items[i] = STORE_INVALID_ITEM;
+    }
+    if i >= kparams.ph_count && i < kparams.ph_sorted {
+        ph_items[i] = STORE_INVALID_ITEM;
     }
 }
 
