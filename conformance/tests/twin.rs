@@ -29,7 +29,7 @@ fn runner() -> Option<Box<dyn KernelRunner>> {
 /// A kernel case's body.
 type KernelBody = fn(&dyn KernelRunner) -> CaseResult;
 
-/// Every kernel case of the suite; they are the eight twin files' cases.
+/// Every kernel case of the suite: the twin's cases (one per twin file or function group).
 fn twin_cases() -> Vec<(Case, KernelBody)> {
     let v: Vec<_> = cases::all()
         .into_iter()
@@ -43,8 +43,12 @@ fn twin_cases() -> Vec<(Case, KernelBody)> {
         ids,
         [
             "twin-rng",
+            "twin-rng-draws",
+            "twin-math",
+            "twin-fresnel",
             "twin-differential",
             "twin-emission",
+            "twin-spot-falloff",
             "twin-reemission",
             "twin-lambertian",
             "twin-footprint",

@@ -17,7 +17,3 @@ mod scenes;
 mod sort;
 mod store;
 mod tracer;
-mod twin_fresnel;
-mod twin_math;
-mod twin_rng_draws;
-mod twin_spot_falloff;

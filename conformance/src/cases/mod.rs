@@ -156,6 +156,24 @@ pub fn all() -> Vec<Case> {
             run: CaseBody::Kernels(twin::rng::matches_core),
         },
         Case {
+            id: "twin-rng-draws",
+            title: "WGSL twin rng.wgsl f64-mirroring draws = arpa_core::rng (next_below, next_f64 as f32; bit-exact)",
+            needs: None,
+            run: CaseBody::Kernels(twin::rng_draws::matches_core),
+        },
+        Case {
+            id: "twin-math",
+            title: "WGSL twin math.wgsl = is_finite, f64 acos and angle, glam normalize_or",
+            needs: None,
+            run: CaseBody::Kernels(twin::math::matches_core),
+        },
+        Case {
+            id: "twin-fresnel",
+            title: "WGSL twin fresnel.wgsl + refract_direction = arpa_core::fresnel, differential (reflectance, refraction)",
+            needs: None,
+            run: CaseBody::Kernels(twin::fresnel::matches_core),
+        },
+        Case {
             id: "twin-differential",
             title: "WGSL twin differential.wgsl = arpa_core::differential (transfer, reflect, refract, TIR)",
             needs: None,
@@ -166,6 +184,12 @@ pub fn all() -> Vec<Case> {
             title: "WGSL twin emission.wgsl = arpa_core::emission (every light kind, Fibonacci lattice)",
             needs: None,
             run: CaseBody::Kernels(twin::emission::matches_core),
+        },
+        Case {
+            id: "twin-spot-falloff",
+            title: "WGSL twin spot falloff (emission.wgsl) = SpotLight::falloff_at",
+            needs: None,
+            run: CaseBody::Kernels(twin::spot_falloff::matches_core),
         },
         Case {
             id: "twin-reemission",

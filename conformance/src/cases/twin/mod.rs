@@ -1,6 +1,8 @@
 //! The core's WGSL twin ([`arpa_core::shaders`]) against the Rust core, run on a backend's
-//! [`KernelRunner`]: one case per twin file (rng, differential, emission, re-emission,
-//! Lambertian shading, footprint + kernel, heuristics, radius schedule).
+//! [`KernelRunner`]: one case per twin file or group of functions (rng streams, rng draws
+//! mirroring the core's f64 uses, math helpers, Fresnel reflectance + refraction,
+//! differential, emission, spot falloff, re-emission, Lambertian shading, footprint +
+//! kernel, heuristics, radius schedule).
 //!
 //! Each case runs the twin's functions on the device over random inputs (including the
 //! stress ranges each module names: magnitudes over tens of decades, grazing angles,
@@ -9,8 +11,9 @@
 //! within the bound each module states and explains (the twin is f32, the core f64).
 //!
 //! **Inputs are deterministic.** Random inputs come from proptest's `TestRunner` seeded
-//! with a fixed name (the case's id, e.g. `twin-rng`; `twin-footprint-pack` and
-//! `twin-footprint-gather` for the footprint case's two checks), its bytes zero-padded to
+//! with a fixed name (the case's id, e.g. `twin-rng`; for a case with several random
+//! checks the id and the check, e.g. `twin-footprint-pack` and `twin-footprint-gather`,
+//! `twin-fresnel-reflectance`, `twin-math-acos`), its bytes zero-padded to
 //! 32 for ChaCha ([`proptest_batches`]): the same inputs on every run and every backend, so
 //! a failure reproduces. `PROPTEST_*` environment variables change neither the seed nor the
 //! number of batches. A batch (thousands of
@@ -34,11 +37,15 @@ use crate::kernel_runner::{KernelJob, KernelRunner, WORKGROUP_SIZE};
 pub mod differential;
 pub mod emission;
 pub mod footprint;
+pub mod fresnel;
 pub mod heuristics;
 pub mod lambertian;
+pub mod math;
 pub mod radius;
 pub mod reemission;
 pub mod rng;
+pub mod rng_draws;
+pub mod spot_falloff;
 
 /// `check!(condition, "format", args…)`: returns `Err(message)` from the enclosing case
 /// function unless `condition` holds.
