@@ -115,8 +115,8 @@ fn scrambled_triangles_keep_the_core_numbering() {
         assert_eq!((want.mesh, want.triangle), (0, t as u32), "core");
         assert_eq!(&g[..4], &[1, 0, t as u32, t as u32], "device hit/mesh/triangle/surface triangle for triangle {t}");
         let tri = prepared.triangle(0, t as u32);
-        for k in 0..3 {
-            assert_eq!(v3(g, 4 + 3 * k), tri[k].as_vec3().as_dvec3(), "vertex {k} of triangle {t}");
+        for (k, p) in tri.iter().enumerate() {
+            assert_eq!(v3(g, 4 + 3 * k), p.as_vec3().as_dvec3(), "vertex {k} of triangle {t}");
         }
         let c = c.expect("GpuGeometry::intersect hits the grid");
         assert_eq!((c.mesh, c.triangle), (0, t as u32), "GpuGeometry::intersect for triangle {t}");
