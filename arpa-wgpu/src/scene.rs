@@ -1,6 +1,7 @@
 //! Scene upload: the triangles of every mesh into a bottom-level acceleration structure of
-//! their own (positions `f32`, world space, metres), one instance per mesh (custom data =
-//! mesh index) in a top-level structure ([`GpuGeometry`]); closest-hit ray casting against
+//! their own (positions `f32`, world space, metres; triangles in the Morton order of their
+//! centroids, see [`morton_triangle_order`]), one instance per mesh (custom data = mesh
+//! index) in a top-level structure ([`GpuGeometry`]); closest-hit ray casting against
 //! it on ray queries, the device side of [`arpa_core::ray_cast::RayCaster`], checked
 //! against [`arpa_core::ray_cast::BruteForceCaster`]; and the whole prepared scene
 //! ([`GpuScene`]: geometry, materials, vertex normals, emitters) as bind group 0 of every
@@ -8,6 +9,7 @@
 
 use crate::device::GpuContext;
 use crate::harness::{HarnessError, output_and_staging, submit_and_read};
+use crate::sort::morton_code;
 use arpa_core::emission::{Light, SpotFalloff};
 use arpa_core::glam::{DVec3, Vec3};
 use arpa_core::prepared_scene::PreparedScene;
@@ -73,6 +75,33 @@ pub struct GpuGeometry {
     tlas: wgpu::Tlas,
     /// Triangles per mesh (empty meshes get no instance).
     pub triangle_counts: Vec<u32>,
+    /// Per mesh: the mesh's triangle index of each BLAS primitive (primitive index ->
+    /// triangle index, [`morton_triangle_order`]).
+    orders: Vec<Vec<u32>>,
+}
+
+/// The order in which a mesh's triangles go into its BLAS: triangle indices sorted by the
+/// 30-bit Morton code ([`morton_code`]) of their `f32` centroids in the box of all the
+/// mesh's centroids (world space, metres), ties by index. A spatially coherent primitive
+/// order keeps the BVH of a builder that does not sort the primitives itself (lavapipe's)
+/// fast to traverse; a driver that does sort builds the same BVH either way. Centroids with
+/// a non-finite coordinate land in cell 0 of that axis (meshes are validated before upload).
+pub fn morton_triangle_order(mesh: &TriangleMesh) -> Vec<u32> {
+    let centroid = |t: &[u32; 3]| {
+        let [a, b, c] = t.map(|i| mesh.positions.get(i as usize).copied().unwrap_or(Vec3::ZERO));
+        (a + b + c) / 3.0
+    };
+    let centroids: Vec<Vec3> = mesh.indices.iter().map(centroid).collect();
+    let lo = centroids.iter().copied().fold(Vec3::INFINITY, Vec3::min);
+    let hi = centroids.iter().copied().fold(Vec3::NEG_INFINITY, Vec3::max);
+    let extent = hi - lo;
+    // A flat (or empty) axis maps every centroid to cell 0.
+    let inv = |e: f32| if e > 0.0 && e.is_finite() { 1.0 / e } else { 0.0 };
+    let inv_extent = [inv(extent.x), inv(extent.y), inv(extent.z)];
+    let lo = if lo.is_finite() { lo } else { Vec3::ZERO };
+    let mut keyed: Vec<(u32, u32)> = centroids.iter().zip(0u32..).map(|(c, i)| (morton_code(c.to_array(), lo.to_array(), inv_extent), i)).collect();
+    keyed.sort_unstable();
+    keyed.into_iter().map(|(_, i)| i).collect()
 }
 
 #[repr(C)]
@@ -121,11 +150,14 @@ impl GpuGeometry {
             flags: wgpu::AccelerationStructureFlags::PREFER_FAST_TRACE,
             update_mode: wgpu::AccelerationStructureUpdateMode::Build,
         };
+        let orders: Vec<Vec<u32>> = meshes.iter().map(morton_triangle_order).collect();
         let mut parts = Vec::new();
         for (mi, m) in meshes.iter().enumerate() {
             if m.indices.is_empty() {
                 continue;
             }
+            let order = &orders[mi];
+            let sorted: Vec<[u32; 3]> = order.iter().map(|&t| m.indices[t as usize]).collect();
             let vertices: Vec<[f32; 3]> = m.positions.iter().map(|p| p.to_array()).collect();
             let vb = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
@@ -134,7 +166,7 @@ impl GpuGeometry {
             });
             let ib = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
-                contents: bytemuck::cast_slice(&m.indices),
+                contents: bytemuck::cast_slice(&sorted),
                 usage: wgpu::BufferUsages::BLAS_INPUT,
             });
             let size = wgpu::BlasTriangleGeometrySizeDescriptor {
@@ -181,7 +213,13 @@ impl GpuGeometry {
         ctx.queue.submit([encoder.finish()]);
         drop(entries);
         let triangle_counts = meshes.iter().map(|m| m.indices.len() as u32).collect();
-        Ok(Self { blases: parts.into_iter().map(|(_, blas, ..)| blas).collect(), tlas, triangle_counts })
+        Ok(Self { blases: parts.into_iter().map(|(_, blas, ..)| blas).collect(), tlas, triangle_counts, orders })
+    }
+
+    /// The triangle of mesh `mesh` (index into the mesh's `indices`) that its BLAS holds as
+    /// primitive `primitive`; `None` if either is out of range.
+    pub fn blas_triangle(&self, mesh: u32, primitive: u32) -> Option<u32> {
+        self.orders.get(mesh as usize)?.get(primitive as usize).copied()
     }
 
     /// Number of meshes with triangles (instances in the top-level structure).
@@ -237,7 +275,12 @@ impl GpuGeometry {
         let [out] = submit_and_read(ctx, scope, encoder, label, [&staging])?;
         Ok(bytemuck::pod_collect_to_vec::<u8, CastHit>(&out)
             .iter()
-            .map(|h| (h.mesh != u32::MAX).then_some(RayHit { t: h.t, mesh: h.mesh, triangle: h.triangle, b1: h.b1, b2: h.b2 }))
+            .map(|h| {
+                // A miss has mesh u32::MAX. The kernel reports the BLAS primitive: map it
+                // back to the mesh's triangle.
+                let triangle = self.blas_triangle(h.mesh, h.triangle)?;
+                Some(RayHit { t: h.t, mesh: h.mesh, triangle, b1: h.b1, b2: h.b2 })
+            })
             .collect())
     }
 }
@@ -268,14 +311,18 @@ struct SceneMesh {
     has_normals: u32,
 }
 
-/// `ArpaSceneTriangle` of `scene.wgsl` (112 bytes).
+/// `ArpaSceneTriangle` of `scene.wgsl` (112 bytes). The table is in the meshes' triangle
+/// order; `blas_triangle` of the record at `first_triangle + i` is the triangle of the
+/// mesh's BLAS primitive `i` ([`GpuGeometry::blas_triangle`]), read by
+/// `arpa_scene_intersect` (it rides in the record's padding so that group 0 keeps three
+/// storage buffers: the photon pass binds eight in all, WebGPU's default limit).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
 struct SceneTriangle {
     p0: [f32; 3],
     flags: u32,
     p1: [f32; 3],
-    pad1: u32,
+    blas_triangle: u32,
     p2: [f32; 3],
     pad2: u32,
     normal: [f32; 3],
@@ -370,6 +417,7 @@ impl GpuScene {
                     p2: f3(p[2]),
                     flags,
                     normal: f3(normal),
+                    blas_triangle: geometry.orders[mi][ti],
                     n0: n[0],
                     n1: n[1],
                     n2: n[2],

@@ -1,5 +1,6 @@
 // The scene on the device (bind group 0 of every pass): the triangle acceleration structure
-// (one BLAS per mesh, instance custom data = mesh index), per-mesh materials with the
+// (one BLAS per mesh with the triangles in Morton order, instance custom data = mesh index;
+// ArpaSceneTriangle.blas_triangle maps a BLAS primitive back to the mesh's triangle), per-mesh materials with the
 // scene's roughness cut-off resolved on the host, per-triangle geometry, and the emitters
 // for next-event estimation. Mirrors arpa_core::prepared_scene::PreparedScene.
 // Needs the core twin's math.wgsl (arpa_core::shaders::MATH) before it; the module must
@@ -63,7 +64,10 @@ struct ArpaSceneTriangle {
     // ARPA_TRIANGLE_* bits.
     flags: u32,
     p1: vec3<f32>,
-    pad1: u32,
+    // Not about this triangle: the mesh's triangle index of BLAS primitive i, where i is
+    // this record's index within its mesh (the BLAS holds the triangles in the Morton order
+    // of their centroids, scene.rs morton_triangle_order).
+    blas_triangle: u32,
     p2: vec3<f32>,
     pad2: u32,
     // Unit geometric normal (p1 - p0) x (p2 - p0) / |...| computed in f64 (+y if degenerate).
@@ -121,14 +125,17 @@ struct ArpaSceneHit {
     hit: u32,
 }
 
-// Closest hit along origin + t dir, 0 < t <= t_max (RayCaster::intersect).
+// Closest hit along origin + t dir, 0 < t <= t_max (RayCaster::intersect); `triangle` is
+// the mesh's triangle index as the core numbers it.
 fn arpa_scene_intersect(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> ArpaSceneHit {
     var rq: ray_query;
     rayQueryInitialize(&rq, arpa_scene_tlas, RayDesc(RAY_FLAG_FORCE_OPAQUE, 0xffu, 0.0, t_max, origin, dir));
     while rayQueryProceed(&rq) {}
     let h = rayQueryGetCommittedIntersection(&rq);
     if h.kind == RAY_QUERY_INTERSECTION_TRIANGLE && h.t > 0.0 {
-        return ArpaSceneHit(h.t, h.instance_custom_data, h.primitive_index, h.barycentrics.x, h.barycentrics.y, 1u);
+        let mesh = h.instance_custom_data;
+        let triangle = arpa_scene_triangles[arpa_scene_meshes[mesh].first_triangle + h.primitive_index].blas_triangle;
+        return ArpaSceneHit(h.t, mesh, triangle, h.barycentrics.x, h.barycentrics.y, 1u);
     }
     return ArpaSceneHit(0.0, 0xffffffffu, 0u, 0.0, 0.0, 0u);
 }

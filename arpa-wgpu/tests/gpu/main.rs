@@ -12,6 +12,7 @@ mod naga_validate;
 mod photon_pass;
 mod ray_cast;
 mod ray_query;
+mod scene_order;
 mod scene_surface;
 mod scenes;
 mod sort;
