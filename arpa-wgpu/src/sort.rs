@@ -61,7 +61,8 @@ struct Step {
 }
 
 /// 30-bit Morton code of `p` in the box `lo + [0, 1/inv_extent]` (the host twin of
-/// `morton_code` in `morton.wgsl`, for tests).
+/// `morton_code` in `morton.wgsl`; the scene upload orders triangles by it, tests check the
+/// device against it).
 pub fn morton_code(p: [f32; 3], lo: [f32; 3], inv_extent: [f32; 3]) -> u32 {
     let spread = |v: u32| {
         let mut x = v & 0x3ff;
