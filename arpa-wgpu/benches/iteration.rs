@@ -12,9 +12,11 @@
 //! (`ARPA_WGPU_BENCH_RESOLUTION=WxH` overrides it, e.g. `1920x1080` on a GPU). Each size runs
 //! one warm-up iteration and then `ARPA_WGPU_BENCH_ITERATIONS` (default 3) measured ones and
 //! prints `name: value unit` lines: the mean iteration time and the mean of each stage, the
-//! photons per second, the stored records and the device and load average. A size the
-//! adapter cannot hold prints `NAME.error: ...` (on lavapipe, whose storage bindings are
-//! 128 MiB, E-1000K needs ~2.2M raw footprints of 96 bytes: it does not fit).
+//! photons per second, the stored records, the photon batches per iteration and the device
+//! and load average. An iteration whose records exceed one storage binding is traced in
+//! photon batches (on lavapipe, whose storage bindings are 128 MiB, E-1000K needs ~2.2M raw
+//! footprints of 96 bytes: two batches); the warm-up iteration finds the batch size. A size
+//! the tracer rejects prints `NAME.error: ...`.
 //! `ARPA_WGPU_BENCH_SIZES=50000,250000` restricts the photon counts.
 //!
 //! Without `--bench` (`cargo test --benches`, the smoke run) it runs one iteration of 5 000
@@ -113,11 +115,11 @@ fn main() {
             }
             let warm = Instant::now();
             if let Err(e) = tracer.iterate() {
-                // Too large for this adapter (lavapipe binds 128 MiB per storage buffer).
                 println!("{name}.error: {e}");
                 continue;
             }
             let first = warm.elapsed().as_secs_f64();
+            let first_overflowed = tracer.read_stats().map_or(0, |s| s.overflowed);
             let mut times = StageTimes::default();
             let mut stats = IterationStats::default();
             let start = Instant::now();
@@ -137,6 +139,8 @@ fn main() {
                 println!("{name}.{stage}: {:.1} ms", 1e3 * t / n);
             }
             println!("{name}.photons_per_second: {:.0}", photons as f64 / wall);
+            let batch = tracer.batch_photons().unwrap_or(photons).max(1);
+            println!("{name}.batches: {} of at most {batch} photons (first iteration: {} appends dropped and redone)", photons.div_ceil(batch), first_overflowed);
             println!("{name}.segments_per_iteration: {:.0}", stats.photon_segments as f64 / n);
             println!(
                 "{name}.stored_per_iteration: {:.0} footprints, {:.0} photons, {:.0} overflowed",

@@ -211,6 +211,28 @@ struct ImageParams {
     radii: [f32; 2],
     kernel: u32,
     pixels: u32,
+    batch: u32,
+    pad: [u32; 3],
+}
+
+/// Where one gather stands among the photon batches of an iteration (each batch's maps
+/// are gathered in turn; see [`ImageGather::encode`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct GatherBatch {
+    /// The iteration's first batch: starts the per-pixel irradiance sum, clears the
+    /// counters and counts the valid query records.
+    pub first: bool,
+    /// The iteration's last batch: writes the image.
+    pub last: bool,
+}
+
+impl GatherBatch {
+    /// The whole iteration in one batch (first and last).
+    pub const WHOLE: Self = Self { first: true, last: true };
+
+    fn bits(self) -> u32 {
+        self.first as u32 | (self.last as u32) << 1
+    }
 }
 
 /// The tracer's gather: per query record (one per pixel, [`arpa_core::tracer::QueryRecord`]),
@@ -238,7 +260,7 @@ impl ImageGather {
         });
         let buffer = |size, usage| device.create_buffer(&wgpu::BufferDescriptor { label, size, usage, mapped_at_creation: false });
         use wgpu::BufferUsages as U;
-        Self { pipeline, params: buffer(16, U::STORAGE | U::COPY_DST), total: buffer(16, U::STORAGE | U::COPY_DST | U::COPY_SRC) }
+        Self { pipeline, params: buffer(32, U::STORAGE | U::COPY_DST), total: buffer(16, U::STORAGE | U::COPY_DST | U::COPY_SRC) }
     }
 
     /// The counters (four `u32`: contributions low and high word, valid query records,
@@ -252,6 +274,13 @@ impl ImageGather {
     /// `footprints` and `photons` (records of [`crate::store::MapStore`]) in `tlas`
     /// ([`crate::accel`]) with progressive `radii` (metres) and footprint `kernel`, into
     /// `image` (`pixels` × 16 bytes).
+    ///
+    /// Photon batches: an iteration traced in several batches gathers each batch's maps in
+    /// turn, into `irradiance` (`pixels` × 16 bytes: per pixel the irradiance summed over
+    /// the batches so far, W/m², RGB); `batch` says which: the first starts the sum (and
+    /// clears the counters), the last writes `image` = `radiance + weight · (sum)` and not
+    /// `irradiance`. [`GatherBatch::WHOLE`] is the single-pass gather, bit for bit. The
+    /// contribution count then sums over the batches; the valid records are counted once.
     #[allow(clippy::too_many_arguments)]
     pub fn encode(
         &self,
@@ -263,13 +292,17 @@ impl ImageGather {
         tlas: &wgpu::Tlas,
         records: &wgpu::Buffer,
         image: &wgpu::Buffer,
+        irradiance: &wgpu::Buffer,
         radii: [f32; 2],
         kernel: Kernel,
         pixels: u32,
+        batch: GatherBatch,
     ) {
-        let params = ImageParams { radii, kernel: kernel_id(kernel), pixels };
+        let params = ImageParams { radii, kernel: kernel_id(kernel), pixels, batch: batch.bits(), pad: [0; 3] };
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
-        encoder.clear_buffer(&self.total, 0, None);
+        if batch.first {
+            encoder.clear_buffer(&self.total, 0, None);
+        }
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("arpa image gather"),
             layout: &self.pipeline.get_bind_group_layout(0),
@@ -281,6 +314,7 @@ impl ImageGather {
                 wgpu::BindGroupEntry { binding: 6, resource: image.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 7, resource: self.params.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 8, resource: self.total.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 9, resource: irradiance.as_entire_binding() },
             ],
         });
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("arpa image gather"), timestamp_writes: None });

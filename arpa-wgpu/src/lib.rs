@@ -34,7 +34,8 @@
 //!   progressive photons ([`gather::ImageGather`]);
 //! * [`accumulate`]: the running mean on the device;
 //! * [`maps`]: store → sort → build → gather chained on device buffers;
-//! * [`tracer`]: [`WgpuTracer`] and [`WgpuError`].
+//! * [`tracer`]: [`WgpuTracer`] and [`WgpuError`]; an iteration whose records exceed one
+//!   storage binding is traced in photon batches, summed per pixel on the device.
 
 pub mod accel;
 pub mod accumulate;

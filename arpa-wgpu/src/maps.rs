@@ -10,7 +10,7 @@
 use crate::accel::MapAccel;
 use crate::accumulate::{AccumPixel, DeviceAccumulator};
 use crate::device::GpuContext;
-use crate::gather::ImageGather;
+use crate::gather::{GatherBatch, ImageGather};
 use crate::store::{KeyedFootprint, KeyedPhoton, MapStore, StoreCounts, StorePipelines, StoreSettings};
 use crate::tracer::WgpuError;
 use arpa_core::footprint::PackedFootprint;
@@ -157,11 +157,24 @@ impl PhotonMaps {
         self.counts
     }
 
-    /// Records the gather of `pixels` query records into `image` (see [`ImageGather`]).
-    pub fn encode_gather(&self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, records: &wgpu::Buffer, image: &wgpu::Buffer, kernel: Kernel, pixels: u32) -> Result<(), WgpuError> {
+    /// Records the gather of `pixels` query records into `image`, as photon batch `batch`
+    /// of the iteration with the per-pixel batch sum in `irradiance` (see
+    /// [`ImageGather::encode`]; [`GatherBatch::WHOLE`] for an iteration in one batch).
+    #[allow(clippy::too_many_arguments)]
+    pub fn encode_gather(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        records: &wgpu::Buffer,
+        image: &wgpu::Buffer,
+        irradiance: &wgpu::Buffer,
+        kernel: Kernel,
+        pixels: u32,
+        batch: GatherBatch,
+    ) -> Result<(), WgpuError> {
         let store = self.store("gather")?;
         let accel = self.accel.as_ref().ok_or(WgpuError::StageOrder { stage: "gather", needs: "build_acceleration_structure" })?;
-        self.gather.encode(&ctx.device, &ctx.queue, encoder, &store.footprints, &store.photons, &accel.tlas, records, image, self.radii, kernel, pixels);
+        self.gather.encode(&ctx.device, &ctx.queue, encoder, &store.footprints, &store.photons, &accel.tlas, records, image, irradiance, self.radii, kernel, pixels, batch);
         Ok(())
     }
 
@@ -171,14 +184,16 @@ impl PhotonMaps {
         self.gather.total_buffer()
     }
 
-    /// The sorted footprints of the last build (caustic first).
+    /// The sorted footprints of the last store (caustic first): with photon batches, the
+    /// last batch's.
     pub fn read_footprints(&self, ctx: &GpuContext) -> Result<Vec<PackedFootprint>, WgpuError> {
         let store = self.store("read_footprints")?;
         let n = self.counts.total_footprints() as u64;
         Ok(bytemuck::pod_collect_to_vec(&read_buffer(ctx, "read_footprints", &store.footprints, n * 64)?))
     }
 
-    /// The sorted progressive photons of the last build (caustic first, padding zero).
+    /// The sorted progressive photons of the last store (caustic first, padding zero): with
+    /// photon batches, the last batch's.
     pub fn read_photons(&self, ctx: &GpuContext) -> Result<Vec<PackedPhoton>, WgpuError> {
         let store = self.store("read_photons")?;
         let n = self.counts.total_photons() as u64;
@@ -233,15 +248,18 @@ pub fn run_from_host(
     maps.bind_inputs(ctx, &raw_buf, &ph_buf, raw.len() as u32, photons.len() as u32)?;
     let counts = maps.store_and_build(ctx, settings)?;
     let (image_buf, acc) = scoped(ctx, "gather", || {
-        let image_buf = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("arpa image"),
-            size: pixels.max(1) as u64 * 16,
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
+        let pixel_buffer = || {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("arpa image"),
+                size: pixels.max(1) as u64 * 16,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        };
+        let (image_buf, irradiance) = (pixel_buffer(), pixel_buffer());
         let acc = DeviceAccumulator::new(device, pixels);
         let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa gather") });
-        maps.encode_gather(ctx, &mut encoder, &rec_buf, &image_buf, kernel, pixels)?;
+        maps.encode_gather(ctx, &mut encoder, &rec_buf, &image_buf, &irradiance, kernel, pixels, GatherBatch::WHOLE)?;
         for _ in 0..iterations {
             acc.encode(device, &mut encoder, &image_buf);
         }

@@ -76,8 +76,9 @@ pub struct KeyedPhoton {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct PhotonCounters {
-    /// Photons traced (the iteration's photon count; also those whose emitter could not
-    /// emit, as the CPU backend counts them).
+    /// Photons traced (the dispatch's photon count: the iteration's, or the batch's with
+    /// [`PhotonPass::encode_batch`]; also those whose emitter could not emit, as the CPU
+    /// backend counts them).
     pub emitted: u32,
     /// Ray segments cast.
     pub segments: u32,
@@ -136,7 +137,7 @@ struct PhotonParams {
     method: u32,
     direct_lighting: u32,
     emitter_count: u32,
-    pad0: u32,
+    first_photon: u32,
     smoothing: [f32; 2],
     pad1: [f32; 2],
 }
@@ -162,6 +163,16 @@ pub enum PhotonPassError {
         photons: u32,
         /// Interactions per photon.
         max_depth: u32,
+    },
+    /// A batch outside the iteration's photons.
+    #[error("photon pass: batch {start}..{end} is not within the iteration's {photons} photons")]
+    Batch {
+        /// First global photon index of the batch.
+        start: u32,
+        /// One past its last.
+        end: u32,
+        /// Photons of the iteration.
+        photons: u32,
     },
     /// More photons than one dispatch covers.
     #[error("photon pass: {photons} photons exceed one dispatch of this device ({max} workgroups of {PHOTON_WORKGROUP_SIZE} per dimension)")]
@@ -403,7 +414,7 @@ impl PhotonPass {
     /// the scene the pass was built for (its bind group 0).
     ///
     /// The upload takes effect at the next `queue.submit`: submit `encoder` before encoding
-    /// the next iteration.
+    /// the next iteration (or batch).
     pub fn encode(
         &self,
         ctx: &GpuContext,
@@ -412,14 +423,36 @@ impl PhotonPass {
         setup: &PhotonPassSetup,
         out: &PhotonOutputs,
     ) -> Result<(), PhotonPassError> {
+        self.encode_batch(ctx, encoder, scene, setup, 0..setup.photon_count(), out)
+    }
+
+    /// As [`PhotonPass::encode`], for the photons of global indices `batch` only (a
+    /// sub-range of `0..setup.photon_count()`): each traces exactly as in the pass over
+    /// the whole iteration (same random stream, emitter, flux normalised by the iteration's
+    /// photon count, record keys `photon_index · max_depth + depth` with the global index),
+    /// so the records of consecutive batches are, together, those of one pass, bit for bit.
+    /// `out`'s counters count this batch only.
+    pub fn encode_batch(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        scene: &GpuScene,
+        setup: &PhotonPassSetup,
+        batch: std::ops::Range<u32>,
+        out: &PhotonOutputs,
+    ) -> Result<(), PhotonPassError> {
         if setup.lights.len() != self.emitters || setup.allocation.len() != self.emitters || setup.first_index.len() != self.emitters {
             return Err(PhotonPassError::EmitterCount { got: setup.lights.len(), expected: self.emitters });
         }
-        let photons = setup.photon_count();
+        let total = setup.photon_count();
         let s = &self.settings;
-        if photons as u64 * s.max_depth as u64 > u32::MAX as u64 {
-            return Err(PhotonPassError::KeyRange { photons, max_depth: s.max_depth });
+        if total as u64 * s.max_depth as u64 > u32::MAX as u64 {
+            return Err(PhotonPassError::KeyRange { photons: total, max_depth: s.max_depth });
         }
+        if batch.start > batch.end || batch.end > total {
+            return Err(PhotonPassError::Batch { start: batch.start, end: batch.end, photons: total });
+        }
+        let photons = batch.end - batch.start;
         let max = ctx.device.limits().max_compute_workgroups_per_dimension;
         let groups = photons.div_ceil(PHOTON_WORKGROUP_SIZE);
         let (gx, gy) = if groups <= max { (groups, 1) } else { (max, groups.div_ceil(max)) };
@@ -442,7 +475,7 @@ impl PhotonPass {
             method: s.method,
             direct_lighting: s.direct_lighting,
             emitter_count: self.emitters as u32,
-            pad0: 0,
+            first_photon: batch.start,
             smoothing: s.smoothing,
             pad1: [0.0; 2],
         };

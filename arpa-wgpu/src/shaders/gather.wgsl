@@ -14,7 +14,8 @@
 // Entry points: `gather` (query points in, irradiance per map out: the stage on its own)
 // and `gather_image` (the tracer's camera-pass query records in, the iteration's radiance
 // per pixel out, as arpa-cpu's gather_one: radiance + weight * (E_caustic + E_global),
-// non-finite components to 0).
+// non-finite components to 0; with photon batches E is summed over the batches'
+// maps in batch_irradiance and the last batch writes the radiance).
 
 struct GatherQuery {
     position: vec3<f32>,  // metres
@@ -57,7 +58,17 @@ struct GatherImageParams {
     radii: vec2<f32>,     // progressive radius per map (metres)
     kernel: u32,          // ARPA_KERNEL_* id of the footprints
     pixels: u32,          // query records (one per pixel)
+    batch: u32,           // GATHER_BATCH_FIRST | GATHER_BATCH_LAST (both: the whole iteration)
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
+
+// Photon batches (arpa-wgpu gather.rs GatherBatch): the first batch of an iteration starts
+// the per-pixel irradiance sum and counts the valid records; later ones add to the sum; the
+// last writes the image radiance + weight * (sum over the batches).
+const GATHER_BATCH_FIRST: u32 = 1u;
+const GATHER_BATCH_LAST: u32 = 2u;
 
 @group(0) @binding(0) var<storage, read> footprints: array<ArpaPackedFootprint>;
 @group(0) @binding(1) var<storage, read> queries: array<GatherQuery>;
@@ -69,6 +80,9 @@ struct GatherImageParams {
 @group(0) @binding(7) var<storage, read> image_params: GatherImageParams;
 // [contributions low word, high word, valid query records, 0]
 @group(0) @binding(8) var<storage, read_write> gathered_total: array<atomic<u32>, 4>;
+// Per pixel: irradiance summed over the batches gathered so far (W/m^2, RGB; caustic +
+// global), written by every batch but the last.
+@group(0) @binding(9) var<storage, read_write> batch_irradiance: array<vec4<f32>>;
 
 const GATHER_PHOTON_BIT: u32 = 0x800000u;
 const GATHER_INDEX_MASK: u32 = 0x7fffffu;
@@ -145,15 +159,29 @@ fn gather_image(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_work
         return;
     }
     let rec = records[i];
+    let first = (image_params.batch & GATHER_BATCH_FIRST) != 0u;
+    let last = (image_params.batch & GATHER_BATCH_LAST) != 0u;
     var radiance = rec.radiance;
+    var e = vec3<f32>(0.0);
     var n = 0u;
     if rec.valid != 0u {
         let g = gather_at(rec.position, rec.normal, image_params.kernel, image_params.radii);
-        radiance = rec.radiance + rec.weight * (g.caustic + g.global);
+        // One batch: exactly the single-pass expression (no addition of a zero sum).
+        e = g.caustic + g.global;
+        if !first {
+            e = batch_irradiance[i].xyz + e;
+        }
+        radiance = rec.radiance + rec.weight * e;
         n = g.caustic_count + g.global_count;
-        atomicAdd(&gathered_total[2], 1u);
+        if first {
+            atomicAdd(&gathered_total[2], 1u);
+        }
     }
-    image[i] = vec4<f32>(gather_finite_or_zero(radiance), 0.0);
+    if last {
+        image[i] = vec4<f32>(gather_finite_or_zero(radiance), 0.0);
+    } else {
+        batch_irradiance[i] = vec4<f32>(e, 0.0);
+    }
     if n > 0u {
         // 64-bit total: low word, carry into the high word.
         let old = atomicAdd(&gathered_total[0], n);

@@ -36,14 +36,14 @@ const ARPA_PHOTON_METHOD_RTPM: u32 = 1u;
 
 // Per-iteration parameters (photon.rs PhotonParams).
 struct PhotonParams {
-    photon_count: u32,     // photons of the iteration
+    photon_count: u32,     // photons of this dispatch (the batch)
     iteration: u32,        // 0-based
     seed: u32,
     max_depth: u32,        // surface interactions per photon
     method: u32,           // ARPA_PHOTON_METHOD_*
     direct_lighting: u32,  // 1: first diffuse hits of direct paths are not stored
     emitter_count: u32,
-    pad0: u32,
+    first_photon: u32,     // global index of the batch's first photon (0: the whole iteration)
     smoothing: vec2<f32>,  // S_c, S_g (dimensionless)
     pad1: vec2<f32>,
 }
@@ -435,9 +435,12 @@ fn photon_reflect(at: ArpaRayDiff, valid: bool, nd: PhotonNormal, geometric: vec
 @compute @workgroup_size(64)
 fn photon_pass(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32,
                @builtin(num_workgroups) groups: vec3<u32>) {
-    let index = gid.x + gid.y * groups.x * 64u;
-    if index < photon_params.photon_count {
-        let segments = photon_trace(index);
+    // Local index within the batch; the photon's global index (its random stream, emitter
+    // and record keys) is first_photon + local, so a batch traces exactly the photons a
+    // single pass over the iteration would at those indices.
+    let local = gid.x + gid.y * groups.x * 64u;
+    if local < photon_params.photon_count {
+        let segments = photon_trace(photon_params.first_photon + local);
         atomicAdd(&photon_wg_emitted, 1u);
         atomicAdd(&photon_wg_segments, segments);
     }

@@ -454,6 +454,61 @@ fn records_sorted_by_key_are_deterministic() {
     assert_ne!(a.1, c.1);
 }
 
+/// Photon batches (`PhotonPass::encode_batch`): tracing the iteration's photons in three
+/// batches (boundaries off the 64-photon workgroups, across the two emitters) stores, bit
+/// for bit, the records of one pass with the same keys, and the batches' counters sum to
+/// the pass's; a batch outside the iteration is an error.
+#[test]
+fn batches_store_exactly_the_records_of_one_pass() {
+    let Some(ctx) = gpu() else { return };
+    let prepared = PreparedScene::new(box_scene()).expect("valid scene");
+    for method in [Method::Arpa, Method::Rtpm] {
+        let s = settings(method, 2000, false);
+        let scene = GpuScene::upload(ctx, &prepared).expect("scene upload");
+        let pass = PhotonPass::new(ctx, &scene, prepared.emitters().len(), &s).expect("photon pass");
+        let setup = PhotonPassSetup::new(&prepared, &s, 4);
+        assert!(setup.first_index.len() >= 2 && setup.first_index[1] > 700 && setup.first_index[1] < 2000, "{:?}", setup.first_index);
+        let run = |range: std::ops::Range<u32>| {
+            let out = PhotonOutputs::new(ctx, 20_000, 20_000).expect("outputs");
+            let mut encoder = ctx.device.create_command_encoder(&Default::default());
+            pass.encode_batch(ctx, &mut encoder, &scene, &setup, range, &out).expect("encode");
+            ctx.queue.submit([encoder.finish()]);
+            out.read(ctx).expect("read-back")
+        };
+        let whole = run(0..2000);
+        let parts: Vec<PhotonReadback> = [0..700, 700..1301, 1301..2000].into_iter().map(run).collect();
+        let (mut f, mut p) = (Vec::new(), Vec::new());
+        let mut sum = [0u32; 9];
+        for r in &parts {
+            f.extend_from_slice(&r.footprints);
+            p.extend_from_slice(&r.photons);
+            let c = r.counters;
+            let v = [c.emitted, c.segments, c.footprints_caustic, c.footprints_global, c.progressive_caustic, c.progressive_global, c.differential_lost, c.footprint_appends, c.photon_appends];
+            for (a, b) in sum.iter_mut().zip(v) {
+                *a += b;
+            }
+        }
+        let c = whole.counters;
+        assert_eq!(sum, [c.emitted, c.segments, c.footprints_caustic, c.footprints_global, c.progressive_caustic, c.progressive_global, c.differential_lost, c.footprint_appends, c.photon_appends]);
+        assert_eq!(c.emitted, 2000);
+        let (mut wf, mut wp) = (whole.footprints, whole.photons);
+        for v in [&mut f, &mut wf] {
+            v.sort_by_key(|x| x.key);
+        }
+        for v in [&mut p, &mut wp] {
+            v.sort_by_key(|x| x.key);
+        }
+        let bits = |v: &[u8]| v.to_vec();
+        assert!(!wp.is_empty() && (method == Method::Rtpm || !wf.is_empty()));
+        assert!(bits(bytemuck::cast_slice(&f)) == bits(bytemuck::cast_slice(&wf)), "{}: footprints of the batches differ from one pass", method.name());
+        assert!(bits(bytemuck::cast_slice(&p)) == bits(bytemuck::cast_slice(&wp)), "{}: photons of the batches differ from one pass", method.name());
+        let out = PhotonOutputs::new(ctx, 16, 16).expect("outputs");
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        let e = pass.encode_batch(ctx, &mut encoder, &scene, &setup, 1990..2010, &out).unwrap_err();
+        assert!(e.to_string().contains("1990..2010"), "{e}");
+    }
+}
+
 /// The photon pass's module (twin files, scene, pass) parses and validates with naga,
 /// without a GPU.
 #[test]

@@ -22,7 +22,7 @@ use arpa_core::progressive_photon::PackedPhoton;
 use arpa_core::ray_cast::BruteForceCaster;
 use arpa_core::scene::Scene;
 use arpa_core::store::StoredPhoton;
-use arpa_core::tracer::{Image, Method, RenderSettings, Tracer};
+use arpa_core::tracer::{Image, IterationStats, Method, RenderSettings, Tracer};
 use arpa_wgpu::{WgpuError, WgpuTracer};
 use glam::{DVec3, Vec3};
 
@@ -155,6 +155,91 @@ fn same_seed_is_bit_identical_and_overflow_redoes_the_iteration() {
     t.set_initial_capacity(None);
     let d = render(&mut t, &scene, &settings(Method::Arpa, 6), 2);
     assert!(bits(&a) != bits(&d), "another seed gives the same image");
+}
+
+/// The counts of an iteration that batching must not change (everything but times,
+/// overflow and the iteration number).
+fn counts(s: &IterationStats) -> [u64; 13] {
+    [
+        s.photons_emitted,
+        s.photon_segments,
+        s.footprints[0],
+        s.footprints[1],
+        s.progressive[0],
+        s.progressive[1],
+        s.degenerate,
+        s.culled,
+        s.unrepresentable,
+        s.differential_lost,
+        s.query_points,
+        s.gathered,
+        s.radii[0].to_bits() ^ s.radii[1].to_bits(),
+    ]
+}
+
+/// Photon batches: an iteration traced in batches of 700 photons (6 batches) stores the
+/// same records (bit for bit, see the photon-pass test), so it finds the same counts and
+/// sums the same non-negative contributions per pixel in another `f32` order. Recursive
+/// summation of N non-negative terms in any order (any summation tree) is within
+/// (N − 1)·2⁻²⁴ of the exact sum relative to it, so two orders differ by at most
+/// 2(N − 1)·2⁻²⁴ relative; `radiance + weight · E` and the running mean add a few
+/// roundings: per component |a − b| ≤ (2(N − 1) + 8)·2⁻²⁴·max(|a|, |b|), with N the
+/// iteration's stored records (an upper bound on the contributions to one pixel). Repeating
+/// the batched render is bit-identical. Then the automatic split: with the photon-pass
+/// bindings capped at 64 KiB (~680 raw footprints) the 4000-photon iteration overflows,
+/// B shrinks until a batch fits, the counts equal one pass's, and the image is
+/// bit-identical to a render forced to that B.
+#[test]
+fn photon_batches_match_one_pass_and_split_automatically() {
+    let Some(mut t) = tracer() else { return };
+    let scene = cornell(16);
+    for (method, iterations) in [(Method::Arpa, 2), (Method::Rtpm, 1)] {
+        let s = settings(method, 9);
+        let one = render(&mut t, &scene, &s, iterations);
+        let one_stats = t.read_stats().unwrap();
+        assert_eq!(t.batch_photons(), Some(4000));
+        t.set_batch_photons(Some(700));
+        let batched = render(&mut t, &scene, &s, iterations);
+        let stats = t.read_stats().unwrap();
+        assert_eq!(t.batch_photons(), Some(700));
+        let repeat = render(&mut t, &scene, &s, iterations);
+        t.set_batch_photons(None);
+        assert!(bits(&batched) == bits(&repeat), "{}: batched render not bit-identical on repeat", method.name());
+        assert_eq!(counts(&stats), counts(&one_stats), "{}: batched counts differ from one pass", method.name());
+        assert_eq!(stats.overflowed, 0);
+        let records = (stats.footprints[0] + stats.footprints[1] + stats.progressive[0] + stats.progressive[1]) as f64;
+        let bound = (2.0 * (records - 1.0) + 8.0) * f32::EPSILON as f64 / 2.0;
+        let mut worst = 0.0f64;
+        for (a, b) in one.pixels.iter().zip(&batched.pixels) {
+            for c in 0..3 {
+                let (a, b) = (a[c] as f64, b[c] as f64);
+                assert!(a.is_finite() && b.is_finite());
+                let scale = a.abs().max(b.abs());
+                if scale > 0.0 {
+                    worst = worst.max((a - b).abs() / scale);
+                }
+                assert!((a - b).abs() <= bound * scale, "{}: pixel component {a} vs {b} (bound {bound:e} relative)", method.name());
+            }
+        }
+        eprintln!("{}: batches of 700 vs one pass: worst relative pixel difference {worst:e} (bound {bound:e}); {} records", method.name(), records);
+    }
+    // Automatic split on a capped binding.
+    let s = settings(Method::Arpa, 9);
+    t.set_binding_limit(Some(64 << 10));
+    t.upload_scene(&scene, &s).unwrap();
+    t.iterate().unwrap();
+    let b = t.batch_photons().unwrap();
+    let first = t.read_stats().unwrap();
+    assert!(b < 4000 && first.overflowed > 0, "B {b}, {first:?}");
+    let auto = t.read_image().unwrap();
+    t.set_binding_limit(None);
+    render(&mut t, &scene, &s, 1);
+    assert_eq!(counts(&first), counts(&t.read_stats().unwrap()), "split iteration's counts differ from one pass");
+    t.set_batch_photons(Some(b));
+    let forced = render(&mut t, &scene, &s, 1);
+    t.set_batch_photons(None);
+    assert!(bits(&auto) == bits(&forced), "automatic B {b} differs from the forced B");
+    eprintln!("64 KiB bindings: B = {b} ({} batches), {} appends dropped in the first iteration", 4000u32.div_ceil(b), first.overflowed);
 }
 
 #[test]
