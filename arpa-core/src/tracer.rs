@@ -12,12 +12,13 @@
 
 use crate::classify::Smoothing;
 use crate::footprint::PackedFootprint;
-use crate::heuristics::Heuristics;
+use crate::heuristics::{DampenReference, Heuristics};
 use crate::kernel::Kernel;
 use crate::progressive_photon::PackedPhoton;
-use crate::radius::ProgressiveConfig;
+use crate::radius::{ProgressiveConfig, RadiusSpec};
 use crate::scene::Scene;
 use crate::store::{ProgressiveReason, StoredPhoton};
+use alloc::format;
 use alloc::string::String;
 use alloc::vec::Vec;
 use glam::Vec3;
@@ -80,6 +81,93 @@ impl Default for RenderSettings {
             radii: ProgressiveConfig::default(),
             kernel: Kernel::default(),
         }
+    }
+}
+
+/// Settings no render can use, with the reason (names the field and its value).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct InvalidSettings(pub String);
+
+impl RenderSettings {
+    /// Rejects settings no render can use: zero photons or depth, non-positive or
+    /// non-finite smoothing factors and radii, `alpha` outside `(0, 1]`, and heuristic
+    /// parameters outside their ranges. Every backend calls it in `upload_scene`.
+    pub fn validate(&self) -> Result<(), InvalidSettings> {
+        let s = self;
+        let bad = |why: String| Err(InvalidSettings(why));
+        let positive = |x: f64| x > 0.0 && x.is_finite();
+        if s.photons_per_iteration == 0 {
+            return bad("photons_per_iteration must be at least 1".into());
+        }
+        if s.max_depth == 0 {
+            return bad("max_depth must be at least 1".into());
+        }
+        for (name, f) in [
+            ("smoothing.caustic", s.smoothing.caustic),
+            ("smoothing.global", s.smoothing.global),
+        ] {
+            if !positive(f) {
+                return bad(format!("{name} must be positive and finite (got {f})"));
+            }
+        }
+        for (name, spec) in [
+            ("radii.caustic", s.radii.caustic),
+            ("radii.global", s.radii.global),
+        ] {
+            let (RadiusSpec::Absolute(v) | RadiusSpec::RelativeToDiagonal(v)) = spec;
+            if !positive(v) {
+                return bad(format!("{name} must be positive and finite (got {v})"));
+            }
+        }
+        if !(s.radii.alpha > 0.0 && s.radii.alpha <= 1.0) {
+            return bad(format!(
+                "radii.alpha must lie in (0, 1] (got {})",
+                s.radii.alpha
+            ));
+        }
+        let h = &s.heuristics;
+        if let Some(d) = h.dampening {
+            if !(d.exponent > 0.0 && d.exponent <= 1.0) {
+                return bad(format!(
+                    "dampening exponent must lie in (0, 1] (got {})",
+                    d.exponent
+                ));
+            }
+            if let DampenReference::Absolute(l) = d.reference
+                && !positive(l)
+            {
+                return bad(format!(
+                    "dampening reference length must be positive and finite (got {l})"
+                ));
+            }
+        }
+        if let Some(m) = h.h_max {
+            let (crate::heuristics::LengthSpec::Absolute(v)
+            | crate::heuristics::LengthSpec::RelativeToDiagonal(v)) = m.length;
+            if !positive(v) {
+                return bad(format!(
+                    "h_max length must be positive and finite (got {v})"
+                ));
+            }
+        }
+        if let Some(d) = h.degenerate
+            && !(d.fraction >= 0.0 && d.fraction.is_finite())
+        {
+            return bad(format!(
+                "degenerate-removal fraction must be finite and >= 0 (got {})",
+                d.fraction
+            ));
+        }
+        if let Some(c) = h.culling
+            && !positive(c.fraction)
+        {
+            return bad(format!(
+                "culling fraction must be positive and finite (got {})",
+                c.fraction
+            ));
+        }
+        Ok(())
     }
 }
 
@@ -298,4 +386,32 @@ pub trait Tracer {
 
     /// Statistics of the last iteration.
     fn read_stats(&self) -> Result<IterationStats, Self::Error>;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_settings_are_valid() {
+        assert_eq!(RenderSettings::default().validate(), Ok(()));
+    }
+
+    #[test]
+    fn each_invalid_field_is_named() {
+        let cases: [(&str, fn(&mut RenderSettings)); 6] = [
+            ("photons_per_iteration", |s| s.photons_per_iteration = 0),
+            ("max_depth", |s| s.max_depth = 0),
+            ("smoothing.caustic", |s| s.smoothing.caustic = f64::NAN),
+            ("radii.global", |s| s.radii.global = RadiusSpec::Absolute(-1.0)),
+            ("radii.alpha", |s| s.radii.alpha = 1.5),
+            ("radii.caustic", |s| s.radii.caustic = RadiusSpec::RelativeToDiagonal(f64::INFINITY)),
+        ];
+        for (field, spoil) in cases {
+            let mut s = RenderSettings::default();
+            spoil(&mut s);
+            let e = s.validate().expect_err(field);
+            assert!(e.0.contains(field), "{field}: {e}");
+        }
+    }
 }

@@ -64,11 +64,9 @@ use crate::photon::{PhotonCounters, PhotonOutputs, PhotonPass};
 use crate::scene::GpuScene;
 use crate::store::StoreSettings;
 use arpa_core::footprint::PackedFootprint;
-use arpa_core::heuristics::DampenReference;
 use arpa_core::photon_path::PhotonPassSetup;
 use arpa_core::prepared_scene::PreparedScene;
 use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::radius::RadiusSpec;
 use arpa_core::scene::Scene;
 use arpa_core::tracer::{Capabilities, Image, IterationStats, Method, QueryRecord, RenderSettings, Tracer};
 use std::time::Instant;
@@ -201,58 +199,9 @@ impl Loaded {
     }
 }
 
-/// Rejects settings no render can use (the checks of arpa-cpu's `validate_settings`).
+/// Rejects settings no render can use ([`RenderSettings::validate`], as arpa-cpu does).
 pub fn validate_settings(s: &RenderSettings) -> Result<(), WgpuError> {
-    let bad = |why: String| Err(WgpuError::Settings(why));
-    let positive = |x: f64| x > 0.0 && x.is_finite();
-    if s.photons_per_iteration == 0 {
-        return bad("photons_per_iteration must be at least 1".into());
-    }
-    if s.max_depth == 0 {
-        return bad("max_depth must be at least 1".into());
-    }
-    for (name, f) in [("smoothing.caustic", s.smoothing.caustic), ("smoothing.global", s.smoothing.global)] {
-        if !positive(f) {
-            return bad(format!("{name} must be positive and finite (got {f})"));
-        }
-    }
-    for (name, spec) in [("radii.caustic", s.radii.caustic), ("radii.global", s.radii.global)] {
-        let (RadiusSpec::Absolute(v) | RadiusSpec::RelativeToDiagonal(v)) = spec;
-        if !positive(v) {
-            return bad(format!("{name} must be positive and finite (got {v})"));
-        }
-    }
-    if !(s.radii.alpha > 0.0 && s.radii.alpha <= 1.0) {
-        return bad(format!("radii.alpha must lie in (0, 1] (got {})", s.radii.alpha));
-    }
-    let h = &s.heuristics;
-    if let Some(d) = h.dampening {
-        if !(d.exponent > 0.0 && d.exponent <= 1.0) {
-            return bad(format!("dampening exponent must lie in (0, 1] (got {})", d.exponent));
-        }
-        if let DampenReference::Absolute(l) = d.reference
-            && !positive(l)
-        {
-            return bad(format!("dampening reference length must be positive and finite (got {l})"));
-        }
-    }
-    if let Some(m) = h.h_max {
-        let (arpa_core::heuristics::LengthSpec::Absolute(v) | arpa_core::heuristics::LengthSpec::RelativeToDiagonal(v)) = m.length;
-        if !positive(v) {
-            return bad(format!("h_max length must be positive and finite (got {v})"));
-        }
-    }
-    if let Some(d) = h.degenerate
-        && !(d.fraction >= 0.0 && d.fraction.is_finite())
-    {
-        return bad(format!("degenerate-removal fraction must be finite and >= 0 (got {})", d.fraction));
-    }
-    if let Some(c) = h.culling
-        && !positive(c.fraction)
-    {
-        return bad(format!("culling fraction must be positive and finite (got {})", c.fraction));
-    }
-    Ok(())
+    s.validate().map_err(|e| WgpuError::Settings(e.0))
 }
 
 impl WgpuTracer {
