@@ -11,7 +11,7 @@
 //! within that rounding, and the path then differs (see the tests for the measured share).
 
 use crate::device::GpuContext;
-use crate::harness::HarnessError;
+use crate::harness::{HarnessError, scene_pipeline, storage_entry, uniform_entry};
 use crate::scene::{GpuScene, SCENE_WGSL};
 use arpa_core::prepared_scene::PreparedScene;
 use arpa_core::scene::SceneError;
@@ -132,34 +132,9 @@ impl CameraPass {
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(label), source: wgpu::ShaderSource::Wgsl(source.into()) });
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some(label),
-            entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only: false }, has_dynamic_offset: false, min_binding_size: None },
-                    count: None,
-                },
-            ],
+            entries: &[uniform_entry(0), storage_entry(1, false)],
         });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some(label),
-            bind_group_layouts: &[Some(scene.bind_group_layout()), Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(label),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("arpa_camera_main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let pipeline = scene_pipeline(device, label, &module, scene, &layout, "arpa_camera_main");
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(HarnessError::Shader { label: label.into(), message: e.to_string() }.into());
         }

@@ -56,58 +56,7 @@ pub fn run_kernel(
     items: u32,
     output_words: usize,
 ) -> Result<Vec<u32>, HarnessError> {
-    use wgpu::util::DeviceExt;
-    let device = &ctx.device;
-    let size_err = |message: String| HarnessError::Size { label: label.into(), message };
-    if output_words == 0 {
-        return Err(size_err("empty output".into()));
-    }
-    let groups = items.div_ceil(WORKGROUP_SIZE);
-    if groups > device.limits().max_compute_workgroups_per_dimension {
-        return Err(size_err(format!("{items} items need {groups} workgroups, more than one dispatch allows")));
-    }
-
-    let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some(label),
-        source: wgpu::ShaderSource::Wgsl(source.into()),
-    });
-    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some(label),
-        layout: None,
-        module: &module,
-        entry_point: Some(entry),
-        compilation_options: Default::default(),
-        cache: None,
-    });
-    // Storage bindings must not be empty: pad the input with one word.
-    let pad = [0u32];
-    let input_words: &[u32] = if input.is_empty() { &pad } else { input };
-    let input_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some("arpa-wgpu harness input"),
-        contents: bytemuck::cast_slice(input_words),
-        usage: wgpu::BufferUsages::STORAGE,
-    });
-    let out_bytes = (output_words * 4) as u64;
-    let (output_buf, staging) = output_and_staging(device, label, out_bytes);
-    let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some(label),
-        layout: &pipeline.get_bind_group_layout(0),
-        entries: &[
-            wgpu::BindGroupEntry { binding: 0, resource: input_buf.as_entire_binding() },
-            wgpu::BindGroupEntry { binding: 1, resource: output_buf.as_entire_binding() },
-        ],
-    });
-    let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
-    {
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(label), timestamp_writes: None });
-        pass.set_pipeline(&pipeline);
-        pass.set_bind_group(0, &bind_group, &[]);
-        pass.dispatch_workgroups(groups.max(1), 1, 1);
-    }
-    encoder.copy_buffer_to_buffer(&output_buf, 0, &staging, 0, out_bytes);
-    let [out] = submit_and_read(ctx, scope, encoder, label, [&staging])?;
-    Ok(bytemuck::pod_collect_to_vec(&out))
+    run(ctx, None, label, source, entry, input, items, output_words)
 }
 
 /// [`run_kernel`] for kernels that read the scene: `source` (which must start with
@@ -119,6 +68,22 @@ pub fn run_kernel(
 pub fn run_scene_kernel(
     ctx: &GpuContext,
     scene: &crate::scene::GpuScene,
+    label: &str,
+    source: &str,
+    entry: &str,
+    input: &[u32],
+    items: u32,
+    output_words: usize,
+) -> Result<Vec<u32>, HarnessError> {
+    run(ctx, Some(scene), label, source, entry, input, items, output_words)
+}
+
+/// The kernel run of [`run_kernel`] and [`run_scene_kernel`]: the input/output group is
+/// group 0 without a scene, group 1 after the scene's group 0 with one.
+#[allow(clippy::too_many_arguments)]
+fn run(
+    ctx: &GpuContext,
+    scene: Option<&crate::scene::GpuScene>,
     label: &str,
     source: &str,
     entry: &str,
@@ -138,29 +103,15 @@ pub fn run_scene_kernel(
     }
     let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
     let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(label), source: wgpu::ShaderSource::Wgsl(source.into()) });
-    let buffer_entry = |binding, read_only| wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only }, has_dynamic_offset: false, min_binding_size: None },
-        count: None,
-    };
     let io_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
         label: Some(label),
-        entries: &[buffer_entry(0, true), buffer_entry(1, false)],
+        entries: &[storage_entry(0, true), storage_entry(1, false)],
     });
-    let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-        label: Some(label),
-        bind_group_layouts: &[Some(scene.bind_group_layout()), Some(&io_layout)],
-        immediate_size: 0,
-    });
-    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some(label),
-        layout: Some(&pipeline_layout),
-        module: &module,
-        entry_point: Some(entry),
-        compilation_options: Default::default(),
-        cache: None,
-    });
+    let pipeline = match scene {
+        Some(scene) => scene_pipeline(device, label, &module, scene, &io_layout, entry),
+        None => pipeline(device, label, &module, &[Some(&io_layout)], entry),
+    };
+    // Storage bindings must not be empty: pad the input with one word.
     let pad = [0u32];
     let input_words: &[u32] = if input.is_empty() { &pad } else { input };
     let input_buf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -182,13 +133,72 @@ pub fn run_scene_kernel(
     {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(label), timestamp_writes: None });
         pass.set_pipeline(&pipeline);
-        pass.set_bind_group(0, scene.bind_group(), &[]);
-        pass.set_bind_group(1, &io, &[]);
+        let io_group = match scene {
+            Some(scene) => {
+                pass.set_bind_group(0, scene.bind_group(), &[]);
+                1
+            }
+            None => 0,
+        };
+        pass.set_bind_group(io_group, &io, &[]);
         pass.dispatch_workgroups(groups.max(1), 1, 1);
     }
     encoder.copy_buffer_to_buffer(&output_buf, 0, &staging, 0, out_bytes);
     let [out] = submit_and_read(ctx, scope, encoder, label, [&staging])?;
     Ok(bytemuck::pod_collect_to_vec(&out))
+}
+
+/// A compute-stage storage-buffer entry of a bind-group layout.
+pub(crate) fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only }, has_dynamic_offset: false, min_binding_size: None },
+        count: None,
+    }
+}
+
+/// A compute-stage uniform-buffer entry of a bind-group layout.
+pub(crate) fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
+        count: None,
+    }
+}
+
+/// The compute pipeline of `entry` in `module` over the bind-group layouts `groups`
+/// (group 0 first).
+pub(crate) fn pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    module: &wgpu::ShaderModule,
+    groups: &[Option<&wgpu::BindGroupLayout>],
+    entry: &str,
+) -> wgpu::ComputePipeline {
+    let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label: Some(label), bind_group_layouts: groups, immediate_size: 0 });
+    device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(label),
+        layout: Some(&layout),
+        module,
+        entry_point: Some(entry),
+        compilation_options: Default::default(),
+        cache: None,
+    })
+}
+
+/// The compute pipeline of a pass that reads the scene: the scene's bind group 0
+/// ([`crate::scene::GpuScene::bind_group_layout`]) and the pass's own `group1`.
+pub(crate) fn scene_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    module: &wgpu::ShaderModule,
+    scene: &crate::scene::GpuScene,
+    group1: &wgpu::BindGroupLayout,
+    entry: &str,
+) -> wgpu::ComputePipeline {
+    pipeline(device, label, module, &[Some(scene.bind_group_layout()), Some(group1)], entry)
 }
 
 /// A kernel's output buffer of `bytes` (`STORAGE | COPY_SRC`) and the `MAP_READ` staging

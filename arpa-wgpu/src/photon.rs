@@ -24,7 +24,7 @@
 //! `row_n` and the fallback photon's normal then come out flipped too, exactly).
 
 use crate::device::GpuContext;
-use crate::harness::{HarnessError, submit_and_read};
+use crate::harness::{HarnessError, scene_pipeline, storage_entry, submit_and_read, uniform_entry};
 use crate::scene::{GpuScene, SCENE_WGSL};
 use crate::store::RawFootprint;
 use arpa_core::emission::PackedLight;
@@ -350,35 +350,18 @@ impl PhotonPass {
         let label = "photon pass";
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(label), source: wgpu::ShaderSource::Wgsl(photon_pass_source().into()) });
-        let storage = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only }, has_dynamic_offset: false, min_binding_size: None },
-            count: None,
-        };
-        let uniform = wgpu::BindGroupLayoutEntry {
-            binding: 0,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
-            count: None,
-        };
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some(label),
-            entries: &[uniform, storage(1, true), storage(2, true), storage(3, false), storage(4, false), storage(5, false)],
+            entries: &[
+                uniform_entry(0),
+                storage_entry(1, true),
+                storage_entry(2, true),
+                storage_entry(3, false),
+                storage_entry(4, false),
+                storage_entry(5, false),
+            ],
         });
-        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some(label),
-            bind_group_layouts: &[Some(scene.bind_group_layout()), Some(&layout)],
-            immediate_size: 0,
-        });
-        let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(label),
-            layout: Some(&pipeline_layout),
-            module: &module,
-            entry_point: Some("photon_pass"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
+        let pipeline = scene_pipeline(device, label, &module, scene, &layout, "photon_pass");
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(HarnessError::Shader { label: label.into(), message: e.to_string() }.into());
         }

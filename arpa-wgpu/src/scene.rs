@@ -482,12 +482,7 @@ impl GpuScene {
         let mesh_buf = init(bytemuck::cast_slice(&non_empty(meshes)), wgpu::BufferUsages::STORAGE);
         let tri_buf = init(bytemuck::cast_slice(&non_empty(triangles)), wgpu::BufferUsages::STORAGE);
         let emitter_buf = init(bytemuck::cast_slice(&non_empty(packed)), wgpu::BufferUsages::STORAGE);
-        let storage = |binding| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only: true }, has_dynamic_offset: false, min_binding_size: None },
-            count: None,
-        };
+        let storage = |binding| crate::harness::storage_entry(binding, true);
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("scene (group 0)"),
             entries: &[
@@ -497,12 +492,7 @@ impl GpuScene {
                     ty: wgpu::BindingType::AccelerationStructure { vertex_return: false },
                     count: None,
                 },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Uniform, has_dynamic_offset: false, min_binding_size: None },
-                    count: None,
-                },
+                crate::harness::uniform_entry(1),
                 storage(2),
                 storage(3),
                 storage(4),

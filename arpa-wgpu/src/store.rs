@@ -313,13 +313,7 @@ impl StorePipelines {
     /// Compiles the keyed store's pipelines.
     pub fn new(device: &wgpu::Device) -> Self {
         let label = Some("arpa keyed store");
-        let entry = |binding: u32, read_only: bool| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: wgpu::ShaderStages::COMPUTE,
-            ty: wgpu::BindingType::Buffer { ty: wgpu::BufferBindingType::Storage { read_only }, has_dynamic_offset: false, min_binding_size: None },
-            count: None,
-        };
-        let entries: Vec<_> = (5..=17).map(|b| entry(b, b <= 7)).collect();
+        let entries: Vec<_> = (5..=17).map(|b| crate::harness::storage_entry(b, b <= 7)).collect();
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label, entries: &entries });
         let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label, bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label, source: wgpu::ShaderSource::Wgsl(store_source().into()) });
