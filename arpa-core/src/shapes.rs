@@ -90,6 +90,29 @@ pub fn parallelogram(name: &str, origin: Vec3, u: Vec3, v: Vec3, material: Mater
     }
 }
 
+/// The axis-aligned box `[lo, hi]` (metres) as one closed mesh of 12 triangles, flat
+/// shaded, geometric normals outwards (the interior of a dielectric box is on the side
+/// opposite the normals).
+pub fn cuboid(name: &str, lo: Vec3, hi: Vec3, material: MaterialId) -> TriangleMesh {
+    let d = hi - lo;
+    let (dx, dy, dz) = (Vec3::X * d.x, Vec3::Y * d.y, Vec3::Z * d.z);
+    let faces = [
+        (lo, dx, dz),                          // -Y
+        (Vec3::new(lo.x, hi.y, lo.z), dz, dx), // +Y
+        (lo, dy, dx),                          // -Z
+        (Vec3::new(lo.x, lo.y, hi.z), dx, dy), // +Z
+        (lo, dz, dy),                          // -X
+        (Vec3::new(hi.x, lo.y, lo.z), dy, dz), // +X
+    ];
+    let mut mesh = TriangleMesh { name: String::from(name), positions: Vec::new(), normals: None, indices: Vec::new(), material, emission: None };
+    for (o, u, v) in faces {
+        let k = mesh.positions.len() as u32;
+        mesh.positions.extend([o, o + u, o + u + v, o + v]);
+        mesh.indices.extend([[k, k + 1, k + 2], [k, k + 2, k + 3]]);
+    }
+    mesh
+}
+
 /// An icosphere mesh of `radius` (metres) around `centre` ([`unit_icosphere`]), with
 /// smooth outward vertex normals when `smooth` and flat facets otherwise.
 pub fn icosphere(name: &str, centre: Vec3, radius: f32, subdivisions: u32, smooth: bool, material: MaterialId) -> TriangleMesh {
@@ -107,6 +130,23 @@ pub fn icosphere(name: &str, centre: Vec3, radius: f32, subdivisions: u32, smoot
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn cuboid_is_closed_with_outward_normals() {
+        let (lo, hi) = (Vec3::new(-1.0, 0.5, 2.0), Vec3::new(0.5, 1.0, 4.0));
+        let m = cuboid("box", lo, hi, 3);
+        assert_eq!((m.positions.len(), m.indices.len(), m.material), (24, 12, 3));
+        let centre = (lo + hi) * 0.5;
+        let mut area = 0.0;
+        for t in &m.indices {
+            let q = t.map(|i| m.positions[i as usize]);
+            let n = (q[1] - q[0]).cross(q[2] - q[0]);
+            assert!(n.dot(q[0] - centre) > 0.0, "inward triangle {t:?}");
+            area += 0.5 * n.length();
+        }
+        let d = hi - lo;
+        assert!((area - 2.0 * (d.x * d.y + d.y * d.z + d.z * d.x)).abs() < 1e-5);
+    }
 
     #[test]
     fn icosphere_is_closed_outward_and_on_the_sphere() {

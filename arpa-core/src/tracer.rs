@@ -399,7 +399,8 @@ mod tests {
 
     #[test]
     fn each_invalid_field_is_named() {
-        let cases: [(&str, fn(&mut RenderSettings)); 6] = [
+        type Spoil = fn(&mut RenderSettings);
+        let cases: [(&str, Spoil); 6] = [
             ("photons_per_iteration", |s| s.photons_per_iteration = 0),
             ("max_depth", |s| s.max_depth = 0),
             ("smoothing.caustic", |s| s.smoothing.caustic = f64::NAN),

@@ -7,34 +7,7 @@ use arpa_core::scene::{Camera, Material, Scene, TriangleMesh};
 
 pub use arpa_core::shapes::parallelogram as quad;
 
-/// The axis-aligned box `[lo, hi]` as one closed mesh of 12 triangles, normals outwards
-/// (the interior of a dielectric is on the side opposite the normal).
-pub fn cuboid(name: &str, lo: Vec3, hi: Vec3, material: u32) -> TriangleMesh {
-    let d = hi - lo;
-    let (dx, dy, dz) = (Vec3::X * d.x, Vec3::Y * d.y, Vec3::Z * d.z);
-    let faces = [
-        (lo, dx, dz),                          // -Y
-        (Vec3::new(lo.x, hi.y, lo.z), dz, dx), // +Y
-        (lo, dy, dx),                          // -Z
-        (Vec3::new(lo.x, lo.y, hi.z), dx, dy), // +Z
-        (lo, dz, dy),                          // -X
-        (Vec3::new(hi.x, lo.y, lo.z), dy, dz), // +X
-    ];
-    let mut mesh = TriangleMesh {
-        name: name.into(),
-        positions: Vec::new(),
-        normals: None,
-        indices: Vec::new(),
-        material,
-        emission: None,
-    };
-    for (o, u, v) in faces {
-        let k = mesh.positions.len() as u32;
-        mesh.positions.extend([o, o + u, o + u + v, o + v]);
-        mesh.indices.extend([[k, k + 1, k + 2], [k, k + 2, k + 3]]);
-    }
-    mesh
-}
+pub use arpa_core::shapes::cuboid;
 
 /// A grey Lambertian material.
 pub fn diffuse(albedo: f32) -> Material {

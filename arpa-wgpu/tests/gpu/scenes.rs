@@ -113,19 +113,7 @@ fn facetted_ball() -> TriangleMesh {
     TriangleMesh { name: "facetted".into(), positions, normals: Some(normals), indices, material: 0, emission: None }
 }
 
-/// The axis-aligned box `[lo, hi]` as one closed mesh, normals outwards.
-pub fn cuboid(name: &str, lo: Vec3, hi: Vec3, material: u32) -> TriangleMesh {
-    let d = hi - lo;
-    let (dx, dy, dz) = (Vec3::X * d.x, Vec3::Y * d.y, Vec3::Z * d.z);
-    let faces = [(lo, dx, dz), (Vec3::new(lo.x, hi.y, lo.z), dz, dx), (lo, dy, dx), (Vec3::new(lo.x, lo.y, hi.z), dx, dy), (lo, dz, dy), (Vec3::new(hi.x, lo.y, lo.z), dy, dz)];
-    let mut mesh = TriangleMesh { name: name.into(), positions: Vec::new(), normals: None, indices: Vec::new(), material, emission: None };
-    for (o, u, v) in faces {
-        let k = mesh.positions.len() as u32;
-        mesh.positions.extend([o, o + u, o + u + v, o + v]);
-        mesh.indices.extend([[k, k + 1, k + 2], [k, k + 2, k + 3]]);
-    }
-    mesh
-}
+pub use arpa_core::shapes::cuboid;
 
 fn camera(position: Vec3, target: Vec3, fov_degrees: f32, width: u32, height: u32) -> Camera {
     Camera { position, target, up: Vec3::Y, vertical_fov: fov_degrees.to_radians(), width, height }
