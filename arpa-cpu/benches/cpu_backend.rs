@@ -39,6 +39,14 @@
 //! Without `--bench` (`cargo test --benches`) everything runs once on a tiny version of the
 //! scene (32×32, 320 triangles of glass, a few thousand photons) in about a second.
 //! `ARPA_CPU_BENCH_ONLY=raw,pass,gather,memory,peak,breakdown` restricts the sections.
+//!
+//! `ARPA_CPU_BENCH_PACKETS=1` adds `packets.*` to section 1: the recorded photon segments
+//! through Embree's packet kernels ([`arpa_cpu::Scene::intersect8`] / `intersect16`, 8 or
+//! 16 consecutive segments per packet, and the same on a fixed shuffle of the segments)
+//! next to `rtcIntersect1` one ray at a time (1 thread), and how many packet answers
+//! differ from `rtcIntersect1`'s in any bit. It measures what a wavefront photon pass
+//! (several photons in flight per thread, their segments traced as one packet) could
+//! gain on the Embree side; the ratio of section 2 keeps `rtcIntersect1` as its baseline.
 
 use std::hint::black_box;
 use std::process::Command;
@@ -559,6 +567,66 @@ fn bench_rays(cfg: &Config, scene: &Scene, raw_rate: &mut [Rate; 2], pass_rate: 
             t.cores,
             per_cpu(n, t.cpu)
         );
+    }
+    if std::env::var_os("ARPA_CPU_BENCH_PACKETS").is_some() {
+        let prays: Vec<arpa_cpu::PacketRay> = segments
+            .iter()
+            .map(|r| arpa_cpu::PacketRay { origin: r.origin, dir: r.direction, tnear: T_NEAR, tfar: r.t_max })
+            .collect();
+        // A fixed pseudo-random permutation (incoherent packets).
+        let mut perm: Vec<usize> = (0..prays.len()).collect();
+        let mut x = 0x9E37_79B9_7F4A_7C15u64;
+        for i in (1..perm.len()).rev() {
+            x ^= x << 13; x ^= x >> 7; x ^= x << 17;
+            perm.swap(i, (x % (i as u64 + 1)) as usize);
+        }
+        let shuffled: Vec<arpa_cpu::PacketRay> = perm.iter().map(|&i| prays[i]).collect();
+        for width in [8usize, 16] {
+            let mut hits = [None; 16];
+            let mut diff = 0usize;
+            for ch in prays.chunks(width) {
+                if width == 8 { emb.intersect8(ch, &mut hits).unwrap() } else { emb.intersect16(ch, &mut hits).unwrap() }
+                for (r, h) in ch.iter().zip(&hits) {
+                    let one = emb.intersect(r.origin, r.dir, r.tnear, r.tfar).unwrap();
+                    let same = match (one, h) {
+                        (None, None) => true,
+                        (Some(a), Some(b)) => a.t.to_bits() == b.t.to_bits() && a.u.to_bits() == b.u.to_bits() && a.v.to_bits() == b.v.to_bits() && a.prim_id == b.prim_id && a.geom_id == b.geom_id,
+                        _ => false,
+                    };
+                    diff += (!same) as usize;
+                }
+            }
+            println!("packets.differ_from_intersect1.width_{width}: {diff} of {} rays", prays.len());
+        }
+        for (label, rays) in [("ordered", &prays), ("shuffled", &shuffled)] {
+            let t1 = best_time(cfg, || {
+                rays.iter().filter(|r| matches!(emb.intersect(r.origin, r.dir, r.tnear, r.tfar), Ok(Some(_)))).count()
+            });
+            let t8 = best_time(cfg, || {
+                let mut hits = [None; 8];
+                let mut c = 0;
+                for ch in rays.chunks(8) {
+                    emb.intersect8(ch, &mut hits).unwrap();
+                    c += hits[..ch.len()].iter().filter(|h| h.is_some()).count();
+                }
+                c
+            });
+            let t16 = best_time(cfg, || {
+                let mut hits = [None; 16];
+                let mut c = 0;
+                for ch in rays.chunks(16) {
+                    emb.intersect16(ch, &mut hits).unwrap();
+                    c += hits[..ch.len()].iter().filter(|h| h.is_some()).count();
+                }
+                c
+            });
+            println!(
+                "packets.{label}: rtcIntersect1 {:.1} ns/ray, rtcIntersect8 {:.1} ns/ray, rtcIntersect16 {:.1} ns/ray",
+                t1.best / n * 1e9,
+                t8.best / n * 1e9,
+                t16.best / n * 1e9
+            );
+        }
     }
     // The core's share: trace_photon over the recorded hits (single thread, no Embree).
     {

@@ -15,12 +15,14 @@
 //! | `RTCRay` (align 16)            | 48 bytes      | 48 bytes (unchanged)     |
 //! | `RTCHit` (align 16)            | 32 bytes      | 48 bytes                 |
 //! | `RTCRayHit`                    | 80 bytes      | 96 bytes                 |
+//! | `RTCRayHit8` / `RTCRayHit16`   | 640 / 1280    | 672 / 1344 (`instPrimID[1][N]` after `instID`) |
 //! | `RTCPointQueryContext` (al.16) | 144 bytes, `instStackSize` at 132 | 144 bytes, `instPrimID` at 132, `instStackSize` at 136 |
 //!
 //! Passing a 4.2 `RTCRayHit` (80 bytes) to the 4.4 `rtcIntersect1` makes the library write
 //! `hit.instPrimID[0]` at byte offset 80 (hit offset 32), i.e. just past the end of the
-//! caller's 80-byte object. The canary tests in `lib.rs` check that nothing is written
-//! past [`RTCRayHit44`].
+//! caller's 80-byte object (the packets likewise, `4·N` bytes past). The canary tests in
+//! `lib.rs` check that nothing is written past [`RTCRayHit44`], [`RTCRayHit8_44`] and
+//! [`RTCRayHit16_44`].
 //!
 //! Layout source: `include/embree4/rtcore_ray.h` and `rtcore_common.h` at the Embree
 //! `v4.4.0` tag; `kernels/rtcore_config.h.in` (`RTC_GEOMETRY_INSTANCE_ARRAY` follows the
@@ -196,3 +198,85 @@ unsafe extern "C" {
         user_ptr: *mut c_void,
     );
 }
+
+/// Defines the Embree 4.4 SOA packet `struct RTCRayHitN` (`RTCRayN` + `RTCHitN` with
+/// `instPrimID[L][N]`, new in 4.3): `9·N` words of hit instead of the 4.2 binding's `8·N`.
+macro_rules! packet {
+    ($(#[$m:meta])* $name:ident, $n:literal, $align:literal) => {
+        $(#[$m])*
+        #[repr(C, align($align))]
+        #[derive(Clone, Copy, Debug)]
+        pub struct $name {
+            pub org_x: [f32; $n],
+            pub org_y: [f32; $n],
+            pub org_z: [f32; $n],
+            pub tnear: [f32; $n],
+            pub dir_x: [f32; $n],
+            pub dir_y: [f32; $n],
+            pub dir_z: [f32; $n],
+            pub time: [f32; $n],
+            pub tfar: [f32; $n],
+            pub mask: [u32; $n],
+            pub id: [u32; $n],
+            pub flags: [u32; $n],
+            pub Ng_x: [f32; $n],
+            pub Ng_y: [f32; $n],
+            pub Ng_z: [f32; $n],
+            pub u: [f32; $n],
+            pub v: [f32; $n],
+            pub primID: [u32; $n],
+            pub geomID: [u32; $n],
+            pub instID: [[u32; $n]; MAX_INSTANCE_LEVEL_COUNT],
+            /// New in 4.3 (instance arrays): written on every hit.
+            pub instPrimID: [[u32; $n]; MAX_INSTANCE_LEVEL_COUNT],
+        }
+
+        impl Default for $name {
+            fn default() -> Self {
+                Self {
+                    org_x: [0.0; $n],
+                    org_y: [0.0; $n],
+                    org_z: [0.0; $n],
+                    tnear: [0.0; $n],
+                    dir_x: [0.0; $n],
+                    dir_y: [0.0; $n],
+                    dir_z: [1.0; $n],
+                    time: [0.0; $n],
+                    tfar: [0.0; $n],
+                    mask: [u32::MAX; $n],
+                    id: [0; $n],
+                    flags: [0; $n],
+                    Ng_x: [0.0; $n],
+                    Ng_y: [0.0; $n],
+                    Ng_z: [0.0; $n],
+                    u: [0.0; $n],
+                    v: [0.0; $n],
+                    primID: [RTC_INVALID_GEOMETRY_ID; $n],
+                    geomID: [RTC_INVALID_GEOMETRY_ID; $n],
+                    instID: [[RTC_INVALID_GEOMETRY_ID; $n]; MAX_INSTANCE_LEVEL_COUNT],
+                    instPrimID: [[RTC_INVALID_GEOMETRY_ID; $n]; MAX_INSTANCE_LEVEL_COUNT],
+                }
+            }
+        }
+    };
+}
+
+packet!(
+    /// Embree 4.4 `struct RTCRayHit8` (672 bytes, 32-byte aligned; the 4.2 binding's is 640).
+    RTCRayHit8_44, 8, 32
+);
+packet!(
+    /// Embree 4.4 `struct RTCRayHit16` (1344 bytes, 64-byte aligned; the 4.2 binding's is 1280).
+    RTCRayHit16_44, 16, 64
+);
+
+const _: () = {
+    assert!(size_of::<RTCRayHit8_44>() == 672);
+    assert!(offset_of!(RTCRayHit8_44, Ng_x) == 384);
+    assert!(offset_of!(RTCRayHit8_44, instPrimID) == 640);
+    assert!(size_of::<embree4_sys::RTCRayHit8>() == 640);
+    assert!(size_of::<RTCRayHit16_44>() == 1344);
+    assert!(offset_of!(RTCRayHit16_44, Ng_x) == 768);
+    assert!(offset_of!(RTCRayHit16_44, instPrimID) == 1280);
+    assert!(size_of::<embree4_sys::RTCRayHit16>() == 1280);
+};

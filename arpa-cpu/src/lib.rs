@@ -38,7 +38,7 @@ mod tracer;
 pub use caster::EmbreeCaster;
 pub use device::Device;
 pub use error::{EmbreeError, Result};
-pub use scene::{Aabb, BuildQuality, Hit, PointQueryCandidate, Scene, SceneBuilder};
+pub use scene::{Aabb, BuildQuality, Hit, PacketRay, PointQueryCandidate, Scene, SceneBuilder};
 pub use tracer::{validate_settings, CpuError, CpuTracer, PHOTON_CHUNK};
 
 #[cfg(test)]
@@ -387,6 +387,125 @@ mod tests {
                 assert_eq!(h.is_some(), inside, "{o:?}");
             }
         }
+    }
+
+    /// A 4.4-layout packet followed directly by canary bytes.
+    #[repr(C, align(64))]
+    struct GuardedPacket<P> {
+        packet: P,
+        canary: [u8; 128],
+    }
+
+    /// `rtcIntersect8/16` must fill `instPrimID` (the 4.4 layout) and write nothing past
+    /// the 4.4 packet structs, on hits and misses in all lanes (invalid lanes untouched).
+    #[test]
+    fn packet_intersect_writes_nothing_past_the_4_4_packets() {
+        use crate::ffi::{RTCRayHit8_44, RTCRayHit16_44};
+        assert_eq!(size_of::<embree4_sys::RTCRayHit8>() + 32, size_of::<RTCRayHit8_44>());
+        assert_eq!(size_of::<embree4_sys::RTCRayHit16>() + 64, size_of::<RTCRayHit16_44>());
+        let dev = device();
+        let scene = unit_triangle_scene(&dev);
+        macro_rules! check {
+            ($ty:ty, $n:literal, $f:ident) => {{
+                assert_eq!(offset_of!(GuardedPacket<$ty>, canary), size_of::<$ty>());
+                let mut g = GuardedPacket { packet: <$ty>::default(), canary: [0xA5; 128] };
+                let mut valid = [0i32; $n];
+                for i in 0..$n {
+                    // Even lanes hit the triangle, odd lanes miss it; the last lane is off.
+                    g.packet.org_x[i] = if i % 2 == 0 { 0.25 } else { 2.0 };
+                    g.packet.org_y[i] = 0.25;
+                    g.packet.org_z[i] = 1.0;
+                    g.packet.dir_x[i] = 0.0;
+                    g.packet.dir_y[i] = 0.0;
+                    g.packet.dir_z[i] = -1.0;
+                    g.packet.tfar[i] = f32::INFINITY;
+                    g.packet.instPrimID[0][i] = 0xA5A5_A5A5;
+                    valid[i] = if i + 1 < $n { -1 } else { 0 };
+                }
+                // SAFETY: initialised 4.4 packet; the pointer is derived from the whole `g`.
+                unsafe { scene.$f(&valid, core::ptr::addr_of_mut!(g).cast::<$ty>()) };
+                for i in 0..$n - 1 {
+                    let hit = i % 2 == 0;
+                    assert_eq!(g.packet.geomID[i] == 0, hit, "lane {i}");
+                    assert_eq!(g.packet.geomID[i] == RTC_INVALID_GEOMETRY_ID, !hit, "lane {i}");
+                    if hit {
+                        assert!((g.packet.tfar[i] - 1.0).abs() < 1e-6);
+                        assert_eq!(
+                            g.packet.instPrimID[0][i],
+                            RTC_INVALID_GEOMETRY_ID,
+                            "Embree 4.4 writes hit.instPrimID on a hit (lane {i})"
+                        );
+                    }
+                }
+                assert_eq!(g.packet.geomID[$n - 1], RTC_INVALID_GEOMETRY_ID, "inactive lane");
+                assert!(g.canary.iter().all(|&b| b == 0xA5), "library wrote past the packet: {:02x?}", g.canary);
+            }};
+        }
+        check!(RTCRayHit8_44, 8, intersect8_raw);
+        check!(RTCRayHit16_44, 16, intersect16_raw);
+    }
+
+    /// The packet queries answer exactly (bit for bit) what `rtcIntersect1` answers, on
+    /// random rays through a small closed mesh, with partly filled packets.
+    #[test]
+    fn packet_intersect_matches_single_rays_bit_for_bit() {
+        let dev = device();
+        let mut b = Scene::builder(&dev).unwrap();
+        // A tetrahedron and a ground triangle.
+        b.add_triangle_mesh(
+            &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            &[[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]],
+        )
+        .unwrap();
+        b.add_triangle_mesh(&[[-3.0, -1.0, -3.0], [3.0, -1.0, -3.0], [0.0, -1.0, 3.0]], &[[0, 1, 2]])
+            .unwrap();
+        let scene = b.commit().unwrap();
+        let mut rng = Rng(11);
+        let (mut hits, mut misses) = (0, 0);
+        for round in 0..400 {
+            let n = 1 + round % 16;
+            let rays: Vec<PacketRay> = (0..n)
+                .map(|_| PacketRay {
+                    origin: rng.v3(-2.0, 2.0),
+                    dir: rng.v3(-1.0, 1.0),
+                    tnear: 0.0,
+                    tfar: if rng.f(0.0, 1.0) < 0.2 { rng.f(0.0, 3.0) } else { f32::INFINITY },
+                })
+                .collect();
+            let mut packet = [None; 16];
+            if n <= 8 && round % 2 == 0 {
+                scene.intersect8(&rays, &mut packet).unwrap();
+            } else {
+                scene.intersect16(&rays, &mut packet).unwrap();
+            }
+            for (r, p) in rays.iter().zip(&packet) {
+                let one = scene.intersect(r.origin, r.dir, r.tnear, r.tfar).unwrap();
+                match (one, p) {
+                    (None, None) => misses += 1,
+                    (Some(a), Some(b)) => {
+                        hits += 1;
+                        assert_eq!(
+                            (a.t.to_bits(), a.u.to_bits(), a.v.to_bits(), a.prim_id, a.geom_id),
+                            (b.t.to_bits(), b.u.to_bits(), b.v.to_bits(), b.prim_id, b.geom_id),
+                            "{r:?}"
+                        );
+                    }
+                    _ => panic!("packet and single ray disagree on {r:?}: {one:?} vs {p:?}"),
+                }
+            }
+        }
+        assert!(hits > 300 && misses > 300, "{hits} hits, {misses} misses");
+    }
+
+    #[test]
+    fn packet_intersect_rejects_an_invalid_ray() {
+        let dev = device();
+        let scene = unit_triangle_scene(&dev);
+        let mut hits = [None; 8];
+        let ok = PacketRay { origin: [0.25, 0.25, 1.0], dir: [0.0, 0.0, -1.0], tnear: 0.0, tfar: f32::INFINITY };
+        let bad = PacketRay { dir: [f32::NAN, 0.0, -1.0], ..ok };
+        let err = scene.intersect8(&[ok, bad], &mut hits).unwrap_err();
+        assert!(matches!(err, EmbreeError::InvalidInput(_)), "{err:?}");
     }
 
     /// Demonstration only (run with `--ignored --nocapture`): what happens with the 4.2

@@ -10,7 +10,44 @@ use crate::device::Device;
 use crate::error::{EmbreeError, Result};
 use crate::ffi::{
     RTC_INVALID_GEOMETRY_ID, RTCPointQuery44, RTCPointQueryContext44, RTCRay44, RTCRayHit44,
+    RTCRayHit8_44, RTCRayHit16_44,
 };
+
+/// Fills a 4.4-layout packet from `rays`, traces it and writes `hits` (see
+/// [`Scene::intersect8`]).
+macro_rules! packet_query {
+    ($scene:expr, $rays:expr, $hits:expr, $ty:ty, $n:literal, $f:ident) => {{
+        let (rays, hits): (&[PacketRay], &mut [Option<Hit>]) = ($rays, $hits);
+        assert!(rays.len() <= $n && hits.len() >= rays.len(), "packet of at most {} rays", $n);
+        let mut p = <$ty>::default();
+        let mut valid = [0i32; $n];
+        for (i, r) in rays.iter().enumerate() {
+            check_ray(r.origin, r.dir, r.tnear, r.tfar)?;
+            p.org_x[i] = r.origin[0];
+            p.org_y[i] = r.origin[1];
+            p.org_z[i] = r.origin[2];
+            p.tnear[i] = r.tnear;
+            p.dir_x[i] = r.dir[0];
+            p.dir_y[i] = r.dir[1];
+            p.dir_z[i] = r.dir[2];
+            p.tfar[i] = r.tfar;
+            valid[i] = -1;
+        }
+        // SAFETY: `p` is an initialised 4.4-layout packet, `valid` has N lanes.
+        unsafe { $scene.$f(&valid, &mut p) };
+        for (i, h) in hits.iter_mut().take(rays.len()).enumerate() {
+            *h = (p.geomID[i] != RTC_INVALID_GEOMETRY_ID).then(|| Hit {
+                t: p.tfar[i],
+                u: p.u[i],
+                v: p.v[i],
+                prim_id: p.primID[i],
+                geom_id: p.geomID[i],
+                ng: [p.Ng_x[i], p.Ng_y[i], p.Ng_z[i]],
+            });
+        }
+        Ok(())
+    }};
+}
 
 /// BVH build quality (`RTCBuildQuality`): a trade-off between build time and query speed.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -546,6 +583,51 @@ impl Scene {
         }))
     }
 
+    /// Closest hits of up to 8 rays at once (`rtcIntersect8`, one packet): `hits[i]` is
+    /// what [`Scene::intersect`] answers for `rays[i]`. Same frame, units and errors as
+    /// [`Scene::intersect`] (the first invalid ray is reported and nothing is traced).
+    ///
+    /// # Panics
+    /// If `rays.len() > 8` or `hits.len() < rays.len()`.
+    pub fn intersect8(&self, rays: &[PacketRay], hits: &mut [Option<Hit>]) -> Result<()> {
+        packet_query!(self, rays, hits, RTCRayHit8_44, 8, intersect8_raw)
+    }
+
+    /// Closest hits of up to 16 rays at once (`rtcIntersect16`, one packet); as
+    /// [`Scene::intersect8`] with 16 lanes.
+    ///
+    /// # Panics
+    /// If `rays.len() > 16` or `hits.len() < rays.len()`.
+    pub fn intersect16(&self, rays: &[PacketRay], hits: &mut [Option<Hit>]) -> Result<()> {
+        packet_query!(self, rays, hits, RTCRayHit16_44, 16, intersect16_raw)
+    }
+
+    /// `rtcIntersect8` on a caller-provided 4.4-layout packet with default arguments
+    /// (lane `i` is traced where `valid[i] == -1`).
+    ///
+    /// # Safety
+    /// `packet` must point to a valid, initialised [`RTCRayHit8_44`] whose valid lanes
+    /// hold finite rays with `geomID == instID[0][i] == RTC_INVALID_GEOMETRY_ID`.
+    pub(crate) unsafe fn intersect8_raw(&self, valid: &[i32; 8], packet: *mut RTCRayHit8_44) {
+        // The 4.2 binding's `RTCRayHit8` is 32 bytes too small for the 4.4 library: pass
+        // our 672-byte mirror through a pointer cast (see `ffi.rs`).
+        unsafe {
+            sys::rtcIntersect8(valid.as_ptr(), self.raw, packet.cast::<sys::RTCRayHit8>(), core::ptr::null_mut())
+        };
+    }
+
+    /// `rtcIntersect16` on a caller-provided 4.4-layout packet; as
+    /// [`Scene::intersect8_raw`] with 16 lanes.
+    ///
+    /// # Safety
+    /// As [`Scene::intersect8_raw`], for an [`RTCRayHit16_44`].
+    pub(crate) unsafe fn intersect16_raw(&self, valid: &[i32; 16], packet: *mut RTCRayHit16_44) {
+        // The 4.2 binding's `RTCRayHit16` is 64 bytes too small for the 4.4 library.
+        unsafe {
+            sys::rtcIntersect16(valid.as_ptr(), self.raw, packet.cast::<sys::RTCRayHit16>(), core::ptr::null_mut())
+        };
+    }
+
     /// `rtcIntersect1` on a caller-provided 4.4-layout ray/hit with default arguments.
     ///
     /// # Safety
@@ -645,6 +727,21 @@ impl Scene {
         Ok(out)
     }
 }
+
+/// One ray of a packet query ([`Scene::intersect8`], [`Scene::intersect16`]): the ray
+/// `origin + t * dir`, `t` in `[tnear, tfar]`, world frame (as [`Scene::intersect`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PacketRay {
+    /// Origin (world frame).
+    pub origin: [f32; 3],
+    /// Direction (world frame, need not be normalised).
+    pub dir: [f32; 3],
+    /// Start of the interval (units of `|dir|`).
+    pub tnear: f32,
+    /// End of the interval (units of `|dir|`; may be infinite).
+    pub tfar: f32,
+}
+
 
 fn make_ray(origin: [f32; 3], dir: [f32; 3], tnear: f32, tfar: f32) -> RTCRay44 {
     RTCRay44 {
