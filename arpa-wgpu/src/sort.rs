@@ -107,18 +107,8 @@ impl Sorter {
                 },
             ],
         });
-        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label, bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label, source: wgpu::ShaderSource::Wgsl(SORT_WGSL.into()) });
-        let pipeline = |entry: &str| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label,
-                layout: Some(&pl),
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
+        let pipeline = |entry: &str| crate::harness::pipeline(device, "arpa sort", &module, &[Some(&layout)], entry);
         Self { local: pipeline("sort_local"), merge: pipeline("sort_merge"), global: pipeline("sort_global"), layout }
     }
 

@@ -315,18 +315,8 @@ impl StorePipelines {
         let label = Some("arpa keyed store");
         let entries: Vec<_> = (5..=17).map(|b| crate::harness::storage_entry(b, b <= 7)).collect();
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label, entries: &entries });
-        let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor { label, bind_group_layouts: &[Some(&layout)], immediate_size: 0 });
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label, source: wgpu::ShaderSource::Wgsl(store_source().into()) });
-        let pipeline = |entry: &str| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label,
-                layout: Some(&pl),
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
+        let pipeline = |entry: &str| crate::harness::pipeline(device, "arpa keyed store", &module, &[Some(&layout)], entry);
         Self {
             keyed: pipeline("store_keyed"),
             photon_keys: pipeline("photon_keys"),
