@@ -115,7 +115,11 @@ pub fn trace_photon(
     let mut rng = Rng::new(settings.seed, setup.iteration, index, StreamDomain::Photon);
     let Ok(emitted) = light.emit(local, &mut rng) else { return stats };
     let reemission_length = emitted.reemission_length;
-    let mut st = PathState { ray: emitted.ray, differential_valid: true, flux: emitted.flux, classifier: PathClassifier::new() };
+    // Only ARPA's footprints use the differentials: RTPM's photons (progressive photons
+    // only) carry none, so its pass skips the transfer, reflection, refraction and
+    // re-emission of the derivatives (its hits are stored at the surface point).
+    let differential_valid = settings.method == Method::Arpa;
+    let mut st = PathState { ray: emitted.ray, differential_valid, flux: emitted.flux, classifier: PathClassifier::new() };
     // Area-light photons start on the emitter: leave it along its normal.
     let mut origin = match emitted.surface_normal {
         Some(n) => offset_origin(st.ray.p, n),
@@ -179,8 +183,8 @@ pub fn trace_photon(
                         None => break,
                     },
                 };
-                st.ray = match (st.differential_valid, reemit(s.position, ray_at_hit.dp_du, ray_at_hit.dp_dv, dir, reemission_length)) {
-                    (true, Ok(r)) => r,
+                st.ray = match st.differential_valid.then(|| reemit(s.position, ray_at_hit.dp_du, ray_at_hit.dp_dv, dir, reemission_length)) {
+                    Some(Ok(r)) => r,
                     _ => {
                         st.differential_valid = false;
                         lost_differential(s.position, dir)
@@ -209,8 +213,8 @@ pub fn trace_photon(
                 } else {
                     st.flux *= transmittance.as_dvec3();
                     let (dir, event, _) = refract_direction(d, n, ior);
-                    st.ray = match (st.differential_valid, nd.and_then(|nd| ray_at_hit.refract(&nd, ior))) {
-                        (true, Ok((r, e))) if e == event => r,
+                    st.ray = match st.differential_valid.then(|| nd.and_then(|nd| ray_at_hit.refract(&nd, ior))) {
+                        Some(Ok((r, e))) if e == event => r,
                         _ => {
                             st.differential_valid = false;
                             lost_differential(s.position, dir)
@@ -233,8 +237,8 @@ impl PathState {
     /// derivative could not be formed); the differential is lost if it cannot follow.
     #[inline(always)]
     fn reflect(&mut self, at: &RayDifferential, nd: Result<NormalDifferential, DifferentialError>, n: DVec3) {
-        self.ray = match (self.differential_valid, nd.and_then(|nd| at.reflect(&nd))) {
-            (true, Ok(r)) => r,
+        self.ray = match self.differential_valid.then(|| nd.and_then(|nd| at.reflect(&nd))) {
+            Some(Ok(r)) => r,
             _ => {
                 self.differential_valid = false;
                 lost_differential(at.p, reflect_direction(at.d, n))

@@ -273,7 +273,8 @@ fn photon_trace(index: u32) -> u32 {
     }
     let reemission_length = emitted.reemission_length;
     var ray = emitted.ray;
-    var valid = true;
+    // Only ARPA's footprints use the differentials: RTPM's photons carry none (photon_path).
+    var valid = photon_params.method == ARPA_PHOTON_METHOD_ARPA;
     var flux = emitted.flux;
     var specular_events = 0u;
     var diffuse_events = 0u;
