@@ -249,7 +249,30 @@ impl SpotLight {
     }
 }
 
+impl SpotFalloff {
+    /// GPU code of the curve: 0 linear in angle, 1 smoothstep ([`PackedLight::falloff`],
+    /// `ARPA_FALLOFF_*` in `emission.wgsl`).
+    pub fn code(self) -> u32 {
+        match self {
+            SpotFalloff::LinearAngle => 0,
+            SpotFalloff::SmoothstepAngle => 1,
+        }
+    }
+}
+
 impl Light {
+    /// GPU code of the light's kind: 0 point, 1 spot, 2 directional, 3 triangle, 4 quad
+    /// ([`PackedLight::kind`], `ARPA_LIGHT_*` in `emission.wgsl`).
+    pub fn kind_code(&self) -> u32 {
+        match self {
+            Light::Point(_) => 0,
+            Light::Spot(_) => 1,
+            Light::Directional(_) => 2,
+            Light::Triangle(_) => 3,
+            Light::Quad(_) => 4,
+        }
+    }
+
     /// Checks every parameter; `scene_sphere_radius` matters only for directional lights.
     pub fn validate(&self, scene_sphere_radius: f64) -> Result<(), LightError> {
         match self {
@@ -524,18 +547,13 @@ impl PreparedLight {
     pub fn pack(&self) -> PackedLight {
         let f = |v: DVec3| v.as_vec3().to_array();
         let zero = [0.0f32; 3];
-        let (kind, p0, p1, p2, cutoff, beam_width, falloff) = match &self.light {
-            Light::Point(l) => (0, f(l.position), zero, zero, 0.0, 0.0, 0),
-            Light::Spot(l) => {
-                let falloff = match l.falloff {
-                    SpotFalloff::LinearAngle => 0,
-                    SpotFalloff::SmoothstepAngle => 1,
-                };
-                (1, f(l.position), zero, zero, l.cutoff as f32, l.beam_width as f32, falloff)
-            }
-            Light::Directional(_) => (2, zero, zero, zero, 0.0, 0.0, 0),
-            Light::Triangle(l) => (3, f(l.p[0]), f(l.p[1]), f(l.p[2]), 0.0, 0.0, 0),
-            Light::Quad(l) => (4, f(l.origin), f(l.edge_u), f(l.edge_v), 0.0, 0.0, 0),
+        let kind = self.light.kind_code();
+        let (p0, p1, p2, cutoff, beam_width, falloff) = match &self.light {
+            Light::Point(l) => (f(l.position), zero, zero, 0.0, 0.0, 0),
+            Light::Spot(l) => (f(l.position), zero, zero, l.cutoff as f32, l.beam_width as f32, l.falloff.code()),
+            Light::Directional(_) => (zero, zero, zero, 0.0, 0.0, 0),
+            Light::Triangle(l) => (f(l.p[0]), f(l.p[1]), f(l.p[2]), 0.0, 0.0, 0),
+            Light::Quad(l) => (f(l.origin), f(l.edge_u), f(l.edge_v), 0.0, 0.0, 0),
         };
         let one_minus_cos_cutoff = if let Light::Spot(l) = &self.light { cone_solid_angle_from_angle(l.cutoff) / TAU } else { 2.0 };
         PackedLight {

@@ -556,6 +556,7 @@ impl Scene {
     /// units of `|dir|`). `tfar` may be `f32::INFINITY`. Returns
     /// [`EmbreeError::InvalidInput`] for a non-finite origin/direction, a zero direction,
     /// or an interval violating `0 <= tnear <= tfar`.
+    #[inline]
     pub fn intersect(
         &self,
         origin: [f32; 3],

@@ -10,7 +10,7 @@
 use crate::device::GpuContext;
 use crate::harness::{HarnessError, output_and_staging, submit_and_read};
 use crate::sort::morton_code;
-use arpa_core::emission::{Light, SpotFalloff};
+use arpa_core::emission::Light;
 use arpa_core::glam::{DVec3, Vec3};
 use arpa_core::prepared_scene::PreparedScene;
 use arpa_core::ray_cast::RayHit;
@@ -439,15 +439,11 @@ impl GpuScene {
             .enumerate()
             .map(|(slot, &i)| {
                 let (cdf, probability) = if slot >= delta_count { ((cdf[slot - delta_count] / total) as f32, (powers[i] / total) as f32) } else { (0.0, 0.0) };
-                let e = SceneEmitter { cdf, probability, ..SceneEmitter::default() };
+                let e = SceneEmitter { kind: emitters[i].kind_code(), cdf, probability, ..SceneEmitter::default() };
                 match emitters[i] {
-                    Light::Point(l) => SceneEmitter { kind: 0, p0: f3(l.position), color: f3(l.intensity), ..e },
+                    Light::Point(l) => SceneEmitter { p0: f3(l.position), color: f3(l.intensity), ..e },
                     Light::Spot(l) => SceneEmitter {
-                        kind: 1,
-                        falloff: match l.falloff {
-                            SpotFalloff::LinearAngle => 0,
-                            SpotFalloff::SmoothstepAngle => 1,
-                        },
+                        falloff: l.falloff.code(),
                         cutoff: l.cutoff as f32,
                         beam_width: l.beam_width as f32,
                         p0: f3(l.position),
@@ -455,9 +451,9 @@ impl GpuScene {
                         color: f3(l.intensity),
                         ..e
                     },
-                    Light::Directional(l) => SceneEmitter { kind: 2, p0: f3(l.direction.normalize_or(DVec3::Z)), color: f3(l.irradiance), ..e },
-                    Light::Triangle(l) => SceneEmitter { kind: 3, p0: f3(l.p[0]), p1: f3(l.p[1]), p2: f3(l.p[2]), color: f3(l.radiance), ..e },
-                    Light::Quad(l) => SceneEmitter { kind: 4, p0: f3(l.origin), p1: f3(l.edge_u), p2: f3(l.edge_v), color: f3(l.radiance), ..e },
+                    Light::Directional(l) => SceneEmitter { p0: f3(l.direction.normalize_or(DVec3::Z)), color: f3(l.irradiance), ..e },
+                    Light::Triangle(l) => SceneEmitter { p0: f3(l.p[0]), p1: f3(l.p[1]), p2: f3(l.p[2]), color: f3(l.radiance), ..e },
+                    Light::Quad(l) => SceneEmitter { p0: f3(l.origin), p1: f3(l.edge_u), p2: f3(l.edge_v), color: f3(l.radiance), ..e },
                 }
             })
             .collect();

@@ -72,7 +72,7 @@ fn arpa_camera_direct(s: ArpaSurface, sh: ArpaDiffuseShading, rng: ptr<function,
     let info = arpa_scene_info;
     for (var i = 0u; i < info.delta_count; i++) {
         let l = arpa_scene_emitters[i];
-        if l.kind == ARPA_EMITTER_DIRECTIONAL {
+        if l.kind == ARPA_LIGHT_DIRECTIONAL {
             let to_light = -l.p0;
             let cos = arpa_diffuse_cosine(sh, to_light);
             let far = p + to_light * (4.0 * info.sphere_radius + 1.0);
@@ -85,7 +85,7 @@ fn arpa_camera_direct(s: ArpaSurface, sh: ArpaDiffuseShading, rng: ptr<function,
             let r = sqrt(r2);
             let cos = arpa_diffuse_cosine(sh, d / r);
             var falloff = 1.0;
-            if l.kind == ARPA_EMITTER_SPOT {
+            if l.kind == ARPA_LIGHT_SPOT {
                 let theta = arpa_angle_between(-d / r, l.p1);
                 falloff = arpa_spot_falloff_at(theta, l.beam_width, l.cutoff, l.falloff);
             }
@@ -114,7 +114,7 @@ fn arpa_camera_direct(s: ArpaSurface, sh: ArpaDiffuseShading, rng: ptr<function,
     var point: vec3<f32>;
     var n: vec3<f32>;
     var area: f32;
-    if l.kind == ARPA_EMITTER_TRIANGLE {
+    if l.kind == ARPA_LIGHT_TRIANGLE {
         let b = arpa_uniform_triangle(sample);
         n = cross(l.p1 - l.p0, l.p2 - l.p0);
         point = l.p0 * b.x + l.p1 * b.y + l.p2 * b.z;

@@ -12,13 +12,6 @@ const ARPA_SCATTER_DIFFUSE: u32 = 0u;
 const ARPA_SCATTER_MIRROR: u32 = 1u;
 const ARPA_SCATTER_REFRACTIVE: u32 = 2u;
 
-// Emitter kinds (arpa_core::emission::Light).
-const ARPA_EMITTER_POINT: u32 = 0u;
-const ARPA_EMITTER_SPOT: u32 = 1u;
-const ARPA_EMITTER_DIRECTIONAL: u32 = 2u;
-const ARPA_EMITTER_TRIANGLE: u32 = 3u;
-const ARPA_EMITTER_QUAD: u32 = 4u;
-
 // Ray extent standing for the core's unbounded rays (t_max = infinity): the largest
 // finite f32 (metres).
 const ARPA_SCENE_T_MAX: f32 = 3.40282347e38;
@@ -84,7 +77,7 @@ struct ArpaSceneTriangle {
 }
 
 struct ArpaSceneEmitter {
-    // ARPA_EMITTER_*.
+    // ARPA_LIGHT_* (the light kinds of emission.wgsl, arpa_core::emission::PackedLight::kind).
     kind: u32,
     // Spot falloff: 0 linear in angle, 1 smoothstep (ARPA_FALLOFF_* of emission.wgsl).
     falloff: u32,
