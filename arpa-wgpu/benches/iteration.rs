@@ -25,29 +25,16 @@
 use std::time::Instant;
 
 use arpa_core::glam::Vec3;
-use arpa_core::scene::{Camera, Material, Scene, TriangleMesh};
-use arpa_core::shapes::{icosphere, parallelogram};
+use arpa_core::scene::{Camera, Material, Scene};
+use arpa_core::shapes::{cuboid, icosphere, parallelogram};
 use arpa_core::tracer::{IterationStats, Method, RenderSettings, StageTimes, Tracer};
 use arpa_wgpu::{AdapterChoice, WgpuTracer};
-
-fn cuboid(name: &str, lo: Vec3, hi: Vec3, material: u32) -> Vec<TriangleMesh> {
-    let d = hi - lo;
-    let (x, y, z) = (Vec3::new(d.x, 0.0, 0.0), Vec3::new(0.0, d.y, 0.0), Vec3::new(0.0, 0.0, d.z));
-    vec![
-        parallelogram(name, lo, z, x, material),
-        parallelogram(name, lo + y, x, z, material),
-        parallelogram(name, lo, x, y, material),
-        parallelogram(name, lo + z, y, x, material),
-        parallelogram(name, lo, y, z, material),
-        parallelogram(name, lo + x, z, y, material),
-    ]
-}
 
 fn scene(width: u32, height: u32) -> Scene {
     let s = 1.0;
     let mut light = parallelogram("light", Vec3::new(-0.25, 1.98, -0.25), Vec3::new(0.5, 0.0, 0.0), Vec3::new(0.0, 0.0, 0.5), 0);
     light.emission = Some(Vec3::splat(15.0));
-    let mut meshes = vec![
+    let meshes = vec![
         parallelogram("floor", Vec3::new(-s, 0.0, -s), Vec3::new(0.0, 0.0, 2.0 * s), Vec3::new(2.0 * s, 0.0, 0.0), 0),
         parallelogram("ceiling", Vec3::new(-s, 2.0, -s), Vec3::new(2.0 * s, 0.0, 0.0), Vec3::new(0.0, 0.0, 2.0 * s), 0),
         parallelogram("back", Vec3::new(-s, 0.0, -s), Vec3::new(2.0 * s, 0.0, 0.0), Vec3::new(0.0, 2.0, 0.0), 0),
@@ -56,8 +43,8 @@ fn scene(width: u32, height: u32) -> Scene {
         parallelogram("right", Vec3::new(s, 0.0, -s), Vec3::new(0.0, 0.0, 2.0 * s), Vec3::new(0.0, 2.0, 0.0), 2),
         icosphere("glass", Vec3::new(0.35, 0.45, 0.1), 0.35, 3, true, 3),
         light,
+        cuboid("mirror block", Vec3::new(-0.7, 0.0, -0.7), Vec3::new(-0.2, 1.1, -0.3), 4),
     ];
-    meshes.extend(cuboid("mirror block", Vec3::new(-0.7, 0.0, -0.7), Vec3::new(-0.2, 1.1, -0.3), 4));
     Scene {
         meshes,
         materials: vec![
