@@ -30,7 +30,8 @@ pub enum Method {
     #[default]
     Arpa,
     /// Progressive photon mapping with photons as spheres of the progressive radius
-    /// (Kern et al.'s RTPM), the baseline.
+    /// (Kern et al.'s RTPM), the baseline. Its photons carry no ray differentials (the
+    /// photon pass skips their propagation) and are stored at the surface point they hit.
     Rtpm,
 }
 
