@@ -17,14 +17,14 @@ use crate::fresnel::dielectric_reflectance;
 use crate::heuristics::ResolvedHeuristics;
 use crate::lambertian::DiffuseShading;
 use crate::prepared_scene::{offset_origin, PreparedScene};
-use crate::ray_cast::RayCaster;
+use crate::ray_cast::{RayCaster, RayHit};
 use crate::reemission::{diffuse_direction, reemit};
 use crate::rng::{Rng, StreamDomain};
 use crate::scene::Scattering;
 use crate::store::{store_footprint_resolved, store_progressive, ProgressiveReason, StoredPhoton};
 use crate::tracer::{Method, RenderSettings};
 use alloc::vec::Vec;
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 
 /// Per-iteration inputs of the photon pass, shared by all photons.
 #[derive(Clone, Debug)]
@@ -91,6 +91,7 @@ pub struct PhotonPathStats {
 }
 
 /// The part of the photon that does not depend on its differential.
+#[derive(Clone, Debug)]
 struct PathState {
     ray: RayDifferential,
     differential_valid: bool,
@@ -101,6 +102,8 @@ struct PathState {
 /// Traces global photon `index` of the iteration and hands every stored photon to
 /// `sink`. Deterministic: the photon's random stream depends only on
 /// `(seed, iteration, index)`.
+///
+/// A loop over [`PhotonWalk`]: one ray segment per step, cast through `caster`.
 pub fn trace_photon(
     scene: &PreparedScene,
     caster: &impl RayCaster,
@@ -109,27 +112,105 @@ pub fn trace_photon(
     index: u32,
     sink: &mut impl FnMut(StoredPhoton),
 ) -> PhotonPathStats {
-    let mut stats = PhotonPathStats::default();
-    let Some((emitter, local)) = setup.locate(index) else { return stats };
-    let Some(light) = &setup.lights[emitter] else { return stats };
-    let mut rng = Rng::new(settings.seed, setup.iteration, index, StreamDomain::Photon);
-    let Ok(emitted) = light.emit(local, &mut rng) else { return stats };
-    let reemission_length = emitted.reemission_length;
-    // Only ARPA's footprints use the differentials: RTPM's photons (progressive photons
-    // only) carry none, so its pass skips the transfer, reflection, refraction and
-    // re-emission of the derivatives (its hits are stored at the surface point).
-    let differential_valid = settings.method == Method::Arpa;
-    let mut st = PathState { ray: emitted.ray, differential_valid, flux: emitted.flux, classifier: PathClassifier::new() };
-    // Area-light photons start on the emitter: leave it along its normal.
-    let mut origin = match emitted.surface_normal {
-        Some(n) => offset_origin(st.ray.p, n),
-        None => st.ray.p.as_vec3(),
-    };
-    for _ in 0..settings.max_depth {
+    let Some(mut walk) = PhotonWalk::start(settings, setup, index) else { return PhotonPathStats::default() };
+    while let Some((origin, direction)) = walk.next_ray() {
+        let hit = caster.intersect(origin, direction, f32::INFINITY);
+        walk.advance(scene, settings, setup, hit, sink);
+    }
+    walk.stats()
+}
+
+/// One photon's path, advanced one ray segment at a time: [`PhotonWalk::next_ray`] gives
+/// the segment to cast (unbounded), [`PhotonWalk::advance`] takes its closest hit. This is
+/// [`trace_photon`] with the ray casts left to the caller, for backends that keep several
+/// photons in flight (the CPU backend interleaves two, so that the hit data of one loads
+/// while the other is processed); a photon's stored records and counts are the same
+/// whatever it is interleaved with.
+#[derive(Clone, Debug)]
+pub struct PhotonWalk {
+    st: PathState,
+    rng: Rng,
+    /// Origin of the next segment (metres, offset off the last surface).
+    origin: Vec3,
+    reemission_length: f64,
+    max_depth: u32,
+    stats: PhotonPathStats,
+    done: bool,
+}
+
+impl PhotonWalk {
+    /// Emits global photon `index` of the iteration; `None` when it does not exist or its
+    /// emitter cannot emit it (such a photon traces nothing and stores nothing).
+    #[inline(always)]
+    pub fn start(settings: &RenderSettings, setup: &PhotonPassSetup, index: u32) -> Option<Self> {
+        let (emitter, local) = setup.locate(index)?;
+        let light = setup.lights[emitter].as_ref()?;
+        let mut rng = Rng::new(settings.seed, setup.iteration, index, StreamDomain::Photon);
+        let emitted = light.emit(local, &mut rng).ok()?;
+        // Only ARPA's footprints use the differentials: RTPM's photons (progressive photons
+        // only) carry none, so its pass skips the transfer, reflection, refraction and
+        // re-emission of the derivatives (its hits are stored at the surface point).
+        let differential_valid = settings.method == Method::Arpa;
+        let st = PathState { ray: emitted.ray, differential_valid, flux: emitted.flux, classifier: PathClassifier::new() };
+        // Area-light photons start on the emitter: leave it along its normal.
+        let origin = match emitted.surface_normal {
+            Some(n) => offset_origin(st.ray.p, n),
+            None => st.ray.p.as_vec3(),
+        };
+        Some(Self {
+            st,
+            rng,
+            origin,
+            reemission_length: emitted.reemission_length,
+            max_depth: settings.max_depth,
+            stats: PhotonPathStats::default(),
+            done: false,
+        })
+    }
+
+    /// The next segment to cast, `(origin, unit direction)` in world space (metres), from
+    /// the origin to infinity; `None` once the path has ended (absorbed, escaped, or
+    /// `max_depth` segments cast).
+    #[inline(always)]
+    pub fn next_ray(&self) -> Option<(Vec3, Vec3)> {
+        (!self.done && self.stats.segments < self.max_depth).then(|| (self.origin, self.st.ray.d.as_vec3()))
+    }
+
+    /// Counts of the path so far.
+    #[inline]
+    pub fn stats(&self) -> PhotonPathStats {
+        self.stats
+    }
+
+    /// Takes the closest hit of the segment [`PhotonWalk::next_ray`] gave (`None`: it
+    /// escaped), stores at a diffuse hit through `sink`, and scatters or ends the path.
+    /// The settings and setup must be those [`PhotonWalk::start`] was given.
+    #[inline(always)]
+    pub fn advance(
+        &mut self,
+        scene: &PreparedScene,
+        settings: &RenderSettings,
+        setup: &PhotonPassSetup,
+        hit: Option<RayHit>,
+        sink: &mut impl FnMut(StoredPhoton),
+    ) {
+        self.stats.segments += 1;
+        let carries_on = match hit {
+            Some(hit) => self.interact(scene, settings, setup, &hit, sink),
+            None => false,
+        };
+        if !carries_on || !(self.st.flux.max_element() > 0.0) || !self.st.flux.is_finite() {
+            self.done = true;
+        }
+    }
+
+    /// The interaction at `hit`; `false` ends the path.
+    #[inline(always)]
+    fn interact(&mut self, scene: &PreparedScene, settings: &RenderSettings, setup: &PhotonPassSetup, hit: &RayHit, sink: &mut impl FnMut(StoredPhoton)) -> bool {
+        let st = &mut self.st;
+        let rng = &mut self.rng;
         let d = st.ray.d;
-        stats.segments += 1;
-        let Some(hit) = caster.intersect(origin, d.as_vec3(), f32::INFINITY) else { break };
-        let s = scene.surface(&hit);
+        let s = scene.surface(hit);
         // Distance from the differential's origin to the hit, along the direction.
         let t = (s.position - st.ray.p).dot(d).max(0.0);
         let moved = if st.differential_valid { st.ray.transfer_unit_normal(t, s.geometric_normal).ok() } else { None };
@@ -153,13 +234,13 @@ pub fn trace_photon(
                     false => None,
                     true => match DiffuseShading::new(front, scene.shading_normal_at(&s), -d) {
                         Some(sh) => Some(sh),
-                        None => break,
+                        None => return false,
                     },
                 };
                 if let Some(sh) = &shading {
                     st.flux *= sh.adjoint_ratio(-d);
                     if !(st.flux.max_element() > 0.0) {
-                        break;
+                        return false;
                     }
                 }
                 if !(settings.direct_lighting && first_interaction) {
@@ -168,29 +249,29 @@ pub fn trace_photon(
                     // from below the shading plane too gather it (crate::lambertian).
                     let below = shading.as_ref().is_some_and(DiffuseShading::below_shading_plane);
                     sink(store(&ray_at_hit, &s.geometric_normal, st.flux, map, st.differential_valid, below, settings, setup));
-                    stats.stored += 1;
+                    self.stats.stored += 1;
                 }
                 let albedo = albedo.as_dvec3();
                 let survive = albedo.max_element().min(1.0);
                 if !(rng.next_f64() < survive) {
-                    break;
+                    return false;
                 }
                 st.flux *= albedo / survive;
                 let dir = match &shading {
                     None => diffuse_direction(front, rng.next_2d()),
                     Some(sh) => match sh.sample_reemission(rng.next_2d()) {
                         Some(dir) => dir,
-                        None => break,
+                        None => return false,
                     },
                 };
-                st.ray = match st.differential_valid.then(|| reemit(s.position, ray_at_hit.dp_du, ray_at_hit.dp_dv, dir, reemission_length)) {
+                st.ray = match st.differential_valid.then(|| reemit(s.position, ray_at_hit.dp_du, ray_at_hit.dp_dv, dir, self.reemission_length)) {
                     Some(Ok(r)) => r,
                     _ => {
                         st.differential_valid = false;
                         lost_differential(s.position, dir)
                     }
                 };
-                origin = offset_origin(s.position, front);
+                self.origin = offset_origin(s.position, front);
             }
             Scattering::Mirror(reflectance) => {
                 st.classifier.record(SurfaceInteraction::Specular);
@@ -198,7 +279,7 @@ pub fn trace_photon(
                 let nd = scene.shading_normal(&s, ray_at_hit.dp_du, ray_at_hit.dp_dv);
                 let n = nd.map(|n| n.n).unwrap_or(s.geometric_normal);
                 st.reflect(&ray_at_hit, nd, n);
-                origin = offset_origin(s.position, front);
+                self.origin = offset_origin(s.position, front);
             }
             Scattering::Refractive(ior, transmittance) => {
                 st.classifier.record(SurfaceInteraction::Specular);
@@ -209,7 +290,7 @@ pub fn trace_photon(
                 let reflect = rng.next_f64() < fresnel;
                 if reflect {
                     st.reflect(&ray_at_hit, nd, n);
-                    origin = offset_origin(s.position, front);
+                    self.origin = offset_origin(s.position, front);
                 } else {
                     st.flux *= transmittance.as_dvec3();
                     let (dir, event, _) = refract_direction(d, n, ior);
@@ -221,15 +302,12 @@ pub fn trace_photon(
                         }
                     };
                     let side = if event == RefractionEvent::Transmitted { -front } else { front };
-                    origin = offset_origin(s.position, side);
+                    self.origin = offset_origin(s.position, side);
                 }
             }
         }
-        if !(st.flux.max_element() > 0.0) || !st.flux.is_finite() {
-            break;
-        }
+        true
     }
-    stats
 }
 
 impl PathState {

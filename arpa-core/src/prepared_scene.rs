@@ -58,23 +58,27 @@ impl ShadingRecord {
     }
 }
 
-/// Asks the CPU to start loading the cache lines of `record` (a hint: no effect on
-/// results, never faults).
+/// Asks the CPU to start loading the cache line at `p` (a hint: no effect on results,
+/// never faults).
 #[inline(always)]
-fn prefetch(record: &ShadingRecord) {
+fn prefetch_line(p: *const u8) {
     #[cfg(target_arch = "x86_64")]
     {
         use core::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        let p = (record as *const ShadingRecord).cast::<i8>();
         // SAFETY: SSE is part of every x86-64 CPU; a prefetch reads nothing into the
-        // program and never faults (and `p` points into a live 128-byte record).
-        unsafe {
-            _mm_prefetch::<_MM_HINT_T0>(p);
-            _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(64));
-        }
+        // program and never faults.
+        unsafe { _mm_prefetch::<_MM_HINT_T0>(p.cast::<i8>()) };
     }
     #[cfg(not(target_arch = "x86_64"))]
-    let _ = record;
+    let _ = p;
+}
+
+/// Asks the CPU to start loading both cache lines of the 128-byte `record` (a hint).
+#[inline(always)]
+fn prefetch(record: &ShadingRecord) {
+    let p = (record as *const ShadingRecord).cast::<u8>();
+    prefetch_line(p);
+    prefetch_line(p.wrapping_add(64));
 }
 
 /// A triangle's vertices (the mesh's `f32` values, so converting them to `f64` is exact)
@@ -254,6 +258,21 @@ impl PreparedScene {
     /// Vertices of a triangle in `f64`.
     pub fn triangle(&self, mesh: u32, triangle: u32) -> [DVec3; 3] {
         self.triangles[mesh as usize][triangle as usize].vertices()
+    }
+
+    /// Asks the CPU to start loading what [`PreparedScene::surface`] and the shading-normal
+    /// lookups will read for `hit` (the triangle's geometry record and, on meshes with
+    /// vertex normals, its shading record). A hint: no effect on results; an out-of-range
+    /// hit is ignored.
+    #[inline(always)]
+    pub fn prefetch_hit(&self, hit: &RayHit) {
+        let (mesh, triangle) = (hit.mesh as usize, hit.triangle as usize);
+        if let Some(tri) = self.triangles.get(mesh).and_then(|t| t.get(triangle)) {
+            prefetch_line(tri as *const TriangleGeometry as *const u8);
+        }
+        if let Some(record) = self.shading.get(mesh).and_then(|r| r.as_ref()).and_then(|r| r.get(triangle)) {
+            prefetch(record);
+        }
     }
 
     /// The surface point of a hit.

@@ -31,6 +31,7 @@ mod caster;
 mod device;
 mod error;
 mod ffi;
+mod photon_chunk;
 mod photon_store;
 mod scene;
 mod tracer;

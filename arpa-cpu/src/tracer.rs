@@ -11,7 +11,7 @@ use arpa_core::footprint::PackedFootprint;
 use arpa_core::footprint::PhotonMap;
 use arpa_core::glam::{DVec3, Vec3};
 use arpa_core::kernel::Kernel;
-use arpa_core::photon_path::{PhotonPassSetup, trace_photon};
+use arpa_core::photon_path::PhotonPassSetup;
 use arpa_core::prepared_scene::PreparedScene;
 use arpa_core::progressive_photon::PackedPhoton;
 use arpa_core::scene::{Scene as CoreScene, SceneError};
@@ -23,6 +23,7 @@ use rayon::prelude::*;
 use crate::caster::EmbreeCaster;
 use crate::device::Device;
 use crate::error::EmbreeError;
+use crate::photon_chunk::trace_chunk;
 use crate::photon_store::{PhotonStore, photon_box};
 use crate::scene::{Aabb, BuildQuality, Scene, SceneBuilder};
 
@@ -109,7 +110,7 @@ pub enum CpuError {
 /// |---|---|
 /// | [`upload_scene`](Tracer::upload_scene) | validates scene and settings ([`PreparedScene`]), builds the triangle BVH ([`EmbreeCaster`]), resets the accumulation |
 /// | [`camera_pass`](Tracer::camera_pass) | [`trace_camera_path`] for every pixel, in parallel |
-/// | [`photon_pass`](Tracer::photon_pass) | frees the previous box BVH, then [`trace_photon`] for every photon, in chunks of [`PHOTON_CHUNK`] photon indices taken in order by one loop per thread; each finished chunk is appended to the buffers (reused from the last iteration, sized from its store rate) as soon as the chunks before it are |
+/// | [`photon_pass`](Tracer::photon_pass) | frees the previous box BVH, then the core's `PhotonWalk` for every photon (two in flight per thread, interleaved segment by segment, see `photon_chunk`; the records are those of `trace_photon`, in photon order), in chunks of [`PHOTON_CHUNK`] photon indices taken in order by one loop per thread; each finished chunk is appended to the buffers (reused from the last iteration, sized from its store rate) as soon as the chunks before it are |
 /// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | one Embree box geometry for the footprints (the core's box of each footprint's elliptic slab, made in the photon pass), one for the progressive photons' cubes `x ± r_map` ([`BuildQuality::Low`]); boxes padded a little beyond `f32` rounding, handed to Embree without a copy and freed once the BVH is built |
 /// | [`gather`](Tracer::gather) | per query point: the boxes containing it (Embree point query), the exact test of each, and the `f64` sum of the contributions in `(kind, index)` order: bit for bit what [`arpa_core::estimate::gather_brute_force`] gives over the same records |
 /// | [`accumulate`](Tracer::accumulate) | adds the iteration's image to the compensated running mean |
@@ -529,13 +530,7 @@ impl Tracer for CpuTracer {
                 p.reserve_total(part_fp, part_ph);
                 let first = chunk * PHOTON_CHUNK;
                 let end = first.saturating_add(PHOTON_CHUNK).min(count);
-                let mut segments = 0u64;
-                for index in first..end {
-                    let path = trace_photon(prepared, caster, settings, &setup, index, &mut |s| {
-                        p.push(s)
-                    });
-                    segments += path.segments as u64;
-                }
+                let segments = trace_chunk(prepared, caster, settings, &setup, first..end, &mut p);
                 let mut m = lock();
                 m.finish(chunk as usize, p, segments);
                 part = m.free.pop();

@@ -1,0 +1,204 @@
+//! One chunk of the photon pass on one thread: two photons in flight, interleaved segment
+//! by segment.
+//!
+//! After Embree answers a segment, the hit's triangle records are usually not in cache
+//! (Embree's BVH keeps its own copy of the vertices), and everything the photon does next
+//! waits for them. So each answer only prefetches those records
+//! ([`PreparedScene::prefetch_hit`]), and the thread goes on with the *other* photon: it
+//! takes that photon's previous hit (whose records were prefetched one step earlier),
+//! stores and scatters, and casts its next segment. Each photon runs exactly the core's
+//! [`PhotonWalk`], so what it stores does not depend on the interleaving.
+//!
+//! The records come out in photon-index order, as a sequential loop over
+//! [`arpa_core::photon_path::trace_photon`] gives them: the photon with the lower index
+//! in flight writes straight to the chunk's store; the other one's records wait in a small
+//! queue until every photon before it has ended.
+
+use std::collections::VecDeque;
+use std::ops::Range;
+
+use arpa_core::photon_path::{PhotonPassSetup, PhotonWalk};
+use arpa_core::prepared_scene::PreparedScene;
+use arpa_core::ray_cast::{RayCaster, RayHit};
+use arpa_core::store::StoredPhoton;
+use arpa_core::tracer::RenderSettings;
+
+use crate::photon_store::PhotonStore;
+
+/// A photon in flight.
+struct Slot {
+    walk: PhotonWalk,
+    /// Global photon index.
+    index: u32,
+    /// The answer to the segment cast last, not yet taken by the walk.
+    hit: Option<Option<RayHit>>,
+}
+
+/// Records of photons that are not the lowest-indexed one in flight, per slot, in
+/// photon-index order, each with its photon index.
+type Pending = VecDeque<(u32, StoredPhoton)>;
+
+/// Traces the photons `photons` (global indices) of the iteration `setup` with two in
+/// flight, pushing their records to `out` in photon-index order; returns the ray segments
+/// cast.
+pub(crate) fn trace_chunk(
+    prepared: &PreparedScene,
+    caster: &impl RayCaster,
+    settings: &RenderSettings,
+    setup: &PhotonPassSetup,
+    photons: Range<u32>,
+    out: &mut PhotonStore,
+) -> u64 {
+    let mut slots: [Option<Slot>; 2] = [None, None];
+    let mut pending: [Pending; 2] = [VecDeque::new(), VecDeque::new()];
+    let mut next = photons.start;
+    let mut segments = 0u64;
+    loop {
+        let mut casting = false;
+        for k in 0..2 {
+            let other = slots[1 - k].as_ref().map(|s| s.index);
+            // Take the answer cast for this slot a step ago.
+            if let Some(slot) = &mut slots[k] {
+                if let Some(hit) = slot.hit.take() {
+                    let index = slot.index;
+                    // The lower-indexed photon in flight writes in place: everything before
+                    // it has ended and been written.
+                    let direct = other.is_none_or(|o| index < o);
+                    let queue = &mut pending[k];
+                    slot.walk.advance(prepared, settings, setup, hit, &mut |s| {
+                        if direct {
+                            out.push(s)
+                        } else {
+                            queue.push_back((index, s))
+                        }
+                    });
+                }
+            }
+            // Cast this slot's next segment, retiring ended photons and starting new ones.
+            loop {
+                if let Some(slot) = &mut slots[k] {
+                    if let Some((origin, direction)) = slot.walk.next_ray() {
+                        let hit = caster.intersect(origin, direction, f32::INFINITY);
+                        if let Some(h) = &hit {
+                            prepared.prefetch_hit(h);
+                        }
+                        slot.hit = Some(hit);
+                        casting = true;
+                        break;
+                    }
+                    segments += slot.walk.stats().segments as u64;
+                    slots[k] = None;
+                    // Everything up to the lowest photon still in flight is now in order.
+                    flush(&mut pending, other.unwrap_or(u32::MAX), out);
+                }
+                if next >= photons.end {
+                    break;
+                }
+                let index = next;
+                next += 1;
+                if let Some(walk) = PhotonWalk::start(settings, setup, index) {
+                    slots[k] = Some(Slot { walk, index, hit: None });
+                }
+            }
+        }
+        if !casting {
+            break;
+        }
+    }
+    flush(&mut pending, u32::MAX, out);
+    debug_assert!(pending.iter().all(VecDeque::is_empty));
+    segments
+}
+
+/// Moves the pending records of photons with index `≤ upto` to `out`, in photon-index
+/// order (each queue is in that order, and a photon's records are all in one queue).
+fn flush(pending: &mut [Pending; 2], upto: u32, out: &mut PhotonStore) {
+    loop {
+        let front = |q: &Pending| q.front().map(|e| e.0).filter(|&i| i <= upto);
+        let k = match (front(&pending[0]), front(&pending[1])) {
+            (None, None) => return,
+            (Some(_), None) => 0,
+            (None, Some(_)) => 1,
+            (Some(a), Some(b)) => usize::from(b < a),
+        };
+        if let Some((_, s)) = pending[k].pop_front() {
+            out.push(s);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use arpa_core::emission::{Light, QuadLight};
+    use arpa_core::glam::{DVec3, Vec3};
+    use arpa_core::photon_path::trace_photon;
+    use arpa_core::ray_cast::BruteForceCaster;
+    use arpa_core::scene::{Camera, Material, Scene};
+    use arpa_core::shapes::{cuboid, icosphere, parallelogram};
+    use arpa_core::tracer::Method;
+
+    /// A closed 2 m room (diffuse walls), a smooth glass sphere, a smooth diffuse sphere
+    /// (shading normals on a diffuse surface), a mirror block and a quad light.
+    fn room() -> Scene {
+        let (o, x, y, z) = (Vec3::new(-1.0, 0.0, -1.0), Vec3::X * 2.0, Vec3::Y * 2.0, Vec3::Z * 2.0);
+        Scene {
+            meshes: vec![
+                parallelogram("floor", o, z, x, 0),
+                parallelogram("ceiling", o + y, x, z, 0),
+                parallelogram("back", o, x, y, 0),
+                parallelogram("front", o + z, y, x, 0),
+                parallelogram("left", o, y, z, 0),
+                parallelogram("right", o + x, z, y, 0),
+                icosphere("glass", Vec3::new(0.4, 0.41, 0.0), 0.4, 2, true, 1),
+                icosphere("ball", Vec3::new(-0.5, 0.3, 0.5), 0.3, 1, true, 0),
+                cuboid("block", Vec3::new(-0.8, 0.0, -0.8), Vec3::new(-0.3, 0.8, -0.3), 2),
+            ],
+            materials: vec![
+                Material::Diffuse { albedo: Vec3::splat(0.75) },
+                Material::Dielectric { ior: 1.5, transmittance: Vec3::ONE, roughness: 0.0 },
+                Material::Conductor { reflectance: Vec3::splat(0.95), roughness: 0.0 },
+            ],
+            lights: vec![Light::Quad(QuadLight {
+                origin: DVec3::new(-0.25, 1.98, -0.25),
+                edge_u: DVec3::new(0.5, 0.0, 0.0),
+                edge_v: DVec3::new(0.0, 0.0, 0.5),
+                radiance: DVec3::splat(20.0),
+            })],
+            camera: Camera { position: Vec3::new(0.0, 1.0, 0.97), target: Vec3::new(0.0, 0.8, -1.0), up: Vec3::Y, vertical_fov: 1.0, width: 8, height: 8 },
+            roughness_cutoff: 0.5,
+        }
+    }
+
+    /// The interleaved chunk stores exactly what `trace_photon` stores photon by photon,
+    /// in the same order, and casts as many segments (glass sphere with shading normals,
+    /// mirror, diffuse walls: every kind of interaction, photons of very different path
+    /// lengths side by side).
+    #[test]
+    fn interleaved_chunk_matches_sequential_trace_photon() {
+        let scene = room();
+        let prepared = PreparedScene::new(scene).unwrap();
+        let caster = BruteForceCaster::new(&prepared);
+        for method in [Method::Arpa, Method::Rtpm] {
+            let settings = RenderSettings { method, photons_per_iteration: 3000, seed: 7, ..RenderSettings::default() };
+            let setup = PhotonPassSetup::new(&prepared, &settings, 2);
+            let count = setup.photon_count();
+            let mut reference = PhotonStore::default();
+            let mut ref_segments = 0u64;
+            for index in 0..count {
+                ref_segments += trace_photon(&prepared, &caster, &settings, &setup, index, &mut |s| reference.push(s)).segments as u64;
+            }
+            let mut store = PhotonStore::default();
+            // Two chunks with a ragged boundary.
+            let split = count / 3 + 1;
+            let segments = trace_chunk(&prepared, &caster, &settings, &setup, 0..split, &mut store)
+                + trace_chunk(&prepared, &caster, &settings, &setup, split..count, &mut store);
+            assert_eq!(segments, ref_segments);
+            assert!(reference.footprints.len() + reference.photons.len() > count as usize / 2);
+            assert_eq!(store.footprints, reference.footprints);
+            assert_eq!(store.footprint_boxes, reference.footprint_boxes);
+            assert_eq!(store.photons, reference.photons);
+            assert_eq!(store.counts, reference.counts);
+        }
+    }
+}
