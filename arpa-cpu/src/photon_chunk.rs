@@ -58,21 +58,21 @@ pub(crate) fn trace_chunk(
         for k in 0..2 {
             let other = slots[1 - k].as_ref().map(|s| s.index);
             // Take the answer cast for this slot a step ago.
-            if let Some(slot) = &mut slots[k] {
-                if let Some(hit) = slot.hit.take() {
-                    let index = slot.index;
-                    // The lower-indexed photon in flight writes in place: everything before
-                    // it has ended and been written.
-                    let direct = other.is_none_or(|o| index < o);
-                    let queue = &mut pending[k];
-                    slot.walk.advance(prepared, settings, setup, hit, &mut |s| {
-                        if direct {
-                            out.push(s)
-                        } else {
-                            queue.push_back((index, s))
-                        }
-                    });
-                }
+            if let Some(slot) = &mut slots[k]
+                && let Some(hit) = slot.hit.take()
+            {
+                let index = slot.index;
+                // The lower-indexed photon in flight writes in place: everything before it
+                // has ended and been written.
+                let direct = other.is_none_or(|o| index < o);
+                let queue = &mut pending[k];
+                slot.walk.advance(prepared, settings, setup, hit, &mut |s| {
+                    if direct {
+                        out.push(s)
+                    } else {
+                        queue.push_back((index, s))
+                    }
+                });
             }
             // Cast this slot's next segment, retiring ended photons and starting new ones.
             loop {
