@@ -24,7 +24,7 @@
 //! a smoke test. Outside CI, missing shared scenes skip with a loud message.
 //! `ARPA_BENCH_SCENES=name,...` restricts the scenes (directory names).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
@@ -34,6 +34,9 @@ use arpa::core::prepared_scene::PreparedScene;
 use arpa::core::ray_cast::{RayCaster, RayHit};
 use arpa::core::tracer::{Method, RenderSettings, Tracer};
 use arpa::cpu::{CpuTracer, Device, EmbreeCaster};
+
+#[path = "../tests/common/mod.rs"]
+mod common;
 
 /// Embree's ray start, as [`EmbreeCaster`] uses it.
 const T_NEAR: f32 = f32::MIN_POSITIVE;
@@ -68,19 +71,6 @@ struct Config {
     /// Alternating (raw, pass) rounds at least, and at least this long in all.
     rounds: usize,
     min_time: Duration,
-}
-
-/// `shared/scenes` beside the repository, or `None` (loud) outside CI.
-fn shared_scenes() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes");
-    if dir.is_dir() {
-        return Some(dir);
-    }
-    if std::env::var_os("CI").is_some() {
-        panic!("CI is set but the shared scenes are missing at {}", dir.display());
-    }
-    eprintln!("\n=== SKIPPED: shared scenes not found at {} (set CI to make this a failure) ===\n", dir.display());
-    None
 }
 
 /// Result of one scene and method.
@@ -155,7 +145,7 @@ fn main() {
     } else {
         Config { full, photons: 2_000, rounds: 1, min_time: Duration::ZERO }
     };
-    let Some(dir) = shared_scenes() else { return };
+    let Some(dir) = common::shared_scenes() else { return };
     let only: Option<Vec<String>> = std::env::var("ARPA_BENCH_SCENES").ok().map(|s| s.split(',').map(|x| x.trim().to_string()).collect());
     let mut names: Vec<String> = std::fs::read_dir(&dir)
         .expect("shared scenes directory")
