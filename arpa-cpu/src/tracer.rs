@@ -8,7 +8,6 @@ use arpa_core::accumulate::ImageAccumulator;
 use arpa_core::camera_path::trace_camera_path;
 use arpa_core::estimate::IrradianceEstimate;
 use arpa_core::footprint::PackedFootprint;
-use arpa_core::footprint::PhotonMap;
 use arpa_core::glam::{DVec3, Vec3};
 use arpa_core::kernel::Kernel;
 use arpa_core::photon_path::PhotonPassSetup;
@@ -298,23 +297,38 @@ fn finite_or_zero(v: DVec3) -> DVec3 {
     DVec3::select(v.is_finite_mask(), v, DVec3::ZERO)
 }
 
-/// One contribution found by the gather: `key` orders footprints (`index`) before
-/// progressive photons (`2³² + index`), as [`arpa_core::estimate::gather_brute_force`] sums.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct Contribution {
-    key: u64,
-    irradiance: Vec3,
-    map: u32,
+/// Candidate key of the gather: footprints (`index`) before progressive photons
+/// (`2³² + index`), the order [`arpa_core::estimate::gather_brute_force`] sums in.
+const PHOTON_KEY: u64 = 1 << 32;
+
+/// Asks the CPU to start loading the `size` bytes at `p` (a hint: no effect on results,
+/// never faults).
+#[inline(always)]
+fn prefetch_bytes(p: *const u8, size: usize) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use core::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
+        // SAFETY: SSE is part of every x86-64 CPU; a prefetch reads nothing into the
+        // program and never faults, whatever the address.
+        unsafe {
+            _mm_prefetch::<_MM_HINT_T0>(p.cast::<i8>());
+            _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(size - 1).cast::<i8>());
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (p, size);
 }
 
 /// The gather of one query record: its pixel's radiance and the number of contributions.
 ///
-/// The Embree point query reports every box containing the query point (and possibly a
-/// few more); each is tested exactly on the spot (the same tests as
-/// [`IrradianceEstimate::add_footprint`] / [`IrradianceEstimate::add_photon`]), and the
-/// non-zero contributions are summed in `f64` in `(kind, index)` order, so the sum is
-/// bit-identical to a brute-force gather over the same records, whatever order the BVH
-/// reported them in.
+/// Two phases. The Embree point query reports every box containing the query point (and
+/// possibly a few more); its callback only notes the candidate's key in `keys` and
+/// prefetches the record, so the records' cache misses overlap instead of stalling the
+/// traversal one by one. Then the candidates are sorted and deduplicated by key and each
+/// is tested exactly (the same tests as [`IrradianceEstimate::add_footprint`] /
+/// [`IrradianceEstimate::add_photon`]); the non-zero contributions are summed in `f64` in
+/// `(kind, index)` order, so the sum is bit-identical to a brute-force gather over the
+/// same records, whatever order the BVH reported them in.
 #[allow(clippy::too_many_arguments)]
 fn gather_one(
     rec: &QueryRecord,
@@ -322,7 +336,7 @@ fn gather_one(
     store: &PhotonStore,
     kernel: Kernel,
     radii: [f32; 2],
-    scratch: &mut Vec<Contribution>,
+    keys: &mut Vec<u64>,
     errors: &AtomicU64,
 ) -> (Vec3, u32) {
     let known = Vec3::from_array(rec.radiance).as_dvec3();
@@ -337,47 +351,44 @@ fn gather_one(
     } = accel
     {
         let (q, n) = (Vec3::from_array(rec.position), Vec3::from_array(rec.normal));
-        scratch.clear();
+        keys.clear();
         let found = scene.point_query(rec.position, 0.0, |c| {
             let i = c.prim_id as usize;
-            let (key, e, map) = if Some(c.geom_id) == *footprints {
-                let Some(fp) = store.footprints.get(i) else {
-                    return;
-                };
-                (i as u64, fp.irradiance(q, n, kernel), fp.photon_map())
-            } else if Some(c.geom_id) == *photons {
-                let Some(ph) = store.photons.get(i) else {
-                    return;
-                };
-                let map = ph.photon_map();
-                (
-                    (1 << 32) | i as u64,
-                    ph.irradiance(q, n, radii[map.index()]),
-                    map,
-                )
-            } else {
-                return;
-            };
-            // What IrradianceEstimate::add_footprint/add_photon skip.
-            if e != Vec3::ZERO && e.is_finite() {
-                scratch.push(Contribution {
-                    key,
-                    irradiance: e,
-                    map: map as u32,
-                });
+            if Some(c.geom_id) == *footprints {
+                if let Some(fp) = store.footprints.get(i) {
+                    prefetch_bytes((fp as *const PackedFootprint).cast(), size_of::<PackedFootprint>());
+                    keys.push(i as u64);
+                }
+            } else if Some(c.geom_id) == *photons
+                && let Some(ph) = store.photons.get(i)
+            {
+                prefetch_bytes((ph as *const PackedPhoton).cast(), size_of::<PackedPhoton>());
+                keys.push(PHOTON_KEY | i as u64);
             }
         });
         if found.is_err() {
             errors.fetch_add(1, Ordering::Relaxed);
         }
-        scratch.sort_unstable_by_key(|c| c.key);
-        scratch.dedup_by_key(|c| c.key);
-        for c in scratch.iter() {
-            estimate.per_map[PhotonMap::from_index(c.map).index()] += c.irradiance.as_dvec3();
-            if c.key >> 32 == 0 {
-                estimate.footprints += 1;
+        keys.sort_unstable();
+        keys.dedup();
+        for &key in keys.iter() {
+            let i = (key & (PHOTON_KEY - 1)) as usize;
+            let (e, map) = if key < PHOTON_KEY {
+                let fp = &store.footprints[i];
+                (fp.irradiance(q, n, kernel), fp.photon_map())
             } else {
-                estimate.photons += 1;
+                let ph = &store.photons[i];
+                let map = ph.photon_map();
+                (ph.irradiance(q, n, radii[map.index()]), map)
+            };
+            // What IrradianceEstimate::add_footprint/add_photon skip.
+            if e != Vec3::ZERO && e.is_finite() {
+                estimate.per_map[map.index()] += e.as_dvec3();
+                if key < PHOTON_KEY {
+                    estimate.footprints += 1;
+                } else {
+                    estimate.photons += 1;
+                }
             }
         }
     }
