@@ -325,9 +325,12 @@ impl PathState {
     }
 }
 
-/// A ray without a usable differential (all derivatives zero).
+/// A ray without a usable differential (all derivatives zero). `d` is a ray direction,
+/// unit up to rounding on every path, so it takes `unit_or`'s cheap renormalisation
+/// (RTPM builds one or two of these per segment).
+#[inline(always)]
 fn lost_differential(p: DVec3, d: DVec3) -> RayDifferential {
-    let d = d.normalize_or(DVec3::Z);
+    let d = crate::frame::unit_or(d, DVec3::Z);
     RayDifferential { p, d, dp_du: DVec3::ZERO, dp_dv: DVec3::ZERO, dd_du: DVec3::ZERO, dd_dv: DVec3::ZERO }
 }
 
