@@ -137,7 +137,7 @@ pub fn refract_direction(d: DVec3, n: DVec3, ior: f64) -> (DVec3, RefractionEven
         return (reflect_direction(d, n), RefractionEvent::TotalInternalReflection, eta);
     }
     let mu = eta * cos_i + libm::sqrt(k);
-    ((eta * d - mu * n).normalize_or(d), RefractionEvent::Transmitted, eta)
+    (crate::frame::unit_or(eta * d - mu * n, d), RefractionEvent::Transmitted, eta)
 }
 
 /// `true` when every component is finite, without a branch per component: `c − c` is
@@ -273,7 +273,7 @@ impl RayDifferential {
         };
         Self {
             p: self.p,
-            d: reflect_direction(self.d, n).normalize_or(self.d),
+            d: crate::frame::unit_or(reflect_direction(self.d, n), self.d),
             dp_du: self.dp_du,
             dp_dv: self.dp_dv,
             dd_du: dr(self.dd_du, nd.dn_du),
@@ -321,7 +321,7 @@ impl RayDifferential {
         };
         let out = Self {
             p: self.p,
-            d: (eta * self.d - mu * n).normalize_or(self.d),
+            d: crate::frame::unit_or(eta * self.d - mu * n, self.d),
             dp_du: self.dp_du,
             dp_dv: self.dp_dv,
             dd_du: dt(self.dd_du, nd.dn_du),

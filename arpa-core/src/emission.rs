@@ -464,7 +464,7 @@ impl PreparedLight {
     #[inline(always)]
     fn area_photon(&self, p: DVec3, rng: &mut Rng) -> Result<(RayDifferential, DVec3, Option<DVec3>), EmissionError> {
         let light_frame = &self.frame;
-        let d = light_frame.to_world(cosine_hemisphere(rng.next_2d())).normalize_or(light_frame.n);
+        let d = crate::frame::unit_or(light_frame.to_world(cosine_hemisphere(rng.next_2d())), light_frame.n);
         // Directional frame aligned with the positional one so the two spreads add up
         // instead of shearing the footprint.
         let dir_frame = Frame::from_normal_and_hint(d, light_frame.t);

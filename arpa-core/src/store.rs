@@ -94,7 +94,8 @@ pub fn store_footprint_resolved(fp: Footprint, smoothing: &Smoothing, heuristics
 /// Stores a photon as a progressive photon (differential lost, or the RTPM method).
 /// `normal` is oriented towards `incoming` (the photon's direction of travel) internally.
 pub fn store_progressive(position: DVec3, normal: DVec3, incoming: DVec3, flux: DVec3, map: PhotonMap, reason: ProgressiveReason) -> StoredPhoton {
-    let n = normal.normalize_or(-incoming.normalize_or(DVec3::Z));
+    let n = crate::frame::unit_or_zero(normal);
+    let n = if n == DVec3::ZERO { -crate::frame::unit_or(incoming, DVec3::Z) } else { n };
     let n = if incoming.dot(n) > 0.0 { -n } else { n };
     StoredPhoton::Progressive { photon: ProgressivePhoton { position, normal: n, flux, map }.pack(), reason }
 }
