@@ -22,7 +22,8 @@
 //!
 //! Without `--bench` (`cargo test --benches`) each scene runs once with 2,000 photons, as
 //! a smoke test. Outside CI, missing shared scenes skip with a loud message.
-//! `ARPA_BENCH_SCENES=name,...` restricts the scenes (directory names).
+//! `ARPA_BENCH_SCENES=name,...` restricts the scenes (directory names),
+//! `ARPA_BENCH_METHODS=arpa|rtpm` the methods (for a profiler).
 
 use std::path::Path;
 use std::sync::Mutex;
@@ -165,6 +166,9 @@ fn main() {
     for name in &names {
         let path = dir.join(name).join("scene.xml");
         for method in [Method::Arpa, Method::Rtpm] {
+            if std::env::var("ARPA_BENCH_METHODS").is_ok_and(|m| !m.split(',').any(|x| x.trim() == method.name())) {
+                continue;
+            }
             let row = measure(&cfg, name, &path, method);
             let m = method.name();
             println!("{name}.triangles: {}", row.triangles);
