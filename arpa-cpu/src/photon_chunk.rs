@@ -170,35 +170,63 @@ mod tests {
         }
     }
 
+    /// Traces `0..count` of `setup` sequentially with `trace_photon` and as chunks split at
+    /// `splits`, and asserts that both store the same records in the same order and count
+    /// the same segments.
+    fn assert_chunks_match(prepared: &PreparedScene, settings: &RenderSettings, iteration: u32, splits: &[u32]) {
+        let caster = BruteForceCaster::new(prepared);
+        let setup = PhotonPassSetup::new(prepared, settings, iteration);
+        let count = setup.photon_count();
+        let mut reference = PhotonStore::default();
+        let mut ref_segments = 0u64;
+        for index in 0..count {
+            ref_segments += trace_photon(prepared, &caster, settings, &setup, index, &mut |s| reference.push(s)).segments as u64;
+        }
+        let mut store = PhotonStore::default();
+        let mut bounds: Vec<u32> = splits.iter().map(|&s| s.min(count)).collect();
+        bounds.insert(0, 0);
+        bounds.push(count);
+        let segments: u64 = bounds.windows(2).map(|w| trace_chunk(prepared, &caster, settings, &setup, w[0]..w[1], &mut store)).sum();
+        let what = format!("{:?}, iteration {iteration}, splits {splits:?}", settings.method);
+        assert_eq!(segments, ref_segments, "{what}");
+        assert_eq!(store.footprints, reference.footprints, "{what}");
+        assert_eq!(store.footprint_boxes, reference.footprint_boxes, "{what}");
+        assert_eq!(store.photons, reference.photons, "{what}");
+        assert_eq!(store.counts, reference.counts, "{what}");
+    }
+
     /// The interleaved chunk stores exactly what `trace_photon` stores photon by photon,
     /// in the same order, and casts as many segments (glass sphere with shading normals,
     /// mirror, diffuse walls: every kind of interaction, photons of very different path
-    /// lengths side by side).
+    /// lengths side by side), for both methods, with ragged chunk boundaries.
     #[test]
     fn interleaved_chunk_matches_sequential_trace_photon() {
-        let scene = room();
-        let prepared = PreparedScene::new(scene).unwrap();
-        let caster = BruteForceCaster::new(&prepared);
+        let prepared = PreparedScene::new(room()).unwrap();
         for method in [Method::Arpa, Method::Rtpm] {
             let settings = RenderSettings { method, photons_per_iteration: 3000, seed: 7, ..RenderSettings::default() };
-            let setup = PhotonPassSetup::new(&prepared, &settings, 2);
-            let count = setup.photon_count();
-            let mut reference = PhotonStore::default();
-            let mut ref_segments = 0u64;
-            for index in 0..count {
-                ref_segments += trace_photon(&prepared, &caster, &settings, &setup, index, &mut |s| reference.push(s)).segments as u64;
+            assert_chunks_match(&prepared, &settings, 2, &[1001]);
+        }
+    }
+
+    /// The same over a grid of seeds, iterations, path lengths (a single segment, where a
+    /// photon ends at its first hit, up to the default) and direct lighting on and off
+    /// (which decides whether first diffuse hits store), with chunks of 0, 1 and a few
+    /// photons among them.
+    #[test]
+    fn interleaved_chunk_matches_over_settings() {
+        let prepared = PreparedScene::new(room()).unwrap();
+        for (k, max_depth) in [1u32, 2, 5, RenderSettings::default().max_depth].into_iter().enumerate() {
+            for direct_lighting in [true, false] {
+                let settings = RenderSettings {
+                    method: if k % 2 == 0 { Method::Arpa } else { Method::Rtpm },
+                    photons_per_iteration: 500,
+                    seed: 11 + k as u32,
+                    max_depth,
+                    direct_lighting,
+                    ..RenderSettings::default()
+                };
+                assert_chunks_match(&prepared, &settings, k as u32, &[0, 1, 1, 4, 97, 300]);
             }
-            let mut store = PhotonStore::default();
-            // Two chunks with a ragged boundary.
-            let split = count / 3 + 1;
-            let segments = trace_chunk(&prepared, &caster, &settings, &setup, 0..split, &mut store)
-                + trace_chunk(&prepared, &caster, &settings, &setup, split..count, &mut store);
-            assert_eq!(segments, ref_segments);
-            assert!(reference.footprints.len() + reference.photons.len() > count as usize / 2);
-            assert_eq!(store.footprints, reference.footprints);
-            assert_eq!(store.footprint_boxes, reference.footprint_boxes);
-            assert_eq!(store.photons, reference.photons);
-            assert_eq!(store.counts, reference.counts);
         }
     }
 }
