@@ -111,15 +111,15 @@ pub enum CpuError {
 /// | [`camera_pass`](Tracer::camera_pass) | [`trace_camera_path`] for every pixel, in parallel |
 /// | [`photon_pass`](Tracer::photon_pass) | frees the previous box BVH, then the core's `PhotonWalk` for every photon (two in flight per thread, interleaved segment by segment, see `photon_chunk`; the records are those of `trace_photon`, in photon order), in chunks of [`PHOTON_CHUNK`] photon indices taken in order by one loop per thread; each finished chunk is appended to the buffers (reused from the last iteration, sized from its store rate) as soon as the chunks before it are |
 /// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | one Embree box geometry for the footprints (the core's box of each footprint's elliptic slab, made in the photon pass), one for the progressive photons' cubes `x ± r_map` ([`BuildQuality::Low`]); boxes padded a little beyond `f32` rounding, handed to Embree without a copy and freed once the BVH is built |
-/// | [`gather`](Tracer::gather) | per query point: the boxes containing it (Embree point query), the exact test of each, and the `f64` sum of the contributions in `(kind, index)` order: bit for bit what [`arpa_core::estimate::gather_brute_force`] gives over the same records |
+/// | [`gather`](Tracer::gather) | per query point: the boxes containing it (Embree point query, whose callback only notes and prefetches each candidate), then the exact test of each in `(kind, index)` order, and the `f64` sum of the contributions in `(kind, index)` order: bit for bit what [`arpa_core::estimate::gather_brute_force`] gives over the same records |
 /// | [`accumulate`](Tracer::accumulate) | adds the iteration's image to the compensated running mean |
 ///
 /// # Determinism
 /// Images are bit-identical for the same scene, settings and seed whatever the number of
 /// threads: every random stream depends only on `(seed, iteration, index)`; photons are
 /// traced in fixed chunks whose outputs are concatenated in photon-index order; every
-/// pixel is computed by one task; and the gather sorts the contributions a query point gets
-/// from the BVH by `(kind, index)` before summing, so the summation order does not depend
+/// pixel is computed by one task; and the gather sorts the candidates a query point gets
+/// from the BVH by `(kind, index)` before testing and summing, so the summation order does not depend
 /// on the BVH's traversal order either.
 ///
 /// # Stage order
