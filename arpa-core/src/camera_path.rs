@@ -36,6 +36,7 @@ pub fn trace_camera_path(scene: &PreparedScene, caster: &impl RayCaster, setting
     let mut record = QueryRecord { pixel, ..QueryRecord::default() };
     for _ in 0..settings.max_depth {
         let Some(hit) = caster.intersect(origin, dir.as_vec3(), f32::INFINITY) else { break };
+        scene.prefetch_hit(&hit);
         let s = scene.surface(&hit);
         let front = if dir.dot(s.geometric_normal) < 0.0 { s.geometric_normal } else { -s.geometric_normal };
         if let Some(e) = s.emission.filter(|_| dir.dot(s.geometric_normal) < 0.0) {

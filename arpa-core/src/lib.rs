@@ -69,6 +69,7 @@ pub mod lambertian;
 pub mod prepared_scene;
 #[cfg(feature = "alloc")]
 pub mod photon_path;
+pub mod prefetch;
 pub mod progressive_photon;
 pub mod radius;
 #[cfg(feature = "alloc")]

@@ -115,6 +115,9 @@ pub fn trace_photon(
     let Some(mut walk) = PhotonWalk::start(settings, setup, index) else { return PhotonPathStats::default() };
     while let Some((origin, direction)) = walk.next_ray() {
         let hit = caster.intersect(origin, direction, f32::INFINITY);
+        if let Some(h) = &hit {
+            scene.prefetch_hit(h);
+        }
         walk.advance(scene, settings, setup, hit, sink);
     }
     walk.stats()

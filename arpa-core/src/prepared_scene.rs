@@ -5,6 +5,7 @@
 use crate::aabb::Aabb;
 use crate::differential::{DifferentialError, NormalDifferential};
 use crate::emission::Light;
+use crate::prefetch::prefetch;
 use crate::ray_cast::RayHit;
 use crate::scene::{CameraFrame, Scattering, Scene, SceneError};
 use crate::shading_normal::ShadedTriangle;
@@ -56,29 +57,6 @@ impl ShadingRecord {
     fn normals(&self) -> [DVec3; 3] {
         self.n.map(|v| v.as_dvec3())
     }
-}
-
-/// Asks the CPU to start loading the cache line at `p` (a hint: no effect on results,
-/// never faults).
-#[inline(always)]
-fn prefetch_line(p: *const u8) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use core::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        // SAFETY: SSE is part of every x86-64 CPU; a prefetch reads nothing into the
-        // program and never faults.
-        unsafe { _mm_prefetch::<_MM_HINT_T0>(p.cast::<i8>()) };
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = p;
-}
-
-/// Asks the CPU to start loading both cache lines of the 128-byte `record` (a hint).
-#[inline(always)]
-fn prefetch(record: &ShadingRecord) {
-    let p = (record as *const ShadingRecord).cast::<u8>();
-    prefetch_line(p);
-    prefetch_line(p.wrapping_add(64));
 }
 
 /// A triangle's vertices (the mesh's `f32` values, so converting them to `f64` is exact)
@@ -268,7 +246,7 @@ impl PreparedScene {
     pub fn prefetch_hit(&self, hit: &RayHit) {
         let (mesh, triangle) = (hit.mesh as usize, hit.triangle as usize);
         if let Some(tri) = self.triangles.get(mesh).and_then(|t| t.get(triangle)) {
-            prefetch_line(tri as *const TriangleGeometry as *const u8);
+            prefetch(tri);
         }
         if let Some(record) = self.shading.get(mesh).and_then(|r| r.as_ref()).and_then(|r| r.get(triangle)) {
             prefetch(record);
@@ -279,9 +257,6 @@ impl PreparedScene {
     #[inline]
     pub fn surface(&self, hit: &RayHit) -> SurfacePoint {
         let m = &self.scene.meshes[hit.mesh as usize];
-        if let Some(record) = self.shading[hit.mesh as usize].as_ref().and_then(|r| r.get(hit.triangle as usize)) {
-            prefetch(record);
-        }
         let tri = &self.triangles[hit.mesh as usize][hit.triangle as usize];
         let p = tri.vertices();
         let (b1, b2) = (hit.b1 as f64, hit.b2 as f64);

@@ -11,6 +11,7 @@ use arpa_core::footprint::PackedFootprint;
 use arpa_core::glam::{DVec3, Vec3};
 use arpa_core::kernel::Kernel;
 use arpa_core::photon_path::PhotonPassSetup;
+use arpa_core::prefetch::prefetch;
 use arpa_core::prepared_scene::PreparedScene;
 use arpa_core::progressive_photon::PackedPhoton;
 use arpa_core::scene::{Scene as CoreScene, SceneError};
@@ -301,24 +302,6 @@ fn finite_or_zero(v: DVec3) -> DVec3 {
 /// (`2³² + index`), the order [`arpa_core::estimate::gather_brute_force`] sums in.
 const PHOTON_KEY: u64 = 1 << 32;
 
-/// Asks the CPU to start loading the `size` bytes at `p` (a hint: no effect on results,
-/// never faults).
-#[inline(always)]
-fn prefetch_bytes(p: *const u8, size: usize) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use core::arch::x86_64::{_MM_HINT_T0, _mm_prefetch};
-        // SAFETY: SSE is part of every x86-64 CPU; a prefetch reads nothing into the
-        // program and never faults, whatever the address.
-        unsafe {
-            _mm_prefetch::<_MM_HINT_T0>(p.cast::<i8>());
-            _mm_prefetch::<_MM_HINT_T0>(p.wrapping_add(size - 1).cast::<i8>());
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = (p, size);
-}
-
 /// The gather of one query record: its pixel's radiance and the number of contributions.
 ///
 /// Two phases. The Embree point query reports every box containing the query point (and
@@ -356,13 +339,13 @@ fn gather_one(
             let i = c.prim_id as usize;
             if Some(c.geom_id) == *footprints {
                 if let Some(fp) = store.footprints.get(i) {
-                    prefetch_bytes((fp as *const PackedFootprint).cast(), size_of::<PackedFootprint>());
+                    prefetch(fp);
                     keys.push(i as u64);
                 }
             } else if Some(c.geom_id) == *photons
                 && let Some(ph) = store.photons.get(i)
             {
-                prefetch_bytes((ph as *const PackedPhoton).cast(), size_of::<PackedPhoton>());
+                prefetch(ph);
                 keys.push(PHOTON_KEY | i as u64);
             }
         });
