@@ -110,15 +110,24 @@ fn sanitized(image: &Image) -> (Vec<Vec3>, usize) {
 }
 
 /// Writes `image` as an RGB `f32` OpenEXR file (linear radiance, no exposure applied).
+/// The same image always gives the same bytes.
 pub fn write_exr(path: &Path, image: &Image) -> Result<WriteReport, ImageIoError> {
     check(path, image)?;
     let (pixels, replaced) = sanitized(image);
     let w = image.width as usize;
-    exr::prelude::write_rgb_file(path, w, image.height as usize, |x, y| {
-        let p = pixels[y * w + x];
+    // Compressed on one thread: the parallel writer stores blocks in the order they finish,
+    // so the same image would give files that differ byte for byte from run to run.
+    let channels = exr::prelude::SpecificChannels::rgb(|exr::prelude::Vec2(x, y)| {
+        let p: Vec3 = pixels[y * w + x];
         (p.x, p.y, p.z)
-    })
-    .map_err(|source| ImageIoError::WriteExr { path: path.to_path_buf(), source })?;
+    });
+    use exr::prelude::WritableImage;
+    let exr_image = exr::prelude::Image::from_channels((w, image.height as usize), channels);
+    exr_image
+        .write()
+        .non_parallel()
+        .to_file(path)
+        .map_err(|source| ImageIoError::WriteExr { path: path.to_path_buf(), source })?;
     Ok(WriteReport { non_finite_replaced: replaced })
 }
 
@@ -163,6 +172,26 @@ mod tests {
         let (width, height) = (7, 5);
         let pixels = (0..width * height).map(|i| Vec3::new(i as f32 * 0.25, 1.0 / (1.0 + i as f32), 1e-3 * i as f32 + 3.0)).collect();
         Image { width, height, pixels }
+    }
+
+    /// Rendering is deterministic, and so are the files: the same image written again gives
+    /// the same bytes (an image of many blocks, which the parallel writer stored in the
+    /// order its threads finished them).
+    #[test]
+    fn exr_bytes_are_the_same_for_the_same_image() {
+        let dir = tempfile::tempdir().unwrap();
+        let (width, height) = (300u32, 700u32);
+        let pixels = (0..width * height).map(|i| Vec3::new((i % 977) as f32 * 0.37, 1.0 / (1.0 + (i % 131) as f32), (i as f32).sqrt())).collect();
+        let image = Image { width, height, pixels };
+        let first = dir.path().join("first.exr");
+        write_exr(&first, &image).unwrap();
+        let bytes = std::fs::read(&first).unwrap();
+        for k in 0..8 {
+            let again = dir.path().join(format!("again{k}.exr"));
+            write_exr(&again, &image).unwrap();
+            assert!(std::fs::read(&again).unwrap() == bytes, "write {k} differs from the first");
+        }
+        assert_eq!(read_exr(&first).unwrap(), image);
     }
 
     #[test]
