@@ -149,23 +149,39 @@ fn all_finite(v: &[DVec3]) -> bool {
     zero.x + zero.y + zero.z == 0.0
 }
 
+/// `d` normalised: the cheap renormalisation when it is unit up to rounding (see
+/// `frame::unit_or_zero`), else a division by its length; fails on a zero or non-finite
+/// `d`. The result is always finite.
+#[inline(always)]
+fn unit_direction(d: DVec3) -> Result<DVec3, DifferentialError> {
+    let len2 = d.length_squared();
+    if (len2 - 1.0).abs() <= 1e-8 {
+        Ok(d * (1.5 - 0.5 * len2))
+    } else {
+        let len = libm::sqrt(len2);
+        if !(len > 0.0) || !len.is_finite() || !d.is_finite() {
+            return Err(DifferentialError::InvalidDirection);
+        }
+        Ok(d / len)
+    }
+}
+
 impl RayDifferential {
     /// A ray differential from its parts. `d` is normalised (its derivatives are assumed to
     /// be those of the unit direction already); fails on a zero or non-finite direction.
     #[inline(always)]
     pub fn new(p: DVec3, d: DVec3, dp_du: DVec3, dp_dv: DVec3, dd_du: DVec3, dd_dv: DVec3) -> Result<Self, DifferentialError> {
-        let len2 = d.length_squared();
-        let d = if (len2 - 1.0).abs() <= 1e-8 {
-            // Unit up to rounding: see `frame::unit_or_zero`.
-            d * (1.5 - 0.5 * len2)
-        } else {
-            let len = libm::sqrt(len2);
-            if !(len > 0.0) || !len.is_finite() || !d.is_finite() {
-                return Err(DifferentialError::InvalidDirection);
-            }
-            d / len
-        };
-        Self { p, d, dp_du, dp_dv, dd_du, dd_dv }.checked()
+        Self { p, d: unit_direction(d)?, dp_du, dp_dv, dd_du, dd_dv }.checked()
+    }
+
+    /// [`RayDifferential::new`] for a caller whose direction differentials `dd_du`,
+    /// `dd_dv` are finite by construction: only `p`, `dp_du` and `dp_dv` are checked (the
+    /// normalised direction is finite whenever it is returned). Same result as `new` for
+    /// such inputs.
+    #[inline(always)]
+    pub(crate) fn new_with_finite_dd(p: DVec3, d: DVec3, dp_du: DVec3, dp_dv: DVec3, dd_du: DVec3, dd_dv: DVec3) -> Result<Self, DifferentialError> {
+        let d = unit_direction(d)?;
+        if all_finite(&[p, dp_du, dp_dv]) { Ok(Self { p, d, dp_du, dp_dv, dd_du, dd_dv }) } else { Err(DifferentialError::NonFinite) }
     }
 
     /// From an *unnormalised* direction `w(u, v)` with derivatives `∂w/∂u`, `∂w/∂v`:
@@ -241,15 +257,18 @@ impl RayDifferential {
             // Remove the rounding residue along n so the footprint lies exactly in the plane.
             moved - n * moved.dot(n)
         };
-        Self {
+        let out = Self {
             p: self.p + t * self.d,
             d: self.d,
             dp_du: step(self.dp_du, self.dd_du),
             dp_dv: step(self.dp_dv, self.dd_dv),
             dd_du: self.dd_du,
             dd_dv: self.dd_dv,
-        }
-        .checked()
+        };
+        // Checking the three new vectors is checking all six: a non-finite `D` fails the
+        // grazing test above or makes `P'` = `P + tD` non-finite (t·∞ is ∞, 0·∞ is NaN), and
+        // a non-finite `∂D` makes its `∂P'` non-finite the same way (through `t ∂D`).
+        if all_finite(&[out.p, out.dp_du, out.dp_dv]) { Ok(out) } else { Err(DifferentialError::NonFinite) }
     }
 
     /// Specular reflection about the shading normal `normal` (with its derivatives):

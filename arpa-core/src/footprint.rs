@@ -122,6 +122,17 @@ impl Footprint {
         Ok(Self { center: ray.p, normal: n, du, dv, flux, map })
     }
 
+    /// [`Footprint::from_hit`] for a ray that [`RayDifferential::transfer_unit_normal`]
+    /// just moved onto the surface with this unit `normal` (either orientation): its
+    /// positional differentials already lie in the tangent plane (the transfer removes
+    /// their component along `normal`) and the normal is unit and finite, so nothing is
+    /// projected or normalised again. The photon pass's path.
+    #[inline(always)]
+    pub fn from_transferred(ray: &RayDifferential, normal: DVec3, flux: DVec3, map: PhotonMap) -> Self {
+        let n = if ray.d.dot(normal) > 0.0 { -normal } else { normal };
+        Self { center: ray.p, normal: n, du: ray.dp_du, dv: ray.dp_dv, flux, map }
+    }
+
     /// Both differentials scaled by `s` (the smoothing factor `S`); the flux is unchanged.
     #[inline]
     pub fn scaled(mut self, s: f64) -> Self {

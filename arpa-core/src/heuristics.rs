@@ -256,6 +256,9 @@ pub struct ResolvedHeuristics {
     h_max: Option<(f64, HMaxMode)>,
     degenerate: Option<f64>,
     cull: Option<(CullMetric, f64)>,
+    /// Per map: a progressive radius and `ℓ_ref^(3/4)` for it, the footprint-independent
+    /// factor of γ = 1/4 dampening ([`ResolvedHeuristics::at_radii`]).
+    reference_pow: [Option<(f64, f64)>; 2],
 }
 
 /// Why [`ResolvedHeuristics::store`] did not produce a footprint record.
@@ -267,15 +270,28 @@ pub enum StoreRejection {
     Unrepresentable,
 }
 
-/// `ℓ'/ℓ = (ℓ/ℓ_ref)^(γ−1)` from `major2 = ℓ²` and `reference = ℓ_ref`.
+/// `ℓ_ref^(3/4)`, the factor of γ = 1/4 dampening that does not depend on the footprint.
 #[inline(always)]
+fn reference_pow_3_4(reference: f64) -> f64 {
+    let r = libm::sqrt(reference);
+    r * libm::sqrt(r)
+}
+
+/// `ℓ'/ℓ = (ℓ/ℓ_ref)^(γ−1)` from `major2 = ℓ²` and `reference = ℓ_ref`.
+#[cfg(test)]
 fn dampen_ratio(major2: f64, reference: f64, exponent: f64) -> f64 {
+    dampen_ratio_with(major2, reference, exponent, || reference_pow_3_4(reference))
+}
+
+/// [`dampen_ratio`] with `reference_pow()` giving [`reference_pow_3_4`]`(reference)`
+/// (precomputed per map and iteration on the hot path).
+#[inline(always)]
+fn dampen_ratio_with(major2: f64, reference: f64, exponent: f64, reference_pow: impl FnOnce() -> f64) -> f64 {
     if exponent == 0.25 && major2.is_normal() && major2 < f64::INFINITY {
         // γ = 1/4 (ARPA): ℓ_ref^(3/4) · (ℓ²)^(−3/8). The first factor does not depend on
-        // the footprint (two square roots off the critical path), the second is a table
-        // and a polynomial instead of a chain of three square roots and a division.
-        let r = libm::sqrt(reference);
-        r * libm::sqrt(r) * pow_minus_3_8(major2)
+        // the footprint, the second is a table and a polynomial instead of a chain of
+        // three square roots and a division.
+        reference_pow() * pow_minus_3_8(major2)
     } else if exponent == 0.25 {
         // γ = 1/4 (ARPA): (ℓ_ref²/ℓ²)^(3/8) with one division and three square roots.
         let a = libm::sqrt(reference * reference / major2); // (ℓ_ref/ℓ)
@@ -358,11 +374,30 @@ impl Heuristics {
                 };
                 (c.metric, c.fraction * scene)
             }),
+            reference_pow: [None; 2],
         }
     }
 }
 
 impl ResolvedHeuristics {
+    /// The same heuristics with the dampening factor that depends only on the progressive
+    /// radius precomputed for `radii` (metres, `[caustic, global]`, as a photon pass
+    /// passes them to [`ResolvedHeuristics::store`]). Decisions and records are unchanged
+    /// bit for bit; a store with another radius computes the factor itself.
+    pub fn at_radii(mut self, radii: [f64; 2]) -> Self {
+        self.reference_pow = [None; 2];
+        if let Some(d) = self.dampening {
+            for (cache, radius) in self.reference_pow.iter_mut().zip(radii) {
+                let reference = match d.reference {
+                    DampenReference::Absolute(l) => l,
+                    DampenReference::ProgressiveDiameter => 2.0 * radius,
+                };
+                *cache = Some((radius, reference_pow_3_4(reference)));
+            }
+        }
+        self
+    }
+
     /// Runs dampening, H-max, degenerate removal, the AABB and culling (the documented
     /// order) and packs the footprint for progressive radius `radius` (metres). Returns
     /// the final footprint, its record and its box, or why it must become a progressive
@@ -395,7 +430,11 @@ impl ResolvedHeuristics {
                     DampenReference::ProgressiveDiameter => 2.0 * radius,
                 };
                 if major2_0 > 0.0 && major2_0.is_finite() && reference > 0.0 && reference.is_finite() {
-                    let ratio = dampen_ratio(major2_0, reference, d.exponent);
+                    let cached = self.reference_pow[fp.map.index()].filter(|&(r, _)| r == radius);
+                    let ratio = dampen_ratio_with(major2_0, reference, d.exponent, || match cached {
+                        Some((_, pow)) => pow,
+                        None => reference_pow_3_4(reference),
+                    });
                     if ratio.is_finite() && ratio > 0.0 { ratio } else { 1.0 }
                 } else {
                     1.0

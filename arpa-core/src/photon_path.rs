@@ -65,7 +65,7 @@ impl PhotonPassSetup {
             })
             .collect();
         let radii = settings.radii.radii(&scene.bounds(), iteration.saturating_add(1));
-        Self { allocation, first_index, lights, radii, iteration, heuristics: settings.heuristics.resolve(&scene.bounds()) }
+        Self { allocation, first_index, lights, radii, iteration, heuristics: settings.heuristics.resolve(&scene.bounds()).at_radii(radii) }
     }
 
     /// Total photons of the iteration.
@@ -359,10 +359,9 @@ fn store(
     };
     let stored = match reason {
         Some(reason) => store_progressive(ray.p, *normal, ray.d, flux, map, reason),
-        None => match Footprint::from_hit(ray, *normal, flux, map) {
-            Ok(fp) => store_footprint_resolved(fp, &settings.smoothing, &setup.heuristics, setup.radii[map.index()]),
-            Err(_) => store_progressive(ray.p, *normal, ray.d, flux, map, ProgressiveReason::DifferentialLost),
-        },
+        // A valid differential here was just transferred onto this surface
+        // (`PhotonWalk::interact`): in its plane, with a unit normal.
+        None => store_footprint_resolved(Footprint::from_transferred(ray, *normal, flux, map), &settings.smoothing, &setup.heuristics, setup.radii[map.index()]),
     };
     if below_shading_plane { orient_to_shading_side(stored) } else { stored }
 }

@@ -36,7 +36,9 @@ pub fn reemit(hit: DVec3, dp_du: DVec3, dp_dv: DVec3, direction: DVec3, reemissi
         return Err(DifferentialError::InvalidDirection);
     }
     let (du, dv) = (f.t * reemission_length, f.b * reemission_length);
-    RayDifferential::new(hit, direction, du * v, dv * v, du, dv)
+    // `du`, `dv` are finite: unit frame vectors (from a finite direction) times a finite
+    // length. Only the positional ones, scaled by `v`, can overflow.
+    RayDifferential::new_with_finite_dd(hit, direction, du * v, dv * v, du, dv)
 }
 
 /// A cosine-distributed direction for re-emission from a Lambertian surface, in the
