@@ -250,9 +250,11 @@ impl RayDifferential {
         if !(cos.abs() >= MIN_ABS_COS) {
             return Err(DifferentialError::Grazing);
         }
+        // |cos| ≥ MIN_ABS_COS, so its reciprocal is finite: one division for both steps.
+        let inv_cos = 1.0 / cos;
         let step = |dp: DVec3, dd: DVec3| {
             let offset = dp + t * dd;
-            let dt = -offset.dot(n) / cos;
+            let dt = -offset.dot(n) * inv_cos;
             let moved = offset + dt * self.d;
             // Remove the rounding residue along n so the footprint lies exactly in the plane.
             moved - n * moved.dot(n)

@@ -57,7 +57,8 @@ impl Frame {
         if !(len2 > 1e-24 * hint.length_squared().max(f64::MIN_POSITIVE)) || !len2.is_finite() {
             return Self::from_normal(n);
         }
-        let mut t = t / libm::sqrt(len2);
+        // len2 ≥ 1e-24 · f64::MIN_POSITIVE, so the reciprocal length is finite.
+        let mut t = t * (1.0 / libm::sqrt(len2));
         // Second Gram–Schmidt pass: a hint nearly parallel to n (the projection lost more
         // than half its length) leaves a residue along n after the first one.
         if len2 < 0.25 * hint.length_squared() {

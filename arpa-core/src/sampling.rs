@@ -18,7 +18,7 @@ fn unit(x: f64) -> f64 {
 pub fn uniform_sphere(u: DVec2) -> DVec3 {
     let z = 1.0 - 2.0 * unit(u.x);
     let r = libm::sqrt((1.0 - z * z).max(0.0));
-    let (sin, cos) = libm::sincos(TAU * unit(u.y));
+    let (sin, cos) = sincos_turns(unit(u.y));
     DVec3::new(r * cos, r * sin, z)
 }
 
@@ -29,7 +29,7 @@ pub fn uniform_cone(u: DVec2, cos_max: f64) -> DVec3 {
     let cos_max = if cos_max >= -1.0 { cos_max.min(1.0) } else { -1.0 };
     let z = 1.0 - unit(u.x) * (1.0 - cos_max);
     let r = libm::sqrt((1.0 - z * z).max(0.0));
-    let (sin, cos) = libm::sincos(TAU * unit(u.y));
+    let (sin, cos) = sincos_turns(unit(u.y));
     DVec3::new(r * cos, r * sin, z)
 }
 
@@ -56,9 +56,28 @@ pub fn uniform_disc(u: DVec2) -> DVec2 {
     if a == 0.0 && b == 0.0 {
         return DVec2::ZERO;
     }
-    let (r, theta) = if a * a > b * b { (a, FRAC_PI_4 * (b / a)) } else { (b, 0.5 * PI - FRAC_PI_4 * (a / b)) };
-    let (sin, cos) = libm::sincos(theta);
-    DVec2::new(r * cos, r * sin)
+    // θ = φ (|a| > |b|) or π/2 − φ, with φ = (π/4)·ratio in [−π/4, π/4]; sin and cos of
+    // π/2 − φ are cos φ and sin φ. So `sincos` only ever sees |φ| ≤ π/4, where it needs
+    // no argument reduction and takes the same branch every time.
+    let wide = a * a > b * b;
+    let (r, ratio) = if wide { (a, b / a) } else { (b, a / b) };
+    let (sin, cos) = libm::sincos(FRAC_PI_4 * ratio);
+    if wide { DVec2::new(r * cos, r * sin) } else { DVec2::new(r * sin, r * cos) }
+}
+
+/// `(sin 2πt, cos 2πt)` for `t` in `[0, 1]` (turns). The quadrant is split off exactly
+/// (`t − k/4` is exact for the nearest quarter `k/4`), so `sincos` only sees
+/// `|2π(t − k/4)| ≤ π/4`, where it needs no argument reduction; the quadrant then swaps
+/// and negates without branches.
+#[inline]
+fn sincos_turns(t: f64) -> (f64, f64) {
+    // k = round(4t) in 0..=4; t − k/4 in [−1/8, 1/8] is exact (Sterbenz: t and k/4 are
+    // within a factor of two of each other, or k = 0).
+    let k = (4.0 * t + 0.5) as u32;
+    let (s, c) = libm::sincos(TAU * (t - 0.25 * k as f64));
+    // Rotation by k quarter turns: (s, c) → (c, −s) → (−s, −c) → (−c, s).
+    let (s, c) = if k & 1 == 1 { (c, -s) } else { (s, c) };
+    if k & 2 == 2 { (-s, -c) } else { (s, c) }
 }
 
 /// Cosine-weighted direction in the hemisphere around +z (Malley's method on the
@@ -91,7 +110,9 @@ pub fn fibonacci_lattice(i: u32, n: u32, shift: DVec2) -> DVec2 {
     let n = n.max(1) as f64;
     let x = (i as f64 + 0.5) / n + unit(shift.x);
     let y = i as f64 * GOLDEN_RATIO_CONJUGATE + unit(shift.y);
-    DVec2::new(x - libm::floor(x), y - libm::floor(y))
+    // x, y ≥ 0 and far below 2^63: truncation is `floor` (and needs no libm call on
+    // x86-64's baseline, which has no rounding instruction).
+    DVec2::new(x - (x as u64) as f64, y - (y as u64) as f64)
 }
 
 #[cfg(test)]
@@ -198,6 +219,52 @@ mod tests {
             assert!(cosine_hemisphere(u).is_finite());
             assert!(uniform_triangle(u).is_finite());
             assert!(fibonacci_lattice(3, 0, u).is_finite());
+        }
+    }
+
+    /// `sincos_turns(t)` is `sincos(2πt)` to within a few ulps over the whole unit
+    /// interval, including the quadrant boundaries, their neighbours and the ends.
+    #[test]
+    fn sincos_turns_matches_libm() {
+        let mut ts: alloc::vec::Vec<f64> = samples(100_000).map(|u| u.x).collect();
+        for k in 0..=8 {
+            let b = k as f64 / 8.0;
+            ts.extend([b, b.next_up(), b.next_down(), b + 1e-12, b - 1e-12]);
+        }
+        for t in ts.into_iter().filter(|t| (0.0..=1.0).contains(t)) {
+            let (s, c) = sincos_turns(t);
+            let (s0, c0) = libm::sincos(TAU * t);
+            // The reference's own angle TAU·t rounds by up to half an ulp of 2π (4.4e-16),
+            // which moves sin and cos by as much; allow that plus a few ulps of 1.
+            assert!((s - s0).abs() <= 1e-15 && (c - c0).abs() <= 1e-15, "t = {t}: ({s}, {c}) vs ({s0}, {c0})");
+            assert!((s * s + c * c - 1.0).abs() <= 4.0 * f64::EPSILON);
+        }
+    }
+
+    /// The concentric map evaluates `sincos` only on `[−π/4, π/4]`; it agrees with the
+    /// textbook form (`θ = π/2 − (π/4)(a/b)` in the second wedge).
+    #[test]
+    fn concentric_disc_matches_the_textbook_form() {
+        for u in samples(100_000) {
+            let d = uniform_disc(u);
+            let (a, b) = (2.0 * u.x - 1.0, 2.0 * u.y - 1.0);
+            let (r, theta) = if a * a > b * b { (a, FRAC_PI_4 * (b / a)) } else { (b, 0.5 * PI - FRAC_PI_4 * (a / b)) };
+            let (s, c) = libm::sincos(theta);
+            assert!((d - DVec2::new(r * c, r * s)).abs().max_element() <= 4e-16, "{u:?}");
+        }
+    }
+
+    /// Truncation is `floor` for the lattice's non-negative coordinates.
+    #[test]
+    fn lattice_coordinates_are_fractional_parts() {
+        for i in [0u32, 1, 2, 1000, 123_456, u32::MAX] {
+            for shift in [DVec2::ZERO, DVec2::new(0.999_999, 0.5), DVec2::ONE] {
+                let p = fibonacci_lattice(i, 1000, shift);
+                let n = 1000.0;
+                let x = (i as f64 + 0.5) / n + shift.x;
+                let y = i as f64 * GOLDEN_RATIO_CONJUGATE + shift.y;
+                assert_eq!(p, DVec2::new(x - libm::floor(x), y - libm::floor(y)));
+            }
         }
     }
 }
