@@ -74,6 +74,7 @@ impl PhotonPassSetup {
     }
 
     /// Emitter and index within it of global photon `index`.
+    #[inline]
     pub fn locate(&self, index: u32) -> Option<(usize, u32)> {
         let e = self.first_index.partition_point(|&f| f <= index).checked_sub(1)?;
         let local = index - self.first_index[e];

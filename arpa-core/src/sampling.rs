@@ -111,8 +111,9 @@ pub fn fibonacci_lattice(i: u32, n: u32, shift: DVec2) -> DVec2 {
     let x = (i as f64 + 0.5) / n + unit(shift.x);
     let y = i as f64 * GOLDEN_RATIO_CONJUGATE + unit(shift.y);
     // x, y ≥ 0 and far below 2^63: truncation is `floor` (and needs no libm call on
-    // x86-64's baseline, which has no rounding instruction).
-    DVec2::new(x - (x as u64) as f64, y - (y as u64) as f64)
+    // x86-64's baseline, which has no rounding instruction; signed conversions are single
+    // instructions there, unsigned ones are not).
+    DVec2::new(x - (x as i64) as f64, y - (y as i64) as f64)
 }
 
 #[cfg(test)]
