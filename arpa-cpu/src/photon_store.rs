@@ -89,14 +89,12 @@ impl PhotonStore {
         self.photons.reserve(more(self.photons.len(), photons));
     }
 
-    /// Appends the photons of `part` in order (one chunk of a photon pass), with
-    /// [`extend_streaming`]: the iteration's buffers are written once here and read only
-    /// by the next stage, so the copy does not evict the scene's BVH and records from the
-    /// cache the photon pass is using.
+    /// Appends the photons of `part` in order (one chunk of a photon pass).
     pub fn append(&mut self, part: &PhotonStore) {
-        extend_streaming(&mut self.footprints, &part.footprints);
-        extend_streaming(&mut self.footprint_boxes, &part.footprint_boxes);
-        extend_streaming(&mut self.photons, &part.photons);
+        self.footprints.extend_from_slice(&part.footprints);
+        self.footprint_boxes
+            .extend_from_slice(&part.footprint_boxes);
+        self.photons.extend_from_slice(&part.photons);
         self.counts.accumulate(&part.counts);
     }
 
@@ -116,79 +114,9 @@ impl PhotonStore {
     }
 }
 
-/// Copies below this many bytes use ordinary stores.
-const STREAMING_MIN_BYTES: usize = 4096;
-
-/// `dst.extend_from_slice(src)`, written with non-temporal (streaming) stores on x86-64
-/// when `src` holds at least [`STREAMING_MIN_BYTES`]: the destination's cache lines are
-/// not loaded nor kept in the cache. The stores are fenced before returning, so they are
-/// ordered before anything the caller stores next (a mutex release, for instance).
-pub(crate) fn extend_streaming<T: Copy>(dst: &mut Vec<T>, src: &[T]) {
-    let bytes = std::mem::size_of_val(src);
-    if cfg!(not(target_arch = "x86_64")) || bytes < STREAMING_MIN_BYTES {
-        dst.extend_from_slice(src);
-        return;
-    }
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{__m128i, _mm_loadu_si128, _mm_sfence, _mm_stream_si128};
-        dst.reserve(src.len());
-        let len = dst.len();
-        // SAFETY: `reserve` made room for `src.len()` more elements after `len`; the bytes
-        // of `src` (a `Copy` type, no drop) are copied into that room, which does not
-        // overlap `src` (`dst` is borrowed mutably), and `set_len` covers exactly the
-        // elements written. SSE2 (the streaming store and the fence) is part of every
-        // x86-64 CPU; `_mm_stream_si128` gets 16-byte-aligned addresses only.
-        unsafe {
-            let out = dst.as_mut_ptr().add(len).cast::<u8>();
-            let input = src.as_ptr().cast::<u8>();
-            let head = out.align_offset(16).min(bytes);
-            std::ptr::copy_nonoverlapping(input, out, head);
-            let body = (bytes - head) / 16;
-            for i in 0..body {
-                let v = _mm_loadu_si128(input.add(head + 16 * i).cast::<__m128i>());
-                _mm_stream_si128(out.add(head + 16 * i).cast::<__m128i>(), v);
-            }
-            let done = head + 16 * body;
-            std::ptr::copy_nonoverlapping(input.add(done), out.add(done), bytes - done);
-            _mm_sfence();
-            dst.set_len(len + src.len());
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// The streaming copy appends exactly what `extend_from_slice` does, for lengths
-    /// below and above the streaming threshold, element sizes that are not multiples of
-    /// 16 bytes, and destinations at every alignment.
-    #[test]
-    fn streaming_extend_is_extend_from_slice() {
-        let mut rng = Rng(5);
-        for n in [0usize, 1, 3, 100, 170, 171, 1000, 4097] {
-            for prefix in 0..5 {
-                let src: Vec<Aabb> = (0..n)
-                    .map(|_| Aabb {
-                        lower: [rng.f() as f32, rng.f() as f32, rng.f() as f32],
-                        upper: [rng.f() as f32, rng.f() as f32, rng.f() as f32],
-                    })
-                    .collect();
-                let start: Vec<Aabb> = src.iter().take(prefix).copied().collect();
-                let (mut a, mut b) = (start.clone(), start);
-                extend_streaming(&mut a, &src);
-                b.extend_from_slice(&src);
-                assert_eq!(a, b, "n = {n}, prefix = {prefix}");
-                let bytes: Vec<u8> = (0..n * 3 + 7).map(|i| (i * 31 + prefix) as u8).collect();
-                let mut c: Vec<u8> = vec![9; prefix];
-                let mut d = c.clone();
-                extend_streaming(&mut c, &bytes);
-                d.extend_from_slice(&bytes);
-                assert_eq!(c, d, "bytes n = {n}, prefix = {prefix}");
-            }
-        }
-    }
 
     /// The padded box contains the box grown by the padding the `f32` tests need, rounded
     /// outwards (so the round-to-nearest conversion is conservative), and stays tight; for
