@@ -68,6 +68,18 @@ pub enum DampenReference {
     ProgressiveDiameter,
 }
 
+impl DampenReference {
+    /// The reference length `ℓ_ref` (metres) for a map whose progressive radius is
+    /// `radius` (metres).
+    #[inline(always)]
+    pub fn length(self, radius: f64) -> f64 {
+        match self {
+            DampenReference::Absolute(l) => l,
+            DampenReference::ProgressiveDiameter => 2.0 * radius,
+        }
+    }
+}
+
 /// Dampened adaptation parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Dampening {
@@ -173,10 +185,7 @@ impl Heuristics {
     pub fn dampen(&self, fp: Footprint, ctx: &HeuristicContext) -> Footprint {
         let Some(d) = self.dampening else { return fp };
         let (major, _) = fp.major_minor();
-        let reference = match d.reference {
-            DampenReference::Absolute(l) => l,
-            DampenReference::ProgressiveDiameter => 2.0 * ctx.radius,
-        };
+        let reference = d.reference.length(ctx.radius);
         if !(major > 0.0) || !major.is_finite() || !(reference > 0.0) || !reference.is_finite() {
             return fp;
         }
@@ -388,10 +397,7 @@ impl ResolvedHeuristics {
         self.reference_pow = [None; 2];
         if let Some(d) = self.dampening {
             for (cache, radius) in self.reference_pow.iter_mut().zip(radii) {
-                let reference = match d.reference {
-                    DampenReference::Absolute(l) => l,
-                    DampenReference::ProgressiveDiameter => 2.0 * radius,
-                };
+                let reference = d.reference.length(radius);
                 *cache = Some((radius, reference_pow_3_4(reference)));
             }
         }
@@ -425,10 +431,7 @@ impl ResolvedHeuristics {
         let s = match self.dampening {
             None => 1.0,
             Some(d) => {
-                let reference = match d.reference {
-                    DampenReference::Absolute(l) => l,
-                    DampenReference::ProgressiveDiameter => 2.0 * radius,
-                };
+                let reference = d.reference.length(radius);
                 if major2_0 > 0.0 && major2_0.is_finite() && reference > 0.0 && reference.is_finite() {
                     let cached = self.reference_pow[fp.map.index()].filter(|&(r, _)| r == radius);
                     let ratio = dampen_ratio_with(major2_0, reference, d.exponent, || match cached {
