@@ -184,6 +184,13 @@ impl RayDifferential {
         if all_finite(&[p, dp_du, dp_dv]) { Ok(Self { p, d, dp_du, dp_dv, dd_du, dd_dv }) } else { Err(DifferentialError::NonFinite) }
     }
 
+    /// [`RayDifferential::new_with_finite_dd`] for a `d` that is unit up to rounding
+    /// already: `d` is taken as given (not checked, not renormalised).
+    #[inline(always)]
+    pub(crate) fn new_unit_with_finite_dd(p: DVec3, d: DVec3, dp_du: DVec3, dp_dv: DVec3, dd_du: DVec3, dd_dv: DVec3) -> Result<Self, DifferentialError> {
+        if all_finite(&[p, dp_du, dp_dv]) { Ok(Self { p, d, dp_du, dp_dv, dd_du, dd_dv }) } else { Err(DifferentialError::NonFinite) }
+    }
+
     /// From an *unnormalised* direction `w(u, v)` with derivatives `∂w/∂u`, `∂w/∂v`:
     /// `D = w/|w|`, `∂D = [(w·w) ∂w − (w·∂w) w] / (w·w)^{3/2}` (Igehy §1.2).
     pub fn from_unnormalised(p: DVec3, w: DVec3, dp_du: DVec3, dp_dv: DVec3, dw_du: DVec3, dw_dv: DVec3) -> Result<Self, DifferentialError> {
@@ -245,6 +252,19 @@ impl RayDifferential {
         }
         if n == DVec3::ZERO || !n.is_finite() {
             return Err(DifferentialError::InvalidNormal);
+        }
+        self.transfer_finite_unit_normal(t, n)
+    }
+
+    /// [`RayDifferential::transfer_unit_normal`] to a surface whose `n` is known to be unit
+    /// and finite (a [`crate::prepared_scene::SurfacePoint`]'s geometric normal, which
+    /// [`crate::prepared_scene::PreparedScene`] keeps unit, `+y` on a degenerate triangle):
+    /// skips the check of `n`. The photon path's transfer.
+    #[inline(always)]
+    pub(crate) fn transfer_finite_unit_normal(&self, t: f64, n: DVec3) -> Result<Self, DifferentialError> {
+        debug_assert!(n.is_finite() && n != DVec3::ZERO, "{n:?}");
+        if !(t >= 0.0) || !t.is_finite() {
+            return Err(DifferentialError::InvalidDistance);
         }
         let cos = self.d.dot(n);
         if !(cos.abs() >= MIN_ABS_COS) {
@@ -369,6 +389,21 @@ mod tests {
         )
         .unwrap()
         .reprojected()
+    }
+
+    /// The photon path's transfer (the normal's check skipped) gives the bits of
+    /// `transfer_unit_normal` on unit normals, and the same errors for bad distances and
+    /// grazing incidence.
+    #[test]
+    fn transfer_to_a_known_unit_normal_is_transfer_unit_normal() {
+        let r = ray();
+        for n in [DVec3::Y, DVec3::new(0.3, 0.9, -0.2).normalize(), DVec3::new(-1.0, 0.2, 0.1).normalize(), DVec3::new(1.0, 0.2, 0.0).normalize()] {
+            for t in [0.0, 0.5, 3.0, -1.0, f64::NAN, f64::INFINITY] {
+                assert_eq!(r.transfer_finite_unit_normal(t, n), r.transfer_unit_normal(t, n), "t {t}, n {n:?}");
+            }
+        }
+        let grazing = DVec3::new(1.0, 0.2, 0.0).cross(r.d).normalize();
+        assert_eq!(r.transfer_finite_unit_normal(1.0, grazing), Err(DifferentialError::Grazing));
     }
 
     #[test]

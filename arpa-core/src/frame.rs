@@ -37,7 +37,15 @@ impl Frame {
     /// around +z, so the result is always finite and orthonormal.
     #[inline]
     pub fn from_normal(n: DVec3) -> Self {
-        let n = unit_or(n, DVec3::Z);
+        Self::from_unit_normal(unit_or(n, DVec3::Z))
+    }
+
+    /// [`Frame::from_normal`] around `n` as given, for an `n` that is unit up to rounding
+    /// already (a surface normal, a sampled direction): skips the renormalisation, so `n`
+    /// is the frame's axis bit for bit. An `n` of any other length gives a frame that is
+    /// not orthonormal.
+    #[inline]
+    pub fn from_unit_normal(n: DVec3) -> Self {
         let sign = if n.z >= 0.0 { 1.0 } else { -1.0 };
         let a = -1.0 / (sign + n.z);
         let b = n.x * n.y * a;
@@ -105,6 +113,23 @@ mod tests {
             prop_assume!(n.length() > 1e-3);
             check(&Frame::from_normal(n));
             check(&Frame::from_normal_and_hint(n, DVec3::new(y, z, x)));
+        }
+
+        /// Around a normalised `n` (unit up to rounding), `from_unit_normal` keeps `n` bit
+        /// for bit as its axis, is orthonormal, and agrees with `from_normal` (which
+        /// renormalises first) to rounding.
+        #[test]
+        fn unit_normal_frame(x in -1.0f64..1.0, y in -1.0f64..1.0, z in -1.0f64..1.0) {
+            let n = DVec3::new(x, y, z);
+            prop_assume!(n.length() > 1e-3);
+            let n = n.normalize();
+            let f = Frame::from_unit_normal(n);
+            check(&f);
+            prop_assert_eq!(f.n, n);
+            let g = Frame::from_normal(n);
+            for (a, b) in [(f.t, g.t), (f.b, g.b), (f.n, g.n)] {
+                prop_assert!((a - b).length() < 1e-15, "{:?} vs {:?}", a, b);
+            }
         }
     }
 

@@ -18,7 +18,7 @@ use crate::heuristics::ResolvedHeuristics;
 use crate::lambertian::DiffuseShading;
 use crate::prepared_scene::{offset_origin, PreparedScene};
 use crate::ray_cast::{RayCaster, RayHit};
-use crate::reemission::{diffuse_direction, reemit};
+use crate::reemission::{diffuse_direction, reemit_unit};
 use crate::rng::{Rng, StreamDomain};
 use crate::scene::Scattering;
 use crate::store::{store_footprint_resolved, store_progressive, ProgressiveReason, StoredPhoton};
@@ -217,7 +217,7 @@ impl PhotonWalk {
         let s = scene.surface(hit);
         // Distance from the differential's origin to the hit, along the direction.
         let t = (s.position - st.ray.p).dot(d).max(0.0);
-        let moved = if st.differential_valid { st.ray.transfer_unit_normal(t, s.geometric_normal).ok() } else { None };
+        let moved = if st.differential_valid { st.ray.transfer_finite_unit_normal(t, s.geometric_normal).ok() } else { None };
         let ray_at_hit = match moved {
             Some(r) => r,
             None => {
@@ -268,7 +268,7 @@ impl PhotonWalk {
                         None => return false,
                     },
                 };
-                st.ray = match st.differential_valid.then(|| reemit(s.position, ray_at_hit.dp_du, ray_at_hit.dp_dv, dir, self.reemission_length)) {
+                st.ray = match st.differential_valid.then(|| reemit_unit(s.position, ray_at_hit.dp_du, ray_at_hit.dp_dv, dir, self.reemission_length)) {
                     Some(Ok(r)) => r,
                     _ => {
                         st.differential_valid = false;

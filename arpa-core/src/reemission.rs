@@ -41,13 +41,28 @@ pub fn reemit(hit: DVec3, dp_du: DVec3, dp_dv: DVec3, direction: DVec3, reemissi
     RayDifferential::new_with_finite_dd(hit, direction, du * v, dv * v, du, dv)
 }
 
+/// [`reemit`] in a `direction` that is unit up to rounding already (as
+/// [`diffuse_direction`] and [`crate::lambertian::DiffuseShading::sample_reemission`]
+/// return it): the direction is neither checked nor renormalised, and it is the new
+/// ray's direction and its frame's axis as given ([`Frame::from_unit_normal`]). Same
+/// errors as [`reemit`] otherwise. The photon path's re-emission.
+#[inline(always)]
+pub fn reemit_unit(hit: DVec3, dp_du: DVec3, dp_dv: DVec3, direction: DVec3, reemission_length: f64) -> Result<RayDifferential, DifferentialError> {
+    let area = dp_du.cross(dp_dv).length();
+    let v = virtual_distance(area, reemission_length)?;
+    let f = Frame::from_unit_normal(direction);
+    let (du, dv) = (f.t * reemission_length, f.b * reemission_length);
+    // As in `reemit`: only the positional differentials can overflow.
+    RayDifferential::new_unit_with_finite_dd(hit, direction, du * v, dv * v, du, dv)
+}
+
 /// A cosine-distributed direction for re-emission from a Lambertian surface, in the
 /// hemisphere of `normal` (unit, oriented towards the side the photon arrived from), from
 /// the unit-square sample `u`. Density `cos θ / π`, so the photon's flux is multiplied by
 /// the albedo only.
 #[inline(always)]
 pub fn diffuse_direction(normal: DVec3, u: DVec2) -> DVec3 {
-    let f = Frame::from_normal(normal);
+    let f = Frame::from_unit_normal(normal);
     crate::frame::unit_or(f.to_world(cosine_hemisphere(u)), f.n)
 }
 
@@ -66,5 +81,38 @@ mod tests {
             mean_cos += d.dot(n);
         }
         assert!((mean_cos / 10_000.0 - 2.0 / 3.0).abs() < 0.01);
+    }
+
+    /// The photon path's `reemit_unit`, on the directions `diffuse_direction` gives, is
+    /// `reemit` up to the rounding of the renormalisation it skips, and fails where
+    /// `reemit` fails (a zero or non-finite footprint area, a zero length).
+    #[test]
+    fn reemit_unit_matches_reemit() {
+        let mut rng = crate::rng::Rng::new(1, 2, 3, crate::rng::StreamDomain::User);
+        for i in 0..5_000 {
+            let n = (rng.next_2d().extend(rng.next_f64()) - 0.5).normalize_or(DVec3::Z);
+            let dir = diffuse_direction(n, rng.next_2d());
+            let scale = 10f64.powi(i % 7 - 4);
+            let (du, dv) = ((rng.next_2d().extend(0.3) - 0.5) * scale, (rng.next_2d().extend(-0.2) - 0.5) * scale);
+            let hit = DVec3::new(1.0, -2.0, 0.5);
+            let len = 0.01 + rng.next_f64();
+            let a = reemit(hit, du, dv, dir, len).unwrap();
+            let b = reemit_unit(hit, du, dv, dir, len).unwrap();
+            assert_eq!(b.d, dir);
+            assert_eq!(b.p, hit);
+            for (x, y) in [(a.d, b.d), (a.dd_du, b.dd_du), (a.dd_dv, b.dd_dv)] {
+                assert!((x - y).length() <= 1e-15 * len.max(1.0), "{x:?} vs {y:?}");
+            }
+            for (x, y) in [(a.dp_du, b.dp_du), (a.dp_dv, b.dp_dv)] {
+                assert!((x - y).length() <= 1e-15 * x.length().max(1e-300), "{x:?} vs {y:?}");
+            }
+            // Both directional differentials are perpendicular to the direction.
+            assert!(b.dd_du.dot(b.d).abs() <= 1e-15 * len && b.dd_dv.dot(b.d).abs() <= 1e-15 * len);
+        }
+        let d = DVec3::Z;
+        for (du, dv, len) in [(DVec3::X, DVec3::Y, 0.0), (DVec3::X * f64::INFINITY, DVec3::Y, 1.0), (DVec3::X * 1e300, DVec3::Y * 1e300, 1e-300)] {
+            assert_eq!(reemit_unit(DVec3::ZERO, du, dv, d, len).err(), reemit(DVec3::ZERO, du, dv, d, len).err(), "{du:?} {dv:?} {len}");
+            assert!(reemit_unit(DVec3::ZERO, du, dv, d, len).is_err());
+        }
     }
 }

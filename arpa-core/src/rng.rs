@@ -11,10 +11,19 @@
 /// The pcg4d hash: maps four 32-bit words to four well-mixed 32-bit words.
 #[inline]
 pub const fn pcg4d(v: [u32; 4]) -> [u32; 4] {
-    let mut x = v[0].wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-    let mut y = v[1].wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-    let mut z = v[2].wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
-    let mut w = v[3].wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+    pcg4d_rounds([lcg(v[0]), lcg(v[1]), lcg(v[2]), lcg(v[3])])
+}
+
+/// pcg4d's first step on one word: `v · 1664525 + 1013904223` (mod 2³²).
+#[inline]
+const fn lcg(v: u32) -> u32 {
+    v.wrapping_mul(1_664_525).wrapping_add(1_013_904_223)
+}
+
+/// The rest of [`pcg4d`], after [`lcg`] of each word.
+#[inline]
+const fn pcg4d_rounds(v: [u32; 4]) -> [u32; 4] {
+    let [mut x, mut y, mut z, mut w] = v;
     x = x.wrapping_add(y.wrapping_mul(w));
     y = y.wrapping_add(z.wrapping_mul(x));
     z = z.wrapping_add(x.wrapping_mul(y));
@@ -51,9 +60,9 @@ pub const DRAWS_PER_STREAM: u32 = 1 << 28;
 /// A counter-based random stream. Cheap to create; `Copy` so a stream can be forked.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Rng {
-    seed: u32,
-    iteration: u32,
-    index: u32,
+    /// [`lcg`] of `(seed, iteration, index)`: the part of every draw's hash that does not
+    /// change along the stream, computed once.
+    stream: [u32; 3],
     domain: u32,
     counter: u32,
 }
@@ -62,7 +71,7 @@ impl Rng {
     /// The stream for `(seed, iteration, index)` in `domain`, positioned at its first draw.
     #[inline]
     pub const fn new(seed: u32, iteration: u32, index: u32, domain: StreamDomain) -> Self {
-        Self { seed, iteration, index, domain: (domain as u32) << 28, counter: 0 }
+        Self { stream: [lcg(seed), lcg(iteration), lcg(index)], domain: (domain as u32) << 28, counter: 0 }
     }
 
     /// Number of draws made so far.
@@ -76,7 +85,8 @@ impl Rng {
     pub fn next_u32(&mut self) -> u32 {
         let word = self.domain | (self.counter & (DRAWS_PER_STREAM - 1));
         self.counter = self.counter.wrapping_add(1);
-        pcg4d([self.seed, self.iteration, self.index, word])[0]
+        let [x, y, z] = self.stream;
+        pcg4d_rounds([x, y, z, lcg(word)])[0]
     }
 
     /// Uniform `f32` in `[0, 1)` with 24 random bits (exactly representable, never 1.0).

@@ -73,6 +73,7 @@ impl EmbreeCaster {
         &self.scene
     }
 
+    #[cold]
     fn failed(&self) {
         self.errors.fetch_add(1, Ordering::Relaxed);
     }
@@ -84,6 +85,7 @@ impl EmbreeCaster {
 const T_NEAR: f32 = f32::MIN_POSITIVE;
 
 impl RayCaster for EmbreeCaster {
+    #[inline]
     fn intersect(&self, origin: Vec3, direction: Vec3, t_max: f32) -> Option<RayHit> {
         let hit = match self.scene.intersect(origin.to_array(), direction.to_array(), T_NEAR, t_max) {
             Ok(Some(hit)) => hit,

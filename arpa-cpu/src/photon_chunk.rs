@@ -11,16 +11,15 @@
 //!
 //! The records come out in photon-index order, as a sequential loop over
 //! [`arpa_core::photon_path::trace_photon`] gives them: the photon with the lower index
-//! in flight writes straight to the chunk's store; the other one's records wait in a small
-//! queue until every photon before it has ended.
+//! in flight writes straight to the chunk's store; the other one's records (packed and
+//! boxed already) wait in its slot's small side buffer, which moves to the store when
+//! that photon becomes the lower-indexed one in flight.
 
-use std::collections::VecDeque;
 use std::ops::Range;
 
 use arpa_core::photon_path::{PhotonPassSetup, PhotonWalk};
 use arpa_core::prepared_scene::PreparedScene;
 use arpa_core::ray_cast::{RayCaster, RayHit};
-use arpa_core::store::StoredPhoton;
 use arpa_core::tracer::RenderSettings;
 
 use crate::photon_store::PhotonStore;
@@ -34,10 +33,6 @@ struct Slot {
     hit: Option<Option<RayHit>>,
 }
 
-/// Records of photons that are not the lowest-indexed one in flight, per slot, in
-/// photon-index order, each with its photon index.
-type Pending = VecDeque<(u32, StoredPhoton)>;
-
 /// Traces the photons `photons` (global indices) of the iteration `setup` with two in
 /// flight, pushing their records to `out` in photon-index order; returns the ray segments
 /// cast.
@@ -50,7 +45,10 @@ pub(crate) fn trace_chunk(
     out: &mut PhotonStore,
 ) -> u64 {
     let mut slots: [Option<Slot>; 2] = [None, None];
-    let mut pending: [Pending; 2] = [VecDeque::new(), VecDeque::new()];
+    // Records of the photon(s) in slot k that is not the lower-indexed one in flight, in
+    // photon order (counted in `out` when stored). Only the other slot's is ever
+    // non-empty, and it moves to `out` when that slot becomes the lower one.
+    let mut side: [PhotonStore; 2] = [PhotonStore::default(), PhotonStore::default()];
     let mut next = photons.start;
     let mut segments = 0u64;
     loop {
@@ -61,16 +59,16 @@ pub(crate) fn trace_chunk(
             if let Some(slot) = &mut slots[k]
                 && let Some(hit) = slot.hit.take()
             {
-                let index = slot.index;
                 // The lower-indexed photon in flight writes in place: everything before it
                 // has ended and been written.
-                let direct = other.is_none_or(|o| index < o);
-                let queue = &mut pending[k];
+                let direct = other.is_none_or(|o| slot.index < o);
+                let held = &mut side[k];
                 slot.walk.advance(prepared, settings, setup, hit, &mut |s| {
                     if direct {
                         out.push(s)
                     } else {
-                        queue.push_back((index, s))
+                        out.counts.record_stored(&s);
+                        held.push_record(s)
                     }
                 });
             }
@@ -88,8 +86,10 @@ pub(crate) fn trace_chunk(
                     }
                     segments += slot.walk.stats().segments as u64;
                     slots[k] = None;
-                    // Everything up to the lowest photon still in flight is now in order.
-                    flush(&mut pending, other.unwrap_or(u32::MAX), out);
+                    // The other slot's photon (if any) is now the lowest in flight, and
+                    // everything before it has been written: its held records are next.
+                    let [a, b] = &mut side;
+                    out.take_records(if k == 0 { b } else { a });
                 }
                 if next >= photons.end {
                     break;
@@ -105,26 +105,8 @@ pub(crate) fn trace_chunk(
             break;
         }
     }
-    flush(&mut pending, u32::MAX, out);
-    debug_assert!(pending.iter().all(VecDeque::is_empty));
+    debug_assert!(side.iter().all(|s| s.footprints.is_empty() && s.photons.is_empty()));
     segments
-}
-
-/// Moves the pending records of photons with index `≤ upto` to `out`, in photon-index
-/// order (each queue is in that order, and a photon's records are all in one queue).
-fn flush(pending: &mut [Pending; 2], upto: u32, out: &mut PhotonStore) {
-    loop {
-        let front = |q: &Pending| q.front().map(|e| e.0).filter(|&i| i <= upto);
-        let k = match (front(&pending[0]), front(&pending[1])) {
-            (None, None) => return,
-            (Some(_), None) => 0,
-            (None, Some(_)) => 1,
-            (Some(a), Some(b)) => usize::from(b < a),
-        };
-        if let Some((_, s)) = pending[k].pop_front() {
-            out.push(s);
-        }
-    }
 }
 
 #[cfg(test)]

@@ -98,12 +98,30 @@ impl PhotonStore {
         self.counts.accumulate(&part.counts);
     }
 
+    /// Moves the records of `part` (not its counts) to the end of these buffers, in order,
+    /// and empties `part` (keeping its capacity).
+    pub fn take_records(&mut self, part: &mut PhotonStore) {
+        self.footprints.extend_from_slice(&part.footprints);
+        self.footprint_boxes
+            .extend_from_slice(&part.footprint_boxes);
+        self.photons.extend_from_slice(&part.photons);
+        part.footprints.clear();
+        part.footprint_boxes.clear();
+        part.photons.clear();
+    }
+
     /// Appends one stored photon. A footprint's box is the core's box of its elliptic slab
     /// ([`StoredPhoton::Footprint::aabb`]), padded and rounded outwards to `f32`
     /// ([`padded_box`]).
     #[inline]
     pub fn push(&mut self, stored: StoredPhoton) {
         self.counts.record_stored(&stored);
+        self.push_record(stored);
+    }
+
+    /// [`PhotonStore::push`] without counting: appends the record (and box) only.
+    #[inline]
+    pub fn push_record(&mut self, stored: StoredPhoton) {
         match stored {
             StoredPhoton::Footprint { packed, aabb } => {
                 self.footprints.push(packed);
