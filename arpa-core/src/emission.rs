@@ -468,9 +468,10 @@ impl PreparedLight {
         let d = crate::frame::unit_or(light_frame.to_world(local), light_frame.n);
         let dir_frame = directional_frame(light_frame, local, d);
         let (x, w) = (self.lengths.positional, self.lengths.directional);
-        // The directional differentials are unit vectors times a finite length, so only
-        // the origin and the positional ones need the finiteness check.
-        let ray = RayDifferential::new_with_finite_dd(p, d, light_frame.t * x, light_frame.b * x, dir_frame.t * w, dir_frame.b * w)?;
+        // `d` is unit already (and the directional frame's axis as it is); the directional
+        // differentials are unit vectors times a finite length, so only the origin and the
+        // positional ones need the finiteness check.
+        let ray = RayDifferential::new_unit_with_finite_dd(p, d, light_frame.t * x, light_frame.b * x, dir_frame.t * w, dir_frame.b * w)?;
         Ok((ray, self.flux, Some(light_frame.n)))
     }
 }
