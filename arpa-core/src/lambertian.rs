@@ -122,7 +122,7 @@ impl DiffuseShading {
     /// flux weight `ρ · a(ω_i)` this is the adjoint transport of the module docs.
     #[inline(always)]
     pub fn sample_reemission(&self, u: DVec2) -> Option<DVec3> {
-        let f = Frame::from_unit_normal(self.geometric);
+        let f = Frame::from_normal(self.geometric);
         let d = crate::frame::unit_or(f.to_world(cosine_hemisphere(u)), f.n);
         (d.dot(self.shading) >= 0.0).then_some(d)
     }

@@ -18,7 +18,7 @@ use crate::heuristics::ResolvedHeuristics;
 use crate::lambertian::DiffuseShading;
 use crate::prepared_scene::{offset_origin, PreparedScene};
 use crate::ray_cast::{RayCaster, RayHit};
-use crate::reemission::{diffuse_direction, reemit_unit};
+use crate::reemission::{diffuse_direction_unit, reemit_unit};
 use crate::rng::{Rng, StreamDomain};
 use crate::scene::Scattering;
 use crate::store::{store_footprint_resolved, store_progressive, ProgressiveReason, StoredPhoton};
@@ -262,7 +262,7 @@ impl PhotonWalk {
                 }
                 st.flux *= albedo / survive;
                 let dir = match &shading {
-                    None => diffuse_direction(front, rng.next_2d()),
+                    None => diffuse_direction_unit(front, rng.next_2d()),
                     Some(sh) => match sh.sample_reemission(rng.next_2d()) {
                         Some(dir) => dir,
                         None => return false,

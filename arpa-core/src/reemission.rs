@@ -62,7 +62,20 @@ pub fn reemit_unit(hit: DVec3, dp_du: DVec3, dp_dv: DVec3, direction: DVec3, ree
 /// the albedo only.
 #[inline(always)]
 pub fn diffuse_direction(normal: DVec3, u: DVec2) -> DVec3 {
-    let f = Frame::from_unit_normal(normal);
+    diffuse_direction_in(&Frame::from_normal(normal), u)
+}
+
+/// [`diffuse_direction`] about a `normal` that is unit and finite already (a prepared
+/// triangle's face normal): the frame is built without renormalising it. The photon
+/// path's form; [`diffuse_direction`] takes any normal (a zero or non-finite one gives the
+/// hemisphere of +z).
+#[inline(always)]
+pub(crate) fn diffuse_direction_unit(normal: DVec3, u: DVec2) -> DVec3 {
+    diffuse_direction_in(&Frame::from_unit_normal(normal), u)
+}
+
+#[inline(always)]
+fn diffuse_direction_in(f: &Frame, u: DVec2) -> DVec3 {
     crate::frame::unit_or(f.to_world(cosine_hemisphere(u)), f.n)
 }
 
@@ -81,6 +94,20 @@ mod tests {
             mean_cos += d.dot(n);
         }
         assert!((mean_cos / 10_000.0 - 2.0 / 3.0).abs() < 0.01);
+    }
+
+    /// About a unit normal, the photon path's `diffuse_direction_unit` is
+    /// `diffuse_direction` up to the rounding of the renormalisation it skips.
+    #[test]
+    fn diffuse_direction_unit_matches_diffuse_direction() {
+        let mut rng = crate::rng::Rng::new(4, 5, 6, crate::rng::StreamDomain::User);
+        for _ in 0..5_000 {
+            let n = (rng.next_2d().extend(rng.next_f64()) - 0.5).normalize_or(DVec3::Z);
+            let u = rng.next_2d();
+            let (a, b) = (diffuse_direction(n, u), diffuse_direction_unit(n, u));
+            assert!((a - b).length() <= 1e-15, "{a:?} vs {b:?}");
+            assert!(b.dot(n) >= 0.0 && (b.length() - 1.0).abs() <= 1e-15);
+        }
     }
 
     /// The photon path's `reemit_unit`, on the directions `diffuse_direction` gives, is
