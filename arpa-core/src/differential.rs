@@ -180,8 +180,7 @@ impl RayDifferential {
     /// such inputs.
     #[inline(always)]
     pub(crate) fn new_with_finite_dd(p: DVec3, d: DVec3, dp_du: DVec3, dp_dv: DVec3, dd_du: DVec3, dd_dv: DVec3) -> Result<Self, DifferentialError> {
-        let d = unit_direction(d)?;
-        if all_finite(&[p, dp_du, dp_dv]) { Ok(Self { p, d, dp_du, dp_dv, dd_du, dd_dv }) } else { Err(DifferentialError::NonFinite) }
+        Self::new_unit_with_finite_dd(p, unit_direction(d)?, dp_du, dp_dv, dd_du, dd_dv)
     }
 
     /// [`RayDifferential::new_with_finite_dd`] for a `d` that is unit up to rounding
@@ -253,7 +252,7 @@ impl RayDifferential {
         if n == DVec3::ZERO || !n.is_finite() {
             return Err(DifferentialError::InvalidNormal);
         }
-        self.transfer_finite_unit_normal(t, n)
+        self.transfer_valid(t, n)
     }
 
     /// [`RayDifferential::transfer_unit_normal`] to a surface whose `n` is known to be unit
@@ -266,6 +265,12 @@ impl RayDifferential {
         if !(t >= 0.0) || !t.is_finite() {
             return Err(DifferentialError::InvalidDistance);
         }
+        self.transfer_valid(t, n)
+    }
+
+    /// The transfer once `t` (finite, `≥ 0`) and the unit `n` have been checked.
+    #[inline(always)]
+    fn transfer_valid(&self, t: f64, n: DVec3) -> Result<Self, DifferentialError> {
         let cos = self.d.dot(n);
         if !(cos.abs() >= MIN_ABS_COS) {
             return Err(DifferentialError::Grazing);
