@@ -72,10 +72,15 @@ pub(crate) struct PhotonStore {
 impl PhotonStore {
     /// Empties the buffers (keeping their capacity) and zeroes the counts.
     pub fn clear(&mut self) {
+        self.clear_records();
+        self.counts = IterationStats::default();
+    }
+
+    /// Empties the record buffers (keeping their capacity), not the counts.
+    fn clear_records(&mut self) {
         self.footprints.clear();
         self.footprint_boxes.clear();
         self.photons.clear();
-        self.counts = IterationStats::default();
     }
 
     /// Makes room for at least `footprints` footprints (and boxes) and `photons` progressive
@@ -91,23 +96,23 @@ impl PhotonStore {
 
     /// Appends the photons of `part` in order (one chunk of a photon pass).
     pub fn append(&mut self, part: &PhotonStore) {
+        self.extend_records(part);
+        self.counts.accumulate(&part.counts);
+    }
+
+    /// Appends the records (and boxes) of `part` in order, not its counts.
+    fn extend_records(&mut self, part: &PhotonStore) {
         self.footprints.extend_from_slice(&part.footprints);
         self.footprint_boxes
             .extend_from_slice(&part.footprint_boxes);
         self.photons.extend_from_slice(&part.photons);
-        self.counts.accumulate(&part.counts);
     }
 
     /// Moves the records of `part` (not its counts) to the end of these buffers, in order,
     /// and empties `part` (keeping its capacity).
     pub fn take_records(&mut self, part: &mut PhotonStore) {
-        self.footprints.extend_from_slice(&part.footprints);
-        self.footprint_boxes
-            .extend_from_slice(&part.footprint_boxes);
-        self.photons.extend_from_slice(&part.photons);
-        part.footprints.clear();
-        part.footprint_boxes.clear();
-        part.photons.clear();
+        self.extend_records(part);
+        part.clear_records();
     }
 
     /// Appends one stored photon. A footprint's box is the core's box of its elliptic slab
