@@ -61,8 +61,45 @@ pub fn uniform_disc(u: DVec2) -> DVec2 {
     // no argument reduction and takes the same branch every time.
     let wide = a * a > b * b;
     let (r, ratio) = if wide { (a, b / a) } else { (b, a / b) };
-    let (sin, cos) = libm::sincos(FRAC_PI_4 * ratio);
+    let (sin, cos) = sincos_octant(FRAC_PI_4 * ratio);
     if wide { DVec2::new(r * cos, r * sin) } else { DVec2::new(r * sin, r * cos) }
+}
+
+/// `libm::sincos(x)` for `|x| ≤ π/4`, bit for bit, inlined: the same fdlibm kernels
+/// (`__kernel_sin`, `__kernel_cos` with no reduction remainder) that `libm::sincos` runs in
+/// that range, sharing `x²` and without the call, the range dispatch and the NaN checks.
+/// The samplers only ever pass such angles (the concentric map's `(π/4)·ratio`, and the
+/// quarter-turn remainder of [`sincos_turns`]); outside that range the result is not
+/// `sin`, `cos`. Tested against `libm::sincos` over the whole range.
+#[inline(always)]
+fn sincos_octant(x: f64) -> (f64, f64) {
+    const S1: f64 = -1.666_666_666_666_663_243_48e-1;
+    const S2: f64 = 8.333_333_333_322_489_461_24e-3;
+    const S3: f64 = -1.984_126_982_985_794_931_34e-4;
+    const S4: f64 = 2.755_731_370_707_006_767_89e-6;
+    const S5: f64 = -2.505_076_025_340_686_341_95e-8;
+    const S6: f64 = 1.589_690_995_211_550_102_21e-10;
+    const C1: f64 = 4.166_666_666_666_660_190_37e-2;
+    const C2: f64 = -1.388_888_888_887_410_957_49e-3;
+    const C3: f64 = 2.480_158_728_947_672_941_78e-5;
+    const C4: f64 = -2.755_731_435_139_066_330_35e-7;
+    const C5: f64 = 2.087_572_321_298_174_827_90e-9;
+    const C6: f64 = -1.135_964_755_778_819_482_65e-11;
+    // libm returns (x, 1) where the high word of |x| is below 0x3e46a09e (|x| ≲ 2⁻²⁷·√2),
+    // keeping the sign of a zero; for non-negative doubles that is `|x| < 0x3e46a09e_00000000`.
+    if x.abs() < f64::from_bits(0x3e46_a09e_0000_0000) {
+        return (x, 1.0);
+    }
+    let z = x * x;
+    let w = z * z;
+    let rs = S2 + z * (S3 + z * S4) + z * w * (S5 + z * S6);
+    let sin = x + z * x * (S1 + z * rs);
+    let rc = z * (C1 + z * (C2 + z * C3)) + w * w * (C4 + z * (C5 + z * C6));
+    let hz = 0.5 * z;
+    let wc = 1.0 - hz;
+    // fdlibm's `z·r − x·y` with the remainder `y = 0`: `z·r − (±0)` is `z·r`.
+    let cos = wc + (((1.0 - wc) - hz) + z * rc);
+    (sin, cos)
 }
 
 /// `(sin 2πt, cos 2πt)` for `t` in `[0, 1]` (turns). The quadrant is split off exactly
@@ -74,7 +111,7 @@ fn sincos_turns(t: f64) -> (f64, f64) {
     // k = round(4t) in 0..=4; t − k/4 in [−1/8, 1/8] is exact (Sterbenz: t and k/4 are
     // within a factor of two of each other, or k = 0).
     let k = (4.0 * t + 0.5) as u32;
-    let (s, c) = libm::sincos(TAU * (t - 0.25 * k as f64));
+    let (s, c) = sincos_octant(TAU * (t - 0.25 * k as f64));
     // Rotation by k quarter turns: (s, c) → (c, −s) → (−s, −c) → (−c, s).
     let (s, c) = if k & 1 == 1 { (c, -s) } else { (s, c) };
     if k & 2 == 2 { (-s, -c) } else { (s, c) }
@@ -225,6 +262,32 @@ mod tests {
 
     /// `sincos_turns(t)` is `sincos(2πt)` to within a few ulps over the whole unit
     /// interval, including the quadrant boundaries, their neighbours and the ends.
+    #[test]
+    fn sincos_octant_is_libm_sincos() {
+        // The kernel's range, its ends, the tiny-argument branch and its boundary, signed
+        // zeros and subnormals, then random angles across [−π/4, π/4].
+        let limit = f64::from_bits(0x3fe9_21fb_ffff_ffff); // libm's |x| ≤ π/4 test
+        let tiny = f64::from_bits(0x3e46_a09e_0000_0000);
+        let mut xs = alloc::vec![0.0, -0.0, f64::MIN_POSITIVE, 5e-324, 1e-300, 1e-9, tiny, limit, FRAC_PI_4];
+        xs.extend([tiny, limit].iter().flat_map(|&x| [f64::from_bits(x.to_bits() - 1), f64::from_bits(x.to_bits() + 1)]));
+        let mut rng = Rng::new(9, 9, 9, StreamDomain::User);
+        for _ in 0..200_000 {
+            let u = rng.next_f64();
+            xs.push(FRAC_PI_4 * (2.0 * u - 1.0));
+            xs.push(f64::from_bits(rng.next_u32() as u64 | ((rng.next_u32() as u64 & 0x3ff) << 52)).min(FRAC_PI_4));
+        }
+        for x in xs {
+            for x in [x, -x] {
+                if x.abs() > limit {
+                    continue;
+                }
+                let (s, c) = sincos_octant(x);
+                let (s0, c0) = libm::sincos(x);
+                assert_eq!((s.to_bits(), c.to_bits()), (s0.to_bits(), c0.to_bits()), "x = {x:e}");
+            }
+        }
+    }
+
     #[test]
     fn sincos_turns_matches_libm() {
         let mut ts: alloc::vec::Vec<f64> = samples(100_000).map(|u| u.x).collect();
