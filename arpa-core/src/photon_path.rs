@@ -16,7 +16,7 @@ use crate::footprint::{Footprint, PhotonMap};
 use crate::fresnel::dielectric_reflectance;
 use crate::heuristics::ResolvedHeuristics;
 use crate::lambertian::DiffuseShading;
-use crate::prepared_scene::{offset_origin, PreparedScene};
+use crate::prepared_scene::{offset_origin, PreparedScene, SurfacePoint};
 use crate::ray_cast::{RayCaster, RayHit};
 use crate::reemission::{diffuse_direction_unit, reemit_unit};
 use crate::rng::{Rng, StreamDomain};
@@ -215,16 +215,9 @@ impl PhotonWalk {
         let rng = &mut self.rng;
         let d = st.ray.d;
         let s = scene.surface(hit);
-        // Distance from the differential's origin to the hit, along the direction.
-        let t = (s.position - st.ray.p).dot(d).max(0.0);
-        let moved = if st.differential_valid { st.ray.transfer_finite_unit_normal(t, s.geometric_normal).ok() } else { None };
-        let ray_at_hit = match moved {
-            Some(r) => r,
-            None => {
-                st.differential_valid = false;
-                lost_differential(s.position, d)
-            }
-        };
+        // The photon's ray at the hit (`PathState::at_hit`) is taken only where it is used: a
+        // diffuse hit that neither stores nor survives Russian roulette never needs it (it
+        // draws no random numbers, so the stream is the same).
         // Side the photon arrives from.
         let front = if d.dot(s.geometric_normal) < 0.0 { s.geometric_normal } else { -s.geometric_normal };
         match s.scattering {
@@ -247,18 +240,24 @@ impl PhotonWalk {
                         return false;
                     }
                 }
-                if !(settings.direct_lighting && first_interaction) {
+                let albedo = albedo.as_dvec3();
+                let survive = albedo.max_element().min(1.0);
+                // Not stored (direct lighting counts this first hit): roulette first.
+                let stores = !(settings.direct_lighting && first_interaction);
+                if !stores && !(rng.next_f64() < survive) {
+                    return false;
+                }
+                let ray_at_hit = st.at_hit(&s);
+                if stores {
                     // A photon from below the shading plane (on the side it landed on) is
                     // stored with its orientation flipped, so that only query points seen
                     // from below the shading plane too gather it (crate::lambertian).
                     let below = shading.as_ref().is_some_and(DiffuseShading::below_shading_plane);
                     sink(store(&ray_at_hit, &s.geometric_normal, st.flux, map, st.differential_valid, below, settings, setup));
                     self.stats.stored += 1;
-                }
-                let albedo = albedo.as_dvec3();
-                let survive = albedo.max_element().min(1.0);
-                if !(rng.next_f64() < survive) {
-                    return false;
+                    if !(rng.next_f64() < survive) {
+                        return false;
+                    }
                 }
                 st.flux *= albedo / survive;
                 let dir = match &shading {
@@ -278,6 +277,7 @@ impl PhotonWalk {
                 self.origin = offset_origin(s.position, front);
             }
             Scattering::Mirror(reflectance) => {
+                let ray_at_hit = st.at_hit(&s);
                 st.classifier.record(SurfaceInteraction::Specular);
                 st.flux *= reflectance.as_dvec3();
                 let nd = scene.shading_normal(&s, ray_at_hit.dp_du, ray_at_hit.dp_dv);
@@ -286,6 +286,7 @@ impl PhotonWalk {
                 self.origin = offset_origin(s.position, front);
             }
             Scattering::Refractive(ior, transmittance) => {
+                let ray_at_hit = st.at_hit(&s);
                 st.classifier.record(SurfaceInteraction::Specular);
                 let ior = ior as f64;
                 let nd = scene.shading_normal(&s, ray_at_hit.dp_du, ray_at_hit.dp_dv);
@@ -315,6 +316,24 @@ impl PhotonWalk {
 }
 
 impl PathState {
+    /// The photon's ray moved onto the surface point `s` it hit: its differential
+    /// transferred there, or, where that fails, a ray without one (and the path carries no
+    /// differential from here on).
+    #[inline(always)]
+    fn at_hit(&mut self, s: &SurfacePoint) -> RayDifferential {
+        let d = self.ray.d;
+        // Distance from the differential's origin to the hit, along the direction.
+        let t = (s.position - self.ray.p).dot(d).max(0.0);
+        let moved = if self.differential_valid { self.ray.transfer_finite_unit_normal(t, s.geometric_normal).ok() } else { None };
+        match moved {
+            Some(r) => r,
+            None => {
+                self.differential_valid = false;
+                lost_differential(s.position, d)
+            }
+        }
+    }
+
     /// Specular reflection at the hit `at` about the shading normal `nd` (or `n` when its
     /// derivative could not be formed); the differential is lost if it cannot follow.
     #[inline(always)]
