@@ -215,9 +215,11 @@ impl PhotonWalk {
         let rng = &mut self.rng;
         let d = st.ray.d;
         let s = scene.surface(hit);
-        // The photon's ray at the hit (`PathState::at_hit`) is taken only where it is used: a
-        // diffuse hit that neither stores nor survives Russian roulette never needs it (it
-        // draws no random numbers, so the stream is the same).
+        // The photon's ray at the hit (`PathState::at_hit`, the differential transfer) is
+        // taken in each branch where it is used: a diffuse hit that neither stores nor
+        // survives Russian roulette never needs it (it draws no random numbers, so the
+        // stream is the same either way).
+
         // Side the photon arrives from.
         let front = if d.dot(s.geometric_normal) < 0.0 { s.geometric_normal } else { -s.geometric_normal };
         match s.scattering {
