@@ -215,11 +215,6 @@ impl PhotonWalk {
         let rng = &mut self.rng;
         let d = st.ray.d;
         let s = scene.surface(hit);
-        // The photon's ray at the hit (`PathState::at_hit`, the differential transfer) is
-        // taken in each branch where it is used: a diffuse hit that neither stores nor
-        // survives Russian roulette never needs it (it draws no random numbers, so the
-        // stream is the same either way).
-
         // Side the photon arrives from.
         let front = if d.dot(s.geometric_normal) < 0.0 { s.geometric_normal } else { -s.geometric_normal };
         match s.scattering {
@@ -244,7 +239,10 @@ impl PhotonWalk {
                 }
                 let albedo = albedo.as_dvec3();
                 let survive = albedo.max_element().min(1.0);
-                // Not stored (direct lighting counts this first hit): roulette first.
+                // The ray at the hit (`PathState::at_hit`, the differential transfer) is taken
+                // only where it is used: a hit that is not stored (direct lighting counts this
+                // first hit) draws its roulette first and skips the transfer if absorbed. The
+                // transfer draws no random numbers, so the stream is the same either way.
                 let stores = !(settings.direct_lighting && first_interaction);
                 if !stores && !(rng.next_f64() < survive) {
                     return false;
