@@ -276,38 +276,44 @@ impl PhotonWalk {
                 };
                 self.origin = offset_origin(s.position, front);
             }
-            Scattering::Mirror(reflectance) => {
+            // Mirrors and dielectrics share the transfer, the shading normal's derivative
+            // and the reflection: one copy of each in the compiled pass, which keeps the
+            // pass's hot code smaller (it competes with Embree's for the instruction cache).
+            Scattering::Mirror(_) | Scattering::Refractive(..) => {
                 let ray_at_hit = st.at_hit(&s);
                 st.classifier.record(SurfaceInteraction::Specular);
-                st.flux *= reflectance.as_dvec3();
                 let nd = scene.shading_normal(&s, ray_at_hit.dp_du, ray_at_hit.dp_dv);
                 let n = nd.map(|n| n.n).unwrap_or(s.geometric_normal);
-                st.reflect(&ray_at_hit, nd, n);
-                self.origin = offset_origin(s.position, front);
-            }
-            Scattering::Refractive(ior, transmittance) => {
-                let ray_at_hit = st.at_hit(&s);
-                st.classifier.record(SurfaceInteraction::Specular);
-                let ior = ior as f64;
-                let nd = scene.shading_normal(&s, ray_at_hit.dp_du, ray_at_hit.dp_dv);
-                let n = nd.map(|n| n.n).unwrap_or(s.geometric_normal);
-                let fresnel = dielectric_reflectance(d.dot(n), ior);
-                let reflect = rng.next_f64() < fresnel;
-                if reflect {
-                    st.reflect(&ray_at_hit, nd, n);
-                    self.origin = offset_origin(s.position, front);
+                // A mirror always reflects; a dielectric reflects with the Fresnel
+                // probability and otherwise refracts.
+                let refraction = if let Scattering::Refractive(ior, transmittance) = s.scattering {
+                    let ior = ior as f64;
+                    let fresnel = dielectric_reflectance(d.dot(n), ior);
+                    (!(rng.next_f64() < fresnel)).then_some((ior, transmittance))
                 } else {
-                    st.flux *= transmittance.as_dvec3();
-                    let (dir, event, _) = refract_direction(d, n, ior);
-                    st.ray = match st.differential_valid.then(|| nd.and_then(|nd| ray_at_hit.refract(&nd, ior))) {
-                        Some(Ok((r, e))) if e == event => r,
-                        _ => {
-                            st.differential_valid = false;
-                            lost_differential(s.position, dir)
-                        }
-                    };
-                    let side = if event == RefractionEvent::Transmitted { -front } else { front };
-                    self.origin = offset_origin(s.position, side);
+                    if let Scattering::Mirror(reflectance) = s.scattering {
+                        st.flux *= reflectance.as_dvec3();
+                    }
+                    None
+                };
+                match refraction {
+                    None => {
+                        st.reflect(&ray_at_hit, nd, n);
+                        self.origin = offset_origin(s.position, front);
+                    }
+                    Some((ior, transmittance)) => {
+                        st.flux *= transmittance.as_dvec3();
+                        let (dir, event, _) = refract_direction(d, n, ior);
+                        st.ray = match st.differential_valid.then(|| nd.and_then(|nd| ray_at_hit.refract(&nd, ior))) {
+                            Some(Ok((r, e))) if e == event => r,
+                            _ => {
+                                st.differential_valid = false;
+                                lost_differential(s.position, dir)
+                            }
+                        };
+                        let side = if event == RefractionEvent::Transmitted { -front } else { front };
+                        self.origin = offset_origin(s.position, side);
+                    }
                 }
             }
         }
