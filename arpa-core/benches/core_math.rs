@@ -38,7 +38,6 @@ use arpa_core::reemission::reemit;
 use arpa_core::rng::{Rng, StreamDomain};
 use arpa_core::sampling::{cosine_hemisphere, uniform_sphere};
 use arpa_core::heuristics::ResolvedHeuristics;
-use arpa_core::store_lanes::store_footprints_lanes;
 use arpa_core::store::{ProgressiveReason, StoredPhoton, store_footprint, store_footprint_resolved};
 use criterion::{Criterion, Throughput};
 use glam::{DVec2, DVec3, Vec3};
@@ -135,8 +134,6 @@ struct Pools {
     heuristics: Heuristics,
     resolved: ResolvedHeuristics,
     resolved_none: ResolvedHeuristics,
-    /// `resolved` with the dampening factor cached at [`RADII`].
-    resolved_at_radii: ResolvedHeuristics,
     ctx: [HeuristicContext; 2],
     point_light: Light,
     quad_light: Light,
@@ -353,7 +350,6 @@ fn build_pools() -> Pools {
         rngs,
         smoothing,
         resolved: heuristics.resolve(&scene),
-        resolved_at_radii: heuristics.resolve(&scene).at_radii(RADII),
         resolved_none: Heuristics::NONE.resolve(&scene),
         heuristics,
         ctx,
@@ -422,65 +418,6 @@ fn footprint_heuristics(p: &mut Pools) -> usize {
         }
     }
     p.stores.len()
-}
-
-/// The resolved store (smoothing, heuristics, box, packing) of the footprints one by one,
-/// heuristics cached at the pass's radii: the baseline of the lane rows below.
-fn resolved_store_scalar(p: &mut Pools) -> usize {
-    let (s, h) = black_box((&p.smoothing, &p.resolved_at_radii));
-    for fp in black_box(&p.footprints).iter() {
-        black_box(store_footprint_resolved(*black_box(fp), s, h, RADII[fp.map.index()]));
-    }
-    p.footprints.len()
-}
-
-/// The same stores `N` lanes at a time ([`store_footprints_lanes`]), lanes that do not
-/// answer taken by the scalar store.
-#[inline(always)]
-fn resolved_store_lanes<const N: usize>(p: &Pools) -> usize {
-    let (s, h) = black_box((&p.smoothing, &p.resolved_at_radii));
-    for batch in black_box(&p.footprints).chunks_exact(N) {
-        let batch: &[Footprint; N] = batch.try_into().unwrap();
-        store_footprints_lanes(black_box(batch), s, h, RADII, |k, lane| match lane {
-            Some(x) => {
-                black_box(x);
-            }
-            None => {
-                black_box(store_footprint_resolved(batch[k], s, h, RADII[batch[k].map.index()]));
-            }
-        });
-    }
-    p.footprints.len()
-}
-
-fn resolved_store_lanes_sse2(p: &mut Pools) -> usize {
-    resolved_store_lanes::<4>(p)
-}
-
-fn resolved_store_lanes_avx2(p: &mut Pools) -> usize {
-    #[target_feature(enable = "avx2")]
-    fn run(p: &Pools) -> usize {
-        resolved_store_lanes::<4>(p)
-    }
-    if std::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2.
-        unsafe { run(p) }
-    } else {
-        resolved_store_lanes::<4>(p)
-    }
-}
-
-fn resolved_store_lanes_avx512(p: &mut Pools) -> usize {
-    #[target_feature(enable = "avx512f")]
-    fn run(p: &Pools) -> usize {
-        resolved_store_lanes::<8>(p)
-    }
-    if std::is_x86_feature_detected!("avx512f") {
-        // SAFETY: the CPU has AVX-512F.
-        unsafe { run(p) }
-    } else {
-        resolved_store_lanes::<8>(p)
-    }
 }
 
 /// `Footprint::from_hit` alone (orientation and projection of the differentials).
@@ -607,10 +544,6 @@ const BENCHES: &[(&str, &str, Pass)] = &[
     ("store", "footprint + heuristics (resolving per call)", footprint_heuristics_unresolved),
     ("store", "footprint, heuristics off", footprint_no_heuristics),
     ("store", "Footprint::from_hit", footprint_from_hit),
-    ("store", "resolved store, scalar", resolved_store_scalar),
-    ("store", "resolved store, lanes x4 (SSE2)", resolved_store_lanes_sse2),
-    ("store", "resolved store, lanes x4 (AVX2)", resolved_store_lanes_avx2),
-    ("store", "resolved store, lanes x8 (AVX-512F)", resolved_store_lanes_avx512),
     ("store", "Heuristics::apply", heuristics_apply),
     ("store", "Footprint::pack", footprint_pack),
     ("gather", "point-in-footprint", contains),

@@ -261,13 +261,13 @@ impl Heuristics {
 /// followed by [`Footprint::pack`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ResolvedHeuristics {
-    pub(crate) dampening: Option<Dampening>,
-    pub(crate) h_max: Option<(f64, HMaxMode)>,
-    pub(crate) degenerate: Option<f64>,
-    pub(crate) cull: Option<(CullMetric, f64)>,
+    dampening: Option<Dampening>,
+    h_max: Option<(f64, HMaxMode)>,
+    degenerate: Option<f64>,
+    cull: Option<(CullMetric, f64)>,
     /// Per map: a progressive radius and `ℓ_ref^(3/4)` for it, the footprint-independent
     /// factor of γ = 1/4 dampening ([`ResolvedHeuristics::at_radii`]).
-    pub(crate) reference_pow: [Option<(f64, f64)>; 2],
+    reference_pow: [Option<(f64, f64)>; 2],
 }
 
 /// Why [`ResolvedHeuristics::store`] did not produce a footprint record.
@@ -349,7 +349,7 @@ const TAYLOR_MINUS_3_8: [f64; 8] = [
 /// (evaluated by Estrin's scheme, a short dependency chain), and `2^(−3e/8)` is a power of
 /// two times a table entry.
 #[inline(always)]
-pub(crate) fn pow_minus_3_8(x: f64) -> f64 {
+fn pow_minus_3_8(x: f64) -> f64 {
     let bits = x.to_bits();
     let e = ((bits >> 52) & 0x7ff) as i64 - 1023;
     let j = ((bits >> 47) & 31) as usize;

@@ -84,7 +84,6 @@ pub mod shaders;
 #[cfg(feature = "alloc")]
 pub mod shapes;
 pub mod store;
-pub mod store_lanes;
 #[cfg(feature = "alloc")]
 pub mod tracer;
 
