@@ -176,16 +176,38 @@ unsafe extern "C" fn boxes_bounds(args: *const sys::RTCBoundsFunctionArguments) 
         let args = &*args;
         let boxes = args.geometryUserPtr as *const Aabb;
         let b = &*boxes.add(args.primID as usize);
-        *args.bounds_o = sys::RTCBounds {
-            lower_x: b.lower[0],
-            lower_y: b.lower[1],
-            lower_z: b.lower[2],
-            align0: 0.0,
-            upper_x: b.upper[0],
-            upper_y: b.upper[1],
-            upper_z: b.upper[2],
-            align1: 0.0,
-        };
+        *args.bounds_o = bounds_of(b);
+    }
+}
+
+/// `b` as Embree's `RTCBounds`, written with two 16-byte stores on x86-64: the builder
+/// reads each corner (with its padding float) as one 16-byte load right after the
+/// callback returns, which cannot take its data from narrower stores still in the store
+/// buffer (see [`make_ray`]).
+#[inline(always)]
+fn bounds_of(b: &Aabb) -> sys::RTCBounds {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use core::arch::x86_64::{__m128, _mm_setr_ps};
+        // SAFETY: SSE2 is part of x86-64; `RTCBounds` is 32 bytes of `f32` fields in the
+        // order written here (lower, align0; upper, align1), 16-byte aligned, so it is two
+        // `__m128` with any bit pattern valid.
+        unsafe {
+            let lower = _mm_setr_ps(b.lower[0], b.lower[1], b.lower[2], 0.0);
+            let upper = _mm_setr_ps(b.upper[0], b.upper[1], b.upper[2], 0.0);
+            core::mem::transmute::<[__m128; 2], sys::RTCBounds>([lower, upper])
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    sys::RTCBounds {
+        lower_x: b.lower[0],
+        lower_y: b.lower[1],
+        lower_z: b.lower[2],
+        align0: 0.0,
+        upper_x: b.upper[0],
+        upper_y: b.upper[1],
+        upper_z: b.upper[2],
+        align1: 0.0,
     }
 }
 
@@ -794,5 +816,14 @@ mod tests {
         assert_eq!((r.mask, r.id, r.flags), (u32::MAX, 0, 0));
         let inf = make_ray([0.0; 3], [1.0, 0.0, 0.0], 0.0, f32::INFINITY);
         assert_eq!(inf.tfar, f32::INFINITY);
+    }
+
+    /// The bounds assembled from two vector registers put every corner coordinate where
+    /// the field-by-field layout does.
+    #[test]
+    fn bounds_of_puts_every_field_in_place() {
+        let b = bounds_of(&Aabb { lower: [-1.0, 2.5, -3.25], upper: [4.0, 5.5, 6.75] });
+        assert_eq!([b.lower_x, b.lower_y, b.lower_z, b.align0], [-1.0, 2.5, -3.25, 0.0]);
+        assert_eq!([b.upper_x, b.upper_y, b.upper_z, b.align1], [4.0, 5.5, 6.75, 0.0]);
     }
 }
