@@ -190,8 +190,8 @@ fn bounds_of(b: &Aabb) -> sys::RTCBounds {
     {
         use core::arch::x86_64::{__m128, _mm_setr_ps};
         // SAFETY: SSE2 is part of x86-64; `RTCBounds` is 32 bytes of `f32` fields in the
-        // order written here (lower, align0; upper, align1), 16-byte aligned, so it is two
-        // `__m128` with any bit pattern valid.
+        // order written here (lower, align0; upper, align1; checked in ffi.rs), so it is
+        // two `__m128` with any bit pattern valid.
         unsafe {
             let lower = _mm_setr_ps(b.lower[0], b.lower[1], b.lower[2], 0.0);
             let upper = _mm_setr_ps(b.upper[0], b.upper[1], b.upper[2], 0.0);
