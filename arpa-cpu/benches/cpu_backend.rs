@@ -16,7 +16,10 @@
 //!    `RayCaster` interface), `core_only.*` replays the recorded *hits* without Embree (the
 //!    propagation/differential/store cost of `trace_photon` alone).
 //! 2. `photon_pass.*`: [`CpuTracer::photon_pass`] segments/s (`photon_segments` / stage
-//!    time) on the same thread counts, and its ratio to (1).
+//!    time) on the same thread counts, and its ratio to (1). `interleaved.*` measures (1)
+//!    and both methods' passes again round by round, alternating, and gives the ratios of
+//!    their best times: the figure to quote, since this machine's speed drifts between
+//!    measurements taken apart.
 //! 3. `gather.*`: gather queries/s and footprints + photons per query.
 //! 4. `memory.*`: bytes per footprint: `size_of::<PackedFootprint>()`, the box (held from the
 //!    photon pass until the build, handed to Embree without a copy and freed after it), and
@@ -718,6 +721,40 @@ fn bench_rays(cfg: &Config, scene: &Scene, raw_rate: &mut [Rate; 2], pass_rate: 
                 pass_rate[k] = rate;
             }
         }
+    }
+
+    // The same ratios with the raw replay and both passes interleaved round by round, so
+    // that all three see the same phases of the machine: this VM's speed drifts by 5–30 %
+    // over minutes, enough to move a ratio read from measurements taken apart by several
+    // points (the lines above). Best of each over the rounds.
+    let rounds = if cfg.full { 8 } else { cfg.reps.max(2) };
+    let mut passes = [Method::Arpa, Method::Rtpm].map(|m| tracer(scene, &settings(m, cfg.photons)));
+    for (k, p) in pools.iter().enumerate() {
+        let mut raw = f64::INFINITY;
+        let mut pass = [(f64::INFINITY, 0u64); 2];
+        for _ in 0..rounds {
+            let start = Instant::now();
+            black_box(p.install(|| {
+                segments
+                    .par_chunks(4096)
+                    .map(|c| c.iter().filter(|r| matches!(emb.intersect(r.origin, r.direction, T_NEAR, r.t_max), Ok(Some(_)))).count())
+                    .sum::<usize>()
+            }));
+            raw = raw.min(start.elapsed().as_secs_f64());
+            for (tr, best) in passes.iter_mut().zip(&mut pass) {
+                p.install(|| tr.photon_pass()).expect("photon pass");
+                let stats = tr.read_stats().unwrap();
+                *best = (best.0.min(stats.times.photon), stats.photon_segments);
+            }
+        }
+        let raw_ns = raw / n * 1e9;
+        let [arpa, rtpm] = pass.map(|(t, segs)| t / segs as f64 * 1e9);
+        println!(
+            "interleaved.threads_{}: raw {raw_ns:.1} ns/ray, arpa {arpa:.1} ns/segment ({:.1} % of raw rays/s), rtpm {rtpm:.1} ns/segment ({:.1} %), best of {rounds} rounds",
+            threads[k],
+            100.0 * raw_ns / arpa,
+            100.0 * raw_ns / rtpm
+        );
     }
 }
 
