@@ -42,6 +42,9 @@
 //! Without `--bench` (`cargo test --benches`) everything runs once on a tiny version of the
 //! scene (32×32, 320 triangles of glass, a few thousand photons) in about a second.
 //! `ARPA_CPU_BENCH_ONLY=raw,pass,gather,memory,peak,breakdown` restricts the sections.
+//! `ARPA_CPU_BENCH_SUBDIVISIONS=k` subdivides the glass icosphere `k` times instead of 4
+//! (20·4^k triangles): how the photon pass's ratio to raw Embree moves as the BVH, and so
+//! Embree's time per ray, grows while the core's work per segment stays the same.
 //!
 //! `ARPA_CPU_BENCH_PACKETS=1` adds `packets.*` to section 1: the recorded photon segments
 //! through Embree's packet kernels ([`arpa_cpu::Scene::intersect8`] / `intersect16`, 8 or
@@ -1128,11 +1131,14 @@ fn profile_loop(cfg: &Config, spec: &str) {
 
 fn main() {
     let full = std::env::args().any(|a| a == "--bench");
-    let cfg = if full {
+    let mut cfg = if full {
         Config::full()
     } else {
         Config::smoke()
     };
+    if let Some(k) = std::env::var("ARPA_CPU_BENCH_SUBDIVISIONS").ok().and_then(|v| v.parse().ok()) {
+        cfg.subdivisions = k;
+    }
     if let Ok(what) = std::env::var(CHILD_ENV) {
         match what.as_str() {
             "memory" => child_memory(&cfg),
