@@ -43,8 +43,8 @@
 //! scene (32×32, 320 triangles of glass, a few thousand photons) in about a second.
 //! `ARPA_CPU_BENCH_ONLY=raw,pass,gather,memory,peak,breakdown` restricts the sections.
 //! `ARPA_CPU_BENCH_SUBDIVISIONS=k` subdivides the glass icosphere `k` times instead of 4
-//! (20·4^k triangles): how the photon pass's ratio to raw Embree moves as the BVH, and so
-//! Embree's time per ray, grows while the core's work per segment stays the same.
+//! (20·4^k triangles): how the photon pass's ratio to raw Embree, and the core's time per
+//! segment (`core_only.*`), move as the BVH grows.
 //!
 //! `ARPA_CPU_BENCH_PACKETS=1` adds `packets.*` to section 1: the recorded photon segments
 //! through Embree's packet kernels ([`arpa_cpu::Scene::intersect8`] / `intersect16`, 8 or
@@ -515,24 +515,27 @@ fn bench_rays(cfg: &Config, scene: &Scene, raw_rate: &mut [Rate; 2], pass_rate: 
     );
 
     let emb = caster.scene();
+    // The raw baseline: the recorded segments through `Scene::intersect` on the threads of
+    // `p`; returns the number of hits.
+    let raw_replay = |p: &rayon::ThreadPool| {
+        p.install(|| {
+            segments
+                .par_chunks(4096)
+                .map(|c| {
+                    c.iter()
+                        .filter(|r| {
+                            matches!(
+                                emb.intersect(r.origin, r.direction, T_NEAR, r.t_max),
+                                Ok(Some(_))
+                            )
+                        })
+                        .count()
+                })
+                .sum::<usize>()
+        })
+    };
     for (k, p) in pools.iter().enumerate() {
-        let t = best_time(cfg, || {
-            p.install(|| {
-                segments
-                    .par_chunks(4096)
-                    .map(|c| {
-                        c.iter()
-                            .filter(|r| {
-                                matches!(
-                                    emb.intersect(r.origin, r.direction, T_NEAR, r.t_max),
-                                    Ok(Some(_))
-                                )
-                            })
-                            .count()
-                    })
-                    .sum::<usize>()
-            })
-        });
+        let t = best_time(cfg, || raw_replay(p));
         raw_rate[k] = Rate {
             wall: n / t.best,
             cpu: n / t.cpu,
@@ -737,12 +740,7 @@ fn bench_rays(cfg: &Config, scene: &Scene, raw_rate: &mut [Rate; 2], pass_rate: 
         let mut pass = [(f64::INFINITY, 0u64); 2];
         for _ in 0..rounds {
             let start = Instant::now();
-            black_box(p.install(|| {
-                segments
-                    .par_chunks(4096)
-                    .map(|c| c.iter().filter(|r| matches!(emb.intersect(r.origin, r.direction, T_NEAR, r.t_max), Ok(Some(_)))).count())
-                    .sum::<usize>()
-            }));
+            black_box(raw_replay(p));
             raw = raw.min(start.elapsed().as_secs_f64());
             for (tr, best) in passes.iter_mut().zip(&mut pass) {
                 p.install(|| tr.photon_pass()).expect("photon pass");
@@ -752,12 +750,11 @@ fn bench_rays(cfg: &Config, scene: &Scene, raw_rate: &mut [Rate; 2], pass_rate: 
         }
         let raw_ns = raw / n * 1e9;
         let [arpa, rtpm] = pass.map(|(t, segs)| t / segs as f64 * 1e9);
-        interleaved[k] = 100.0 * raw_ns / arpa;
+        let [arpa_ratio, rtpm_ratio] = [arpa, rtpm].map(|ns| 100.0 * raw_ns / ns);
+        interleaved[k] = arpa_ratio;
         println!(
-            "interleaved.threads_{}: raw {raw_ns:.1} ns/ray, arpa {arpa:.1} ns/segment ({:.1} % of raw rays/s), rtpm {rtpm:.1} ns/segment ({:.1} %), best of {rounds} rounds",
-            threads[k],
-            100.0 * raw_ns / arpa,
-            100.0 * raw_ns / rtpm
+            "interleaved.threads_{}: raw {raw_ns:.1} ns/ray, arpa {arpa:.1} ns/segment ({arpa_ratio:.1} % of raw rays/s), rtpm {rtpm:.1} ns/segment ({rtpm_ratio:.1} %), best of {rounds} rounds",
+            threads[k]
         );
     }
 }
