@@ -463,6 +463,12 @@ impl RayCaster for Replay<'_> {
     }
 }
 
+/// Replays `segments` on the threads of `p` in chunks of 4,096, counting those for which
+/// `hit` (one closest-hit query) answers `true`.
+fn count_hits(p: &rayon::ThreadPool, segments: &[Segment], hit: impl Fn(&Segment) -> bool + Sync) -> usize {
+    p.install(|| segments.par_chunks(4096).map(|c| c.iter().filter(|r| hit(r)).count()).sum())
+}
+
 /// Rates of one thread count: wall-clock and per CPU-second.
 #[derive(Clone, Copy, Default)]
 struct Rate {
@@ -518,20 +524,8 @@ fn bench_rays(cfg: &Config, scene: &Scene, raw_rate: &mut [Rate; 2], pass_rate: 
     // The raw baseline: the recorded segments through `Scene::intersect` on the threads of
     // `p`; returns the number of hits.
     let raw_replay = |p: &rayon::ThreadPool| {
-        p.install(|| {
-            segments
-                .par_chunks(4096)
-                .map(|c| {
-                    c.iter()
-                        .filter(|r| {
-                            matches!(
-                                emb.intersect(r.origin, r.direction, T_NEAR, r.t_max),
-                                Ok(Some(_))
-                            )
-                        })
-                        .count()
-                })
-                .sum::<usize>()
+        count_hits(p, &segments, |r| {
+            matches!(emb.intersect(r.origin, r.direction, T_NEAR, r.t_max), Ok(Some(_)))
         })
     };
     for (k, p) in pools.iter().enumerate() {
@@ -550,23 +544,10 @@ fn bench_rays(cfg: &Config, scene: &Scene, raw_rate: &mut [Rate; 2], pass_rate: 
     }
     for (k, p) in pools.iter().enumerate() {
         let t = best_time(cfg, || {
-            p.install(|| {
-                segments
-                    .par_chunks(4096)
-                    .map(|c| {
-                        c.iter()
-                            .filter(|r| {
-                                caster
-                                    .intersect(
-                                        Vec3::from_array(r.origin),
-                                        Vec3::from_array(r.direction),
-                                        r.t_max,
-                                    )
-                                    .is_some()
-                            })
-                            .count()
-                    })
-                    .sum::<usize>()
+            count_hits(p, &segments, |r| {
+                caster
+                    .intersect(Vec3::from_array(r.origin), Vec3::from_array(r.direction), r.t_max)
+                    .is_some()
             })
         });
         println!(
