@@ -469,6 +469,12 @@ fn count_hits(p: &rayon::ThreadPool, segments: &[Segment], hit: impl Fn(&Segment
     p.install(|| segments.par_chunks(4096).map(|c| c.iter().filter(|r| hit(r)).count()).sum())
 }
 
+/// One photon pass of `tr` on the threads of `p`, and the statistics it leaves.
+fn run_photon_pass(tr: &mut CpuTracer, p: &rayon::ThreadPool) -> IterationStats {
+    p.install(|| tr.photon_pass()).expect("photon pass");
+    tr.read_stats().unwrap()
+}
+
 /// Rates of one thread count: wall-clock and per CPU-second.
 #[derive(Clone, Copy, Default)]
 struct Rate {
@@ -658,9 +664,11 @@ fn bench_rays(cfg: &Config, scene: &Scene, raw_rate: &mut [Rate; 2], pass_rate: 
         );
     }
 
-    // 2. arpa's photon pass on the same photons.
-    for method in [Method::Arpa, Method::Rtpm] {
-        let mut tr = tracer(scene, &settings(method, cfg.photons));
+    // 2. arpa's photon pass on the same photons (and RTPM's); the tracers serve the
+    // interleaved rounds below too.
+    let methods = [Method::Arpa, Method::Rtpm];
+    let mut passes = methods.map(|m| tracer(scene, &settings(m, cfg.photons)));
+    for (method, tr) in methods.into_iter().zip(&mut passes) {
         for (k, p) in pools.iter().enumerate() {
             let mut best = f64::INFINITY;
             let mut stats = IterationStats::default();
@@ -669,8 +677,7 @@ fn bench_rays(cfg: &Config, scene: &Scene, raw_rate: &mut [Rate; 2], pass_rate: 
             let mut calls = 0;
             for rep in 0.. {
                 calls += 1;
-                p.install(|| tr.photon_pass()).expect("photon pass");
-                stats = tr.read_stats().unwrap();
+                stats = run_photon_pass(tr, p);
                 best = best.min(stats.times.photon);
                 if rep + 1 >= cfg.reps && started.elapsed() >= cfg.min_time {
                     break;
@@ -715,7 +722,6 @@ fn bench_rays(cfg: &Config, scene: &Scene, raw_rate: &mut [Rate; 2], pass_rate: 
     // over minutes, enough to move a ratio read from measurements taken apart by several
     // points (the lines above). Best of each over the rounds.
     let rounds = if cfg.full { 8 } else { cfg.reps.max(2) };
-    let mut passes = [Method::Arpa, Method::Rtpm].map(|m| tracer(scene, &settings(m, cfg.photons)));
     for (k, p) in pools.iter().enumerate() {
         let mut raw = f64::INFINITY;
         let mut pass = [(f64::INFINITY, 0u64); 2];
@@ -724,8 +730,7 @@ fn bench_rays(cfg: &Config, scene: &Scene, raw_rate: &mut [Rate; 2], pass_rate: 
             black_box(raw_replay(p));
             raw = raw.min(start.elapsed().as_secs_f64());
             for (tr, best) in passes.iter_mut().zip(&mut pass) {
-                p.install(|| tr.photon_pass()).expect("photon pass");
-                let stats = tr.read_stats().unwrap();
+                let stats = run_photon_pass(tr, p);
                 *best = (best.0.min(stats.times.photon), stats.photon_segments);
             }
         }
@@ -1175,15 +1180,14 @@ fn main() {
                 pct(pass[k].cpu, raw[k].cpu)
             )
         };
-        println!("summary.photon_pass_to_raw_embree.threads_1: {}", ratio(0));
-        println!(
-            "summary.photon_pass_to_raw_embree.threads_{}: {}",
-            all_threads(),
-            ratio(1)
-        );
+        let threads = [1, all_threads()];
+        for k in 0..2 {
+            println!("summary.photon_pass_to_raw_embree.threads_{}: {}", threads[k], ratio(k));
+        }
         // The figure to quote: raw replay and pass timed in alternating rounds.
-        println!("summary.photon_pass_to_raw_embree.interleaved.threads_1: {:.1} %", interleaved[0]);
-        println!("summary.photon_pass_to_raw_embree.interleaved.threads_{}: {:.1} %", all_threads(), interleaved[1]);
+        for k in 0..2 {
+            println!("summary.photon_pass_to_raw_embree.interleaved.threads_{}: {:.1} %", threads[k], interleaved[k]);
+        }
     }
     println!(
         "# done in {:.1} s (load: {})",
