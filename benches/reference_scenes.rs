@@ -9,11 +9,12 @@
 //! seed 1 and 250,000 photons per iteration:
 //! - the rays of iteration 0's photon pass are recorded in photon order (origin,
 //!   direction, `t_max`, through a wrapping [`RayCaster`]);
-//! - `raw`: those rays replayed through [`arpa::cpu::Scene::intersect`] (`rtcIntersect1`
+//! - `raw`: those rays replayed through [`arpa::cpu::EmbreeScene::intersect`] (`rtcIntersect1`
 //!   on the caster's own BVH), ns per ray;
 //! - `pass`: [`CpuTracer::photon_pass`] of iteration 0 on a one-thread rayon pool, ns per
 //!   segment (its `photon_segments` must equal the recorded rays);
-//! - `ratio`: pass segments/s over raw rays/s (issue 3's target: ≥ 50 %).
+//! - `ratio`: pass segments/s over raw rays/s, i.e. `E / (E + C)` with `E` Embree's time
+//!   per ray and `C` the core's per segment (DEVELOPERS.md, "The CPU photon pass").
 //!
 //! The two are measured in alternation (raw, pass, raw, pass, …) and each keeps its best
 //! time, so that a slow phase of the machine does not land on one side only. Prints plain

@@ -1,11 +1,11 @@
 #!/usr/bin/env python3
 """Alternates `cpu_backend` runs of several builds or settings and keeps each one's best.
 
-This VM's speed drifts by 5-30 % over minutes, so two variants are compared only in
+Timings drift between runs minutes apart, so two variants are compared only in
 alternating runs (A B A B ...), each run's `interleaved.threads_1` line (raw Embree
 ns/ray, ARPA and RTPM pass ns/segment, themselves best of 8 alternating rounds), and
-the ratios are read against the lowest raw time of the whole set (DEVELOPERS.md, "Where
-the CPU photon pass stands").
+the ratios are read against the lowest raw time of the whole set (DEVELOPERS.md, "The
+CPU photon pass").
 
 Usage:
     scripts/bench_alternate.py ROUNDS SPEC [SPEC ...]

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs the system dependencies of the workspace on Debian 12. Idempotent; every step
 # checks first and installs only what is missing. Set ARPA_NO_APT=1 to never call apt-get.
+# `--with-peers` also installs the Mitsuba 3 peers of `arpa bench` (scripts/install-peers.sh).
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
@@ -8,3 +9,10 @@ cd "$(dirname "${BASH_SOURCE[0]}")/.."
 bash scripts/install-embree4.sh
 # Lavapipe with ray queries (Mesa >= 25 from bookworm-backports) and the Vulkan loader (arpa-wgpu).
 bash scripts/install-lavapipe.sh
+# The equal-time peers of `arpa bench`, on request.
+for arg in "$@"; do
+    case "$arg" in
+        --with-peers) bash scripts/install-peers.sh ;;
+        *) echo "setup-debian.sh: unknown option '$arg' (known: --with-peers)" >&2; exit 2 ;;
+    esac
+done

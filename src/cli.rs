@@ -14,8 +14,8 @@
 //! `iteration,seconds,relmse,ssim,flip` rows; `seconds` is the render time up to that
 //! iteration, excluding the time spent reading back images and computing metrics.
 //!
-//! The render loop ([`render`]) is generic over [`Tracer`]; the backend is picked from
-//! those compiled in with cargo features ([`COMPILED_BACKENDS`]). Every failure is an
+//! The CLI is argument parsing and printing: the backend comes from the registry
+//! ([`crate::backends`]), the render loop from [`crate::session`]. Every failure is an
 //! error naming the problem (never a panic); `main` prints it and exits non-zero.
 
 use crate::default_scene::default_scene;
@@ -23,24 +23,14 @@ use crate::image_io;
 use anyhow::{Context, bail};
 use arpa_core::classify::Smoothing;
 use arpa_core::radius::{ProgressiveConfig, RadiusSpec};
-use arpa_core::scene::Scene;
-use arpa_core::tracer::{Capabilities, Image, IterationStats, Method, RenderSettings, Tracer};
+use crate::backends::{self, BackendOptions};
+use crate::session::{Budget, CheckpointRow, Checkpoints, Hooks, Reference, Rendered, SessionOptions, StatTotals, render_with};
+use arpa_core::tracer::{BackendKind, Image, Method, RenderSettings};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
-
-/// Every backend name the project knows (some may not be compiled in).
-pub const KNOWN_BACKENDS: &[&str] = &["cpu", "wgpu", "vk"];
-
-/// The backends compiled into this build (cargo features).
-pub const COMPILED_BACKENDS: &[&str] = &[
-    #[cfg(feature = "cpu")]
-    "cpu",
-    #[cfg(feature = "wgpu")]
-    "wgpu",
-];
+use std::time::Duration;
 
 /// Default number of iterations when neither `--iterations` nor `--time` is given.
 pub const DEFAULT_ITERATIONS: u32 = 64;
@@ -66,47 +56,29 @@ pub struct Cli {
 pub enum Command {
     /// Render a scene (the embedded Cornell box by default) to OpenEXR and PNG.
     Render(RenderArgs),
+    /// Run time against error over a sweep of scenes, methods, photon budgets and backends
+    /// (with Mitsuba 3 peers at equal time): CSV, Table 2, plots and images in one directory.
+    Bench(BenchArgs),
 }
 
-/// A rendering backend.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Backend {
-    /// CPU backend on Embree 4 (`arpa-cpu`, cargo feature `cpu`).
-    Cpu,
-    /// wgpu backend on Vulkan ray queries, a GPU or lavapipe (`arpa-wgpu`, cargo feature
-    /// `wgpu`).
-    Wgpu,
-}
+/// Arguments of `arpa bench`.
+#[derive(Debug, Args)]
+pub struct BenchArgs {
+    /// The sweep's TOML config (e.g. `bench/table2.toml`, `bench/smoke.toml`).
+    #[arg(value_name = "CONFIG.toml")]
+    pub config: PathBuf,
 
-impl Backend {
-    /// Name as used on the command line.
-    pub const fn name(self) -> &'static str {
-        match self {
-            Backend::Cpu => "cpu",
-            Backend::Wgpu => "wgpu",
-        }
-    }
-}
+    /// Output directory.
+    #[arg(long, value_name = "DIR", default_value = "out/bench")]
+    pub out: PathBuf,
 
-fn compiled_list() -> String {
-    if COMPILED_BACKENDS.is_empty() { "none (rebuild with `--features cpu`)".to_string() } else { COMPILED_BACKENDS.join(", ") }
-}
+    /// Wall-clock budget of each run in seconds [default: the config's].
+    #[arg(long, allow_negative_numbers = true, value_name = "SECONDS", value_parser = parse_seconds)]
+    pub seconds: Option<f64>,
 
-/// Parses `--backend`: only backends compiled into this build are accepted.
-pub fn parse_backend(s: &str) -> Result<Backend, String> {
-    let name = s.trim().to_ascii_lowercase();
-    if COMPILED_BACKENDS.contains(&name.as_str()) {
-        return match name.as_str() {
-            "cpu" => Ok(Backend::Cpu),
-            "wgpu" => Ok(Backend::Wgpu),
-            _ => Err(format!("backend '{s}' is not implemented; compiled backends: {}", compiled_list())),
-        };
-    }
-    if KNOWN_BACKENDS.contains(&name.as_str()) {
-        Err(format!("backend '{s}' is not compiled into this build; compiled backends: {}", compiled_list()))
-    } else {
-        Err(format!("unknown backend '{s}'; compiled backends: {}", compiled_list()))
-    }
+    /// Python interpreter that runs the Mitsuba peers (`scripts/peer_mitsuba.py`).
+    #[arg(long, value_name = "PYTHON", default_value = "python3")]
+    pub python: String,
 }
 
 /// Density-estimation method on the command line.
@@ -218,10 +190,10 @@ pub struct RenderArgs {
     pub define: Vec<(String, String)>,
 
     /// Rendering backend (only those compiled in are accepted).
-    #[arg(long, value_name = "NAME", default_value = "cpu", value_parser = parse_backend)]
-    pub backend: Backend,
+    #[arg(long, value_name = "NAME", default_value = "cpu", value_parser = backends::parse)]
+    pub backend: BackendKind,
 
-    /// wgpu backend: use the adapter whose name contains NAME (case-insensitive), e.g.
+    /// GPU backends: use the adapter whose name contains NAME (case-insensitive), e.g.
     /// `llvmpipe` for lavapipe [default: a GPU with ray queries, else lavapipe].
     #[arg(long, value_name = "NAME")]
     pub adapter: Option<String>,
@@ -351,15 +323,6 @@ impl RenderArgs {
     }
 }
 
-/// How long to render.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Budget {
-    /// Exactly this many iterations.
-    Iterations(u32),
-    /// Iterations until this much wall-clock time has passed (at least one).
-    Time(Duration),
-}
-
 /// The files written for output path `out`: `(PATH.exr, PATH.png)`. A `.exr`/`.png`
 /// extension on `out` is dropped first; any other extension is kept (`a.b` -> `a.b.exr`).
 pub fn output_paths(out: &Path) -> anyhow::Result<(PathBuf, PathBuf)> {
@@ -379,50 +342,7 @@ pub fn output_paths(out: &Path) -> anyhow::Result<(PathBuf, PathBuf)> {
     Ok((with(".exr"), with(".png")))
 }
 
-/// Sums of the per-iteration statistics.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct StatTotals {
-    /// Iterations summed.
-    pub iterations: u32,
-    /// Counts and stage times summed over those iterations.
-    pub sum: IterationStats,
-}
-
-impl StatTotals {
-    /// Adds one iteration's statistics.
-    pub fn add(&mut self, s: &IterationStats) {
-        self.iterations += 1;
-        self.sum.accumulate(s);
-    }
-
-    /// Per-iteration mean of a count.
-    pub fn mean(&self, total: u64) -> f64 {
-        total as f64 / self.iterations.max(1) as f64
-    }
-}
-
-/// What a render produced.
-#[derive(Clone, Debug)]
-pub struct Rendered {
-    /// The accumulated image.
-    pub image: Image,
-    /// Iterations run.
-    pub iterations: u32,
-    /// Summed statistics.
-    pub totals: StatTotals,
-    /// Statistics of the last iteration.
-    pub last: IterationStats,
-    /// The backend's capabilities.
-    pub capabilities: Capabilities,
-    /// Wall-clock time of the iterations (excluding upload, read-back and checkpoints).
-    pub render_time: Duration,
-    /// Wall-clock time spent in checkpoints ([`Observer::observe`] and its read-backs).
-    pub checkpoint_time: Duration,
-    /// Wall-clock time of upload, iterations and read-back.
-    pub total_time: Duration,
-}
-
-/// Progress reporting of [`render`]: an indicatif bar on a terminal, nothing otherwise.
+/// Progress reporting of a render: an indicatif bar on a terminal, nothing otherwise.
 pub struct Progress {
     bar: ProgressBar,
 }
@@ -479,126 +399,6 @@ fn si(v: f64) -> String {
     format!("{v:.2} {p}")
 }
 
-/// When to evaluate intermediate images.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Checkpoints {
-    /// Never (only the final image).
-    Never,
-    /// At iterations 1, 2, 4, 8, ...
-    PowersOfTwo,
-    /// At every multiple of N.
-    Every(u32),
-}
-
-impl Checkpoints {
-    /// Whether `iteration` (1-based) is a checkpoint.
-    pub fn contains(self, iteration: u32) -> bool {
-        match self {
-            Checkpoints::Never => false,
-            Checkpoints::PowersOfTwo => iteration.is_power_of_two(),
-            Checkpoints::Every(n) => n > 0 && iteration.is_multiple_of(n),
-        }
-    }
-}
-
-/// Looks at the accumulated image during a [`render_observed`]: at every checkpoint and
-/// once at the end.
-pub trait Observer {
-    /// Called with the image after `iteration` iterations and the render time so far
-    /// (excluding earlier checkpoints).
-    fn observe(&mut self, iteration: u32, render_time: Duration, image: &Image) -> anyhow::Result<()>;
-}
-
-/// An [`Observer`] that does nothing.
-pub struct NoObserver;
-
-impl Observer for NoObserver {
-    fn observe(&mut self, _: u32, _: Duration, _: &Image) -> anyhow::Result<()> {
-        Ok(())
-    }
-}
-
-/// Uploads `scene` to `tracer` and runs iterations within `budget`; returns the image and
-/// statistics. Backend errors are returned with the stage and iteration that failed.
-pub fn render<T: Tracer>(tracer: &mut T, scene: &Scene, settings: &RenderSettings, budget: Budget, progress: &Progress) -> anyhow::Result<Rendered> {
-    render_observed(tracer, scene, settings, budget, progress, Checkpoints::Never, &mut NoObserver)
-}
-
-fn read_checked<T: Tracer>(tracer: &T, backend: &str) -> anyhow::Result<Image> {
-    let image = tracer.read_image().context("cannot read back the image")?;
-    let expected = image.width as u64 * image.height as u64;
-    if image.pixels.len() as u64 != expected {
-        bail!("backend '{backend}' returned a {}x{} image with {} pixels", image.width, image.height, image.pixels.len());
-    }
-    Ok(image)
-}
-
-/// [`render`] that also reads the image back at `checkpoints` and hands it to `observer`
-/// (and the final image once at the end). The time spent there is excluded from the
-/// render time and from a time budget.
-pub fn render_observed<T: Tracer, O: Observer + ?Sized>(
-    tracer: &mut T,
-    scene: &Scene,
-    settings: &RenderSettings,
-    budget: Budget,
-    progress: &Progress,
-    checkpoints: Checkpoints,
-    observer: &mut O,
-) -> anyhow::Result<Rendered> {
-    let start = Instant::now();
-    let capabilities = tracer.capabilities();
-    if !capabilities.methods.contains(&settings.method) {
-        bail!("backend '{}' does not implement method '{}'", capabilities.backend, settings.method.name());
-    }
-    if let Some(max) = capabilities.max_photons_per_iteration
-        && settings.photons_per_iteration > max
-    {
-        bail!("backend '{}' accepts at most {max} photons per iteration, {} requested", capabilities.backend, settings.photons_per_iteration);
-    }
-    tracer.upload_scene(scene, settings).with_context(|| format!("backend '{}' could not load the scene", capabilities.backend))?;
-
-    let render_start = Instant::now();
-    let mut totals = StatTotals::default();
-    let mut last = IterationStats::default();
-    let mut iterations = 0u32;
-    let mut checkpoint_time = Duration::ZERO;
-    let mut observed_at = 0u32;
-    let rendering = |checkpoint_time: Duration| render_start.elapsed().saturating_sub(checkpoint_time);
-    loop {
-        let more = match budget {
-            Budget::Iterations(n) => iterations < n,
-            Budget::Time(t) => iterations == 0 || rendering(checkpoint_time) < t,
-        };
-        if !more {
-            break;
-        }
-        let i = iterations + 1;
-        tracer.iterate().with_context(|| format!("iteration {i} failed"))?;
-        last = tracer.read_stats().with_context(|| format!("cannot read the statistics of iteration {i}"))?;
-        totals.add(&last);
-        iterations = i;
-        let last_iteration = matches!(budget, Budget::Iterations(n) if i >= n);
-        if checkpoints.contains(i) && !last_iteration {
-            let at = rendering(checkpoint_time);
-            let t0 = Instant::now();
-            let image = read_checked(tracer, capabilities.backend)?;
-            progress.bar.suspend(|| observer.observe(i, at, &image))?;
-            observed_at = i;
-            checkpoint_time += t0.elapsed();
-        }
-        progress.update(budget, iterations, rendering(checkpoint_time), totals.sum.photons_emitted);
-    }
-    let render_time = rendering(checkpoint_time);
-    progress.finish();
-    let image = read_checked(tracer, capabilities.backend)?;
-    if observed_at != iterations {
-        let t0 = Instant::now();
-        observer.observe(iterations, render_time, &image)?;
-        checkpoint_time += t0.elapsed();
-    }
-    Ok(Rendered { image, iterations, totals, last, capabilities, render_time, checkpoint_time, total_time: start.elapsed() })
-}
-
 /// The human-readable statistics summary printed at the end of a render.
 pub fn summary(r: &Rendered, settings: &RenderSettings) -> String {
     let t = &r.totals.sum;
@@ -641,59 +441,25 @@ pub fn summary(r: &Rendered, settings: &RenderSettings) -> String {
     s
 }
 
-/// Runs a backend on `scene`.
-#[allow(clippy::too_many_arguments)]
-fn render_on_backend(
-    backend: Backend,
-    adapter: Option<&str>,
-    scene: &Scene,
-    settings: &RenderSettings,
-    budget: Budget,
-    progress: &Progress,
-    checkpoints: Checkpoints,
-    observer: &mut dyn Observer,
-) -> anyhow::Result<Rendered> {
-    if adapter.is_some() && backend != Backend::Wgpu {
-        bail!("--adapter applies to --backend wgpu only (backend '{}' given)", backend.name());
-    }
-    // One arm per backend; each compiles without its feature and then reports it missing.
-    match backend {
-        Backend::Wgpu => {
-            #[cfg(feature = "wgpu")]
-            {
-                let choice = match adapter {
-                    Some(name) => arpa_wgpu::AdapterChoice::NameContains(name.to_string()),
-                    None => arpa_wgpu::AdapterChoice::Auto,
-                };
-                let mut tracer = arpa_wgpu::WgpuTracer::new(&choice).context("cannot start the wgpu backend")?;
-                render_observed(&mut tracer, scene, settings, budget, progress, checkpoints, observer)
-            }
-            #[cfg(not(feature = "wgpu"))]
-            {
-                let _ = (scene, settings, budget, progress, checkpoints, observer);
-                bail!("backend 'wgpu' is not compiled into this build (rebuild with `--features wgpu`)");
-            }
-        }
-        Backend::Cpu => {
-            #[cfg(feature = "cpu")]
-            {
-                let mut tracer = arpa_cpu::CpuTracer::new().context("cannot start the CPU backend (Embree 4)")?;
-                render_observed(&mut tracer, scene, settings, budget, progress, checkpoints, observer)
-            }
-            #[cfg(not(feature = "cpu"))]
-            {
-                let _ = (scene, settings, budget, progress, checkpoints, observer);
-                bail!("backend 'cpu' is not compiled into this build (rebuild with `--features cpu`)");
-            }
-        }
-    }
-}
-
 /// Runs the CLI.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Render(args) => run_render(&args),
+        Command::Bench(args) => run_bench(&args),
     }
+}
+
+/// `arpa bench`.
+pub fn run_bench(args: &BenchArgs) -> anyhow::Result<()> {
+    let cfg = crate::bench::config::LoadedConfig::load(&args.config)?;
+    let options = crate::bench::BenchOptions { out: args.out.clone(), seconds: args.seconds, python: args.python.clone() };
+    let results = crate::bench::run_bench(&cfg, &options)?;
+    let skipped = results.iter().filter(|r| r.skipped.is_some()).count();
+    if skipped > 0 {
+        eprintln!("warning: {skipped} run(s) skipped (see the 'skipped' rows of runs.csv and table.md)");
+    }
+    eprintln!("wrote {}/runs.csv, table.md, plots/ and images/", args.out.display());
+    Ok(())
 }
 
 /// `arpa render`.
@@ -741,23 +507,29 @@ pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create output directory '{}'", dir.display()))?;
     }
 
-    let mut metrics = match &args.reference {
-        Some(path) => Some(MetricsObserver::new(path, args.metrics_csv.as_deref(), scene.camera.width, scene.camera.height)?),
+    let reference = match &args.reference {
+        Some(path) => Some(Reference::load(path, scene.camera.width, scene.camera.height)?),
         None => None,
     };
-    let checkpoints = match (&metrics, args.checkpoint_every) {
+    let csv = match (&reference, &args.metrics_csv) {
+        (Some(_), Some(path)) => Some(MetricsCsv::create(path)?),
+        _ => None,
+    };
+    let checkpoints = match (&reference, args.checkpoint_every) {
         (None, _) => Checkpoints::Never,
         (Some(_), Some(n)) => Checkpoints::Every(n),
         (Some(_), None) => Checkpoints::PowersOfTwo,
     };
 
+    let options = BackendOptions { adapter: args.adapter.clone() };
+    let mut tracer = backends::create(args.backend, &options)?;
     let progress = Progress::new(budget, std::io::stderr().is_terminal());
-    let rendered = match &mut metrics {
-        Some(m) => render_on_backend(args.backend, args.adapter.as_deref(), &scene, &settings, budget, &progress, checkpoints, m)?,
-        None => render_on_backend(args.backend, args.adapter.as_deref(), &scene, &settings, budget, &progress, checkpoints, &mut NoObserver)?,
-    };
-    if let Some(m) = &mut metrics {
-        m.finish()?;
+    let mut hooks = CliHooks { budget, progress: &progress, csv };
+    let session = SessionOptions { budget, checkpoints, reference: reference.as_ref() };
+    let rendered = render_with(&mut tracer, &scene, &settings, &session, &mut hooks)?;
+    progress.finish();
+    if let Some(csv) = &mut hooks.csv {
+        csv.finish()?;
     }
 
     let exr = image_io::write_exr(&exr_path, &rendered.image)?;
@@ -770,222 +542,106 @@ pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Evaluates [`crate::metrics`] against a reference at checkpoints: prints a line to stderr
-/// and optionally writes a CSV row per checkpoint.
-pub struct MetricsObserver {
-    reference: Image,
-    reference_path: PathBuf,
-    csv: Option<(PathBuf, std::io::BufWriter<std::fs::File>)>,
-    /// The rows evaluated so far: `(iteration, seconds, metrics)`.
-    pub rows: Vec<(u32, f64, crate::metrics::Metrics)>,
+/// The CLI's view of a render: the progress bar, a metrics line per checkpoint on stderr
+/// and the CSV rows.
+struct CliHooks<'a> {
+    budget: Budget,
+    progress: &'a Progress,
+    csv: Option<MetricsCsv>,
 }
 
-impl MetricsObserver {
-    /// Reads the reference (which must be `width`x`height`) and creates the CSV file.
-    pub fn new(reference: &Path, csv: Option<&Path>, width: u32, height: u32) -> anyhow::Result<Self> {
-        let image = image_io::read_exr(reference).with_context(|| format!("cannot read reference image '{}'", reference.display()))?;
-        if (image.width, image.height) != (width, height) {
-            bail!(
-                "reference image '{}' is {}x{} pixels but the render is {}x{}; render at --resolution {}x{} or use a matching reference",
-                reference.display(),
-                image.width,
-                image.height,
-                width,
-                height,
-                image.width,
-                image.height
-            );
-        }
-        let csv = match csv {
-            Some(path) => {
-                if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-                    std::fs::create_dir_all(dir).with_context(|| format!("cannot create directory '{}'", dir.display()))?;
-                }
-                let file = std::fs::File::create(path).with_context(|| format!("cannot create metrics CSV '{}'", path.display()))?;
-                let mut w = std::io::BufWriter::new(file);
-                use std::io::Write;
-                writeln!(w, "iteration,seconds,relmse,ssim,flip").with_context(|| format!("cannot write metrics CSV '{}'", path.display()))?;
-                Some((path.to_path_buf(), w))
-            }
-            None => None,
-        };
-        Ok(Self { reference: image, reference_path: reference.to_path_buf(), csv, rows: Vec::new() })
+impl Hooks for CliHooks<'_> {
+    fn iteration(&mut self, iterations: u32, render_time: Duration, totals: &StatTotals) {
+        self.progress.update(self.budget, iterations, render_time, totals.sum.photons_emitted);
     }
 
-    /// Flushes the CSV file.
+    fn checkpoint(&mut self, row: &CheckpointRow, _: &Image) -> anyhow::Result<()> {
+        if let Some(m) = row.metrics {
+            self.progress.bar.suspend(|| eprintln!("iteration {:>6}  {:>9.3} s  relMSE {:.6e}  SSIM {:.6}  FLIP {:.6}", row.iteration, row.seconds, m.rel_mse, m.ssim, m.flip));
+        }
+        if let Some(csv) = &mut self.csv {
+            csv.write(row)?;
+        }
+        Ok(())
+    }
+}
+
+/// `--metrics-csv`: one `iteration,seconds,relmse,ssim,flip` row per checkpoint with
+/// metrics (`seconds`: render time up to that iteration, excluding checkpoints).
+pub struct MetricsCsv {
+    path: PathBuf,
+    writer: std::io::BufWriter<std::fs::File>,
+}
+
+impl MetricsCsv {
+    /// Creates the file (and its directory) and writes the header.
+    pub fn create(path: &Path) -> anyhow::Result<Self> {
+        use std::io::Write;
+        if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).with_context(|| format!("cannot create directory '{}'", dir.display()))?;
+        }
+        let file = std::fs::File::create(path).with_context(|| format!("cannot create metrics CSV '{}'", path.display()))?;
+        let mut writer = std::io::BufWriter::new(file);
+        writeln!(writer, "iteration,seconds,relmse,ssim,flip").with_context(|| format!("cannot write metrics CSV '{}'", path.display()))?;
+        Ok(Self { path: path.to_path_buf(), writer })
+    }
+
+    /// Writes `row` (nothing for a row without metrics).
+    pub fn write(&mut self, row: &CheckpointRow) -> anyhow::Result<()> {
+        use std::io::Write;
+        let Some(m) = row.metrics else { return Ok(()) };
+        writeln!(self.writer, "{},{:.6},{:.9e},{:.9},{:.9}", row.iteration, row.seconds, m.rel_mse, m.ssim, m.flip).with_context(|| format!("cannot write metrics CSV '{}'", self.path.display()))
+    }
+
+    /// Flushes the file.
     pub fn finish(&mut self) -> anyhow::Result<()> {
-        if let Some((path, w)) = &mut self.csv {
-            use std::io::Write;
-            w.flush().with_context(|| format!("cannot write metrics CSV '{}'", path.display()))?;
-        }
-        Ok(())
-    }
-}
-
-impl Observer for MetricsObserver {
-    fn observe(&mut self, iteration: u32, render_time: Duration, image: &Image) -> anyhow::Result<()> {
-        let m = crate::metrics::compare_images(image, &self.reference).with_context(|| format!("cannot compare with reference '{}'", self.reference_path.display()))?;
-        let secs = render_time.as_secs_f64();
-        eprintln!("iteration {iteration:>6}  {secs:>9.3} s  relMSE {:.6e}  SSIM {:.6}  FLIP {:.6}", m.rel_mse, m.ssim, m.flip);
-        if let Some((path, w)) = &mut self.csv {
-            use std::io::Write;
-            writeln!(w, "{iteration},{secs:.6},{:.9e},{:.9},{:.9}", m.rel_mse, m.ssim, m.flip).with_context(|| format!("cannot write metrics CSV '{}'", path.display()))?;
-        }
-        self.rows.push((iteration, secs, m));
-        Ok(())
+        use std::io::Write;
+        self.writer.flush().with_context(|| format!("cannot write metrics CSV '{}'", self.path.display()))
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use arpa_core::footprint::PackedFootprint;
-    use arpa_core::glam::Vec3;
-    use arpa_core::progressive_photon::PackedPhoton;
-    use arpa_core::tracer::QueryRecord;
-
-    #[derive(Debug, thiserror::Error)]
-    #[error("mock failure")]
-    struct MockError;
-
-    #[derive(Default)]
-    struct Mock {
-        size: (u32, u32),
-        photons: u32,
-        iterations: u32,
-        fail_at: Option<u32>,
-        sleep: Duration,
-    }
-
-    impl Tracer for Mock {
-        type Error = MockError;
-        fn capabilities(&self) -> Capabilities {
-            Capabilities { backend: "mock", device: "test".into(), methods: vec![Method::Arpa], max_photons_per_iteration: None, deterministic: true }
-        }
-        fn upload_scene(&mut self, scene: &Scene, settings: &RenderSettings) -> Result<(), MockError> {
-            self.size = (scene.camera.width, scene.camera.height);
-            self.photons = settings.photons_per_iteration;
-            self.iterations = 0;
-            Ok(())
-        }
-        fn camera_pass(&mut self) -> Result<(), MockError> {
-            Ok(())
-        }
-        fn photon_pass(&mut self) -> Result<(), MockError> {
-            std::thread::sleep(self.sleep);
-            Ok(())
-        }
-        fn build_acceleration_structure(&mut self) -> Result<(), MockError> {
-            Ok(())
-        }
-        fn gather(&mut self) -> Result<(), MockError> {
-            if self.fail_at == Some(self.iterations + 1) { Err(MockError) } else { Ok(()) }
-        }
-        fn accumulate(&mut self) -> Result<(), MockError> {
-            self.iterations += 1;
-            Ok(())
-        }
-        fn iterations(&self) -> u32 {
-            self.iterations
-        }
-        fn read_image(&self) -> Result<Image, MockError> {
-            Ok(Image { width: self.size.0, height: self.size.1, pixels: vec![Vec3::splat(0.5); (self.size.0 * self.size.1) as usize] })
-        }
-        fn read_query_points(&self) -> Result<Vec<QueryRecord>, MockError> {
-            Ok(vec![])
-        }
-        fn read_footprints(&self) -> Result<Vec<PackedFootprint>, MockError> {
-            Ok(vec![])
-        }
-        fn read_photons(&self) -> Result<Vec<PackedPhoton>, MockError> {
-            Ok(vec![])
-        }
-        fn read_stats(&self) -> Result<IterationStats, MockError> {
-            let mut s = IterationStats { iteration: self.iterations, photons_emitted: self.photons as u64, footprints: [10, 20], progressive: [1, 2], degenerate: 3, ..Default::default() };
-            s.times.gather = 0.002;
-            Ok(s)
-        }
-    }
-
-    fn small_scene() -> Scene {
-        let mut s = default_scene();
-        s.camera.width = 8;
-        s.camera.height = 4;
-        s
-    }
 
     #[test]
-    fn renders_the_requested_iterations_and_sums_statistics() {
-        let mut t = Mock::default();
-        let settings = RenderSettings { photons_per_iteration: 1000, ..Default::default() };
-        let r = render(&mut t, &small_scene(), &settings, Budget::Iterations(5), &Progress::hidden()).unwrap();
-        assert_eq!(r.iterations, 5);
-        assert_eq!((r.image.width, r.image.height, r.image.pixels.len()), (8, 4, 32));
-        assert_eq!(r.totals.sum.photons_emitted, 5000);
-        assert_eq!(r.totals.sum.footprints, [50, 100]);
-        assert_eq!(r.totals.mean(r.totals.sum.degenerate), 3.0);
-        assert!((r.totals.sum.times.gather - 0.01).abs() < 1e-12);
-        let text = summary(&r, &settings);
-        assert!(text.contains("rendered 5 iterations") && text.contains("10 footprints") && text.contains("gather 2.00 ms"), "{text}");
-    }
-
-    #[test]
-    fn time_budget_runs_at_least_one_iteration_and_stops() {
-        let mut t = Mock { sleep: Duration::from_millis(20), ..Default::default() };
-        let r = render(&mut t, &small_scene(), &RenderSettings::default(), Budget::Time(Duration::from_millis(1)), &Progress::hidden()).unwrap();
-        assert_eq!(r.iterations, 1);
-        let mut t = Mock { sleep: Duration::from_millis(5), ..Default::default() };
-        let r = render(&mut t, &small_scene(), &RenderSettings::default(), Budget::Time(Duration::from_millis(60)), &Progress::hidden()).unwrap();
-        assert!(r.iterations >= 2 && r.iterations < 40, "{}", r.iterations);
-    }
-
-    #[test]
-    fn backend_errors_name_the_iteration_and_unsupported_methods_fail() {
-        let mut t = Mock { fail_at: Some(3), ..Default::default() };
-        let e = render(&mut t, &small_scene(), &RenderSettings::default(), Budget::Iterations(5), &Progress::hidden()).unwrap_err();
-        assert_eq!(format!("{e:#}"), "iteration 3 failed: mock failure");
-        let settings = RenderSettings { method: Method::Rtpm, ..Default::default() };
-        let e = render(&mut Mock::default(), &small_scene(), &settings, Budget::Iterations(1), &Progress::hidden()).unwrap_err();
-        assert!(e.to_string().contains("does not implement method 'rtpm'"), "{e}");
-    }
-
-    struct Recorder(Vec<u32>);
-    impl Observer for Recorder {
-        fn observe(&mut self, iteration: u32, _: Duration, image: &Image) -> anyhow::Result<()> {
-            assert_eq!(image.pixels.len(), 32);
-            self.0.push(iteration);
-            Ok(())
+    fn summary_reports_counts_and_stage_times() {
+        use crate::session::{Rendered, StatTotals};
+        use arpa_core::tracer::{Capabilities, IterationStats};
+        let mut totals = StatTotals::default();
+        let mut it = IterationStats { photons_emitted: 1000, footprints: [10, 20], progressive: [1, 2], degenerate: 3, ..Default::default() };
+        it.times.gather = 0.002;
+        for _ in 0..5 {
+            totals.add(&it);
         }
-    }
-
-    #[test]
-    fn checkpoints_observe_powers_of_two_multiples_and_the_end() {
-        let run = |c: Checkpoints, n: u32| {
-            let mut rec = Recorder(vec![]);
-            let r = render_observed(&mut Mock::default(), &small_scene(), &RenderSettings::default(), Budget::Iterations(n), &Progress::hidden(), c, &mut rec).unwrap();
-            assert_eq!(r.iterations, n);
-            rec.0
+        let r = Rendered {
+            image: Image { width: 1, height: 1, pixels: vec![Default::default()] },
+            iterations: 5,
+            totals,
+            last: it,
+            capabilities: Capabilities { backend: BackendKind::Cpu, device: "test".into(), methods: vec![Method::Arpa], max_photons_per_iteration: None, deterministic: true },
+            rows: vec![],
+            render_time: Duration::from_secs(1),
+            checkpoint_time: Duration::ZERO,
+            total_time: Duration::from_secs(1),
         };
-        assert_eq!(run(Checkpoints::PowersOfTwo, 10), vec![1, 2, 4, 8, 10]);
-        assert_eq!(run(Checkpoints::PowersOfTwo, 8), vec![1, 2, 4, 8]);
-        assert_eq!(run(Checkpoints::Every(3), 7), vec![3, 6, 7]);
-        assert_eq!(run(Checkpoints::Never, 5), vec![5]);
+        let text = summary(&r, &RenderSettings::default());
+        assert!(text.contains("rendered 5 iterations") && text.contains("10 footprints") && text.contains("gather 2.00 ms") && text.contains("backend 'cpu'"), "{text}");
     }
 
     #[test]
-    fn metrics_observer_rejects_a_wrong_size_reference() {
+    fn metrics_csv_writes_rows_with_metrics() {
+        use crate::metrics::Metrics;
         let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("ref.exr");
-        image_io::write_exr(&path, &Image { width: 4, height: 2, pixels: vec![Vec3::ONE; 8] }).unwrap();
-        let e = MetricsObserver::new(&path, None, 8, 4).err().unwrap();
-        let msg = format!("{e:#}");
-        assert!(msg.contains("is 4x2 pixels but the render is 8x4"), "{msg}");
-        let csv = dir.path().join("m.csv");
-        let mut m = MetricsObserver::new(&path, Some(&csv), 4, 2).unwrap();
-        m.observe(3, Duration::from_millis(1500), &Image { width: 4, height: 2, pixels: vec![Vec3::ONE; 8] }).unwrap();
-        m.finish().unwrap();
-        let text = std::fs::read_to_string(&csv).unwrap();
+        let path = dir.path().join("sub/m.csv");
+        let mut csv = MetricsCsv::create(&path).unwrap();
+        let row = |iteration, metrics| CheckpointRow { iteration, seconds: 1.5, times: Default::default(), metrics };
+        csv.write(&row(2, None)).unwrap();
+        csv.write(&row(3, Some(Metrics { rel_mse: 0.0, ssim: 1.0, flip: 0.0 }))).unwrap();
+        csv.finish().unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
         assert_eq!(text.lines().next(), Some("iteration,seconds,relmse,ssim,flip"));
+        assert_eq!(text.lines().count(), 2, "{text}");
         assert!(text.lines().nth(1).unwrap().starts_with("3,1.500000,0.0"), "{text}");
     }
 
@@ -997,14 +653,6 @@ mod tests {
             let e = parse_resolution(bad).unwrap_err();
             assert!(e.contains(bad.trim()), "{e}");
         }
-        assert!(parse_backend("nope").unwrap_err().contains("unknown backend 'nope'"));
-        assert!(parse_backend("vk").unwrap_err().contains("not compiled"));
-        #[cfg(feature = "wgpu")]
-        assert_eq!(parse_backend("WGPU"), Ok(Backend::Wgpu));
-        #[cfg(not(feature = "wgpu"))]
-        assert!(parse_backend("wgpu").unwrap_err().contains("not compiled"));
-        #[cfg(feature = "cpu")]
-        assert_eq!(parse_backend("cpu"), Ok(Backend::Cpu));
         assert!(parse_positive_f64("0").is_err() && parse_positive_f64("nan").is_err() && parse_positive_f64("2.5") == Ok(2.5));
         assert!(parse_exposure("-1").is_err() && parse_exposure("inf").is_err() && parse_exposure("0") == Ok(0.0));
     }
@@ -1023,7 +671,7 @@ mod tests {
     #[cfg(feature = "cpu")] // the default backend must be compiled in
     fn cli_parses_defaults_and_rejects_conflicts() {
         let cli = Cli::try_parse_from(["arpa", "render"]).unwrap();
-        let Command::Render(a) = cli.command;
+        let Command::Render(a) = cli.command else { panic!("render") };
         assert_eq!(a.budget(), Budget::Iterations(DEFAULT_ITERATIONS));
         assert_eq!(a.photons, 250_000);
         assert_eq!(a.out, PathBuf::from("out/render"));
@@ -1032,7 +680,7 @@ mod tests {
         assert!(Cli::try_parse_from(["arpa", "render", "--iterations", "1", "--time", "1"]).is_err());
         assert!(Cli::try_parse_from(["arpa", "render", "--photons", "0"]).is_err());
         let cli = Cli::try_parse_from(["arpa", "render", "--time", "2.5", "--no-direct", "--method", "rtpm", "--smoothing-caustic", "2"]).unwrap();
-        let Command::Render(a) = cli.command;
+        let Command::Render(a) = cli.command else { panic!("render") };
         assert_eq!(a.budget(), Budget::Time(Duration::from_secs_f64(2.5)));
         let s = a.settings();
         assert!(!s.direct_lighting && s.method == Method::Rtpm && s.smoothing.caustic == 2.0);
@@ -1044,7 +692,7 @@ mod tests {
         let parse = |args: &[&str]| {
             let mut v = vec!["arpa", "render"];
             v.extend_from_slice(args);
-            let Command::Render(a) = Cli::try_parse_from(v).unwrap().command;
+            let Command::Render(a) = Cli::try_parse_from(v).unwrap().command else { panic!("render") };
             a
         };
         let a = parse(&[]);

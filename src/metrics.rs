@@ -119,15 +119,54 @@ pub fn compare(test: &[Vec3], reference: &[Vec3], width: u32, height: u32) -> Re
 
 /// Relative mean squared error: mean over pixels and channels of `(a − b)² / (b² + 0.01)`.
 pub fn rel_mse(test: &[Vec3], reference: &[Vec3], width: u32, height: u32) -> Result<f64, MetricsError> {
+    let per_pixel = rel_mse_per_pixel(test, reference, width, height)?;
+    Ok(per_pixel.iter().sum::<f64>() / per_pixel.len() as f64)
+}
+
+/// Per pixel, the mean over the three channels of `(a − b)² / (b² + 0.01)`: the map whose
+/// mean is [`rel_mse`] (the error heat maps of `arpa bench`).
+pub fn rel_mse_per_pixel(test: &[Vec3], reference: &[Vec3], width: u32, height: u32) -> Result<Vec<f64>, MetricsError> {
     check(test, reference, width, height)?;
-    let mut sum = 0.0f64;
-    for (a, b) in test.iter().zip(reference) {
-        for ch in 0..3 {
-            let (a, b) = (finite(a[ch]), finite(b[ch]));
-            sum += (a - b) * (a - b) / (b * b + REL_MSE_EPSILON);
+    Ok(test
+        .iter()
+        .zip(reference)
+        .map(|(a, b)| {
+            (0..3)
+                .map(|ch| {
+                    let (a, b) = (finite(a[ch]), finite(b[ch]));
+                    (a - b) * (a - b) / (b * b + REL_MSE_EPSILON)
+                })
+                .sum::<f64>()
+                / 3.0
+        })
+        .collect())
+}
+
+/// Mean over pixels and channels (non-finite values as 0): the whole-image mean whose ratio
+/// to the reference's tells bias from noise.
+pub fn mean(image: &arpa_core::tracer::Image) -> f64 {
+    image.pixels.iter().map(|p| (finite(p.x) + finite(p.y) + finite(p.z)) / 3.0).sum::<f64>() / image.pixels.len().max(1) as f64
+}
+
+/// Box-averages `image` by `k` in both axes (its size must be a multiple of `k`;
+/// non-finite values count as 0): a reference at the resolution of a render `k` times
+/// smaller, with `k²` times less of the reference's own noise.
+pub fn downsample(image: &arpa_core::tracer::Image, k: u32) -> Result<arpa_core::tracer::Image, String> {
+    if k == 0 || !image.width.is_multiple_of(k) || !image.height.is_multiple_of(k) {
+        return Err(format!("cannot downsample {}x{} by {k}", image.width, image.height));
+    }
+    let (w, h) = (image.width / k, image.height / k);
+    let mut pixels = vec![Vec3::ZERO; (w * h) as usize];
+    for y in 0..image.height {
+        for x in 0..image.width {
+            let p = image.pixels[(y * image.width + x) as usize];
+            let p = if p.is_finite() { p } else { Vec3::ZERO };
+            pixels[((y / k) * w + x / k) as usize] += p;
         }
     }
-    Ok(sum / (3.0 * test.len() as f64))
+    let inv = 1.0 / (k * k) as f32;
+    pixels.iter_mut().for_each(|p| *p *= inv);
+    Ok(arpa_core::tracer::Image { width: w, height: h, pixels })
 }
 
 /// sRGB-encoded, clamped luminance of a linear pixel.
@@ -218,6 +257,20 @@ pub fn flip(test: &[Vec3], reference: &[Vec3], width: u32, height: u32) -> Resul
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn downsample_is_a_box_average() {
+        let img = arpa_core::tracer::Image {
+            width: 4,
+            height: 2,
+            pixels: (0..8).map(|i| Vec3::splat(i as f32)).collect(),
+        };
+        let d = downsample(&img, 2).unwrap();
+        assert_eq!((d.width, d.height), (2, 1));
+        assert_eq!(d.pixels[0], Vec3::splat((0.0 + 1.0 + 4.0 + 5.0) / 4.0));
+        assert_eq!(d.pixels[1], Vec3::splat((2.0 + 3.0 + 6.0 + 7.0) / 4.0));
+        assert!(downsample(&img, 3).is_err());
+    }
 
     /// A smooth colour gradient with some structure.
     fn gradient(w: u32, h: u32) -> Vec<Vec3> {

@@ -10,7 +10,7 @@
 
 #![cfg(feature = "cpu")]
 
-use arpa::cli::{Budget, Progress, render};
+use arpa::session::{Budget, render};
 use arpa::core::tracer::{Image, Method, RenderSettings};
 use arpa::scene_file::load_scene;
 use std::path::Path;
@@ -39,7 +39,7 @@ fn render_veach(dir: &Path, roughness_cutoff: Option<f32>) -> Image {
     }
     let settings = RenderSettings { method: Method::Rtpm, photons_per_iteration: 100_000, max_depth: 15, seed: 7, ..RenderSettings::default() };
     let mut tracer = arpa::cpu::CpuTracer::new().unwrap();
-    render(&mut tracer, &loaded.scene, &settings, Budget::Iterations(8), &Progress::hidden()).unwrap().image
+    render(&mut tracer, &loaded.scene, &settings, Budget::Iterations(8)).unwrap().image
 }
 
 #[test]

@@ -6,9 +6,9 @@
 // gather and accumulate stages include them alone, so footprint.wgsl keeps its own
 // arpa_is_finite/arpa_is_finite3 and radius.wgsl its inline exponent test.)
 //
-// Precision: arpa_acos agrees with the correctly rounded acos to ~1 ulp over [-1, 1]
-// (measured: within 4 eps32 relative); the device's built-in acos may be far less accurate
-// (Vulkan allows thousands of ulps; lavapipe's differs from libm's by up to 1.6e-4 rad).
+// Precision: arpa_acos agrees with the correctly rounded acos to ~1 ulp over [-1, 1] (the
+// twin-math conformance case holds it to 4 eps32 relative); the device's built-in acos may
+// be far less accurate (Vulkan allows thousands of ulps), hence this one.
 
 // x is neither infinite nor NaN (f64::is_finite), by its exponent bits (no float compare, so
 // no fast-math assumption can remove it).

@@ -89,6 +89,41 @@ impl Aabb {
         p.cmpge(self.min).all() && p.cmple(self.max).all()
     }
 
+    /// Relative padding of an acceleration-structure box, on top of `f32` rounding.
+    ///
+    /// The gather's exact tests run in `f32` (`PackedFootprint::irradiance`,
+    /// `PackedPhoton::irradiance`) on records rounded from `f64`, and may accept a point a
+    /// few ulps outside the exact (`f64`) shape the core's box bounds; the padding keeps
+    /// every such point inside the box, so an acceleration structure over padded boxes
+    /// finds exactly what a brute-force gather over the same records finds. The WGSL twin
+    /// is `arpa_padded_box` (`aabb.wgsl`).
+    pub const RELATIVE_PAD: f64 = 1e-4;
+    /// Absolute padding in units of the box's largest coordinate magnitude (`f32` ulps of
+    /// the position: covers the rounding of the record's centre and rows), plus one more to
+    /// cover the round-to-nearest conversion of the padded box to `f32`.
+    pub const POSITION_PAD: f64 = 9.0 * f32::EPSILON as f64;
+    /// Absolute floor of the padding (covers rounding in `f32`'s subnormal range).
+    pub const PAD_FLOOR: f64 = f32::MIN_POSITIVE as f64;
+
+    /// The box grown by the padding above, as `f32` corners `(lower, upper)`: the box an
+    /// acceleration structure over the gather's records takes.
+    ///
+    /// The conversion rounds to nearest (cheap, vectorisable), which is conservative here:
+    /// it moves a bound by at most half an `f32` ulp, `2⁻²⁴ |x|` (or `2⁻¹⁵⁰` among
+    /// subnormals), where every bound has `|x| ≤ (1 + 10⁻⁴ + 9ε₃₂) s` with
+    /// `s = |centre|_∞ + |half|_∞`, and the padding holds `ε₃₂ s` (`≥ 2⁻²⁴ |x|` with room to
+    /// spare) plus [`Self::PAD_FLOOR`] beyond the `8 ε₃₂ s` and relative padding the
+    /// gather's `f32` tests need. So the result contains what
+    /// [`Self::to_f32_conservative`] of the box grown by that padding contains.
+    #[inline]
+    pub fn padded_f32(&self) -> ([f32; 3], [f32; 3]) {
+        let centre = 0.5 * (self.min + self.max);
+        let half = 0.5 * (self.max - self.min);
+        let scale = centre.abs().max_element() + half.max_element();
+        let pad = half * Self::RELATIVE_PAD + DVec3::splat(Self::POSITION_PAD * scale + Self::PAD_FLOOR);
+        ((self.min - pad).as_vec3().to_array(), (self.max + pad).as_vec3().to_array())
+    }
+
     /// The box as `f32` corners, rounded outwards so it still contains everything it did.
     pub fn to_f32_conservative(&self) -> ([f32; 3], [f32; 3]) {
         let down = |x: f64| {
@@ -125,6 +160,47 @@ mod tests {
         let (lo, hi) = b.to_f32_conservative();
         for k in 0..3 {
             assert!((lo[k] as f64) <= 0.1 && (hi[k] as f64) >= 0.3);
+        }
+    }
+
+    /// The padded box contains the box grown by the padding the `f32` tests need, rounded
+    /// outwards (so the round-to-nearest conversion is conservative), and stays tight; for
+    /// boxes near and far from the origin, large and tiny, straddling zero or not.
+    #[test]
+    fn padded_box_contains_the_exact_box_and_is_tight() {
+        let mut boxes = alloc::vec![
+            Aabb { min: DVec3::new(0.1, -2.0, 1e-9), max: DVec3::new(0.3, -1.9, 2e-9) },
+            Aabb { min: DVec3::splat(-1e-40), max: DVec3::splat(1e-40) },
+        ];
+        // SplitMix64 in [-1, 1).
+        let mut state = 11u64;
+        let mut f = || {
+            state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = state;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            z ^= z >> 31;
+            (z >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+        };
+        for i in 0..20_000 {
+            let scale = libm::pow(10.0, 8.0 * f());
+            let centre = DVec3::new(f(), f(), f()) * scale * if i % 4 == 0 { 1e-3 } else { 1.0 };
+            let half = (DVec3::new(f(), f(), f()).abs() + DVec3::splat(1e-12)) * scale * libm::pow(10.0, -4.0 * f().abs());
+            boxes.push(Aabb::from_centre_half_extent(centre, half));
+        }
+        for b in &boxes {
+            let (lower, upper) = b.padded_f32();
+            let centre = 0.5 * (b.min + b.max);
+            let half = 0.5 * (b.max - b.min);
+            let s = centre.abs().max_element() + half.max_element();
+            let need = half * Aabb::RELATIVE_PAD + DVec3::splat(8.0 * f32::EPSILON as f64 * s);
+            let (lo, hi) = Aabb { min: b.min - need, max: b.max + need }.to_f32_conservative();
+            for k in 0..3 {
+                assert!(lower[k] <= lo[k] && upper[k] >= hi[k], "{b:?}: {lower:?} {upper:?} vs {lo:?} {hi:?}");
+                let size = b.max[k] - b.min[k];
+                let slack = 20.0 * f32::EPSILON as f64 * s;
+                assert!((upper[k] - lower[k]) as f64 <= size * 1.001 + 2.0 * slack + 1e-37, "{b:?}: {lower:?} {upper:?}");
+            }
         }
     }
 }

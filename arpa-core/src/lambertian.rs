@@ -53,9 +53,9 @@
 //! is clamped to [`MAX_ADJOINT_RATIO`]: a bias only for photons arriving within
 //! `acos(1/MAX_ADJOINT_RATIO)` ≈ 89.4° of the geometric normal *and* much steeper in the
 //! shading frame, a fraction below `1/MAX_ADJOINT_RATIO² = 0.01 %` of the cosine-weighted
-//! incident flux. (A clamp at 10 cost sponza-standin's indirectly lit foreground arch
-//! 2.5 % against the Mitsuba reference in the full conformance set; at 100 the variance
-//! it admits grows only with `log(MAX_ADJOINT_RATIO)`.)
+//! incident flux. (A clamp as low as 10 darkens indirectly lit regions under strongly
+//! tilted normals against the reference, such as sponza-standin's foreground arch; the
+//! variance a clamp admits grows only with `log(MAX_ADJOINT_RATIO)`.)
 
 use crate::frame::Frame;
 use crate::sampling::cosine_hemisphere;

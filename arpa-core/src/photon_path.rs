@@ -278,7 +278,7 @@ impl PhotonWalk {
             }
             // Mirrors and dielectrics share the transfer, the shading normal's derivative
             // and the reflection: one inlined copy of each in the compiled pass instead of
-            // two (5 KB less machine code in the CPU backend's photon loop).
+            // two, which keeps the CPU backend's photon loop smaller.
             Scattering::Mirror(_) | Scattering::Refractive(..) => {
                 let ray_at_hit = st.at_hit(&s);
                 st.classifier.record(SurfaceInteraction::Specular);

@@ -16,7 +16,8 @@ use crate::heuristics::{DampenReference, Heuristics};
 use crate::kernel::Kernel;
 use crate::progressive_photon::PackedPhoton;
 use crate::radius::{ProgressiveConfig, RadiusSpec};
-use crate::scene::Scene;
+use crate::prepared_scene::PreparedScene;
+use crate::scene::{Scene, SceneError};
 use crate::store::{ProgressiveReason, StoredPhoton};
 use alloc::format;
 use alloc::string::String;
@@ -172,11 +173,298 @@ impl RenderSettings {
     }
 }
 
+/// The backends of the project. The one list of their names: the facade's registry
+/// (`arpa::backends`), the CLI's `--backend` and the conformance suite's
+/// `ARPA_REQUIRE_BACKENDS` all take these.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum BackendKind {
+    /// The CPU backend on Embree 4 (`arpa-cpu`).
+    Cpu,
+    /// The wgpu backend on Vulkan ray queries (`arpa-wgpu`).
+    Wgpu,
+    /// The Vulkan backend on ray-tracing pipelines (`arpa-vk`).
+    Vk,
+}
+
+impl BackendKind {
+    /// Every backend, in the order reports list them.
+    pub const ALL: [BackendKind; 3] = [BackendKind::Cpu, BackendKind::Wgpu, BackendKind::Vk];
+
+    /// Lower-case name, as on the command line and in `ARPA_REQUIRE_BACKENDS`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            BackendKind::Cpu => "cpu",
+            BackendKind::Wgpu => "wgpu",
+            BackendKind::Vk => "vk",
+        }
+    }
+
+    /// The backend called `name` (ASCII case and surrounding spaces ignored).
+    pub fn from_name(name: &str) -> Option<Self> {
+        let name = name.trim();
+        Self::ALL.into_iter().find(|b| b.name().eq_ignore_ascii_case(name))
+    }
+}
+
+impl core::fmt::Display for BackendKind {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The stages of an iteration, in pipeline order ([`Tracer`]'s methods of the same names).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Stage {
+    /// [`Tracer::upload_scene`].
+    UploadScene,
+    /// [`Tracer::camera_pass`]: its output is the query records.
+    CameraPass,
+    /// [`Tracer::photon_pass`]: its output is the stored footprints and photons.
+    PhotonPass,
+    /// [`Tracer::build_acceleration_structure`]: its output is the acceleration structure.
+    BuildAccelerationStructure,
+    /// [`Tracer::gather`]: its output is the iteration's image.
+    Gather,
+    /// [`Tracer::accumulate`]: adds the iteration's image to the running estimate.
+    Accumulate,
+}
+
+impl Stage {
+    /// The stage's method name.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Stage::UploadScene => "upload_scene",
+            Stage::CameraPass => "camera_pass",
+            Stage::PhotonPass => "photon_pass",
+            Stage::BuildAccelerationStructure => "build_acceleration_structure",
+            Stage::Gather => "gather",
+            Stage::Accumulate => "accumulate",
+        }
+    }
+
+    /// The stages whose output of this iteration this stage reads.
+    pub const fn needs(self) -> &'static [Stage] {
+        match self {
+            Stage::UploadScene | Stage::CameraPass | Stage::PhotonPass => &[],
+            Stage::BuildAccelerationStructure => &[Stage::PhotonPass],
+            Stage::Gather => &[Stage::CameraPass, Stage::BuildAccelerationStructure],
+            Stage::Accumulate => &[Stage::Gather],
+        }
+    }
+
+    /// The stages whose outputs are stale once this stage runs again: itself and every
+    /// stage that reads its output, directly or not.
+    const fn invalidates(self) -> &'static [Stage] {
+        match self {
+            Stage::UploadScene | Stage::Accumulate => &[],
+            Stage::CameraPass => &[Stage::CameraPass, Stage::Gather],
+            Stage::PhotonPass => &[Stage::PhotonPass, Stage::BuildAccelerationStructure, Stage::Gather],
+            Stage::BuildAccelerationStructure => &[Stage::BuildAccelerationStructure, Stage::Gather],
+            Stage::Gather => &[Stage::Gather],
+        }
+    }
+
+    /// Index into [`StageClock`]'s outputs (stages with an output only).
+    const fn output_slot(self) -> Option<usize> {
+        match self {
+            Stage::CameraPass => Some(0),
+            Stage::PhotonPass => Some(1),
+            Stage::BuildAccelerationStructure => Some(2),
+            Stage::Gather => Some(3),
+            Stage::UploadScene | Stage::Accumulate => None,
+        }
+    }
+}
+
+impl core::fmt::Display for Stage {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A call of [`Tracer`] that can come too early: a stage, or a `read_*` of a stage's
+/// output.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Call {
+    /// One of the stages.
+    Stage(Stage),
+    /// [`Tracer::read_image`].
+    ReadImage,
+    /// [`Tracer::read_query_points`].
+    ReadQueryPoints,
+    /// [`Tracer::read_footprints`].
+    ReadFootprints,
+    /// [`Tracer::read_photons`].
+    ReadPhotons,
+    /// [`Tracer::read_stats`].
+    ReadStats,
+}
+
+impl From<Stage> for Call {
+    fn from(stage: Stage) -> Self {
+        Call::Stage(stage)
+    }
+}
+
+impl core::fmt::Display for Call {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Call::Stage(s) => s.name(),
+            Call::ReadImage => "read_image",
+            Call::ReadQueryPoints => "read_query_points",
+            Call::ReadFootprints => "read_footprints",
+            Call::ReadPhotons => "read_photons",
+            Call::ReadStats => "read_stats",
+        })
+    }
+}
+
+/// The errors every backend shares: calls out of order, the iteration limit, and scenes
+/// or settings no render can use. Each backend's error enum wraps it (`#[from]`).
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum StageError {
+    /// A call came before the stage whose output it needs (in this iteration, for a stage;
+    /// ever, for a `read_*`).
+    #[error("{call} called before {needs}")]
+    Order {
+        /// What was called.
+        call: Call,
+        /// The stage that has to run first.
+        needs: Stage,
+    },
+    /// `u32::MAX − 1` iterations have been accumulated: the iteration index of the random
+    /// streams and the radius schedule cannot go further.
+    #[error("iteration limit reached ({0} iterations)")]
+    IterationLimit(u32),
+    /// A render setting is out of range.
+    #[error("invalid render settings: {0}")]
+    Settings(#[from] InvalidSettings),
+    /// The scene failed validation.
+    #[error("invalid scene: {0}")]
+    Scene(#[from] SceneError),
+}
+
+impl StageError {
+    /// `call` came before `needs`.
+    pub fn order(call: impl Into<Call>, needs: Stage) -> Self {
+        StageError::Order { call: call.into(), needs }
+    }
+}
+
+/// The uploaded state of a backend, or the error saying that `call` needs
+/// [`Tracer::upload_scene`] first.
+pub fn uploaded<T>(state: Option<T>, call: impl Into<Call>) -> Result<T, StageError> {
+    state.ok_or_else(|| StageError::order(call, Stage::UploadScene))
+}
+
+/// Validates `settings` and `scene` and prepares the scene: what every backend's
+/// [`Tracer::upload_scene`] starts with.
+pub fn prepare_upload(scene: &Scene, settings: &RenderSettings) -> Result<PreparedScene, StageError> {
+    settings.validate()?;
+    Ok(PreparedScene::new(scene.clone())?)
+}
+
+/// The stage bookkeeping every backend shares: which iteration each stage's output
+/// belongs to, the iterations accumulated, and the statistics of the iteration in progress.
+///
+/// A backend calls [`begin`](Self::begin) at the start of a stage (it checks the order and
+/// the iteration limit, and marks the stage's output and every output derived from it
+/// stale) and [`finish`](Self::finish) when the stage's output is written. The rules this
+/// enforces are [`Tracer`]'s: within an iteration a stage needs the outputs of
+/// [`Stage::needs`] made in this iteration; re-running a stage is allowed and makes the
+/// outputs of the stages after it stale.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StageClock {
+    completed: u32,
+    /// Iteration each stage's output was made in (camera, photon, build, gather).
+    outputs: [Option<u32>; 4],
+    stats: IterationStats,
+    /// Iteration whose counts `stats` holds.
+    stats_for: Option<u32>,
+}
+
+impl Default for StageClock {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl StageClock {
+    /// The clock of a scene just uploaded: no iteration done, no stage output.
+    pub fn new() -> Self {
+        Self { completed: 0, outputs: [None; 4], stats: IterationStats::default(), stats_for: Some(0) }
+    }
+
+    /// Iterations accumulated; also the 0-based index of the iteration in progress.
+    pub fn completed(&self) -> u32 {
+        self.completed
+    }
+
+    /// Whether `stage`'s output was made in the iteration in progress.
+    pub fn is_current(&self, stage: Stage) -> bool {
+        stage.output_slot().is_some_and(|i| self.outputs[i] == Some(self.completed))
+    }
+
+    /// Starts `stage`: refuses it when an input of this iteration is missing or the
+    /// iteration index cannot advance, starts the counts of the iteration in progress,
+    /// and marks the stage's output and those derived from it stale.
+    pub fn begin(&mut self, stage: Stage) -> Result<(), StageError> {
+        if matches!(stage, Stage::CameraPass | Stage::PhotonPass) && self.completed >= u32::MAX - 1 {
+            // The core computes the 1-based index `iteration + 1` of the streams.
+            return Err(StageError::IterationLimit(self.completed));
+        }
+        if let Some(&missing) = stage.needs().iter().find(|&&n| !self.is_current(n)) {
+            return Err(StageError::order(stage, missing));
+        }
+        if self.stats_for != Some(self.completed) {
+            self.stats = IterationStats { iteration: self.completed, radii: self.stats.radii, ..IterationStats::default() };
+            self.stats_for = Some(self.completed);
+        }
+        for s in stage.invalidates() {
+            if let Some(i) = s.output_slot() {
+                self.outputs[i] = None;
+            }
+        }
+        Ok(())
+    }
+
+    /// Ends `stage`: its output now belongs to the iteration in progress. Finishing
+    /// [`Stage::Accumulate`] completes the iteration.
+    pub fn finish(&mut self, stage: Stage) {
+        if let Some(i) = stage.output_slot() {
+            self.outputs[i] = Some(self.completed);
+        }
+        if stage == Stage::Accumulate {
+            self.completed += 1;
+            self.outputs[3] = None;
+            self.stats.iteration = self.completed;
+        }
+    }
+
+    /// The guard of a `read_*` call: `stage` has made an output (in any iteration).
+    pub fn require_output(&self, call: Call, stage: Stage) -> Result<(), StageError> {
+        match stage.output_slot() {
+            Some(i) if self.outputs[i].is_some() => Ok(()),
+            _ => Err(StageError::order(call, stage)),
+        }
+    }
+
+    /// Statistics of the iteration in progress (or the last one).
+    pub fn stats(&self) -> &IterationStats {
+        &self.stats
+    }
+
+    /// The statistics a stage writes its counts and time into.
+    pub fn stats_mut(&mut self) -> &mut IterationStats {
+        &mut self.stats
+    }
+}
+
 /// What a backend supports.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Capabilities {
-    /// Backend name (`cpu`, `wgpu`, `vk`).
-    pub backend: &'static str,
+    /// Which backend this is.
+    pub backend: BackendKind,
     /// Device description (CPU model, adapter name).
     pub device: String,
     /// Methods it implements.
@@ -392,6 +680,7 @@ pub trait Tracer {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use alloc::string::ToString;
 
     #[test]
     fn default_settings_are_valid() {
@@ -415,5 +704,65 @@ mod tests {
             let e = s.validate().expect_err(field);
             assert!(e.0.contains(field), "{field}: {e}");
         }
+    }
+
+    #[test]
+    fn backend_names_round_trip() {
+        for b in BackendKind::ALL {
+            assert_eq!(BackendKind::from_name(&b.name().to_ascii_uppercase()), Some(b));
+        }
+        assert_eq!(BackendKind::from_name(" wgpu "), Some(BackendKind::Wgpu));
+        assert_eq!(BackendKind::from_name("mock"), None);
+    }
+
+    #[test]
+    fn clock_enforces_the_stage_order_of_an_iteration() {
+        use Stage::*;
+        let mut c = StageClock::new();
+        assert_eq!(c.begin(Gather), Err(StageError::order(Gather, CameraPass)));
+        assert_eq!(c.begin(BuildAccelerationStructure), Err(StageError::order(BuildAccelerationStructure, PhotonPass)));
+        assert_eq!(c.begin(Accumulate), Err(StageError::order(Accumulate, Gather)));
+        assert!(c.require_output(Call::ReadFootprints, PhotonPass).is_err());
+        // Photon pass before camera pass is allowed.
+        for s in [PhotonPass, CameraPass, BuildAccelerationStructure] {
+            c.begin(s).unwrap();
+            c.finish(s);
+        }
+        // Re-running the photon pass makes the structure built from its output stale.
+        c.begin(PhotonPass).unwrap();
+        assert_eq!(c.begin(Gather), Err(StageError::order(Gather, BuildAccelerationStructure)));
+        c.finish(PhotonPass);
+        for s in [BuildAccelerationStructure, Gather] {
+            c.begin(s).unwrap();
+            c.finish(s);
+        }
+        // A new camera pass makes the image stale, not the structure.
+        c.begin(CameraPass).unwrap();
+        c.finish(CameraPass);
+        assert!(c.is_current(BuildAccelerationStructure));
+        assert_eq!(c.begin(Accumulate), Err(StageError::order(Accumulate, Gather)));
+        c.begin(Gather).unwrap();
+        c.finish(Gather);
+        c.stats_mut().gathered = 7;
+        c.begin(Accumulate).unwrap();
+        c.finish(Accumulate);
+        assert_eq!(c.completed(), 1);
+        assert_eq!(c.stats().iteration, 1);
+        assert_eq!(c.stats().gathered, 7, "the last iteration's stats stay readable");
+        // The next iteration needs its own passes; the reads still see the last outputs.
+        assert_eq!(c.begin(Gather), Err(StageError::order(Gather, CameraPass)));
+        assert!(c.require_output(Call::ReadFootprints, PhotonPass).is_ok());
+        c.begin(CameraPass).unwrap();
+        assert_eq!(c.stats().gathered, 0, "a new iteration starts new counts");
+        assert_eq!(c.stats().iteration, 1);
+    }
+
+    #[test]
+    fn clock_stops_at_the_iteration_limit() {
+        let mut c = StageClock::new();
+        c.completed = u32::MAX - 1;
+        assert_eq!(c.begin(Stage::CameraPass), Err(StageError::IterationLimit(u32::MAX - 1)));
+        assert_eq!(c.begin(Stage::PhotonPass), Err(StageError::IterationLimit(u32::MAX - 1)));
+        assert_eq!(StageError::order(Call::ReadImage, Stage::UploadScene).to_string(), "read_image called before upload_scene");
     }
 }

@@ -147,8 +147,8 @@ fn slab_irradiance(rho: f64, h: f64, d: f64, n: f64) -> f64 {
 
 /// A glass slab (IOR 1.5, thickness 0.2) between a point light and the floor: the caustic
 /// map's irradiance matches the exact two-interface optics (refraction and Fresnel
-/// transmittance at both faces) within 2%, for both methods. ARPA's footprints got there
-/// with differentials propagated through two refractions.
+/// transmittance at both faces) within 2%, for both methods. ARPA's footprints carry
+/// differentials propagated through both refractions.
 #[test]
 fn glass_slab_caustic_matches_optics() {
     let (h, d, n) = (1.0f64, 0.2f64, 1.5f64);

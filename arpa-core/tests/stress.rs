@@ -2273,13 +2273,13 @@ stress!(
 );
 
 // ---------------------------------------------------------------------------------------
-// Pinned minimal inputs of the bugs this suite found (deterministic; they fail until fixed)
+// Pinned minimal inputs of the traps this suite found (deterministic)
 // ---------------------------------------------------------------------------------------
 
 /// Identical (hence exactly parallel) differentials have no `M_p⁻¹`, but `du·(dv × n)` is a
-/// rounding residue (here ≈ 7e-17) instead of 0, so `filter_transform` returns rows of
-/// size 1e17 with determinant 0, `Heuristics::apply` keeps the footprint when degenerate
-/// removal is off, and `store_footprint` labels it `Unrepresentable` instead of `Degenerate`.
+/// rounding residue (here ≈ 7e-17) instead of 0: a test for an exact zero would give rows
+/// of size 1e17 with determinant 0. `filter_transform`, `Heuristics::apply` (even with
+/// degenerate removal off) and `store_footprint` must all call the footprint `Degenerate`.
 #[test]
 fn regression_identical_differentials_are_degenerate() {
     let fp = Footprint {
@@ -2299,9 +2299,9 @@ fn regression_identical_differentials_are_degenerate() {
     }
 }
 
-/// `Footprint::pack` stores `Φ·det` as f32 without checking for underflow: a large footprint
-/// carrying little flux packs to a zero (or subnormal, imprecise) density, and the flux is
-/// lost while the record is reported as a valid footprint.
+/// A large footprint carrying little flux has a density `Φ·det` that underflows f32 (zero or
+/// subnormal, imprecise): `Footprint::pack` must either refuse it or pack a density that
+/// gives the flux back, never a valid record whose flux is lost.
 #[test]
 fn regression_pack_does_not_lose_small_flux_to_f32_underflow() {
     for (size, flux) in [(1e10, 1e-30), (1e5, 1e-30)] {
@@ -2322,8 +2322,8 @@ fn regression_pack_does_not_lose_small_flux_to_f32_underflow() {
 }
 
 /// The same underflow through `store_footprint` with the default heuristics: a footprint
-/// 1e26 m across in a 1e30 m scene is stored as a footprint whose density is 0 in f32, so
-/// its 3 W vanish (a progressive photon would have kept them).
+/// 1e26 m across in a 1e30 m scene has a density of 0 in f32; its 3 W must survive, in a
+/// footprint record that carries them or as a progressive photon.
 #[test]
 fn regression_store_footprint_with_default_heuristics_keeps_flux_of_huge_footprint() {
     let fp = Footprint {
@@ -2345,8 +2345,8 @@ fn regression_store_footprint_with_default_heuristics_keeps_flux_of_huge_footpri
 }
 
 /// `Frame::from_normal_and_hint` with a hint 7e-11 rad from the normal passes the
-/// `len² > 1e-24 |hint|²` test, but one Gram–Schmidt step leaves a rounding residue of
-/// ~ε/7e-11 along `n`: `t·n = −1.1e-6`.
+/// `len² > 1e-24 |hint|²` test, but one Gram–Schmidt step would leave a rounding residue of
+/// ~ε/7e-11 along `n` (`t·n = −1.1e-6`): the frame must still be orthonormal.
 #[test]
 fn regression_frame_from_nearly_parallel_hint_is_orthonormal() {
     let n = DVec3::new(0.11728196998997893, -0.9930986554795398, 0.0);
@@ -2356,11 +2356,11 @@ fn regression_frame_from_nearly_parallel_hint_is_orthonormal() {
     assert!(f.b.dot(f.n).abs() <= 1e-12 && (f.t.length() - 1.0).abs() <= 1e-12);
 }
 
-/// `SpotLight::falloff_solid_angle` (linear falloff) computes
-/// `cos θ_b − (sin θ_c − sin θ_b)/(θ_c − θ_b)` with catastrophic cancellation when the band
-/// is just wider than its 1e-12 threshold, and `1 − cos θ` (the beam cone) with the same
-/// cancellation for narrow cones: a valid spot light then has zero power, or 2.5 times the
-/// power of its whole cut-off cone.
+/// `SpotLight::falloff_solid_angle` (linear falloff): the textbook
+/// `cos θ_b − (sin θ_c − sin θ_b)/(θ_c − θ_b)` cancels catastrophically when the band is
+/// just wider than its 1e-12 threshold, and `1 − cos θ` (the beam cone) for narrow cones,
+/// which would give a valid spot light zero power, or 2.5 times the power of its whole
+/// cut-off cone. Its power must stay between the beam's and the cut-off cone's.
 #[test]
 fn regression_spot_power_with_narrow_falloff_band() {
     for (beam, band) in [(3e-5, 1.5e-12), (1e-4, 1.1e-12), (0.8989771720960712, 2.253512e-10), (8.452886336284849e-12, 4.014623910542124e-12)] {
@@ -2379,10 +2379,10 @@ fn regression_spot_power_with_narrow_falloff_band() {
     }
 }
 
-/// `Footprint::pack` accepts a slab half-thickness `h` (the progressive radius, 1e-5 here)
-/// below the f32 resolution of `q − x_p` across the ellipse: `row_n = n/h` then turns the
-/// rounding of a point exactly in the footprint's plane, 0.125 m from its centre, into a
-/// slab coordinate of 1.46, and the packed record rejects it (the f64 footprint accepts it).
+/// A slab half-thickness `h` (the progressive radius, 1e-5 here) below the f32 resolution of
+/// `q − x_p` across the ellipse would let `row_n = n/h` turn the rounding of a point exactly
+/// in the footprint's plane, 0.125 m from its centre, into a slab coordinate of 1.46: the
+/// packed record must accept every in-plane point the f64 footprint accepts.
 #[test]
 fn regression_packed_footprint_contains_point_in_its_plane() {
     let fp = Footprint {
@@ -2399,8 +2399,8 @@ fn regression_packed_footprint_contains_point_in_its_plane() {
     assert!(p.contains(q.as_vec3()), "filter coordinates {}", p.filter_coords(q.as_vec3()));
 }
 
-/// `PackedFootprint::filter_coords` overflows f32 for a far query and returns NaN
-/// (`inf − inf`); `contains`/`irradiance` still answer correctly (NaN compares false).
+/// `PackedFootprint::filter_coords` of a far query overflows f32 (`inf − inf` is NaN): the
+/// coordinates must not be NaN, and `contains`/`irradiance` must answer no.
 #[test]
 fn regression_filter_coords_is_not_nan_for_far_query() {
     let fp = Footprint {
@@ -2417,8 +2417,9 @@ fn regression_filter_coords_is_not_nan_for_far_query() {
     assert!(!p.filter_coords(q).is_nan(), "filter_coords = {}", p.filter_coords(q));
 }
 
-/// `refract_direction` has no error channel and returns `η = 1/ior = ∞` for `ior = 0`
-/// (`RayDifferential::refract` rejects the same input as `NonFinite`).
+/// `refract_direction` has no error channel, so for `ior = 0` (where `η = 1/ior = ∞`) it
+/// must still return a finite result (`RayDifferential::refract` rejects the same input as
+/// `NonFinite`).
 #[test]
 fn regression_refract_direction_with_zero_ior_returns_finite_eta() {
     let (t, _, eta) = refract_direction(DVec3::NEG_Z, DVec3::Z, 0.0);
@@ -2482,10 +2483,11 @@ stress!(
 );
 
 /// The tiling check of `light_emit_is_finite_tiles_and_labels_invalid_lights_for_all_kinds`
-/// itself lost digits: a quad light 1e-30 m wide with `N = 2³² − 1` and scale 1e-30 has
-/// positional differentials of 1.4e-79 m, whose cross product (2e-158) `length()` squares
-/// into the subnormal range (4e-316): 2.2e-9 relative error, over the 1e-9 tolerance. The
-/// emitted differentials were exact; the check now measures the cross product scaled.
+/// on extreme input: a quad light 1e-30 m wide with `N = 2³² − 1` and scale 1e-30 has
+/// positional differentials of 1.4e-79 m, whose cross product (2e-158) `length()` would
+/// square into the subnormal range (4e-316, a 2.2e-9 relative error, over the 1e-9
+/// tolerance). The check measures the cross product scaled, so the exact emitted
+/// differentials pass.
 #[test]
 fn regression_tiny_quad_tiling_check_does_not_underflow() {
     let light = Light::Quad(QuadLight {

@@ -9,7 +9,7 @@
 //! rotated mirror block and a small downward quad light under the ceiling; 256×256 camera
 //! inside the room. Prints plain `name: value unit` lines:
 //!
-//! 1. `embree_raw.*`: raw Embree closest-hit rays/s ([`arpa_cpu::Scene::intersect`]) on the
+//! 1. `embree_raw.*`: raw Embree closest-hit rays/s ([`arpa_cpu::EmbreeScene::intersect`]) on the
 //!    very rays of one photon pass (origins/directions recorded through a wrapping
 //!    [`RayCaster`], replayed in photon order), on 1 thread and on all threads (rayon
 //!    pools). `embree_caster.*` replays them through [`EmbreeCaster`] (the core's
@@ -18,8 +18,8 @@
 //! 2. `photon_pass.*`: [`CpuTracer::photon_pass`] segments/s (`photon_segments` / stage
 //!    time) on the same thread counts, and its ratio to (1). `interleaved.*` measures (1)
 //!    and both methods' passes again round by round, alternating, and gives the ratios of
-//!    their best times: the figure to quote, since this machine's speed drifts between
-//!    measurements taken apart.
+//!    their best times: the three are timed under the same conditions, so these ratios do
+//!    not depend on changes in the machine's speed between sections.
 //! 3. `gather.*`: gather queries/s and footprints + photons per query.
 //! 4. `memory.*`: bytes per footprint: `size_of::<PackedFootprint>()`, the box (held from the
 //!    photon pass until the build, handed to Embree without a copy and freed after it), and
@@ -40,14 +40,14 @@
 //! stage for ~5 s and exits, for `perf record -g -- <bench binary> --bench`.
 //!
 //! Without `--bench` (`cargo test --benches`) everything runs once on a tiny version of the
-//! scene (32×32, 320 triangles of glass, a few thousand photons) in about a second.
+//! scene (32×32, 320 triangles of glass, a few thousand photons), as a smoke test.
 //! `ARPA_CPU_BENCH_ONLY=raw,pass,gather,memory,peak,breakdown` restricts the sections.
 //! `ARPA_CPU_BENCH_SUBDIVISIONS=k` subdivides the glass icosphere `k` times instead of 4
 //! (20·4^k triangles): how the photon pass's ratio to raw Embree, and the core's time per
 //! segment (`core_only.*`), move as the BVH grows.
 //!
 //! `ARPA_CPU_BENCH_PACKETS=1` adds `packets.*` to section 1: the recorded photon segments
-//! through Embree's packet kernels ([`arpa_cpu::Scene::intersect8`] / `intersect16`, 8 or
+//! through Embree's packet kernels ([`arpa_cpu::EmbreeScene::intersect8`] / `intersect16`, 8 or
 //! 16 consecutive segments per packet, and the same on a fixed shuffle of the segments)
 //! next to `rtcIntersect1` one ray at a time (1 thread), and how many packet answers
 //! differ from `rtcIntersect1`'s in any bit. It measures what a wavefront photon pass
@@ -71,7 +71,7 @@ use arpa_core::scene::{Camera, Material, Scene, TriangleMesh};
 use arpa_core::shapes::parallelogram as quad;
 use arpa_core::store::StoredPhoton;
 use arpa_core::tracer::{IterationStats, Method, RenderSettings, StageTimes, Tracer};
-use arpa_cpu::{Aabb, BuildQuality, CpuTracer, Device, EmbreeCaster, SceneBuilder};
+use arpa_cpu::{BuildQuality, CpuTracer, Device, EmbreeBox, EmbreeCaster, EmbreeSceneBuilder};
 use rayon::prelude::*;
 
 /// Child-process mode (memory measurements in a fresh address space).
@@ -527,7 +527,7 @@ fn bench_rays(cfg: &Config, scene: &Scene, raw_rate: &mut [Rate; 2], pass_rate: 
     );
 
     let emb = caster.scene();
-    // The raw baseline: the recorded segments through `Scene::intersect` on the threads of
+    // The raw baseline: the recorded segments through `EmbreeScene::intersect` on the threads of
     // `p`; returns the number of hits.
     let raw_replay = |p: &rayon::ThreadPool| {
         count_hits(p, &segments, |r| {
@@ -718,9 +718,8 @@ fn bench_rays(cfg: &Config, scene: &Scene, raw_rate: &mut [Rate; 2], pass_rate: 
     }
 
     // The same ratios with the raw replay and both passes interleaved round by round, so
-    // that all three see the same phases of the machine: this VM's speed drifts by 5–30 %
-    // over minutes, enough to move a ratio read from measurements taken apart by several
-    // points (the lines above). Best of each over the rounds.
+    // that all three see the same phases of the machine (whose speed can change between
+    // the measurements above, taken apart). Best of each over the rounds.
     let rounds = if cfg.full { 8 } else { cfg.reps.max(2) };
     for (k, p) in pools.iter().enumerate() {
         let mut raw = f64::INFINITY;
@@ -787,20 +786,20 @@ fn bench_gather(cfg: &Config, scene: &Scene) {
         println!("gather.{name}.stored: {stored} footprints, {photons} photons");
         // Broad phase: how many boxes the BVH hands to the exact test per query (own box
         // scene over the same records, the same iteration-0 photon pass traced again;
-        // boxes without the tracer's 1e-4 padding).
+        // boxes without the tracer's padding).
         let r = stats.radii.map(|r| r as f32);
         let mut boxes = footprint_boxes(scene, &settings(method, cfg.photons));
         assert_eq!(boxes.len() as f64, stored);
         boxes.extend(tr.read_photons().unwrap().iter().map(|p| {
             let (c, r) = (Vec3::from_array(p.position), r[p.photon_map().index()]);
-            Aabb {
+            EmbreeBox {
                 lower: (c - r).to_array(),
                 upper: (c + r).to_array(),
             }
         }));
         if !boxes.is_empty() {
             let device = Device::new().unwrap();
-            let mut b = SceneBuilder::new(&device)
+            let mut b = EmbreeSceneBuilder::new(&device)
                 .unwrap()
                 .build_quality(BuildQuality::Low);
             b.add_boxes(&boxes).unwrap();
@@ -837,13 +836,13 @@ fn bench_gather(cfg: &Config, scene: &Scene) {
 /// The footprint boxes of a real photon pass as `CpuTracer` makes them: the core's box
 /// of each footprint's slab ([`StoredPhoton::Footprint`]'s `aabb`) rounded outwards to
 /// `f32` (the tracer's small padding does not change the size).
-fn footprint_boxes(scene: &Scene, settings: &RenderSettings) -> Vec<Aabb> {
+fn footprint_boxes(scene: &Scene, settings: &RenderSettings) -> Vec<EmbreeBox> {
     let prepared = PreparedScene::new(scene.clone()).expect("scene");
     let device = Device::new().expect("device");
     let caster = EmbreeCaster::new(&device, &prepared).expect("BVH");
     let setup = PhotonPassSetup::new(&prepared, settings, 0);
     let count = setup.photon_count();
-    let chunks: Vec<Vec<Aabb>> = (0..count.div_ceil(4096))
+    let chunks: Vec<Vec<EmbreeBox>> = (0..count.div_ceil(4096))
         .into_par_iter()
         .map(|c| {
             let mut out = Vec::new();
@@ -851,7 +850,7 @@ fn footprint_boxes(scene: &Scene, settings: &RenderSettings) -> Vec<Aabb> {
                 trace_photon(&prepared, &caster, settings, &setup, index, &mut |p| {
                     if let StoredPhoton::Footprint { aabb, .. } = p {
                         let (lower, upper) = aabb.to_f32_conservative();
-                        out.push(Aabb { lower, upper });
+                        out.push(EmbreeBox { lower, upper });
                     }
                 });
             }
@@ -865,7 +864,7 @@ fn child_memory(cfg: &Config) {
     let scene = build_scene(cfg.size, cfg.subdivisions);
     let boxes = footprint_boxes(&scene, &settings(Method::Arpa, cfg.memory_photons));
     let kind = "footprint";
-    let photon_boxes: Vec<Aabb> = {
+    let photon_boxes: Vec<EmbreeBox> = {
         let mut tr = tracer(&scene, &settings(Method::Rtpm, cfg.memory_photons));
         tr.photon_pass().unwrap();
         let r = tr.read_stats().unwrap().radii[1] as f32;
@@ -874,7 +873,7 @@ fn child_memory(cfg: &Config) {
             .iter()
             .map(|p: &PackedPhoton| {
                 let c = Vec3::from_array(p.position);
-                Aabb {
+                EmbreeBox {
                     lower: (c - r).to_array(),
                     upper: (c + r).to_array(),
                 }
@@ -892,7 +891,7 @@ fn child_memory(cfg: &Config) {
     );
     println!(
         "memory.size_of_aabb: {} bytes (PhotonStore::footprint_boxes from the photon pass until the build; moved into the Embree scene, freed after the build)",
-        size_of::<Aabb>()
+        size_of::<EmbreeBox>()
     );
     for (kind, boxes) in [(kind, boxes), ("photon", photon_boxes)] {
         let n = boxes.len() as f64;
@@ -900,7 +899,7 @@ fn child_memory(cfg: &Config) {
         trim();
         let r_boxes = rss();
         // As CpuTracer builds: the boxes move into the scene (no copy) ...
-        let mut b = SceneBuilder::new(&device)
+        let mut b = EmbreeSceneBuilder::new(&device)
             .unwrap()
             .build_quality(BuildQuality::Low);
         b.add_boxes_owned(boxes).unwrap();
@@ -939,11 +938,11 @@ fn child_memory(cfg: &Config) {
             );
             println!(
                 "memory.{kind}.build_peak_total_per_record: {:.1} bytes (record + box + VmHWM delta of commit)",
-                record as f64 + size_of::<Aabb>() as f64 + (h1 as f64 - r0 as f64) / n
+                record as f64 + size_of::<EmbreeBox>() as f64 + (h1 as f64 - r0 as f64) / n
             );
         }
         println!("memory.{kind}.bvh_build_time: {:.4} s", t);
-        let total = record as f64 + (r2 as f64 - r_boxes as f64) / n + size_of::<Aabb>() as f64;
+        let total = record as f64 + (r2 as f64 - r_boxes as f64) / n + size_of::<EmbreeBox>() as f64;
         println!(
             "memory.{kind}.total_per_record: {total:.1} bytes (steady state after the build: record + BVH; boxes freed)"
         );
@@ -1181,12 +1180,12 @@ fn main() {
             )
         };
         let threads = [1, all_threads()];
-        for k in 0..2 {
-            println!("summary.photon_pass_to_raw_embree.threads_{}: {}", threads[k], ratio(k));
+        for (k, n) in threads.iter().enumerate() {
+            println!("summary.photon_pass_to_raw_embree.threads_{n}: {}", ratio(k));
         }
-        // The figure to quote: raw replay and pass timed in alternating rounds.
-        for k in 0..2 {
-            println!("summary.photon_pass_to_raw_embree.interleaved.threads_{}: {:.1} %", threads[k], interleaved[k]);
+        // The ratios of the alternating rounds (raw replay and pass timed together).
+        for (n, ratio) in threads.iter().zip(&interleaved) {
+            println!("summary.photon_pass_to_raw_embree.interleaved.threads_{n}: {ratio:.1} %");
         }
     }
     println!(

@@ -6,9 +6,7 @@ use arpa_core::glam::Vec3;
 use arpa_core::prepared_scene::PreparedScene;
 use arpa_core::ray_cast::{RayCaster, RayHit};
 
-use crate::device::Device;
-use crate::error::Result;
-use crate::scene::{BuildQuality, Scene, SceneBuilder};
+use crate::embree::{BuildQuality, Device, EmbreeScene, EmbreeSceneBuilder, Result};
 
 /// Closest-hit and occlusion queries of the camera and photon paths against the scene's
 /// triangles, on an Embree BVH.
@@ -33,7 +31,7 @@ use crate::scene::{BuildQuality, Scene, SceneBuilder};
 /// [`EmbreeCaster::errors`].
 #[derive(Debug)]
 pub struct EmbreeCaster {
-    scene: Scene,
+    scene: EmbreeScene,
     /// Mesh index of each Embree geometry id.
     mesh_of_geometry: Vec<u32>,
     errors: AtomicU64,
@@ -42,7 +40,7 @@ pub struct EmbreeCaster {
 impl EmbreeCaster {
     /// Builds the triangle BVH of `scene` on `device`.
     pub fn new(device: &Device, scene: &PreparedScene) -> Result<Self> {
-        let mut builder = SceneBuilder::new(device)?
+        let mut builder = EmbreeSceneBuilder::new(device)?
             .build_quality(BuildQuality::High)
             .robust(true);
         let mut mesh_of_geometry = Vec::with_capacity(scene.scene().meshes.len());
@@ -69,7 +67,7 @@ impl EmbreeCaster {
     }
 
     /// The Embree scene.
-    pub fn scene(&self) -> &Scene {
+    pub fn scene(&self) -> &EmbreeScene {
         &self.scene
     }
 

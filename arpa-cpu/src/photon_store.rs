@@ -1,55 +1,26 @@
 //! The photon buffers of one iteration: footprints with their acceleration-structure
 //! boxes, progressive photons, and the counts of the photon pass.
 
-use arpa_core::aabb::Aabb as CoreAabb;
+use arpa_core::aabb::Aabb;
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::glam::{DVec3, Vec3};
 use arpa_core::progressive_photon::PackedPhoton;
 use arpa_core::store::StoredPhoton;
 use arpa_core::tracer::IterationStats;
 
-use crate::scene::Aabb;
+use crate::embree::EmbreeBox;
 
-/// Relative padding of the boxes handed to Embree, on top of `f32` outward rounding.
-///
-/// The gather's exact tests run in `f32` ([`PackedFootprint::irradiance`],
-/// [`PackedPhoton::irradiance`]) on records rounded from `f64`, and may accept a point a
-/// few ulps outside the exact (`f64`) shape the core's box bounds; the padding keeps every
-/// such point inside the box, so the acceleration structure finds exactly what a
-/// brute-force gather over the same records finds.
-const RELATIVE_PAD: f64 = 1e-4;
-/// Absolute padding in units of the box's largest coordinate magnitude (`f32` ulps of the
-/// position: covers the rounding of the record's centre and rows), plus one more to cover
-/// the round-to-nearest conversion of the padded box to `f32`.
-const POSITION_PAD: f64 = 9.0 * f32::EPSILON as f64;
-/// Absolute floor of the padding (covers rounding in `f32`'s subnormal range).
-const PAD_FLOOR: f64 = f32::MIN_POSITIVE as f64;
-
-/// `box` grown by the padding above, in `f32`.
-///
-/// The conversion rounds to nearest (cheap, vectorisable), which is conservative here: it
-/// moves a bound by at most half an `f32` ulp, `2⁻²⁴ |x|` (or `2⁻¹⁵⁰` among subnormals),
-/// where every bound has `|x| ≤ (1 + 10⁻⁴ + 9ε₃₂) s` with `s = |centre|_∞ + |half|_∞`,
-/// and the padding holds `ε₃₂ s` (`≥ 2⁻²⁴ |x|` with room to spare) plus [`PAD_FLOOR`]
-/// beyond the `8 ε₃₂ s` and relative padding the gather's `f32` tests need. So the result
-/// contains what [`CoreAabb::to_f32_conservative`] of the box grown by that padding
-/// contains.
+/// `box` grown by the core's padding ([`Aabb::padded_f32`]), as an Embree box.
 #[inline]
-pub(crate) fn padded_box(b: &CoreAabb) -> Aabb {
-    let centre = 0.5 * (b.min + b.max);
-    let half = 0.5 * (b.max - b.min);
-    let scale = centre.abs().max_element() + half.max_element();
-    let pad = half * RELATIVE_PAD + DVec3::splat(POSITION_PAD * scale + PAD_FLOOR);
-    Aabb {
-        lower: (b.min - pad).as_vec3().to_array(),
-        upper: (b.max + pad).as_vec3().to_array(),
-    }
+pub(crate) fn padded_box(b: &Aabb) -> EmbreeBox {
+    let (lower, upper) = b.padded_f32();
+    EmbreeBox { lower, upper }
 }
 
 /// The box of a progressive photon of radius `radius`: `position ± radius`, padded.
-pub(crate) fn photon_box(photon: &PackedPhoton, radius: f32) -> Aabb {
+pub(crate) fn photon_box(photon: &PackedPhoton, radius: f32) -> EmbreeBox {
     let centre = Vec3::from_array(photon.position).as_dvec3();
-    padded_box(&CoreAabb::from_centre_half_extent(
+    padded_box(&Aabb::from_centre_half_extent(
         centre,
         DVec3::splat(radius as f64),
     ))
@@ -63,7 +34,7 @@ pub(crate) fn photon_box(photon: &PackedPhoton, radius: f32) -> Aabb {
 #[derive(Clone, Debug, Default)]
 pub(crate) struct PhotonStore {
     pub footprints: Vec<PackedFootprint>,
-    pub footprint_boxes: Vec<Aabb>,
+    pub footprint_boxes: Vec<EmbreeBox>,
     pub photons: Vec<PackedPhoton>,
     /// Store counts of the pass (footprints and progressive photons per map, reasons).
     pub counts: IterationStats,
@@ -141,58 +112,6 @@ impl PhotonStore {
 mod tests {
     use super::*;
 
-    /// The padded box contains the box grown by the padding the `f32` tests need, rounded
-    /// outwards (so the round-to-nearest conversion is conservative), and stays tight; for
-    /// boxes near and far from the origin, large and tiny, straddling zero or not.
-    #[test]
-    fn padded_box_contains_the_exact_box_and_is_tight() {
-        let mut boxes = vec![
-            CoreAabb {
-                min: DVec3::new(0.1, -2.0, 1e-9),
-                max: DVec3::new(0.3, -1.9, 2e-9),
-            },
-            CoreAabb {
-                min: DVec3::splat(-1e-40),
-                max: DVec3::splat(1e-40),
-            },
-        ];
-        let mut rng = Rng(11);
-        for i in 0..20_000 {
-            let scale = 10f64.powf(8.0 * rng.f());
-            let centre = rng.v() * scale * if i % 4 == 0 { 1e-3 } else { 1.0 };
-            let half =
-                (rng.v().abs() + DVec3::splat(1e-12)) * scale * 10f64.powf(-4.0 * rng.f().abs());
-            boxes.push(CoreAabb::from_centre_half_extent(centre, half));
-        }
-        for b in &boxes {
-            let p = padded_box(b);
-            let centre = 0.5 * (b.min + b.max);
-            let half = 0.5 * (b.max - b.min);
-            let need = half * RELATIVE_PAD
-                + DVec3::splat(
-                    8.0 * f32::EPSILON as f64 * (centre.abs().max_element() + half.max_element()),
-                );
-            let (lo, hi) = CoreAabb {
-                min: b.min - need,
-                max: b.max + need,
-            }
-            .to_f32_conservative();
-            for k in 0..3 {
-                assert!(
-                    p.lower[k] <= lo[k] && p.upper[k] >= hi[k],
-                    "{b:?}: {p:?} vs {lo:?} {hi:?}"
-                );
-                let size = b.max[k] - b.min[k];
-                let slack =
-                    20.0 * f32::EPSILON as f64 * (centre.abs().max_element() + half.max_element());
-                assert!(
-                    (p.upper[k] - p.lower[k]) as f64 <= size * 1.001 + 2.0 * slack + 1e-37,
-                    "{b:?}: {p:?}"
-                );
-            }
-        }
-    }
-
     /// Deterministic test RNG (SplitMix64) in [-1, 1).
     struct Rng(u64);
     impl Rng {
@@ -214,12 +133,11 @@ mod tests {
     /// origin and far from it; and it is tight there.
     #[test]
     fn core_box_covers_the_packed_test() {
-        use arpa_core::aabb::Aabb as SceneBounds;
         use arpa_core::classify::Smoothing;
         use arpa_core::footprint::{Footprint, PhotonMap};
         use arpa_core::heuristics::Heuristics;
         use arpa_core::store::store_footprint_resolved;
-        let heuristics = Heuristics::NONE.resolve(&SceneBounds {
+        let heuristics = Heuristics::NONE.resolve(&Aabb {
             min: DVec3::splat(-1e3),
             max: DVec3::splat(1e3),
         });

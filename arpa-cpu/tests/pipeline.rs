@@ -14,7 +14,9 @@ use arpa_core::progressive_photon::PackedPhoton;
 use arpa_core::ray_cast::BruteForceCaster;
 use arpa_core::scene::{Material, Scene, SceneError};
 use arpa_core::store::StoredPhoton;
-use arpa_core::tracer::{IterationStats, Method, RenderSettings, Tracer};
+use arpa_core::tracer::{
+    BackendKind, Call, IterationStats, Method, RenderSettings, Stage, StageError, Tracer,
+};
 use arpa_cpu::{CpuError, CpuTracer};
 use common::*;
 
@@ -332,16 +334,21 @@ fn bit_identical_for_any_thread_count() {
 
 // ---------------------------------------------------------------------------- bad input
 
+/// The error of an upload rejected for `e`.
+fn scene_err(e: SceneError) -> CpuError {
+    CpuError::Stage(StageError::Scene(e))
+}
+
 fn upload_err(scene: &Scene, settings: &RenderSettings) -> CpuError {
     let mut tracer = CpuTracer::new().unwrap();
     let err = tracer.upload_scene(scene, settings).unwrap_err();
     // A failed upload leaves nothing to render.
     assert!(matches!(
         tracer.camera_pass(),
-        Err(CpuError::StageOrder {
-            needs: "upload_scene",
+        Err(CpuError::Stage(StageError::Order {
+            needs: Stage::UploadScene,
             ..
-        })
+        }))
     ));
     assert!(tracer.read_image().is_err());
     eprintln!("rejected: {err}");
@@ -357,7 +364,7 @@ fn bad_input_is_a_documented_error() {
     nan.meshes[1].positions[2].y = f32::NAN;
     assert_eq!(
         upload_err(&nan, &s),
-        CpuError::Scene(SceneError::NonFiniteVertex {
+        scene_err(SceneError::NonFiniteVertex {
             mesh: "back".into(),
             vertex: 2,
             what: "position"
@@ -378,7 +385,7 @@ fn bad_input_is_a_documented_error() {
     ];
     assert_eq!(
         upload_err(&zero_area, &s),
-        CpuError::Scene(SceneError::BadEmitter {
+        scene_err(SceneError::BadEmitter {
             mesh: "lamp".into(),
             why: "has zero area"
         })
@@ -393,7 +400,7 @@ fn bad_input_is_a_documented_error() {
     }));
     assert_eq!(
         upload_err(&zero_quad, &s),
-        CpuError::Scene(SceneError::BadLight {
+        scene_err(SceneError::BadLight {
             index: 1,
             source: LightError::ZeroArea
         })
@@ -404,20 +411,20 @@ fn bad_input_is_a_documented_error() {
     for m in &mut dark.meshes {
         m.emission = None;
     }
-    assert_eq!(upload_err(&dark, &s), CpuError::Scene(SceneError::NoLights));
+    assert_eq!(upload_err(&dark, &s), scene_err(SceneError::NoLights));
 
     let mut blind = good.clone();
     blind.camera.target = blind.camera.position;
     assert!(matches!(
         upload_err(&blind, &s),
-        CpuError::Scene(SceneError::DegenerateCamera(_))
+        CpuError::Stage(StageError::Scene(SceneError::DegenerateCamera(_)))
     ));
 
     let mut bad_index = good.clone();
     bad_index.meshes[0].indices[1][2] = 99;
     assert!(matches!(
         upload_err(&bad_index, &s),
-        CpuError::Scene(SceneError::IndexOutOfRange { index: 99, .. })
+        CpuError::Stage(StageError::Scene(SceneError::IndexOutOfRange { index: 99, .. }))
     ));
 
     for bad in [
@@ -449,7 +456,10 @@ fn bad_input_is_a_documented_error() {
         },
     ] {
         assert!(
-            matches!(upload_err(&good, &bad), CpuError::Settings(_)),
+            matches!(
+                upload_err(&good, &bad),
+                CpuError::Stage(StageError::Settings(_))
+            ),
             "{bad:?}"
         );
     }
@@ -466,16 +476,19 @@ fn bad_input_is_a_documented_error() {
 
 #[test]
 fn stages_out_of_order_are_errors() {
-    let order = |stage: &'static str, needs: &'static str| CpuError::StageOrder { stage, needs };
+    use Stage::*;
+    fn order(call: impl Into<Call>, needs: Stage) -> CpuError {
+        CpuError::Stage(StageError::order(call, needs))
+    }
     let mut t = CpuTracer::new().unwrap();
-    assert_eq!(t.camera_pass(), Err(order("camera_pass", "upload_scene")));
-    assert_eq!(t.photon_pass(), Err(order("photon_pass", "upload_scene")));
+    assert_eq!(t.camera_pass(), Err(order(CameraPass, UploadScene)));
+    assert_eq!(t.photon_pass(), Err(order(PhotonPass, UploadScene)));
     assert_eq!(
         t.build_acceleration_structure(),
-        Err(order("build_acceleration_structure", "upload_scene"))
+        Err(order(BuildAccelerationStructure, UploadScene))
     );
-    assert_eq!(t.gather(), Err(order("gather", "upload_scene")));
-    assert_eq!(t.accumulate(), Err(order("accumulate", "upload_scene")));
+    assert_eq!(t.gather(), Err(order(Gather, UploadScene)));
+    assert_eq!(t.accumulate(), Err(order(Accumulate, UploadScene)));
     assert!(t.iterate().is_err());
     assert!(t.read_image().is_err() && t.read_stats().is_err() && t.read_query_points().is_err());
     assert!(t.read_footprints().is_err() && t.read_photons().is_err());
@@ -484,48 +497,48 @@ fn stages_out_of_order_are_errors() {
     t.upload_scene(&small_scene(8), &settings(Method::Arpa, 2000, 1))
         .unwrap();
     assert_eq!(t.read_image().unwrap().pixels, vec![Vec3::ZERO; 64]);
-    assert_eq!(t.gather(), Err(order("gather", "camera_pass")));
+    assert_eq!(t.gather(), Err(order(Gather, CameraPass)));
     assert_eq!(
         t.build_acceleration_structure(),
-        Err(order("build_acceleration_structure", "photon_pass"))
+        Err(order(BuildAccelerationStructure, PhotonPass))
     );
-    assert_eq!(t.accumulate(), Err(order("accumulate", "gather")));
+    assert_eq!(t.accumulate(), Err(order(Accumulate, Gather)));
     assert_eq!(
         t.read_query_points(),
-        Err(order("read_query_points", "camera_pass"))
+        Err(order(Call::ReadQueryPoints, CameraPass))
     );
     assert_eq!(
         t.read_footprints(),
-        Err(order("read_footprints", "photon_pass"))
+        Err(order(Call::ReadFootprints, PhotonPass))
     );
     t.camera_pass().unwrap();
     t.photon_pass().unwrap();
     assert_eq!(
         t.gather(),
-        Err(order("gather", "build_acceleration_structure"))
+        Err(order(Gather, BuildAccelerationStructure))
     );
     t.build_acceleration_structure().unwrap();
     // Re-running the photon pass invalidates the acceleration structure.
     t.photon_pass().unwrap();
     assert_eq!(
         t.gather(),
-        Err(order("gather", "build_acceleration_structure"))
+        Err(order(Gather, BuildAccelerationStructure))
     );
     t.build_acceleration_structure().unwrap();
     t.gather().unwrap();
     t.accumulate().unwrap();
     assert_eq!(t.iterations(), 1);
     // Each stage's output belongs to its iteration: the next iteration starts over.
-    assert_eq!(t.accumulate(), Err(order("accumulate", "gather")));
-    assert_eq!(t.gather(), Err(order("gather", "camera_pass")));
+    assert_eq!(t.accumulate(), Err(order(Accumulate, Gather)));
+    assert_eq!(t.gather(), Err(order(Gather, CameraPass)));
     t.camera_pass().unwrap();
     assert_eq!(
         t.build_acceleration_structure(),
-        Err(order("build_acceleration_structure", "photon_pass"))
+        Err(order(BuildAccelerationStructure, PhotonPass))
     );
     assert_eq!(
         t.gather(),
-        Err(order("gather", "build_acceleration_structure"))
+        Err(order(Gather, BuildAccelerationStructure))
     );
     // Stage outputs of the last pass stay readable.
     assert_eq!(t.read_query_points().unwrap().len(), 64);
@@ -538,7 +551,7 @@ fn stages_out_of_order_are_errors() {
     assert_eq!(stats.iteration, 2);
     assert!(stats.times.photon > 0.0 && stats.times.gather > 0.0);
     let caps = t.capabilities();
-    assert_eq!(caps.backend, "cpu");
+    assert_eq!(caps.backend, BackendKind::Cpu);
     assert!(
         caps.deterministic
             && caps.methods.contains(&Method::Arpa)

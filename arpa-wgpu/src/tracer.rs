@@ -438,7 +438,7 @@ impl Tracer for WgpuTracer {
     fn capabilities(&self) -> Capabilities {
         let i = &self.ctx.info;
         Capabilities {
-            backend: "wgpu",
+            backend: arpa_core::tracer::BackendKind::Wgpu,
             device: format!("{} ({:?}, {} {})", i.name, i.device_type, i.driver, i.driver_info),
             methods: vec![Method::Arpa, Method::Rtpm],
             // Batches lift the buffer limits; the record keys bound photons · max_depth

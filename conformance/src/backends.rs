@@ -1,12 +1,11 @@
-//! The backends compiled into the suite, one per cargo feature of this crate, with the
-//! cases each is expected to fail (every expectation carries its reason).
+//! The backends compiled into the suite (the facade's registry, `arpa::backends`; one
+//! cargo feature of this crate per backend forwards to the facade's), with the cases each
+//! is expected to fail (every expectation carries its reason).
 
-use crate::dyn_tracer::{BoxError, DynTracer};
+use arpa::backends::{BackendEntry, CreateTracer, REGISTRY};
+use arpa::core::tracer::BackendKind;
+
 use crate::kernel_runner::MakeKernelRunner;
-
-/// Every backend name the project knows, compiled in or not. `ARPA_REQUIRE_BACKENDS`
-/// may only name these.
-pub const KNOWN_BACKENDS: &[&str] = &["cpu", "wgpu", "vk"];
 
 /// A case this backend is known to fail, and why.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -17,16 +16,16 @@ pub struct ExpectedFailure {
     pub reason: &'static str,
 }
 
-/// A backend compiled in.
+/// A backend the suite runs on.
 #[derive(Clone, Copy)]
 pub struct Backend {
-    /// Name as in [`KNOWN_BACKENDS`] and `ARPA_REQUIRE_BACKENDS`.
+    /// Name as in [`BackendKind::name`] and `ARPA_REQUIRE_BACKENDS`.
     pub name: &'static str,
     /// Cargo feature of `arpa-conformance` that compiles it in.
     pub feature: &'static str,
     /// Creates a fresh tracer (device, context); an error means the backend cannot run
     /// here (no adapter, no driver).
-    pub create: fn() -> Result<Box<dyn DynTracer>, BoxError>,
+    pub create: CreateTracer,
     /// Cases it is expected to fail.
     pub expected_failures: &'static [ExpectedFailure],
     /// Creates the backend's WGSL kernel runner (what the cases of the core's WGSL twin
@@ -56,36 +55,27 @@ impl Backend {
     }
 }
 
-#[cfg(feature = "cpu")]
-fn create_cpu() -> Result<Box<dyn DynTracer>, BoxError> {
-    Ok(Box::new(arpa_cpu::CpuTracer::new()?))
+impl Backend {
+    /// The suite's view of a registry entry.
+    pub fn from_entry(e: &BackendEntry) -> Self {
+        Backend {
+            name: e.kind.name(),
+            feature: e.feature,
+            create: e.create,
+            expected_failures: expected_failures(e.kind),
+            kernel_runner: e.kernel_runner,
+        }
+    }
 }
 
-#[cfg(feature = "wgpu")]
-fn create_wgpu() -> Result<Box<dyn DynTracer>, BoxError> {
-    Ok(Box::new(arpa_wgpu::WgpuTracer::new(&arpa_wgpu::AdapterChoice::Auto)?))
+/// The cases `kind` is expected to fail (none today).
+fn expected_failures(kind: BackendKind) -> &'static [ExpectedFailure] {
+    match kind {
+        BackendKind::Cpu | BackendKind::Wgpu | BackendKind::Vk => &[],
+    }
 }
 
 /// The backends compiled in, in report-column order.
-#[allow(clippy::vec_init_then_push)] // one `push` per feature
 pub fn compiled() -> Vec<Backend> {
-    #[allow(unused_mut)]
-    let mut v = Vec::new();
-    #[cfg(feature = "cpu")]
-    v.push(Backend {
-        name: "cpu",
-        feature: "cpu",
-        create: create_cpu,
-        expected_failures: &[],
-        kernel_runner: None,
-    });
-    #[cfg(feature = "wgpu")]
-    v.push(Backend {
-        name: "wgpu",
-        feature: "wgpu",
-        create: create_wgpu,
-        expected_failures: &[],
-        kernel_runner: Some(crate::kernel_runner::wgpu_kernel_runner),
-    });
-    v
+    REGISTRY.iter().map(Backend::from_entry).collect()
 }

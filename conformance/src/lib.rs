@@ -28,11 +28,11 @@
 //!
 //! The reference cases ([`cases::reference`]) run a **reduced set** by default and in CI
 //! (¼ of the reference resolution, 8 × 100k photons, the reference box-averaged 4 × 4;
-//! about 10 s for all five scenes on 2 cores, the whole suite about 15 s). Set
-//! `ARPA_CONFORMANCE_FULL=1` for the **full set** (reference resolution, 64 × 250k photons,
-//! tighter limits; minutes). They read `../shared/scenes` beside the repository (or
-//! `ARPA_SHARED_SCENES`); if it is absent they are skipped with a loud warning
-//! ([`Verdict::Skipped`]), or fail when env `CI` is set ([`suite::ci_is_set`]).
+//! seconds on 2 cores). Set `ARPA_CONFORMANCE_FULL=1` for the **full set** (reference
+//! resolution, 64 × 250k photons, tighter limits; minutes). They read `../shared/scenes`
+//! beside the repository (or `ARPA_SHARED_SCENES`); if it is absent they are skipped with
+//! a loud warning ([`Verdict::Skipped`]), or fail when env `CI` is set
+//! ([`suite::ci_is_set`]).
 //! `ARPA_CONFORMANCE_IMAGES=DIR` writes the renders and references for inspection.
 #![warn(missing_docs)]
 

@@ -10,7 +10,8 @@
 //! compiled in and initialise; `ARPA_CONFORMANCE_CASES` (or `--case`) selects cases by id
 //! substring. Exit status 1 on any unexpected failure, 2 on a usage error.
 //!
-//! Run it optimised: `cargo run -p arpa-conformance --profile test` (~1 s on 2 cores).
+//! Run it optimised: `cargo run -p arpa-conformance --profile test` (the reference cases
+//! render whole images).
 
 use std::path::PathBuf;
 use std::process::ExitCode;

@@ -4,7 +4,9 @@
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::time::Instant;
 
-use crate::backends::{Backend, KNOWN_BACKENDS};
+use crate::backends::Backend;
+use arpa::backends::BackendOptions;
+use arpa::core::tracer::BackendKind;
 use crate::dyn_tracer::{BoxError, DynTracer};
 use crate::kernel_runner::{KernelRunner, MakeKernelRunner};
 use crate::{Report, Verdict};
@@ -188,7 +190,7 @@ pub fn missing_data(missing: String, ci: bool) -> Verdict {
 }
 
 fn create(backend: &Backend) -> Result<Box<dyn DynTracer>, String> {
-    match catch_unwind(backend.create) {
+    match catch_unwind(|| (backend.create)(&BackendOptions::default())) {
         Ok(Ok(t)) => Ok(t),
         Ok(Err(e)) => Err(e.to_string()),
         Err(p) => Err(format!("panicked: {}", panic_message(&*p))),
@@ -351,14 +353,14 @@ pub fn run_suite_with(backends: &[Backend], cases: &[Case], options: &SuiteOptio
         if backends.iter().any(|b| b.name == name) {
             continue;
         }
-        let detail = if KNOWN_BACKENDS.contains(&name.as_str()) {
+        let detail = if BackendKind::from_name(name).is_some() {
             format!(
                 "required by {REQUIRE_ENV} but not compiled in (enable feature `{name}` of arpa-conformance)"
             )
         } else {
             format!(
                 "required by {REQUIRE_ENV} but no such backend (known: {})",
-                KNOWN_BACKENDS.join(", ")
+                BackendKind::ALL.map(BackendKind::name).join(", ")
             )
         };
         report.record(AVAILABILITY_ROW, name, Verdict::Fail { detail });
@@ -391,7 +393,7 @@ mod tests {
     use super::*;
     use crate::backends::ExpectedFailure;
 
-    fn no_device() -> Result<Box<dyn DynTracer>, BoxError> {
+    fn no_device(_: &BackendOptions) -> Result<Box<dyn DynTracer>, BoxError> {
         Err("no adapter".into())
     }
 

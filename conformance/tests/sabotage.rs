@@ -138,7 +138,7 @@ fn run(fault: Fault, case: &str) -> Result<String, String> {
         .find(|b| b.name == "cpu")
         .expect("cpu backend");
     let mut t = Sabotaged {
-        inner: (cpu.create)().expect("cpu tracer"),
+        inner: (cpu.create)(&Default::default()).expect("cpu tracer"),
         fault,
         reads: 0.into(),
     };

@@ -5,7 +5,7 @@
 //! loudly, except when env `CI` is set, where they fail (as arpa-wgpu's own GPU tests do).
 #![cfg(feature = "wgpu")]
 
-use arpa_conformance::kernel_runner::wgpu_kernel_runner;
+use arpa::backends::kernel_runner::wgpu_kernel_runner;
 use arpa_conformance::suite::ci_is_set;
 use arpa_conformance::{BoxError, Case, CaseBody, CaseResult, KernelJob, KernelRunner, cases};
 

@@ -4,8 +4,8 @@
 //! Bound of the closed form: the twin (product, then asymptotic series, in f32) is good to
 //! ~2e-6 relative; the core computes `lgamma(i + α) − lgamma(1 + α) − lgamma(i + 1)` in f64,
 //! which cancels: its own error is up to ~ε₆₄ lgamma(i + 1) in the logarithm, half of that
-//! in the radius (1.3e-5 relative was seen at i = 2³² − 1, α = 0.79, where the twin agreed
-//! with a 40-digit evaluation to 2.5e-7). Tolerance: `2e-6 + 4 ε₆₄ lgamma(i + 1)` relative,
+//! in the radius (1.3e-5 relative at i = 2³² − 1, α = 0.79, where the twin agrees with a
+//! 40-digit evaluation to 2.5e-7). Tolerance: `2e-6 + 4 ε₆₄ lgamma(i + 1)` relative,
 //! at most 4.2e-5. The recurrence: 1e-6.
 
 use std::cell::Cell;

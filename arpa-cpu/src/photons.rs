@@ -1,13 +1,23 @@
-//! One chunk of the photon pass on one thread: two photons in flight, interleaved segment
-//! by segment.
+//! The photon pass: the core's photon paths for every photon of the iteration, in chunks
+//! of [`PHOTON_CHUNK`] photon indices, stored in photon-index order.
 //!
-//! After Embree answers a segment, the hit's triangle records are usually not in cache
-//! (Embree's BVH keeps its own copy of the vertices), and everything the photon does next
-//! waits for them. So each answer only prefetches those records
-//! ([`PreparedScene::prefetch_hit`]), and the thread goes on with the *other* photon: it
-//! takes that photon's previous hit (whose records were prefetched one step earlier),
-//! stores and scatters, and casts its next segment. Each photon runs exactly the core's
-//! [`PhotonWalk`], so what it stores does not depend on the interleaving.
+//! # Chunks and their merge
+//! One loop per thread takes chunks in index order. Each chunk is traced into its own
+//! buffers ([`trace_chunk`]); a finished chunk is appended to the pass's store as soon as
+//! every chunk before it has been ([`ChunkMerge`]), so the store holds the records in
+//! photon-index order whatever the number of threads, and only the few chunks in flight
+//! are held twice. The store and the chunk buffers are kept from one pass to the next,
+//! sized from the previous pass's store rate.
+//!
+//! # Two photons in flight per thread
+//! A chunk runs two photons at once, interleaved segment by segment. After Embree answers
+//! a segment, the hit's triangle records are usually not in cache (Embree's BVH keeps its
+//! own copy of the vertices), and everything the photon does next waits for them. So each
+//! answer only prefetches those records ([`PreparedScene::prefetch_hit`]), and the thread
+//! goes on with the *other* photon: it takes that photon's previous hit (whose records
+//! were prefetched one step earlier), stores and scatters, and casts its next segment.
+//! Each photon runs exactly the core's [`PhotonWalk`], so what it stores does not depend
+//! on the interleaving.
 //!
 //! The records come out in photon-index order, as a sequential loop over
 //! [`arpa_core::photon_path::trace_photon`] gives them: the photon with the lower index
@@ -15,14 +25,150 @@
 //! boxed already) wait in its slot's small side buffer, which moves to the store when
 //! that photon becomes the lower-indexed one in flight.
 
+use core::sync::atomic::{AtomicU32, Ordering};
 use std::ops::Range;
+use std::sync::Mutex;
 
 use arpa_core::photon_path::{PhotonPassSetup, PhotonWalk};
 use arpa_core::prepared_scene::PreparedScene;
 use arpa_core::ray_cast::{RayCaster, RayHit};
-use arpa_core::tracer::RenderSettings;
+use arpa_core::tracer::{IterationStats, RenderSettings};
+use rayon::prelude::*;
 
+use crate::caster::EmbreeCaster;
 use crate::photon_store::PhotonStore;
+
+/// Photon indices traced by one task of the photon pass. The stored photons of each chunk
+/// are concatenated in chunk order, so the buffers do not depend on the thread count.
+pub const PHOTON_CHUNK: u32 = 4096;
+
+/// Headroom of the buffer sizes estimated from the previous iteration's store rate.
+const CAPACITY_HEADROOM: f64 = 1.25;
+
+/// The photon buffers, kept from one photon pass to the next.
+#[derive(Debug, Default)]
+pub(crate) struct PhotonBuffers {
+    /// The records stored by the last pass, in photon-index order.
+    pub store: PhotonStore,
+    /// Progressive radii `[caustic, global]` of the photons in `store`.
+    pub radii: [f32; 2],
+    /// Photons traced for `store` (with its counts: the store rate that sizes the next
+    /// pass's buffers).
+    emitted: u32,
+    /// Chunk buffers, kept for the next pass.
+    spare_parts: Vec<PhotonStore>,
+}
+
+/// The photon pass of iteration `iteration`: traces every photon into `buffers` (emptied
+/// first) and writes the pass's counts and radii to `stats`.
+pub(crate) fn photon_pass(
+    buffers: &mut PhotonBuffers,
+    prepared: &PreparedScene,
+    caster: &EmbreeCaster,
+    settings: &RenderSettings,
+    iteration: u32,
+    stats: &mut IterationStats,
+) {
+    let setup = PhotonPassSetup::new(prepared, settings, iteration);
+    let count = setup.photon_count();
+    let chunks = count.div_ceil(PHOTON_CHUNK);
+    // Buffer sizes from the previous pass's store rate (records per photon traced).
+    let (fp_rate, ph_rate) = match buffers.emitted {
+        0 => (0.0, 0.0),
+        n => {
+            let c = &buffers.store.counts;
+            (
+                c.footprints.iter().sum::<u64>() as f64 / n as f64,
+                c.progressive.iter().sum::<u64>() as f64 / n as f64,
+            )
+        }
+    };
+    let expect = |rate: f64, photons: u32| (rate * photons as f64 * CAPACITY_HEADROOM) as usize;
+    buffers.store.clear();
+    buffers
+        .store
+        .reserve_total(expect(fp_rate, count), expect(ph_rate, count));
+    let (part_fp, part_ph) = (
+        expect(fp_rate, PHOTON_CHUNK) + 64,
+        expect(ph_rate, PHOTON_CHUNK) + 64,
+    );
+    let merge = Mutex::new(ChunkMerge {
+        out: &mut buffers.store,
+        pending: (0..chunks).map(|_| None).collect(),
+        next: 0,
+        free: core::mem::take(&mut buffers.spare_parts),
+        segments: 0,
+    });
+    let lock = || merge.lock().unwrap_or_else(|e| e.into_inner());
+    // One loop per thread, taking chunks in index order.
+    let next_chunk = AtomicU32::new(0);
+    let workers = rayon::current_num_threads().clamp(1, chunks.max(1) as usize);
+    (0..workers).into_par_iter().for_each(|_| {
+        let mut part: Option<PhotonStore> = None;
+        loop {
+            let chunk = next_chunk.fetch_add(1, Ordering::Relaxed);
+            if chunk >= chunks {
+                break;
+            }
+            let mut p = part.take().unwrap_or_default();
+            p.clear();
+            p.reserve_total(part_fp, part_ph);
+            let first = chunk * PHOTON_CHUNK;
+            let end = first.saturating_add(PHOTON_CHUNK).min(count);
+            let segments = trace_chunk(prepared, caster, settings, &setup, first..end, &mut p);
+            let mut m = lock();
+            m.finish(chunk as usize, p, segments);
+            part = m.free.pop();
+        }
+        if let Some(p) = part {
+            lock().free.push(p);
+        }
+    });
+    let merge = merge.into_inner().unwrap_or_else(|e| e.into_inner());
+    debug_assert_eq!(merge.next, chunks as usize);
+    let segments = merge.segments;
+    buffers.spare_parts = merge.free;
+    buffers.emitted = count;
+    let c = buffers.store.counts;
+    stats.photons_emitted = count as u64;
+    stats.photon_segments = segments;
+    stats.footprints = c.footprints;
+    stats.progressive = c.progressive;
+    stats.degenerate = c.degenerate;
+    stats.culled = c.culled;
+    stats.unrepresentable = c.unrepresentable;
+    stats.differential_lost = c.differential_lost;
+    stats.overflowed = 0;
+    stats.radii = setup.radii;
+    buffers.radii = setup.radii.map(|r| r as f32);
+}
+
+/// The ordered merge of the photon pass: chunks finish in any order, and each is appended
+/// to the store as soon as every chunk before it has been (by whichever worker completes
+/// the next chunk in order), so only the few chunks in flight are held twice. Chunk
+/// buffers are recycled through `free`.
+struct ChunkMerge<'a> {
+    out: &'a mut PhotonStore,
+    /// Finished chunks waiting for an earlier one, by chunk index.
+    pending: Vec<Option<PhotonStore>>,
+    /// Next chunk to append.
+    next: usize,
+    free: Vec<PhotonStore>,
+    segments: u64,
+}
+
+impl ChunkMerge<'_> {
+    /// Files chunk `chunk` and appends every chunk that is now next in order.
+    fn finish(&mut self, chunk: usize, part: PhotonStore, segments: u64) {
+        self.segments += segments;
+        self.pending[chunk] = Some(part);
+        while let Some(ready) = self.pending.get_mut(self.next).and_then(Option::take) {
+            self.out.append(&ready);
+            self.free.push(ready);
+            self.next += 1;
+        }
+    }
+}
 
 /// A photon in flight.
 struct Slot {

@@ -21,8 +21,8 @@
 //! Passing a 4.2 `RTCRayHit` (80 bytes) to the 4.4 `rtcIntersect1` makes the library write
 //! `hit.instPrimID[0]` at byte offset 80 (hit offset 32), i.e. just past the end of the
 //! caller's 80-byte object (the packets likewise, `4·N` bytes past). The canary tests in
-//! `lib.rs` check that nothing is written past [`RTCRayHit44`], [`RTCRayHit8_44`] and
-//! [`RTCRayHit16_44`].
+//! `embree/tests.rs` check that nothing is written past [`RTCRayHit44`], [`RTCRayHit8_44`]
+//! and [`RTCRayHit16_44`].
 //!
 //! Layout source: `include/embree4/rtcore_ray.h` and `rtcore_common.h` at the Embree
 //! `v4.4.0` tag; `kernels/rtcore_config.h.in` (`RTC_GEOMETRY_INSTANCE_ARRAY` follows the

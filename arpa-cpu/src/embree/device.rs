@@ -6,14 +6,14 @@ use std::sync::{Arc, Mutex};
 
 use embree4_sys as sys;
 
-use crate::error::{EmbreeError, Result};
-use crate::ffi;
+use super::error::{EmbreeError, Result};
+use super::ffi;
 
 /// An Embree device (`RTCDevice`): the library instance that owns scenes, geometries and
 /// the worker thread pool (TBB) used to build BVHs.
 ///
 /// Cheap to clone (an `Arc`); the device is released (`rtcReleaseDevice`) when the last
-/// clone and the last [`Scene`](crate::Scene) created from it are dropped. `Device` is
+/// clone and the last [`EmbreeScene`](super::EmbreeScene) created from it are dropped. `Device` is
 /// `Send + Sync`: Embree's device-level calls (creating scenes and geometries, reading
 /// errors) are thread-safe, and errors are tracked per thread by Embree.
 #[derive(Clone)]

@@ -1,0 +1,115 @@
+//! The gather: for each query point, every footprint and progressive photon containing it,
+//! summed with the core's estimator into the iteration's image.
+
+use core::sync::atomic::{AtomicU64, Ordering};
+
+use arpa_core::estimate::{IrradianceEstimate, QueryPoint};
+use arpa_core::glam::{DVec3, Vec3};
+use arpa_core::kernel::Kernel;
+use arpa_core::prefetch::prefetch;
+use arpa_core::tracer::QueryRecord;
+use rayon::prelude::*;
+
+use crate::accel::Accel;
+use crate::photon_store::PhotonStore;
+
+/// The records the gather reads besides the query points: the photon pass's store, the
+/// box BVH built over it, and the settings of the estimate.
+pub(crate) struct GatherInput<'a> {
+    pub accel: &'a Accel,
+    pub store: &'a PhotonStore,
+    pub kernel: Kernel,
+    /// Progressive radii `[caustic, global]` of the photons in `store`.
+    pub radii: [f32; 2],
+    /// Counts the point queries that failed (answered as "nothing found").
+    pub errors: &'a AtomicU64,
+}
+
+/// Writes the radiance of each query record's pixel to `image` (resized to
+/// `queries.len()`; one task per record, in parallel) and returns the number of footprint
+/// and photon contributions found.
+pub(crate) fn gather(queries: &[QueryRecord], input: &GatherInput<'_>, image: &mut Vec<Vec3>) -> u64 {
+    let gathered = AtomicU64::new(0);
+    queries
+        .par_iter()
+        .map_init(Vec::new, |scratch, rec| {
+            let (l, n) = gather_one(rec, input, scratch);
+            gathered.fetch_add(n as u64, Ordering::Relaxed);
+            l
+        })
+        .collect_into_vec(image);
+    gathered.into_inner()
+}
+
+/// Replaces non-finite components by 0.
+fn finite_or_zero(v: DVec3) -> DVec3 {
+    DVec3::select(v.is_finite_mask(), v, DVec3::ZERO)
+}
+
+/// Candidate key of the gather: footprints (`index`) before progressive photons
+/// (`2³² + index`), the order [`arpa_core::estimate::gather_brute_force`] sums in.
+const PHOTON_KEY: u64 = 1 << 32;
+
+/// The gather of one query record: its pixel's radiance and the number of contributions.
+///
+/// Two phases. The Embree point query reports every box containing the query point (and
+/// possibly a few more); its callback only notes the candidate's key in `keys` and
+/// prefetches the record, so the records' cache misses overlap instead of stalling the
+/// traversal one by one. Then the candidates are sorted and deduplicated by key and each
+/// is added with the core's [`IrradianceEstimate::add_footprint`] /
+/// [`IrradianceEstimate::add_photon`] (exact test and `f64` sum) in `(kind, index)` order,
+/// so the sum is bit-identical to [`arpa_core::estimate::gather_brute_force`] over the
+/// same records, whatever order the BVH reported them in.
+fn gather_one(rec: &QueryRecord, input: &GatherInput<'_>, keys: &mut Vec<u64>) -> (Vec3, u32) {
+    let known = Vec3::from_array(rec.radiance).as_dvec3();
+    if rec.valid == 0 {
+        return (finite_or_zero(known).as_vec3(), 0);
+    }
+    let mut estimate = IrradianceEstimate::default();
+    if let Accel::Boxes {
+        scene,
+        footprints,
+        photons,
+    } = input.accel
+    {
+        let store = input.store;
+        let query = QueryPoint {
+            position: Vec3::from_array(rec.position),
+            normal: Vec3::from_array(rec.normal),
+        };
+        keys.clear();
+        let found = scene.point_query(rec.position, 0.0, |c| {
+            let i = c.prim_id as usize;
+            if Some(c.geom_id) == *footprints {
+                if let Some(fp) = store.footprints.get(i) {
+                    prefetch(fp);
+                    keys.push(i as u64);
+                }
+            } else if Some(c.geom_id) == *photons
+                && let Some(ph) = store.photons.get(i)
+            {
+                prefetch(ph);
+                keys.push(PHOTON_KEY | i as u64);
+            }
+        });
+        if found.is_err() {
+            input.errors.fetch_add(1, Ordering::Relaxed);
+        }
+        keys.sort_unstable();
+        keys.dedup();
+        for &key in keys.iter() {
+            let i = (key & (PHOTON_KEY - 1)) as usize;
+            if key < PHOTON_KEY {
+                estimate.add_footprint(&store.footprints[i], &query, input.kernel);
+            } else {
+                estimate.add_photon(&store.photons[i], &query, input.radii);
+            }
+        }
+    }
+    let weight = Vec3::from_array(rec.weight).as_dvec3();
+    let radiance = known + weight * estimate.irradiance();
+    (
+        finite_or_zero(radiance).as_vec3(),
+        estimate.footprints + estimate.photons,
+    )
+}

@@ -1,0 +1,412 @@
+//! `arpa bench CONFIG.toml`: run time against error over a sweep of scenes, methods, photon
+//! budgets and backends, each run for the same wall-clock budget, with Mitsuba 3 peers at
+//! equal time, against each scene's independent reference.
+//!
+//! Every run goes through the render session ([`crate::session`]) with checkpoints at powers
+//! of two and at the end; each checkpoint is a CSV row (relMSE, SSIM, FLIP, the ratio of the
+//! whole-image means, the per-stage mean times). The outputs ([`report`]) are one directory:
+//! `runs.csv`, `table.md` (the layout of the paper's Table 2: SSIM, NI, ATI per scene ×
+//! method × budget), `plots/SCENE.png` (log-log relMSE against time), and per run the final
+//! image (EXR + PNG) and its relMSE heat map. Every output starts with the same header
+//! ([`Header`]: machine, CPU, threads, backends and devices, git commit, config hash).
+//!
+//! Metrics ([`crate::metrics`]): relMSE on linear radiance; SSIM of the sRGB-encoded
+//! luminance clamped to `[0, 1]` (no tone mapping, exposure 1) with an 11×11 Gaussian window
+//! of σ = 1.5 px; LDR-FLIP of the clamped sRGB image at 67 pixels per degree.
+//!
+//! A run is reproducible for a seed up to where the time budget cuts it: the iterations it
+//! completes are those of a render with `--iterations NI` and the same seed.
+
+pub mod config;
+pub mod report;
+
+use crate::backends::{self, BackendOptions};
+use crate::metrics;
+use crate::scene_file::load_scene;
+use crate::session::{Budget, CheckpointRow, Checkpoints, Hooks, Reference, SessionOptions, render_with};
+use anyhow::{Context, bail};
+use arpa_core::classify::Smoothing;
+use arpa_core::radius::RadiusSpec;
+use arpa_core::tracer::{Image, Method, RenderSettings, StageTimes};
+use config::{LoadedConfig, SceneEntry};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// What produced a row: one of ours or a peer.
+#[derive(Clone, Debug, PartialEq)]
+pub enum RunKind {
+    /// An arpa render.
+    Arpa {
+        /// Backend name.
+        backend: String,
+        /// Method.
+        method: Method,
+        /// Photons per iteration.
+        photons: u32,
+    },
+    /// A Mitsuba 3 integrator (`ptracer`, `path`).
+    Peer {
+        /// Integrator name.
+        integrator: String,
+    },
+}
+
+impl RunKind {
+    /// The label of a line in the plots and of a column in the table, e.g. `arpa E-250K`,
+    /// `mitsuba ptracer`.
+    pub fn label(&self) -> String {
+        match self {
+            RunKind::Arpa { method, photons, .. } => format!("{} E-{}", method.name(), budget_label(*photons)),
+            RunKind::Peer { integrator } => format!("mitsuba {integrator}"),
+        }
+    }
+
+    /// A file-name stem, e.g. `arpa-E250K-cpu`, `mitsuba-ptracer`.
+    pub fn stem(&self) -> String {
+        match self {
+            RunKind::Arpa { backend, method, photons } => format!("{}-E{}-{backend}", method.name(), budget_label(*photons)),
+            RunKind::Peer { integrator } => format!("mitsuba-{integrator}"),
+        }
+    }
+}
+
+/// `50000` -> `50K`, `1000000` -> `1000K` (the paper's E-50K, E-1000K).
+pub fn budget_label(photons: u32) -> String {
+    if photons.is_multiple_of(1000) { format!("{}K", photons / 1000) } else { photons.to_string() }
+}
+
+/// One checkpoint of one run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BenchRow {
+    /// Scene name.
+    pub scene: String,
+    /// The run.
+    pub kind: RunKind,
+    /// Iterations (arpa) or passes (peer) so far.
+    pub iteration: u32,
+    /// Render time so far (seconds).
+    pub seconds: f64,
+    /// relMSE against the reference.
+    pub rel_mse: f64,
+    /// SSIM against the reference.
+    pub ssim: f64,
+    /// FLIP against the reference.
+    pub flip: f64,
+    /// Whole-image mean over the reference's.
+    pub mean_ratio: f64,
+    /// Mean per-iteration stage times (seconds; zero for peers).
+    pub times: StageTimes,
+}
+
+/// The outcome of one run.
+#[derive(Clone, Debug)]
+pub struct RunResult {
+    /// Scene name.
+    pub scene: String,
+    /// The run.
+    pub kind: RunKind,
+    /// Its checkpoints, the last one the final image (empty when skipped).
+    pub rows: Vec<BenchRow>,
+    /// Why it did not run (a peer that is not installed).
+    pub skipped: Option<String>,
+}
+
+impl RunResult {
+    /// The final checkpoint.
+    pub fn last(&self) -> Option<&BenchRow> {
+        self.rows.last()
+    }
+}
+
+/// What every output's header says.
+#[derive(Clone, Debug)]
+pub struct Header {
+    /// Sweep name.
+    pub name: String,
+    /// Host name and OS.
+    pub machine: String,
+    /// CPU model.
+    pub cpu: String,
+    /// Host threads the runs used.
+    pub threads: usize,
+    /// `backend: device` of each backend run.
+    pub devices: Vec<String>,
+    /// `git describe`-style commit of the working tree.
+    pub commit: String,
+    /// SHA-256 of the config file.
+    pub config_hash: String,
+    /// Wall-clock budget of each run (seconds).
+    pub seconds: f64,
+}
+
+impl Header {
+    /// The header as `key: value` lines.
+    pub fn lines(&self) -> Vec<String> {
+        vec![
+            format!("bench: {}", self.name),
+            format!("machine: {}", self.machine),
+            format!("cpu: {}", self.cpu),
+            format!("threads: {} (pinned)", self.threads),
+            format!("devices: {}", self.devices.join("; ")),
+            format!("commit: {}", self.commit),
+            format!("config sha256: {}", self.config_hash),
+            format!("budget per run: {} s", self.seconds),
+        ]
+    }
+}
+
+fn command_output(cmd: &str, args: &[&str]) -> Option<String> {
+    let out = std::process::Command::new(cmd).args(args).output().ok()?;
+    out.status.success().then(|| String::from_utf8_lossy(&out.stdout).trim().to_string()).filter(|s| !s.is_empty())
+}
+
+fn cpu_model() -> String {
+    std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| s.lines().find(|l| l.starts_with("model name")).and_then(|l| l.split_once(':')).map(|(_, v)| v.trim().to_string()))
+        .unwrap_or_else(|| "unknown CPU".into())
+}
+
+/// Options of `arpa bench` besides the config.
+#[derive(Clone, Debug)]
+pub struct BenchOptions {
+    /// Output directory.
+    pub out: PathBuf,
+    /// Overrides the config's seconds per run.
+    pub seconds: Option<f64>,
+    /// Python interpreter for the peers.
+    pub python: String,
+}
+
+/// Sums what one arpa run's checkpoints need into [`BenchRow`]s.
+struct RowHooks<'a> {
+    reference_mean: f64,
+    scene: &'a str,
+    kind: &'a RunKind,
+    rows: Vec<BenchRow>,
+}
+
+impl Hooks for RowHooks<'_> {
+    fn checkpoint(&mut self, row: &CheckpointRow, image: &Image) -> anyhow::Result<()> {
+        let m = row.metrics.context("a bench checkpoint without metrics")?;
+        self.rows.push(BenchRow {
+            scene: self.scene.to_string(),
+            kind: self.kind.clone(),
+            iteration: row.iteration,
+            seconds: row.seconds,
+            rel_mse: m.rel_mse,
+            ssim: m.ssim,
+            flip: m.flip,
+            mean_ratio: metrics::mean(image) / self.reference_mean,
+            times: row.times,
+        });
+        Ok(())
+    }
+}
+
+/// A scene of the sweep, loaded at the sweep's resolution, with its reference at the same.
+struct PreparedBenchScene {
+    entry: SceneEntry,
+    scene: arpa_core::scene::Scene,
+    max_depth: Option<u32>,
+    reference: Reference,
+}
+
+fn prepare_scene(cfg: &LoadedConfig, entry: &SceneEntry) -> anyhow::Result<PreparedBenchScene> {
+    let file = cfg.scenes_dir.join(&entry.file);
+    let mut loaded = load_scene(&file, &[]).with_context(|| format!("cannot load scene file '{}'", file.display()))?;
+    let ref_path = cfg.scenes_dir.join(&entry.reference);
+    let full = crate::image_io::read_exr(&ref_path).with_context(|| format!("cannot read reference image '{}'", ref_path.display()))?;
+    let k = cfg.config.downscale;
+    let image = metrics::downsample(&full, k).map_err(|e| anyhow::anyhow!("reference '{}': {e}", ref_path.display()))?;
+    loaded.set_resolution(image.width, image.height);
+    let camera = &loaded.scene.camera;
+    if (full.width / k, full.height / k) != (camera.width, camera.height) {
+        bail!("reference '{}' does not match the scene's film", ref_path.display());
+    }
+    loaded.scene.validate().with_context(|| format!("scene file '{}' is invalid", file.display()))?;
+    Ok(PreparedBenchScene { entry: entry.clone(), scene: loaded.scene, max_depth: loaded.max_depth, reference: Reference { image, path: ref_path } })
+}
+
+fn settings_for(s: &PreparedBenchScene, method: Method, photons: u32, seed: u32) -> RenderSettings {
+    let d = RenderSettings::default();
+    let e = &s.entry;
+    RenderSettings {
+        method,
+        photons_per_iteration: photons,
+        seed,
+        // Mitsuba's max_depth counts segments; the core counts surface interactions.
+        max_depth: s.max_depth.map_or(d.max_depth, |m| m.saturating_sub(1).clamp(1, 1024)),
+        smoothing: Smoothing { caustic: e.smoothing_caustic.unwrap_or(d.smoothing.caustic), global: e.smoothing_global.unwrap_or(d.smoothing.global) },
+        radii: arpa_core::radius::ProgressiveConfig {
+            caustic: e.radius_caustic.map_or(d.radii.caustic, RadiusSpec::Absolute),
+            global: e.radius_global.map_or(d.radii.global, RadiusSpec::Absolute),
+            ..d.radii
+        },
+        ..d
+    }
+}
+
+/// Runs the whole sweep of `cfg` and writes every output into `options.out`. Progress (one
+/// line per run with the ETA of the sweep) goes to stderr.
+pub fn run_bench(cfg: &LoadedConfig, options: &BenchOptions) -> anyhow::Result<Vec<RunResult>> {
+    let c = &cfg.config;
+    let seconds = options.seconds.unwrap_or(c.seconds);
+    if !(seconds.is_finite() && seconds > 0.0) {
+        bail!("--seconds must be positive (got {seconds})");
+    }
+    let threads = c.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    // Pin the CPU backend's thread pool for the whole sweep (the peers get the same count).
+    if let Err(e) = rayon::ThreadPoolBuilder::new().num_threads(threads).build_global() {
+        if rayon::current_num_threads() != threads {
+            bail!("cannot pin the thread pool to {threads} threads: {e}");
+        }
+    }
+    std::fs::create_dir_all(&options.out).with_context(|| format!("cannot create output directory '{}'", options.out.display()))?;
+
+    let mut tracers = Vec::new();
+    let mut devices = Vec::new();
+    for &kind in &cfg.backends {
+        let t = backends::create(kind, &BackendOptions::default())?;
+        devices.push(format!("{kind}: {}", t.capabilities().device));
+        tracers.push((kind, t));
+    }
+    let header = Header {
+        name: c.name.clone(),
+        machine: format!("{} ({})", command_output("hostname", &[]).unwrap_or_else(|| "unknown host".into()), std::env::consts::OS),
+        cpu: cpu_model(),
+        threads,
+        devices,
+        commit: command_output("git", &["-C", env!("CARGO_MANIFEST_DIR"), "describe", "--always", "--dirty", "--abbrev=12"]).unwrap_or_else(|| "unknown".into()),
+        config_hash: cfg.hash.clone(),
+        seconds,
+    };
+
+    let per_scene = cfg.backends.len() * cfg.methods.len() * c.photons.len() + c.peers.len();
+    let total_runs = per_scene * c.scenes.len();
+    let started = Instant::now();
+    let mut done = 0usize;
+    let mut results = Vec::new();
+    let mut progress = |label: &str, note: &str| {
+        done += 1;
+        let elapsed = started.elapsed().as_secs_f64();
+        let eta = elapsed / done as f64 * (total_runs - done) as f64;
+        eprintln!("[{done}/{total_runs}] {label}: {note}  (elapsed {elapsed:.0} s, ETA {eta:.0} s)");
+    };
+    for entry in &c.scenes {
+        let scene = prepare_scene(cfg, entry)?;
+        let reference_mean = metrics::mean(&scene.reference.image);
+        for (kind_backend, tracer) in tracers.iter_mut() {
+            for &method in &cfg.methods {
+                for &photons in &c.photons {
+                    let kind = RunKind::Arpa { backend: kind_backend.name().to_string(), method, photons };
+                    let settings = settings_for(&scene, method, photons, c.seed);
+                    let mut hooks = RowHooks { reference_mean, scene: &entry.name, kind: &kind, rows: Vec::new() };
+                    let session = SessionOptions { budget: Budget::Time(Duration::from_secs_f64(seconds)), checkpoints: Checkpoints::PowersOfTwo, reference: Some(&scene.reference) };
+                    let rendered = render_with(tracer, &scene.scene, &settings, &session, &mut hooks).with_context(|| format!("{} {}", entry.name, kind.label()))?;
+                    report::write_run_images(&options.out, &entry.name, &kind, &rendered.image, &scene.reference.image)?;
+                    let last = hooks.rows.last().map_or(String::new(), |r| format!("NI {} relMSE {:.4e} SSIM {:.3}", r.iteration, r.rel_mse, r.ssim));
+                    progress(&format!("{} {} ({kind_backend})", entry.name, kind.label()), &last);
+                    let rows = hooks.rows;
+                    results.push(RunResult { scene: entry.name.clone(), kind, rows, skipped: None });
+                }
+            }
+        }
+        for integrator in &c.peers {
+            let kind = RunKind::Peer { integrator: integrator.clone() };
+            let result = run_peer(cfg, &scene, &kind, integrator, seconds, threads, options, reference_mean)?;
+            let note = match (&result.skipped, result.last()) {
+                (Some(why), _) => format!("SKIPPED: {why}"),
+                (None, Some(r)) => format!("passes {} relMSE {:.4e} SSIM {:.3}", r.iteration, r.rel_mse, r.ssim),
+                (None, None) => "no image".into(),
+            };
+            progress(&format!("{} {}", entry.name, kind.label()), &note);
+            results.push(result);
+        }
+    }
+    report::write_all(&options.out, &header, cfg, &results)?;
+    Ok(results)
+}
+
+/// JSON line of `scripts/peer_mitsuba.py`.
+#[derive(serde::Deserialize)]
+struct PeerLine {
+    event: String,
+    #[serde(default)]
+    pass: u32,
+    #[serde(default)]
+    seconds: f64,
+    #[serde(default)]
+    file: Option<PathBuf>,
+    #[serde(default)]
+    reason: Option<String>,
+}
+
+/// Runs a Mitsuba peer through `scripts/peer_mitsuba.py` and evaluates its checkpoints. A
+/// peer that is not installed is a skipped run, not an error.
+#[allow(clippy::too_many_arguments)]
+fn run_peer(
+    cfg: &LoadedConfig,
+    scene: &PreparedBenchScene,
+    kind: &RunKind,
+    integrator: &str,
+    seconds: f64,
+    threads: usize,
+    options: &BenchOptions,
+    reference_mean: f64,
+) -> anyhow::Result<RunResult> {
+    let name = &scene.entry.name;
+    let skipped = |why: String| Ok(RunResult { scene: name.clone(), kind: kind.clone(), rows: Vec::new(), skipped: Some(why) });
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/peer_mitsuba.py");
+    let work = options.out.join("peers").join(format!("{name}-{}", kind.stem()));
+    let camera = &scene.scene.camera;
+    let out = std::process::Command::new(&options.python)
+        .arg(&script)
+        .args(["--scene", &cfg.scenes_dir.join(&scene.entry.file).to_string_lossy()])
+        .args(["--integrator", integrator, "--seconds", &seconds.to_string(), "--threads", &threads.to_string()])
+        .args(["--res", &format!("{}x{}", camera.width, camera.height), "--seed", &cfg.config.seed.to_string()])
+        .arg("--out-dir")
+        .arg(&work)
+        .output();
+    let out = match out {
+        Ok(o) => o,
+        Err(e) => return skipped(format!("cannot run '{}': {e}", options.python)),
+    };
+    let mut rows = Vec::new();
+    let mut last_image = None;
+    for line in String::from_utf8_lossy(&out.stdout).lines() {
+        let Ok(l) = serde_json::from_str::<PeerLine>(line) else { continue };
+        match l.event.as_str() {
+            "skipped" => return skipped(l.reason.unwrap_or_else(|| "peer unavailable".into())),
+            "checkpoint" | "done" => {
+                if rows.last().is_some_and(|r: &BenchRow| r.iteration == l.pass) {
+                    continue;
+                }
+                let file = l.file.context("peer checkpoint without a file")?;
+                let image = crate::image_io::read_exr(&file).with_context(|| format!("cannot read peer image '{}'", file.display()))?;
+                let m = scene.reference.compare(&image)?;
+                rows.push(BenchRow {
+                    scene: name.clone(),
+                    kind: kind.clone(),
+                    iteration: l.pass,
+                    seconds: l.seconds,
+                    rel_mse: m.rel_mse,
+                    ssim: m.ssim,
+                    flip: m.flip,
+                    mean_ratio: metrics::mean(&image) / reference_mean,
+                    times: StageTimes::default(),
+                });
+                last_image = Some(image);
+            }
+            _ => {}
+        }
+    }
+    if !out.status.success() && out.status.code() != Some(3) {
+        bail!("peer {} on {name} failed: {}", kind.label(), String::from_utf8_lossy(&out.stderr).lines().last().unwrap_or("no message"));
+    }
+    let Some(image) = last_image else {
+        return skipped(format!("the peer wrote no image ({})", String::from_utf8_lossy(&out.stderr).lines().last().unwrap_or("no message")));
+    };
+    report::write_run_images(&options.out, name, kind, &image, &scene.reference.image)?;
+    Ok(RunResult { scene: name.clone(), kind: kind.clone(), rows, skipped: None })
+}

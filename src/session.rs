@@ -1,0 +1,432 @@
+//! The render loop as a library: upload a scene to any [`Tracer`], run iterations within a
+//! [`Budget`], and at [`Checkpoints`] read the image back and compare it with an optional
+//! [`Reference`]. [`render_with`] returns the image, the summed statistics and one
+//! [`CheckpointRow`] per checkpoint (iteration, seconds, stage times, metrics); it prints
+//! nothing. Callers that want to show progress (the CLI's bar, its metrics lines and CSV)
+//! implement [`Hooks`].
+//!
+//! Time accounting: [`Rendered::render_time`] and [`CheckpointRow::seconds`] count the
+//! iterations only; reading images back at checkpoints, the metrics and the hooks' own
+//! work are excluded, also from a [`Budget::Time`].
+
+use crate::image_io;
+use crate::metrics::{Metrics, compare_images};
+use anyhow::{Context, bail};
+use arpa_core::scene::Scene;
+use arpa_core::tracer::{Capabilities, Image, IterationStats, RenderSettings, StageTimes, Tracer};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// How long to render.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Budget {
+    /// Exactly this many iterations.
+    Iterations(u32),
+    /// Iterations until this much wall-clock time has passed (at least one).
+    Time(Duration),
+}
+
+/// When to evaluate intermediate images (the final image is always evaluated).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Checkpoints {
+    /// Never (only the final image).
+    Never,
+    /// At iterations 1, 2, 4, 8, ...
+    PowersOfTwo,
+    /// At every multiple of N.
+    Every(u32),
+}
+
+impl Checkpoints {
+    /// Whether `iteration` (1-based) is a checkpoint.
+    pub fn contains(self, iteration: u32) -> bool {
+        match self {
+            Checkpoints::Never => false,
+            Checkpoints::PowersOfTwo => iteration.is_power_of_two(),
+            Checkpoints::Every(n) => n > 0 && iteration.is_multiple_of(n),
+        }
+    }
+}
+
+/// Sums of the per-iteration statistics.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct StatTotals {
+    /// Iterations summed.
+    pub iterations: u32,
+    /// Counts and stage times summed over those iterations.
+    pub sum: IterationStats,
+}
+
+impl StatTotals {
+    /// Adds one iteration's statistics.
+    pub fn add(&mut self, s: &IterationStats) {
+        self.iterations += 1;
+        self.sum.accumulate(s);
+    }
+
+    /// Per-iteration mean of a count.
+    pub fn mean(&self, total: u64) -> f64 {
+        total as f64 / self.iterations.max(1) as f64
+    }
+
+    /// Per-iteration mean time of each stage (seconds).
+    pub fn mean_times(&self) -> StageTimes {
+        let n = self.iterations.max(1) as f64;
+        let t = &self.sum.times;
+        StageTimes { camera: t.camera / n, photon: t.photon / n, build: t.build / n, gather: t.gather / n, accumulate: t.accumulate / n }
+    }
+}
+
+/// An independent reference image the checkpoints are compared with.
+#[derive(Clone, Debug)]
+pub struct Reference {
+    /// The reference (linear radiance).
+    pub image: Image,
+    /// Where it was read from (for messages).
+    pub path: PathBuf,
+}
+
+impl Reference {
+    /// Reads an OpenEXR reference, which must be `width`×`height` pixels (the render's size).
+    pub fn load(path: &Path, width: u32, height: u32) -> anyhow::Result<Self> {
+        let image = image_io::read_exr(path).with_context(|| format!("cannot read reference image '{}'", path.display()))?;
+        if (image.width, image.height) != (width, height) {
+            bail!(
+                "reference image '{}' is {}x{} pixels but the render is {}x{}; render at --resolution {}x{} or use a matching reference",
+                path.display(),
+                image.width,
+                image.height,
+                width,
+                height,
+                image.width,
+                image.height
+            );
+        }
+        Ok(Self { image, path: path.to_path_buf() })
+    }
+
+    /// relMSE, SSIM and FLIP of `image` against the reference.
+    pub fn compare(&self, image: &Image) -> anyhow::Result<Metrics> {
+        compare_images(image, &self.image).with_context(|| format!("cannot compare with reference '{}'", self.path.display()))
+    }
+}
+
+/// The state of the render at one checkpoint.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CheckpointRow {
+    /// Iterations accumulated.
+    pub iteration: u32,
+    /// Render time up to this iteration (seconds), excluding checkpoints.
+    pub seconds: f64,
+    /// Mean time per iteration of each stage so far (seconds).
+    pub times: StageTimes,
+    /// Metrics against the [`Reference`], when there is one.
+    pub metrics: Option<Metrics>,
+}
+
+/// What a render produced.
+#[derive(Clone, Debug)]
+pub struct Rendered {
+    /// The accumulated image.
+    pub image: Image,
+    /// Iterations run.
+    pub iterations: u32,
+    /// Summed statistics.
+    pub totals: StatTotals,
+    /// Statistics of the last iteration.
+    pub last: IterationStats,
+    /// The backend's capabilities.
+    pub capabilities: Capabilities,
+    /// One row per checkpoint, the last one for the final image.
+    pub rows: Vec<CheckpointRow>,
+    /// Wall-clock time of the iterations (excluding upload, read-back and checkpoints).
+    pub render_time: Duration,
+    /// Wall-clock time spent in checkpoints (read-backs, metrics and [`Hooks::checkpoint`]).
+    pub checkpoint_time: Duration,
+    /// Wall-clock time of upload, iterations and read-back.
+    pub total_time: Duration,
+}
+
+/// What a render looks at besides the scene and settings.
+#[derive(Clone, Copy, Debug)]
+pub struct SessionOptions<'a> {
+    /// How long to render.
+    pub budget: Budget,
+    /// When to read the image back and make a [`CheckpointRow`].
+    pub checkpoints: Checkpoints,
+    /// What to compare the checkpoints with.
+    pub reference: Option<&'a Reference>,
+}
+
+impl SessionOptions<'_> {
+    /// `budget`, no intermediate checkpoints, no reference.
+    pub fn budget(budget: Budget) -> Self {
+        SessionOptions { budget, checkpoints: Checkpoints::Never, reference: None }
+    }
+}
+
+/// Callbacks of [`render_with`], for progress display. Both default to doing nothing.
+pub trait Hooks {
+    /// After each iteration: iterations done, render time so far, the sums so far.
+    fn iteration(&mut self, _iterations: u32, _render_time: Duration, _totals: &StatTotals) {}
+
+    /// At each checkpoint (and once for the final image), with the image read back. Its
+    /// time is excluded from the render time.
+    fn checkpoint(&mut self, _row: &CheckpointRow, _image: &Image) -> anyhow::Result<()> {
+        Ok(())
+    }
+}
+
+/// [`Hooks`] that do nothing.
+pub struct NoHooks;
+
+impl Hooks for NoHooks {}
+
+/// Uploads `scene` to `tracer` and runs iterations within `budget`; returns the image and
+/// statistics. Backend errors are returned with the stage and iteration that failed.
+pub fn render<T: Tracer>(tracer: &mut T, scene: &Scene, settings: &RenderSettings, budget: Budget) -> anyhow::Result<Rendered> {
+    render_with(tracer, scene, settings, &SessionOptions::budget(budget), &mut NoHooks)
+}
+
+fn read_checked<T: Tracer>(tracer: &T, capabilities: &Capabilities) -> anyhow::Result<Image> {
+    let image = tracer.read_image().context("cannot read back the image")?;
+    let expected = image.width as u64 * image.height as u64;
+    if image.pixels.len() as u64 != expected {
+        bail!("backend '{}' returned a {}x{} image with {} pixels", capabilities.backend, image.width, image.height, image.pixels.len());
+    }
+    Ok(image)
+}
+
+/// [`render`] with checkpoints, a reference and hooks: at each checkpoint (and for the final
+/// image) the image is read back, compared with the reference and handed to
+/// [`Hooks::checkpoint`], and a [`CheckpointRow`] is kept.
+pub fn render_with<T: Tracer, H: Hooks + ?Sized>(
+    tracer: &mut T,
+    scene: &Scene,
+    settings: &RenderSettings,
+    options: &SessionOptions<'_>,
+    hooks: &mut H,
+) -> anyhow::Result<Rendered> {
+    let start = Instant::now();
+    let capabilities = tracer.capabilities();
+    if !capabilities.methods.contains(&settings.method) {
+        bail!("backend '{}' does not implement method '{}'", capabilities.backend, settings.method.name());
+    }
+    if let Some(max) = capabilities.max_photons_per_iteration
+        && settings.photons_per_iteration > max
+    {
+        bail!("backend '{}' accepts at most {max} photons per iteration, {} requested", capabilities.backend, settings.photons_per_iteration);
+    }
+    tracer.upload_scene(scene, settings).with_context(|| format!("backend '{}' could not load the scene", capabilities.backend))?;
+
+    let render_start = Instant::now();
+    let mut totals = StatTotals::default();
+    let mut last = IterationStats::default();
+    let mut rows = Vec::new();
+    let mut iterations = 0u32;
+    let mut checkpoint_time = Duration::ZERO;
+    let rendering = |checkpoint_time: Duration| render_start.elapsed().saturating_sub(checkpoint_time);
+    // Reads the image back, evaluates it and hands it to the hooks; returns the image.
+    let checkpoint = |tracer: &T, hooks: &mut H, i: u32, at: Duration, totals: &StatTotals, rows: &mut Vec<CheckpointRow>| -> anyhow::Result<Image> {
+        let image = read_checked(tracer, &capabilities)?;
+        let metrics = options.reference.map(|r| r.compare(&image)).transpose()?;
+        let row = CheckpointRow { iteration: i, seconds: at.as_secs_f64(), times: totals.mean_times(), metrics };
+        hooks.checkpoint(&row, &image)?;
+        rows.push(row);
+        Ok(image)
+    };
+    loop {
+        let more = match options.budget {
+            Budget::Iterations(n) => iterations < n,
+            Budget::Time(t) => iterations == 0 || rendering(checkpoint_time) < t,
+        };
+        if !more {
+            break;
+        }
+        let i = iterations + 1;
+        tracer.iterate().with_context(|| format!("iteration {i} failed"))?;
+        last = tracer.read_stats().with_context(|| format!("cannot read the statistics of iteration {i}"))?;
+        totals.add(&last);
+        iterations = i;
+        let last_iteration = matches!(options.budget, Budget::Iterations(n) if i >= n);
+        if options.checkpoints.contains(i) && !last_iteration {
+            let at = rendering(checkpoint_time);
+            let t0 = Instant::now();
+            checkpoint(tracer, hooks, i, at, &totals, &mut rows)?;
+            checkpoint_time += t0.elapsed();
+        }
+        hooks.iteration(iterations, rendering(checkpoint_time), &totals);
+    }
+    let render_time = rendering(checkpoint_time);
+    let image = if rows.last().is_some_and(|r| r.iteration == iterations) {
+        read_checked(tracer, &capabilities)?
+    } else {
+        let t0 = Instant::now();
+        let image = checkpoint(tracer, hooks, iterations, render_time, &totals, &mut rows)?;
+        checkpoint_time += t0.elapsed();
+        image
+    };
+    Ok(Rendered { image, iterations, totals, last, capabilities, rows, render_time, checkpoint_time, total_time: start.elapsed() })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::default_scene::default_scene;
+    use arpa_core::footprint::PackedFootprint;
+    use arpa_core::glam::Vec3;
+    use arpa_core::progressive_photon::PackedPhoton;
+    use arpa_core::tracer::{BackendKind, Method, QueryRecord};
+
+    #[derive(Debug, thiserror::Error)]
+    #[error("mock failure")]
+    pub(crate) struct MockError;
+
+    /// A backend that renders a constant grey and reports fixed counts.
+    #[derive(Default)]
+    pub(crate) struct Mock {
+        pub size: (u32, u32),
+        pub photons: u32,
+        pub iterations: u32,
+        pub fail_at: Option<u32>,
+        pub sleep: Duration,
+    }
+
+    impl Tracer for Mock {
+        type Error = MockError;
+        fn capabilities(&self) -> Capabilities {
+            Capabilities { backend: BackendKind::Cpu, device: "test".into(), methods: vec![Method::Arpa], max_photons_per_iteration: None, deterministic: true }
+        }
+        fn upload_scene(&mut self, scene: &Scene, settings: &RenderSettings) -> Result<(), MockError> {
+            self.size = (scene.camera.width, scene.camera.height);
+            self.photons = settings.photons_per_iteration;
+            self.iterations = 0;
+            Ok(())
+        }
+        fn camera_pass(&mut self) -> Result<(), MockError> {
+            Ok(())
+        }
+        fn photon_pass(&mut self) -> Result<(), MockError> {
+            std::thread::sleep(self.sleep);
+            Ok(())
+        }
+        fn build_acceleration_structure(&mut self) -> Result<(), MockError> {
+            Ok(())
+        }
+        fn gather(&mut self) -> Result<(), MockError> {
+            if self.fail_at == Some(self.iterations + 1) { Err(MockError) } else { Ok(()) }
+        }
+        fn accumulate(&mut self) -> Result<(), MockError> {
+            self.iterations += 1;
+            Ok(())
+        }
+        fn iterations(&self) -> u32 {
+            self.iterations
+        }
+        fn read_image(&self) -> Result<Image, MockError> {
+            Ok(Image { width: self.size.0, height: self.size.1, pixels: vec![Vec3::splat(0.5); (self.size.0 * self.size.1) as usize] })
+        }
+        fn read_query_points(&self) -> Result<Vec<QueryRecord>, MockError> {
+            Ok(vec![])
+        }
+        fn read_footprints(&self) -> Result<Vec<PackedFootprint>, MockError> {
+            Ok(vec![])
+        }
+        fn read_photons(&self) -> Result<Vec<PackedPhoton>, MockError> {
+            Ok(vec![])
+        }
+        fn read_stats(&self) -> Result<IterationStats, MockError> {
+            let mut s = IterationStats { iteration: self.iterations, photons_emitted: self.photons as u64, footprints: [10, 20], progressive: [1, 2], degenerate: 3, ..Default::default() };
+            s.times.gather = 0.002;
+            Ok(s)
+        }
+    }
+
+    pub(crate) fn small_scene() -> Scene {
+        let mut s = default_scene();
+        s.camera.width = 8;
+        s.camera.height = 4;
+        s
+    }
+
+    #[test]
+    fn renders_the_requested_iterations_and_sums_statistics() {
+        let mut t = Mock::default();
+        let settings = RenderSettings { photons_per_iteration: 1000, ..Default::default() };
+        let r = render(&mut t, &small_scene(), &settings, Budget::Iterations(5)).unwrap();
+        assert_eq!(r.iterations, 5);
+        assert_eq!((r.image.width, r.image.height, r.image.pixels.len()), (8, 4, 32));
+        assert_eq!(r.totals.sum.photons_emitted, 5000);
+        assert_eq!(r.totals.sum.footprints, [50, 100]);
+        assert_eq!(r.totals.mean(r.totals.sum.degenerate), 3.0);
+        assert!((r.totals.sum.times.gather - 0.01).abs() < 1e-12);
+        assert_eq!(r.rows.len(), 1, "the final image is a row");
+        assert!((r.rows[0].times.gather - 0.002).abs() < 1e-12 && r.rows[0].metrics.is_none());
+    }
+
+    #[test]
+    fn time_budget_runs_at_least_one_iteration_and_stops() {
+        let mut t = Mock { sleep: Duration::from_millis(20), ..Default::default() };
+        let r = render(&mut t, &small_scene(), &RenderSettings::default(), Budget::Time(Duration::from_millis(1))).unwrap();
+        assert_eq!(r.iterations, 1);
+        let mut t = Mock { sleep: Duration::from_millis(5), ..Default::default() };
+        let r = render(&mut t, &small_scene(), &RenderSettings::default(), Budget::Time(Duration::from_millis(60))).unwrap();
+        assert!(r.iterations >= 2 && r.iterations < 40, "{}", r.iterations);
+    }
+
+    #[test]
+    fn backend_errors_name_the_iteration_and_unsupported_methods_fail() {
+        let mut t = Mock { fail_at: Some(3), ..Default::default() };
+        let e = render(&mut t, &small_scene(), &RenderSettings::default(), Budget::Iterations(5)).unwrap_err();
+        assert_eq!(format!("{e:#}"), "iteration 3 failed: mock failure");
+        let settings = RenderSettings { method: Method::Rtpm, ..Default::default() };
+        let e = render(&mut Mock::default(), &small_scene(), &settings, Budget::Iterations(1)).unwrap_err();
+        assert!(e.to_string().contains("does not implement method 'rtpm'"), "{e}");
+    }
+
+    struct Recorder(Vec<u32>);
+    impl Hooks for Recorder {
+        fn checkpoint(&mut self, row: &CheckpointRow, image: &Image) -> anyhow::Result<()> {
+            assert_eq!(image.pixels.len(), 32);
+            self.0.push(row.iteration);
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn checkpoints_at_powers_of_two_multiples_and_the_end() {
+        let run = |checkpoints: Checkpoints, n: u32| {
+            let mut rec = Recorder(vec![]);
+            let options = SessionOptions { checkpoints, ..SessionOptions::budget(Budget::Iterations(n)) };
+            let r = render_with(&mut Mock::default(), &small_scene(), &RenderSettings::default(), &options, &mut rec).unwrap();
+            assert_eq!(r.iterations, n);
+            assert_eq!(r.rows.iter().map(|r| r.iteration).collect::<Vec<_>>(), rec.0, "one row per checkpoint");
+            rec.0
+        };
+        assert_eq!(run(Checkpoints::PowersOfTwo, 10), vec![1, 2, 4, 8, 10]);
+        assert_eq!(run(Checkpoints::PowersOfTwo, 8), vec![1, 2, 4, 8]);
+        assert_eq!(run(Checkpoints::Every(3), 7), vec![3, 6, 7]);
+        assert_eq!(run(Checkpoints::Never, 5), vec![5]);
+    }
+
+    #[test]
+    fn rows_carry_metrics_against_the_reference() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("ref.exr");
+        image_io::write_exr(&path, &Image { width: 4, height: 2, pixels: vec![Vec3::ONE; 8] }).unwrap();
+        let e = Reference::load(&path, 8, 4).err().unwrap();
+        assert!(format!("{e:#}").contains("is 4x2 pixels but the render is 8x4"), "{e:#}");
+        let grey = Reference { image: Image { width: 8, height: 4, pixels: vec![Vec3::splat(0.5); 32] }, path: path.clone() };
+        let double = Reference { image: Image { width: 8, height: 4, pixels: vec![Vec3::ONE; 32] }, path };
+        let options = SessionOptions { checkpoints: Checkpoints::Every(2), reference: Some(&grey), ..SessionOptions::budget(Budget::Iterations(3)) };
+        let r = render_with(&mut Mock::default(), &small_scene(), &RenderSettings::default(), &options, &mut NoHooks).unwrap();
+        assert_eq!(r.rows.len(), 2);
+        assert!(r.rows.iter().all(|row| row.metrics.is_some_and(|m| m.rel_mse == 0.0)), "{:?}", r.rows);
+        // The mock's 0.5 against 1.0: relMSE = (0.5)² / (1² + 0.01).
+        let options = SessionOptions { reference: Some(&double), ..options };
+        let r = render_with(&mut Mock::default(), &small_scene(), &RenderSettings::default(), &options, &mut NoHooks).unwrap();
+        let m = r.rows[1].metrics.unwrap();
+        assert!(m.rel_mse > 0.2 && m.rel_mse < 0.26, "{m:?}");
+        assert!(r.rows[0].seconds <= r.rows[1].seconds);
+    }
+}

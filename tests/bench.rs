@@ -1,0 +1,136 @@
+//! `arpa bench` end to end on the reduced config (`bench/smoke.toml`: two shared scenes at a
+//! quarter of their film size, 2 s per run, no peers): every output exists and parses.
+//! Timings are never asserted. Without the shared scenes the tests skip loudly, except under
+//! `CI`, where they fail.
+#![cfg(feature = "cpu")]
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn shared_scenes() -> Option<PathBuf> {
+    let dir = std::env::var_os("ARPA_SHARED_SCENES")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/scenes"));
+    if dir.join("cornell-caustic/scene.xml").is_file() {
+        return Some(dir);
+    }
+    assert!(std::env::var_os("CI").is_none(), "CI is set but the shared scenes are missing at {}", dir.display());
+    eprintln!("SKIPPED: the shared scenes are not at {} (set ARPA_SHARED_SCENES)", dir.display());
+    None
+}
+
+fn bench(config: &Path, out: &Path, extra: &[&str]) -> (bool, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_arpa"))
+        .arg("bench")
+        .arg(config)
+        .arg("--out")
+        .arg(out)
+        .args(extra)
+        .output()
+        .expect("cannot run the arpa binary");
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(!err.contains("panicked"), "{err}");
+    (o.status.success(), err)
+}
+
+/// The CSV rows (not the `#` header) as fields, after checking the header and columns.
+fn csv_rows(path: &Path) -> Vec<Vec<String>> {
+    let text = std::fs::read_to_string(path).unwrap();
+    for key in ["# bench:", "# machine:", "# cpu:", "# threads:", "# devices:", "# commit:", "# config sha256:"] {
+        assert!(text.lines().any(|l| l.starts_with(key)), "runs.csv has no '{key}' line");
+    }
+    let mut lines = text.lines().filter(|l| !l.starts_with('#'));
+    let columns: Vec<&str> = lines.next().expect("no column line").split(',').collect();
+    assert_eq!(columns.len(), 17, "{columns:?}");
+    lines.map(|l| l.split(',').map(str::to_owned).collect::<Vec<_>>()).inspect(|f| assert_eq!(f.len(), 17, "{f:?}")).collect()
+}
+
+#[test]
+fn smoke_config_writes_every_output() {
+    let Some(scenes) = shared_scenes() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("smoke");
+    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("bench/smoke.toml");
+    let cmd = Command::new(env!("CARGO_BIN_EXE_arpa"))
+        .env("ARPA_SHARED_SCENES", &scenes)
+        .arg("bench")
+        .arg(&config)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&cmd.stderr);
+    assert!(cmd.status.success(), "arpa bench failed: {err}");
+    // One progress line per run, with the ETA of the sweep.
+    assert_eq!(err.lines().filter(|l| l.contains("ETA")).count(), 8, "{err}");
+
+    let rows = csv_rows(&out.join("runs.csv"));
+    for scene in ["cornell-caustic", "caustic-glass"] {
+        for run in ["arpa E-20K", "arpa E-50K", "rtpm E-20K", "rtpm E-50K"] {
+            let mine: Vec<&Vec<String>> = rows.iter().filter(|r| r[0] == scene && r[1] == run).collect();
+            assert!(!mine.is_empty(), "no rows for {scene} {run}");
+            let mut last_iteration = 0;
+            for r in &mine {
+                assert_eq!(r[5], "ok");
+                let iteration: u32 = r[6].parse().unwrap();
+                assert!(iteration > last_iteration, "checkpoints go forward: {r:?}");
+                last_iteration = iteration;
+                let num = |i: usize| r[i].parse::<f64>().unwrap_or_else(|_| panic!("column {i} of {r:?}"));
+                assert!(num(7) > 0.0 && num(8) >= 0.0 && (-1.0..=1.0).contains(&num(9)) && (0.0..=1.0).contains(&num(10)));
+                // The whole-image mean is near the reference's (a wrong image is far off).
+                assert!((0.8..1.25).contains(&num(11)), "mean ratio {r:?}");
+                assert!((12..17).all(|i| num(i) >= 0.0));
+            }
+            let stem = format!("{scene}-{}-cpu", run.replace(' ', "-").replace("-E-", "-E"));
+            let exr = arpa::image_io::read_exr(&out.join("images").join(format!("{stem}.exr"))).unwrap();
+            let size = if scene == "cornell-caustic" { (64, 64) } else { (80, 45) };
+            assert_eq!((exr.width, exr.height), size);
+            for png in [format!("{stem}.png"), format!("{stem}-relmse.png")] {
+                let img = image::open(out.join("images").join(&png)).unwrap_or_else(|e| panic!("{png}: {e}"));
+                assert_eq!((img.width(), img.height()), size, "{png}");
+            }
+        }
+        let plot = image::open(out.join("plots").join(format!("{scene}.png"))).unwrap();
+        assert!(plot.width() > 100 && plot.height() > 100);
+    }
+    let table = std::fs::read_to_string(out.join("table.md")).unwrap();
+    assert!(table.contains("## Table 2 (cpu)") && table.contains("| E-20K SSIM | NI | ATI (ms) |"), "{table}");
+    assert!(table.contains("| cornell-caustic | ARPA |") && table.contains("| caustic-glass | RTPM |"), "{table}");
+    assert!(table.contains("- config sha256:"), "{table}");
+}
+
+#[test]
+fn a_peer_that_cannot_run_is_a_skipped_row() {
+    let Some(scenes) = shared_scenes() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("peer.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "name = \"peer\"\nseconds = 0.2\nthreads = 1\nphotons = [2000]\nmethods = [\"rtpm\"]\npeers = [\"ptracer\"]\nscenes_dir = {:?}\ndownscale = 8\n\
+             [[scene]]\nname = \"cornell-caustic\"\nfile = \"cornell-caustic/scene.xml\"\n\
+             reference = \"cornell-caustic/reference/cornell-caustic_mitsuba-path_256x256_4096spp_143s.exr\"\n",
+            scenes.display().to_string()
+        ),
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    let (ok, err) = bench(&config, &out, &["--python", "/nonexistent/python3"]);
+    assert!(ok, "{err}");
+    assert!(err.contains("SKIPPED") && err.contains("1 run(s) skipped"), "{err}");
+    let rows = csv_rows(&out.join("runs.csv"));
+    let peer: Vec<&Vec<String>> = rows.iter().filter(|r| r[1] == "mitsuba ptracer").collect();
+    assert_eq!(peer.len(), 1);
+    assert!(peer[0][5].starts_with("\"skipped: cannot run"), "{:?}", peer[0]);
+    assert!(std::fs::read_to_string(out.join("table.md")).unwrap().contains("| cornell-caustic | ptracer | skipped: cannot run"));
+}
+
+#[test]
+fn a_bad_config_names_the_file_and_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("bad.toml");
+    std::fs::write(&config, "name = \"x\"\nphotons = [0]\n[[scene]]\nname = \"a\"\nfile = \"a.xml\"\nreference = \"a.exr\"\n").unwrap();
+    let (ok, err) = bench(&config, &dir.path().join("out"), &[]);
+    assert!(!ok);
+    assert!(err.contains("bad.toml") && err.contains("photons"), "{err}");
+}
