@@ -9,6 +9,8 @@ cd "$(dirname "${BASH_SOURCE[0]}")/.."
 bash scripts/install-embree4.sh
 # Lavapipe with ray queries (Mesa >= 25 from bookworm-backports) and the Vulkan loader (arpa-wgpu).
 bash scripts/install-lavapipe.sh
+# The Khronos validation layer (arpa-vk's tests), glslc and the SPIR-V tools (arpa-vk).
+bash scripts/install-vulkan-tools.sh
 # The equal-time peers of `arpa bench`, on request.
 for arg in "$@"; do
     case "$arg" in

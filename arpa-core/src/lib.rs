@@ -61,6 +61,7 @@ pub mod emission;
 pub mod estimate;
 pub mod footprint;
 pub mod frame;
+pub mod gpu;
 pub mod fresnel;
 pub mod heuristics;
 pub mod kernel;

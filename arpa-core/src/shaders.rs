@@ -1,11 +1,25 @@
-//! The WGSL twin of the core's per-photon maths, as source strings a GPU renderer can
-//! include without the rest of arpa (WebGPU/wgpu directly, Vulkan through naga).
+//! The core's WGSL: the twin of the per-photon maths, and the path-level kernels (camera
+//! pass, photon pass, store, sort, gather, accumulation) both GPU backends run, as files a
+//! GPU renderer includes without the rest of arpa (WebGPU/wgpu directly, Vulkan through
+//! naga).
 //!
-//! Each constant is one file of `arpa-core/shaders/`. WGSL has no modules: a renderer
-//! concatenates the files it needs, each after the ones it depends on ([`dependencies`];
-//! [`ALL`] is in such an order), and its own code after them. Every name is prefixed
-//! `arpa_`/`Arpa`/`ARPA_`, so the files never collide with each other or with the
-//! renderer. Status codes replace the Rust error enums (each file lists them).
+//! Each constant is one file of `arpa-core/shaders/` as a [`WgslFile`]: its source and the
+//! files it needs. WGSL has no modules; [`compose`] concatenates any set of files with
+//! everything they need, each file after its dependencies, in one deterministic order, and
+//! hoists `enable` directives to the top. That table is the one place the include order is
+//! declared: every module of a backend (and the conformance suite's twin kernels) comes
+//! from `compose`. A backend adds its own files the same way (a [`WgslFile`] whose `deps`
+//! name core files), e.g. the glue that implements the ray casting the path-level files
+//! call ([`SCENE`], [`GATHER`] name the functions).
+//!
+//! Why concatenation and not a shader composer: `naga_oil` (0.23, on naga 30 like wgpu 30)
+//! would need `#import` directives that make the files non-WGSL, std and regex (so the
+//! order could not live in this `no_std` crate), and hands back re-emitted naga IR with
+//! mangled names; `wesl` re-prints the source through its own parser and its current
+//! release needs a newer Rust than the workspace. The files need no namespacing (every
+//! name is prefixed `arpa_`/`Arpa`/`ARPA_`, or by its path-level file: `photon_`, `store_`,
+//! `gather_`, `sort_`), so a dependency table gives the backends the exact source text with
+//! nothing in between. Status codes replace the Rust error enums (each file lists them).
 //!
 //! | file | Rust twin | what |
 //! |---|---|---|
@@ -22,6 +36,22 @@
 //! | [`REEMISSION`] | [`crate::reemission`] | virtual distance, `reemit`, cosine-distributed diffuse direction |
 //! | [`LAMBERTIAN`] | [`crate::lambertian`] | two-sided Lambertian shading frame: cosine, adjoint ratio, re-emission direction |
 //! | [`HEURISTICS`] | [`crate::heuristics`] | `ResolvedHeuristics::store` from a [`crate::heuristics::PackedHeuristics`]: dampening, H-max, degenerate removal, box, culling, record |
+//! | [`AABB`] | [`crate::aabb::Aabb::padded_f32`] | the padded acceleration-structure box of a record |
+//! | [`MORTON`] | [`crate::gpu::morton::morton_code`] | 30-bit Morton code (bit-exact) |
+//!
+//! The path-level files ([`PATH`]) are the GPU form of the pipeline, on the records of
+//! [`crate::gpu::layout`]:
+//!
+//! | file | Rust reference | what |
+//! |---|---|---|
+//! | [`RECORDS`] | [`crate::gpu::layout`] | the records the kernels exchange (keyed footprints and photons, packed photons, query records, sort items) |
+//! | [`SCENE`] | [`crate::prepared_scene::PreparedScene`] | the scene tables of [`crate::gpu::scene::SceneTables`] (group 0), surface points; ray casting by the backend |
+//! | [`CAMERA_PASS`] | [`crate::camera_path::trace_camera_path`] | one query record per pixel |
+//! | [`PHOTON_PASS`] | [`crate::photon_path::trace_photon`] | one invocation per photon of a batch, keyed footprints and photons appended |
+//! | [`STORE`] | [`crate::store`] | heuristics, fallback photons, sort keys, compaction into sorted maps with padded boxes |
+//! | [`SORT`] | — | bitonic sort of the store's sort items ([`crate::gpu::sort`]) |
+//! | [`GATHER`] | [`crate::estimate::gather_brute_force`] | per-pixel radiance over the maps, summed over photon batches; box traversal by the backend |
+//! | [`ACCUMULATE`] | [`crate::accumulate::RunningMean`] | the running mean of the iteration images |
 //!
 //! ## Precision
 //! WGSL has `f32` only; the core propagates in `f64`. The integer code ([`RNG`]) is exact.
@@ -43,93 +73,249 @@
 /// `arpa_acos` (radians, a few `f32` ulps, where a device's built-in `acos` may be off by
 /// 1e-4 rad), `arpa_angle_between` (radians between two unit directions, a few ulps also
 /// near 0 and π), `arpa_glam_normalize_or` (glam's `Vec3::normalize_or`). Self-contained.
-pub const MATH: &str = include_str!("../shaders/math.wgsl");
+pub const MATH: WgslFile = WgslFile { name: "math.wgsl", source: include_str!("../shaders/math.wgsl"), deps: &[] };
 
 /// `rng.wgsl`: `arpa_pcg4d`, `ArpaRng`, `arpa_rng_new`, `arpa_rng_next_u32`,
 /// `arpa_rng_next_f32` (24-bit `[0, 1)`), `arpa_rng_next_2d`, `arpa_rng_next_below`
 /// (the core's `next_f64() < p`, bit-exact for an `f32` `p`), `arpa_rng_next_f64_as_f32`
 /// (the core's `next_f64() as f32`, bit-exact).
-pub const RNG: &str = include_str!("../shaders/rng.wgsl");
+pub const RNG: WgslFile = WgslFile { name: "rng.wgsl", source: include_str!("../shaders/rng.wgsl"), deps: &[] };
 
 /// `kernel.wgsl`: `arpa_kernel_eval(kernel_id, r²)`, per unit filter-space area.
-pub const KERNEL: &str = include_str!("../shaders/kernel.wgsl");
+pub const KERNEL: WgslFile = WgslFile { name: "kernel.wgsl", source: include_str!("../shaders/kernel.wgsl"), deps: &[] };
 
-/// `footprint.wgsl` (needs [`KERNEL`]): `ArpaPackedFootprint`, `arpa_footprint_pack`,
+/// `footprint.wgsl`: `ArpaPackedFootprint`, `arpa_footprint_pack`,
 /// `arpa_footprint_filter_coords`, `arpa_footprint_contains`, `arpa_footprint_faces`,
 /// `arpa_footprint_irradiance`, `arpa_half_thickness`. Metres, W, W/m².
-pub const FOOTPRINT: &str = include_str!("../shaders/footprint.wgsl");
+pub const FOOTPRINT: WgslFile = WgslFile { name: "footprint.wgsl", source: include_str!("../shaders/footprint.wgsl"), deps: &[&KERNEL] };
 
 /// `radius.wgsl`: `arpa_radius(r₁, α, iteration)` and `arpa_radius_next`, metres.
-pub const RADIUS: &str = include_str!("../shaders/radius.wgsl");
+pub const RADIUS: WgslFile = WgslFile { name: "radius.wgsl", source: include_str!("../shaders/radius.wgsl"), deps: &[] };
 
-/// `differential.wgsl` (needs [`MATH`]): `ArpaRayDiff`, `ArpaNormalDiff`, `arpa_diff_transfer`,
+/// `differential.wgsl`: `ArpaRayDiff`, `ArpaNormalDiff`, `arpa_diff_transfer`,
 /// `arpa_diff_reflect`, `arpa_diff_refract`, `arpa_reflect_direction`, `ArpaRefracted`,
 /// `arpa_refract_direction` ([`crate::differential::refract_direction`]). World space,
 /// metres, unit directions.
-pub const DIFFERENTIAL: &str = include_str!("../shaders/differential.wgsl");
+pub const DIFFERENTIAL: WgslFile = WgslFile { name: "differential.wgsl", source: include_str!("../shaders/differential.wgsl"), deps: &[&MATH] };
 
-/// `fresnel.wgsl` (needs [`MATH`]): `arpa_dielectric_reflectance(cos_i, ior)`
+/// `fresnel.wgsl`: `arpa_dielectric_reflectance(cos_i, ior)`
 /// ([`crate::fresnel::dielectric_reflectance`]; `cos_i` of the unit direction of travel
 /// with the normal, either sign; `ior` inside over outside; a fraction in `[0, 1]`).
-pub const FRESNEL: &str = include_str!("../shaders/fresnel.wgsl");
+pub const FRESNEL: WgslFile = WgslFile { name: "fresnel.wgsl", source: include_str!("../shaders/fresnel.wgsl"), deps: &[&MATH] };
 
-/// `frame.wgsl` (needs [`MATH`]): `ArpaFrame`, `arpa_frame_from_normal`, `arpa_frame_from_normal_and_hint`,
+/// `frame.wgsl`: `ArpaFrame`, `arpa_frame_from_normal`, `arpa_frame_from_normal_and_hint`,
 /// `arpa_frame_to_world`, `arpa_frame_to_local`.
-pub const FRAME: &str = include_str!("../shaders/frame.wgsl");
+pub const FRAME: WgslFile = WgslFile { name: "frame.wgsl", source: include_str!("../shaders/frame.wgsl"), deps: &[&MATH] };
 
 /// `sampling.wgsl`: `arpa_uniform_sphere`, `arpa_uniform_cone` (takes `1 − cos θ_max`),
 /// `arpa_uniform_disc`, `arpa_cosine_hemisphere`, `arpa_uniform_triangle`,
 /// `arpa_fibonacci_lattice`.
-pub const SAMPLING: &str = include_str!("../shaders/sampling.wgsl");
+pub const SAMPLING: WgslFile = WgslFile { name: "sampling.wgsl", source: include_str!("../shaders/sampling.wgsl"), deps: &[] };
 
-/// `emission.wgsl` (needs [`MATH`], [`RNG`], [`FRAME`], [`SAMPLING`], [`DIFFERENTIAL`]): `ArpaLight`
+/// `emission.wgsl`: `ArpaLight`
 /// (= [`crate::emission::PackedLight`]), `ArpaEmitted`, `arpa_emit`, `arpa_spot_falloff`,
 /// `arpa_spot_falloff_at` (angles in radians).
-pub const EMISSION: &str = include_str!("../shaders/emission.wgsl");
+pub const EMISSION: WgslFile = WgslFile { name: "emission.wgsl", source: include_str!("../shaders/emission.wgsl"), deps: &[&MATH, &RNG, &DIFFERENTIAL, &FRAME, &SAMPLING] };
 
-/// `heuristics.wgsl` (needs [`FOOTPRINT`], [`KERNEL`]): `ArpaHeuristics`
+/// `heuristics.wgsl`: `ArpaHeuristics`
 /// (= [`crate::heuristics::PackedHeuristics`]), `ArpaStored`, `arpa_store`.
-pub const HEURISTICS: &str = include_str!("../shaders/heuristics.wgsl");
+pub const HEURISTICS: WgslFile = WgslFile { name: "heuristics.wgsl", source: include_str!("../shaders/heuristics.wgsl"), deps: &[&KERNEL, &FOOTPRINT] };
 
-/// `reemission.wgsl` (needs [`MATH`], [`DIFFERENTIAL`], [`FRAME`], [`SAMPLING`]): `ArpaReemitted`,
+/// `reemission.wgsl`: `ArpaReemitted`,
 /// `arpa_virtual_distance`, `arpa_reemit`, `arpa_diffuse_direction`.
-pub const REEMISSION: &str = include_str!("../shaders/reemission.wgsl");
+pub const REEMISSION: WgslFile = WgslFile { name: "reemission.wgsl", source: include_str!("../shaders/reemission.wgsl"), deps: &[&MATH, &DIFFERENTIAL, &FRAME, &SAMPLING] };
 
-/// `lambertian.wgsl` (needs [`MATH`], [`FRAME`], [`SAMPLING`]): `ArpaDiffuseShading`
+/// `lambertian.wgsl`: `ArpaDiffuseShading`
 /// (= [`crate::lambertian::DiffuseShading`], `valid = 0` for `None`),
 /// `arpa_diffuse_shading_new`, `arpa_diffuse_below_shading_plane`, `arpa_diffuse_cosine`,
 /// `arpa_diffuse_adjoint_ratio`, `ArpaReemissionDirection`, `arpa_diffuse_sample_reemission`,
 /// `ARPA_MAX_ADJOINT_RATIO`. Unit vectors, world space.
-pub const LAMBERTIAN: &str = include_str!("../shaders/lambertian.wgsl");
+pub const LAMBERTIAN: WgslFile = WgslFile { name: "lambertian.wgsl", source: include_str!("../shaders/lambertian.wgsl"), deps: &[&MATH, &FRAME, &SAMPLING] };
 
-/// Every file as `(file name, source)`, in an order in which concatenation satisfies each
-/// file's dependencies.
-pub const ALL: [(&str, &str); 13] = [
-    ("math.wgsl", MATH),
-    ("rng.wgsl", RNG),
-    ("kernel.wgsl", KERNEL),
-    ("footprint.wgsl", FOOTPRINT),
-    ("radius.wgsl", RADIUS),
-    ("differential.wgsl", DIFFERENTIAL),
-    ("fresnel.wgsl", FRESNEL),
-    ("frame.wgsl", FRAME),
-    ("sampling.wgsl", SAMPLING),
-    ("emission.wgsl", EMISSION),
-    ("heuristics.wgsl", HEURISTICS),
-    ("reemission.wgsl", REEMISSION),
-    ("lambertian.wgsl", LAMBERTIAN),
-];
+/// `aabb.wgsl`: `ArpaBox`, `arpa_padded_box(centre, half)`: the twin of
+/// [`crate::aabb::Aabb::padded_f32`] (metres; the file states the `f32` precision).
+pub const AABB: WgslFile = WgslFile { name: "aabb.wgsl", source: include_str!("../shaders/aabb.wgsl"), deps: &[&FOOTPRINT] };
 
-/// The files each file needs before it (by name), for renderers that include a subset.
-pub fn dependencies(file: &str) -> &'static [&'static str] {
-    match file {
-        "footprint.wgsl" => &["kernel.wgsl"],
-        "fresnel.wgsl" => &["math.wgsl"],
-        "differential.wgsl" | "frame.wgsl" => &["math.wgsl"],
-        "emission.wgsl" => &["math.wgsl", "rng.wgsl", "differential.wgsl", "frame.wgsl", "sampling.wgsl"],
-        "heuristics.wgsl" => &["kernel.wgsl", "footprint.wgsl"],
-        "reemission.wgsl" => &["math.wgsl", "differential.wgsl", "frame.wgsl", "sampling.wgsl"],
-        "lambertian.wgsl" => &["math.wgsl", "frame.wgsl", "sampling.wgsl"],
-        _ => &[],
+/// `morton.wgsl`: `arpa_morton_code(p, lo, inv_extent)`, the twin of
+/// [`crate::gpu::morton::morton_code`] (bit-exact).
+pub const MORTON: WgslFile = WgslFile { name: "morton.wgsl", source: include_str!("../shaders/morton.wgsl"), deps: &[] };
+
+/// `path/records.wgsl`: `ArpaKeyedFootprint`, `ArpaKeyedPhoton`, `ArpaPackedPhoton`,
+/// `ArpaQueryRecord`, `ArpaSortItem`: the records of [`crate::gpu::layout`] the path-level
+/// kernels exchange.
+pub const RECORDS: WgslFile = WgslFile { name: "path/records.wgsl", source: include_str!("../shaders/path/records.wgsl"), deps: &[] };
+
+/// `path/scene.wgsl`: bind group 0 of the camera and photon passes (bindings 1 to 4: the
+/// tables of [`crate::gpu::scene::SceneTables`]), `ArpaSceneHit`, `arpa_scene_hit`,
+/// `arpa_scene_miss`, `ArpaSurface`, `arpa_scene_surface`, `arpa_scene_triangle_vertices`,
+/// `arpa_scene_triangle_normals`, `arpa_offset_origin`, `ARPA_SCENE_T_MAX`. The backend's
+/// glue adds binding 0 (its acceleration structure over the triangles) and defines
+/// `arpa_scene_intersect` and `arpa_scene_occluded` (the file states their contract).
+pub const SCENE: WgslFile = WgslFile { name: "path/scene.wgsl", source: include_str!("../shaders/path/scene.wgsl"), deps: &[&MATH, &RECORDS] };
+
+/// `path/camera_pass.wgsl`: entry point `arpa_camera_main` (one invocation per pixel,
+/// group 1: [`crate::gpu::layout::CameraParams`] and the query records), per pixel
+/// `arpa_camera_trace`.
+pub const CAMERA_PASS: WgslFile = WgslFile {
+    name: "path/camera_pass.wgsl",
+    source: include_str!("../shaders/path/camera_pass.wgsl"),
+    deps: &[&MATH, &RNG, &DIFFERENTIAL, &FRESNEL, &FRAME, &SAMPLING, &EMISSION, &LAMBERTIAN, &RECORDS, &SCENE],
+};
+
+/// `path/photon_pass.wgsl`: entry point `photon_pass` (one invocation per photon of a
+/// batch; group 1: [`crate::gpu::layout::PhotonParams`], the packed lights, the
+/// [`crate::gpu::layout::EmitterRange`]s, the keyed footprint and photon append buffers and
+/// [`crate::gpu::layout::PhotonCounters`]), per photon `photon_trace`.
+pub const PHOTON_PASS: WgslFile = WgslFile {
+    name: "path/photon_pass.wgsl",
+    source: include_str!("../shaders/path/photon_pass.wgsl"),
+    deps: &[&MATH, &RNG, &DIFFERENTIAL, &FRESNEL, &FRAME, &SAMPLING, &EMISSION, &REEMISSION, &LAMBERTIAN, &RECORDS, &SCENE],
+};
+
+/// `path/store.wgsl`: entry points `store_keyed`, `photon_keys`, `pad_items`,
+/// `compact_footprints`, `compact_photons` (group 0, bindings 0 to 12;
+/// [`crate::gpu::layout::StoreParams`], [`crate::gpu::layout::StoreCounts`]).
+pub const STORE: WgslFile =
+    WgslFile { name: "path/store.wgsl", source: include_str!("../shaders/path/store.wgsl"), deps: &[&KERNEL, &FOOTPRINT, &HEURISTICS, &MORTON, &AABB, &RECORDS] };
+
+/// `path/sort.wgsl`: entry points `sort_local`, `sort_merge`, `sort_global` (the bitonic
+/// sort of [`crate::gpu::sort`]).
+pub const SORT: WgslFile = WgslFile { name: "path/sort.wgsl", source: include_str!("../shaders/path/sort.wgsl"), deps: &[&RECORDS] };
+
+/// `path/gather.wgsl`: entry point `gather_image` (group 0, bindings 0 to 6;
+/// [`crate::gpu::layout::GatherImageParams`]), per record `arpa_gather_pixel`, per candidate
+/// `arpa_gather_candidate`, `ArpaGatherResult`. The backend's glue adds binding 7 (its
+/// acceleration structure over the record boxes) and defines `arpa_gather_at` (the file
+/// states its contract).
+pub const GATHER: WgslFile = WgslFile { name: "path/gather.wgsl", source: include_str!("../shaders/path/gather.wgsl"), deps: &[&KERNEL, &FOOTPRINT, &RECORDS] };
+
+/// `path/accumulate.wgsl`: entry point `accumulate` ([`crate::gpu::layout::AccumPixel`]).
+pub const ACCUMULATE: WgslFile = WgslFile { name: "path/accumulate.wgsl", source: include_str!("../shaders/path/accumulate.wgsl"), deps: &[&MATH] };
+
+/// The twin files: every one is a function-level twin of the core, checked against it by
+/// the conformance suite's twin cases (which run them composed together).
+pub const TWIN: [&WgslFile; 15] =
+    [&MATH, &RNG, &KERNEL, &FOOTPRINT, &RADIUS, &DIFFERENTIAL, &FRESNEL, &FRAME, &SAMPLING, &EMISSION, &HEURISTICS, &REEMISSION, &LAMBERTIAN, &AABB, &MORTON];
+
+/// The path-level files.
+pub const PATH: [&WgslFile; 8] = [&RECORDS, &SCENE, &CAMERA_PASS, &PHOTON_PASS, &STORE, &SORT, &GATHER, &ACCUMULATE];
+
+/// One WGSL file with the files it needs (WGSL has no imports: [`compose`] includes them).
+#[derive(Clone, Copy, Debug)]
+pub struct WgslFile {
+    /// Path below the directory of the crate's shaders (`arpa-core/shaders/` for the
+    /// core's; a backend names its own files so that they do not collide, e.g.
+    /// `arpa-wgpu/…`). Unique: [`compose`] includes a file once per name.
+    pub name: &'static str,
+    /// The WGSL source.
+    pub source: &'static str,
+    /// The files whose declarations this one uses.
+    pub deps: &'static [&'static WgslFile],
+}
+
+/// One WGSL module of `files` and everything they need: each file once, after its
+/// dependencies (depth first, in the order `files` and each file's `deps` list them), with
+/// the `enable` directives of all of them first (WGSL wants directives before any
+/// declaration). Each file starts with a `// arpa: <name>` line, so that a compiler's line
+/// numbers can be traced back.
+#[cfg(feature = "alloc")]
+pub fn compose(files: &[&'static WgslFile]) -> alloc::string::String {
+    use alloc::string::String;
+    use alloc::vec::Vec;
+    fn visit(file: &'static WgslFile, order: &mut Vec<&'static WgslFile>) {
+        if order.iter().any(|f| f.name == file.name) {
+            return;
+        }
+        for dep in file.deps {
+            visit(dep, order);
+        }
+        order.push(file);
+    }
+    let mut order = Vec::new();
+    for file in files {
+        visit(file, &mut order);
+    }
+    let is_directive = |line: &str| {
+        let t = line.trim();
+        t.starts_with("enable ") && t.ends_with(';')
+    };
+    let mut directives: Vec<&str> = Vec::new();
+    for file in &order {
+        for line in file.source.lines().filter(|l| is_directive(l)) {
+            if !directives.contains(&line.trim()) {
+                directives.push(line.trim());
+            }
+        }
+    }
+    let mut out = String::new();
+    for d in &directives {
+        out.push_str(d);
+        out.push('\n');
+    }
+    for file in &order {
+        out.push_str("// arpa: ");
+        out.push_str(file.name);
+        out.push('\n');
+        for line in file.source.lines().filter(|l| !is_directive(l)) {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    out
+}
+
+#[cfg(all(test, feature = "alloc"))]
+mod tests {
+    use super::*;
+    use alloc::vec::Vec;
+
+    fn all() -> Vec<&'static WgslFile> {
+        TWIN.iter().chain(PATH.iter()).copied().collect()
+    }
+
+    #[test]
+    fn names_are_unique_and_name_their_files() {
+        let files = all();
+        for (i, f) in files.iter().enumerate() {
+            assert!(files[i + 1..].iter().all(|g| g.name != f.name), "{} listed twice", f.name);
+            assert!(f.name.ends_with(".wgsl") && !f.source.is_empty(), "{}", f.name);
+        }
+    }
+
+    #[test]
+    fn every_dependency_is_listed() {
+        let files = all();
+        for f in &files {
+            for d in f.deps {
+                assert!(files.iter().any(|g| g.name == d.name), "{} needs {}, which is in neither TWIN nor PATH", f.name, d.name);
+            }
+        }
+    }
+
+    #[test]
+    fn compose_puts_each_file_once_after_its_dependencies() {
+        let src = compose(&[&STORE, &GATHER, &FOOTPRINT]);
+        let at = |f: &WgslFile| {
+            let marker = alloc::format!("// arpa: {}\n", f.name);
+            assert_eq!(src.matches(marker.as_str()).count(), 1, "{}", f.name);
+            src.find(marker.as_str()).unwrap()
+        };
+        for f in [&STORE, &GATHER, &KERNEL, &FOOTPRINT, &HEURISTICS, &MORTON, &AABB, &RECORDS] {
+            for d in f.deps {
+                assert!(at(d) < at(f), "{} before its dependency {}", f.name, d.name);
+            }
+        }
+        assert!(!src.contains("path/scene.wgsl"), "only what the files need");
+        assert_eq!(compose(&[&KERNEL]), alloc::format!("// arpa: kernel.wgsl\n{}", KERNEL.source));
+    }
+
+    #[test]
+    fn enable_directives_come_first_once() {
+        static GLUE: WgslFile = WgslFile { name: "test/glue.wgsl", source: "enable wgpu_ray_query;\nfn glue() {}\n", deps: &[&SCENE] };
+        static OTHER: WgslFile = WgslFile { name: "test/other.wgsl", source: "  enable wgpu_ray_query;\nfn other() {}\n", deps: &[&GLUE] };
+        let src = compose(&[&OTHER, &GLUE]);
+        assert!(src.starts_with("enable wgpu_ray_query;\n// arpa: math.wgsl\n"), "{}", &src[..80]);
+        assert_eq!(src.matches("enable ").count(), 1);
+        assert!(src.find("fn glue").unwrap() < src.find("fn other").unwrap());
     }
 }

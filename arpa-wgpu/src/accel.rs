@@ -1,20 +1,15 @@
-//! The photon maps' acceleration structure: AABB bottom-level structures over the sorted
-//! boxes of [`crate::store::MapStore`] (one per record kind and map, each a range of the
-//! sorted box buffer, no copy) under one top-level structure.
+//! The photon maps' acceleration structure: AABB bottom-level structures over a batch's
+//! sorted boxes ([`crate::store::MapStore`], [`crate::maps::BatchMaps`]; one per record kind
+//! and map, each a range of the sorted box buffer, no copy) under one top-level structure.
 //!
 //! Instances: footprints caustic/global, progressive photons caustic/global; the mask is
-//! `1 << map` (caustic 1, global 2), the custom data `kind << 23 | first record index`
-//! (kind 0 footprint, 1 photon), so the gather (`gather.wgsl`) finds record
-//! `(custom & 0x7fffff) + primitive_index` of the kind's buffer. Built per iteration from
-//! the counts the store read back (wgpu has no indirect build).
+//! `1 << map` (caustic 1, global 2), the custom index
+//! [`INSTANCE_PHOTON_BIT`] (photons) `|` first record index, so the gather (`gather.wgsl`)
+//! finds record `(custom & INSTANCE_INDEX_MASK) + primitive_index` of the kind's buffer.
+//! Built per iteration from the counts the store read back (wgpu has no indirect build).
 
-use crate::store::StoreCounts;
-
-/// Custom-data bit of photon instances.
-pub const PHOTON_INSTANCE_BIT: u32 = 1 << 23;
-
-/// Most records of one kind the custom data can index (2²³).
-pub const MAX_RECORDS_PER_KIND: u32 = 1 << 23;
+use arpa_core::gpu::codes::{INSTANCE_PHOTON_BIT, MAX_RECORDS_PER_KIND};
+use arpa_core::gpu::layout::StoreCounts;
 
 /// Why the structure cannot be built.
 #[derive(Debug, thiserror::Error)]
@@ -26,7 +21,7 @@ pub struct AccelSizeError {
     pub kind: &'static str,
 }
 
-/// One iteration's acceleration structure (keeps its bottom levels alive).
+/// One batch's acceleration structure (keeps its bottom levels alive).
 pub struct MapAccel {
     /// The top-level structure the gather binds.
     pub tlas: wgpu::Tlas,
@@ -50,7 +45,7 @@ pub fn build(
     let label = Some("arpa photon maps");
     // (buffer, first record, count, custom data, mask)
     let mut ranges = Vec::new();
-    for (kind, buffer, per_map) in [(0u32, footprint_boxes, counts.footprints), (PHOTON_INSTANCE_BIT, photon_boxes, counts.photons)] {
+    for (kind, buffer, per_map) in [(0u32, footprint_boxes, counts.footprints), (INSTANCE_PHOTON_BIT, photon_boxes, counts.photons)] {
         let mut start = 0u32;
         for (map, &n) in per_map.iter().enumerate() {
             if n > 0 {
@@ -96,7 +91,7 @@ pub fn build(
                 size,
                 stride: wgpu::AABB_GEOMETRY_MIN_STRIDE,
                 aabb_buffer: r.0,
-                primitive_offset: r.1 * 24,
+                primitive_offset: r.1 * crate::store::BOX_BYTES as u32,
             }]),
         })
         .collect();

@@ -8,35 +8,21 @@
 //! Precision: positions, weights and radiance agree with the core to `f32` rounding where
 //! the path takes the same decisions; a decision taken at a threshold (Fresnel choice,
 //! area-emitter pick, a shadow ray or camera ray grazing an edge) can go the other way
-//! within that rounding, and the path then differs (see the tests for the measured share).
+//! within that rounding, and the path then differs (the tests bound the share of such
+//! pixels).
 
 use crate::device::GpuContext;
 use crate::harness::{HarnessError, scene_pipeline, storage_entry, uniform_entry};
-use crate::scene::{GpuScene, SCENE_WGSL};
+use crate::scene::GpuScene;
+use arpa_core::gpu::codes::WORKGROUP_SIZE as WORKGROUP;
+use arpa_core::gpu::layout::CameraParams;
 use arpa_core::prepared_scene::PreparedScene;
 use arpa_core::scene::SceneError;
 use arpa_core::tracer::{QueryRecord, RenderSettings};
 use wgpu::util::DeviceExt;
 
-/// WGSL of the camera pass (`shaders/camera_pass.wgsl`, entry point `arpa_camera_main`),
-/// after the core's twin files it needs and [`SCENE_WGSL`] ([`camera_pass_source`]
-/// assembles the whole module).
-pub const CAMERA_PASS_WGSL: &str = include_str!("shaders/camera_pass.wgsl");
-
-/// The complete WGSL module of the camera pass: `enable wgpu_ray_query;`, the core's twin
-/// files it uses ([`arpa_core::shaders`] `math`, `rng`, `differential`, `fresnel`, `frame`,
-/// `sampling`, `emission`, `lambertian`, in the order of [`arpa_core::shaders::ALL`]), the scene
-/// ([`SCENE_WGSL`], bind group 0) and [`CAMERA_PASS_WGSL`].
-pub fn camera_pass_source() -> String {
-    use arpa_core::shaders as s;
-    let twin = [s::MATH, s::RNG, s::DIFFERENTIAL, s::FRESNEL, s::FRAME, s::SAMPLING, s::EMISSION, s::LAMBERTIAN].join("\n");
-    format!("enable wgpu_ray_query;\n{twin}\n{SCENE_WGSL}\n{CAMERA_PASS_WGSL}")
-}
-
 /// Bytes of one query record on the device (= `size_of::<QueryRecord>()`).
 pub const QUERY_RECORD_BYTES: u64 = std::mem::size_of::<QueryRecord>() as u64;
-
-const WORKGROUP: u32 = 64;
 
 /// Why the camera pass could not be built.
 #[derive(Debug, thiserror::Error)]
@@ -59,28 +45,6 @@ pub enum CameraPassError {
     Device(#[from] HarnessError),
 }
 
-/// `ArpaCameraParams` of `camera_pass.wgsl` (uniform, 96 bytes).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
-struct CameraParams {
-    position: [f32; 3],
-    width: u32,
-    forward: [f32; 3],
-    height: u32,
-    right: [f32; 3],
-    tan_half_fov: f32,
-    up: [f32; 3],
-    aspect: f32,
-    seed: u32,
-    iteration: u32,
-    max_depth: u32,
-    direct_lighting: u32,
-    pixel_count: u32,
-    row_invocations: u32,
-    pad0: u32,
-    pad1: u32,
-}
-
 /// The camera pass of one scene, camera and settings: a compute pipeline with the scene in
 /// group 0 and its parameters and the query buffer in group 1.
 pub struct CameraPass {
@@ -98,7 +62,6 @@ impl CameraPass {
     pub fn new(ctx: &GpuContext, scene: &GpuScene, prepared: &PreparedScene, settings: &RenderSettings) -> Result<Self, CameraPassError> {
         let device = &ctx.device;
         let cam = prepared.scene().camera;
-        let frame = cam.frame()?;
         let pixels = cam.width as u64 * cam.height as u64;
         let max_groups = device.limits().max_compute_workgroups_per_dimension as u64;
         let max = max_groups * max_groups * WORKGROUP as u64;
@@ -108,27 +71,10 @@ impl CameraPass {
         let groups_total = pixels.div_ceil(WORKGROUP as u64);
         let groups_x = groups_total.min(max_groups);
         let groups_y = groups_total.div_ceil(groups_x.max(1));
-        let params = CameraParams {
-            position: cam.position.to_array(),
-            width: cam.width,
-            forward: frame.forward.to_array(),
-            height: cam.height,
-            right: frame.right.to_array(),
-            tan_half_fov: frame.tan_half_fov,
-            up: frame.up.to_array(),
-            aspect: frame.aspect,
-            seed: settings.seed,
-            iteration: 0,
-            max_depth: settings.max_depth,
-            direct_lighting: settings.direct_lighting as u32,
-            pixel_count: pixels as u32,
-            row_invocations: (groups_x * WORKGROUP as u64) as u32,
-            pad0: 0,
-            pad1: 0,
-        };
+        let params = CameraParams::new(&cam, settings, (groups_x * WORKGROUP as u64) as u32)?;
         let label = "camera pass";
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let source = camera_pass_source();
+        let source = crate::shaders::camera_pass();
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(label), source: wgpu::ShaderSource::Wgsl(source.into()) });
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some(label),

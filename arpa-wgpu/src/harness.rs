@@ -56,41 +56,6 @@ pub fn run_kernel(
     items: u32,
     output_words: usize,
 ) -> Result<Vec<u32>, HarnessError> {
-    run(ctx, None, label, source, entry, input, items, output_words)
-}
-
-/// [`run_kernel`] for kernels that read the scene: `source` (which must start with
-/// `enable wgpu_ray_query;` and include [`crate::scene::SCENE_WGSL`]) gets `scene`'s bind
-/// group as group 0 and declares its input and output buffers in **group 1**
-/// (`@group(1) @binding(0)` input, `@group(1) @binding(1)` output), otherwise as
-/// [`run_kernel`].
-#[allow(clippy::too_many_arguments)]
-pub fn run_scene_kernel(
-    ctx: &GpuContext,
-    scene: &crate::scene::GpuScene,
-    label: &str,
-    source: &str,
-    entry: &str,
-    input: &[u32],
-    items: u32,
-    output_words: usize,
-) -> Result<Vec<u32>, HarnessError> {
-    run(ctx, Some(scene), label, source, entry, input, items, output_words)
-}
-
-/// The kernel run of [`run_kernel`] and [`run_scene_kernel`]: the input/output group is
-/// group 0 without a scene, group 1 after the scene's group 0 with one.
-#[allow(clippy::too_many_arguments)]
-fn run(
-    ctx: &GpuContext,
-    scene: Option<&crate::scene::GpuScene>,
-    label: &str,
-    source: &str,
-    entry: &str,
-    input: &[u32],
-    items: u32,
-    output_words: usize,
-) -> Result<Vec<u32>, HarnessError> {
     use wgpu::util::DeviceExt;
     let device = &ctx.device;
     let size_err = |message: String| HarnessError::Size { label: label.into(), message };
@@ -107,10 +72,7 @@ fn run(
         label: Some(label),
         entries: &[storage_entry(0, true), storage_entry(1, false)],
     });
-    let pipeline = match scene {
-        Some(scene) => scene_pipeline(device, label, &module, scene, &io_layout, entry),
-        None => pipeline(device, label, &module, &[Some(&io_layout)], entry),
-    };
+    let pipeline = pipeline(device, label, &module, &[Some(&io_layout)], entry);
     // Storage bindings must not be empty: pad the input with one word.
     let pad = [0u32];
     let input_words: &[u32] = if input.is_empty() { &pad } else { input };
@@ -133,14 +95,7 @@ fn run(
     {
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(label), timestamp_writes: None });
         pass.set_pipeline(&pipeline);
-        let io_group = match scene {
-            Some(scene) => {
-                pass.set_bind_group(0, scene.bind_group(), &[]);
-                1
-            }
-            None => 0,
-        };
-        pass.set_bind_group(io_group, &io, &[]);
+        pass.set_bind_group(0, &io, &[]);
         pass.dispatch_workgroups(groups.max(1), 1, 1);
     }
     encoder.copy_buffer_to_buffer(&output_buf, 0, &staging, 0, out_bytes);

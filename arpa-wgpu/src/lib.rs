@@ -3,39 +3,35 @@
 //! The wgpu backend of ARPA, on Vulkan ray queries (`EXPERIMENTAL_RAY_QUERY`), with
 //! lavapipe (Mesa's software Vulkan, ≥ 25) when no GPU is present.
 //!
-//! [`WgpuTracer`] implements [`arpa_core::tracer::Tracer`] with every stage on the device;
-//! the modules it is built from:
+//! [`WgpuTracer`] implements [`arpa_core::tracer::Tracer`] with every stage on the device.
+//! What is not wgpu-specific lives in the core's GPU layer, shared with the other GPU
+//! backend: the record layouts, codes, Morton codes, sort schedule and photon-batch policy
+//! ([`arpa_core::gpu`]) and the path-level WGSL ([`arpa_core::shaders`]). This crate holds
+//! the wgpu API calls and the ray-query glue:
 //! * [`device`]: adapter choice (a real GPU with ray queries, else lavapipe, or a name
 //!   forced by the caller) and device creation, with an error naming the adapter when ray
 //!   queries are missing;
-//! * [`harness`]: a compute harness that runs WGSL functions (the core's WGSL twin,
-//!   [`arpa_core::shaders`]) over input buffers and reads the results back; the
-//!   conformance suite's WGSL-twin cases (`arpa-conformance`, feature `wgpu`) compare the
-//!   twin with the Rust core through it;
-//! * [`scene`]: scene upload (a triangle BLAS per mesh, one TLAS) and closest-hit ray
-//!   casting on ray queries, checked against the core's brute-force caster; the prepared
-//!   scene (materials, normals, emitters) as bind group 0 of every pass with its WGSL
-//!   ([`scene::SCENE_WGSL`]), checked against `PreparedScene`;
-//! * [`photon`]: the photon pass on the device (one invocation per photon, the twin of
-//!   `arpa_core::photon_path::trace_photon`), appending raw footprints and progressive
-//!   photons with unique keys, with counters and overflow counting;
-//! * [`store`]: footprint store, acceleration-structure build and gather in one device
-//!   submission (deterministic slots, inactive boxes for rejected footprints); the
-//!   tracer's keyed store on the photon pass's buffers ([`store::MapStore`]: heuristics,
-//!   fallback photons, sort keys, compaction);
+//! * [`shaders`]: the WGSL modules, the core's files composed with this backend's
+//!   ray-query glue (scene ray casting, gather box traversal);
+//! * [`harness`]: a compute harness that runs WGSL functions over input buffers and reads
+//!   the results back (the conformance suite's WGSL-twin cases run the core's twin through
+//!   it);
+//! * [`scene`]: scene upload, a triangle BLAS per mesh and one TLAS, and the core's scene
+//!   tables ([`arpa_core::gpu::scene::SceneTables`]) as bind group 0 of the camera and
+//!   photon passes;
+//! * [`camera`]: the camera pass, one query record per pixel;
+//! * [`photon`]: the photon pass, one invocation per photon of a batch, appending keyed
+//!   footprints and progressive photons, with counters and overflow counting;
+//! * [`store`]: the keyed store on the photon pass's buffers (heuristics, fallback photons,
+//!   sort keys, compaction into sorted maps with their boxes);
 //! * [`sort`]: the device sort by `(map, Morton code, photon key)` that makes the maps
 //!   independent of the append order and spatially ordered for the AABB build;
-//! * [`accel`]: the per-iteration AABB acceleration structure over the sorted records;
-//! * [`camera`]: the camera pass (query points, emission seen, next-event estimation) on
-//!   ray queries, checked per pixel against the core's `trace_camera_path`;
-//! * [`gather`]: the gather stage on ray queries (footprint boxes in AABB acceleration
-//!   structures, one per map; point queries; the twin's exact test and kernel), checked
-//!   against the core's brute-force gather; the tracer's image gather over footprints and
-//!   progressive photons ([`gather::ImageGather`]);
+//! * [`accel`]: the AABB acceleration structure over a batch's sorted records;
+//! * [`gather`]: the image gather over a batch's maps on ray queries;
 //! * [`accumulate`]: the running mean on the device;
-//! * [`maps`]: store → sort → build → gather chained on device buffers;
-//! * [`tracer`]: [`WgpuTracer`] and [`WgpuError`]; an iteration whose records exceed one
-//!   storage binding is traced in photon batches, summed per pixel on the device.
+//! * [`maps`]: the photon batches of an iteration on the device (store → sort → keep, build,
+//!   gather);
+//! * [`tracer`]: [`WgpuTracer`] and [`WgpuError`].
 
 pub mod accel;
 pub mod accumulate;
@@ -46,10 +42,11 @@ pub mod harness;
 pub mod maps;
 pub mod photon;
 pub mod scene;
+pub mod shaders;
 pub mod sort;
 pub mod store;
 pub mod tracer;
 
 pub use device::{AdapterChoice, DeviceError, GpuContext};
-pub use tracer::{WgpuError, WgpuTracer};
 pub use harness::{HarnessError, run_kernel};
+pub use tracer::{WgpuError, WgpuTracer};

@@ -1,23 +1,21 @@
-//! The photon maps of one iteration on the device: keyed store, sort and compaction
-//! ([`crate::store::MapStore`]), the AABB acceleration structure ([`crate::accel`]) and
-//! the image gather ([`crate::gather::ImageGather`]), on buffers that stay on the device.
-//! The host reads back only the store's 32-byte counters (they size the acceleration
-//! structure build: wgpu has no indirect build) and what the caller asks for.
-//!
-//! [`run_from_host`] runs the chain on host data (raw footprints, photons, query records),
-//! for the tests against the core and the benchmark.
+//! The photon maps of one iteration on the device, photon batch by photon batch
+//! ([`arpa_core::gpu::batch`]): the keyed store, sort and compaction of each batch
+//! ([`crate::store::MapStore`]) on the photon pass's buffers, every batch's sorted records
+//! kept ([`BatchMaps`]), their acceleration structures ([`crate::accel`]) and the image
+//! gather over them in batch order ([`crate::gather::ImageGather`]). Everything stays on
+//! the device; the host reads back the store's 48-byte counters (they size the sort and
+//! the build: wgpu has no indirect build) and what the caller asks for.
 
 use crate::accel::MapAccel;
-use crate::accumulate::{AccumPixel, DeviceAccumulator};
 use crate::device::GpuContext;
-use crate::gather::{GatherBatch, ImageGather};
-use crate::store::{KeyedFootprint, KeyedPhoton, MapStore, StoreCounts, StorePipelines, StoreSettings};
+use crate::gather::ImageGather;
+use crate::store::{BOX_BYTES, FOOTPRINT_BYTES, MapStore, PHOTON_BYTES, StorePipelines};
 use crate::tracer::WgpuError;
 use arpa_core::footprint::PackedFootprint;
+use arpa_core::gpu::layout::{GatherBatch, StoreCounts, StoreSettings};
 use arpa_core::kernel::Kernel;
 use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::tracer::QueryRecord;
-use wgpu::util::DeviceExt;
+use arpa_core::tracer::{Call, Stage, StageError};
 
 /// Runs `record` (which creates and encodes device work) inside a validation and an
 /// out-of-memory error scope; an error becomes [`WgpuError::Device`] naming `stage`.
@@ -62,37 +60,56 @@ pub(crate) fn read_buffer(ctx: &GpuContext, stage: &'static str, buffer: &wgpu::
     Ok(out)
 }
 
-/// The store → sort → build → gather chain's device state (pipelines, store buffers for
-/// the current input buffers, the last structure and counts).
+/// One photon batch's maps: its sorted records and their boxes (caustic first), the
+/// counts, the progressive radii they were stored with, and, once built, their
+/// acceleration structure.
+pub struct BatchMaps {
+    /// Sorted footprint records ([`PackedFootprint`]); the first
+    /// [`StoreCounts::total_footprints`] are valid.
+    pub footprints: wgpu::Buffer,
+    /// Their boxes (`BLAS_INPUT`).
+    pub footprint_boxes: wgpu::Buffer,
+    /// Sorted progressive photons ([`PackedPhoton`]); the first
+    /// [`StoreCounts::total_photons`] are valid.
+    pub photons: wgpu::Buffer,
+    /// Their boxes (`BLAS_INPUT`).
+    pub photon_boxes: wgpu::Buffer,
+    /// What the store counted.
+    pub counts: StoreCounts,
+    radii: [f32; 2],
+    accel: Option<MapAccel>,
+}
+
+/// The iteration's photon maps on the device: the store's pipelines and buffers for the
+/// current photon-pass buffers, and the batches stored so far.
 pub struct PhotonMaps {
     pipelines: StorePipelines,
     gather: ImageGather,
     store: Option<MapStore>,
-    accel: Option<MapAccel>,
-    counts: StoreCounts,
-    radii: [f32; 2],
+    batches: Vec<BatchMaps>,
+}
+
+/// A batch the store half has stored ([`PhotonMaps::store`]), for [`PhotonMaps::sort`].
+#[derive(Debug)]
+pub struct Stored {
+    /// What the store counted.
+    pub counts: StoreCounts,
+    settings: StoreSettings,
 }
 
 impl PhotonMaps {
-    /// Compiles the chain's pipelines.
+    /// Compiles the pipelines.
     pub fn new(ctx: &GpuContext) -> Result<Self, WgpuError> {
         scoped(ctx, "compiling the store and gather pipelines", || {
-            Ok(Self {
-                pipelines: StorePipelines::new(&ctx.device),
-                gather: ImageGather::new(&ctx.device),
-                store: None,
-                accel: None,
-                counts: StoreCounts::default(),
-                radii: [0.0; 2],
-            })
+            Ok(Self { pipelines: StorePipelines::new(&ctx.device), gather: ImageGather::new(&ctx.device), store: None, batches: Vec::new() })
         })
     }
 
-    /// Binds the photon pass's output buffers (`raw`: [`KeyedFootprint`]s, `photons`:
-    /// [`KeyedPhoton`]s) with their capacities; call again whenever they are reallocated.
+    /// Binds the photon pass's output buffers (`raw`: keyed footprints, `photons`: keyed
+    /// photons) with their capacities; call again whenever they are reallocated. The
+    /// batches kept so far stay.
     pub fn bind_inputs(&mut self, ctx: &GpuContext, raw: &wgpu::Buffer, photons: &wgpu::Buffer, raw_capacity: u32, photon_capacity: u32) -> Result<(), WgpuError> {
         self.store = None;
-        self.accel = None;
         let store = scoped(ctx, "allocating the store buffers", || {
             MapStore::new(&ctx.device, &self.pipelines, raw, photons, raw_capacity, photon_capacity).map_err(|e| WgpuError::Size(e.to_string()))
         })?;
@@ -100,81 +117,132 @@ impl PhotonMaps {
         Ok(())
     }
 
-    fn store(&self, stage: &'static str) -> Result<&MapStore, WgpuError> {
-        self.store.as_ref().ok_or(WgpuError::StageOrder { stage, needs: "photon_pass" })
+    fn store_for(&self, call: impl Into<Call>) -> Result<&MapStore, StageError> {
+        self.store.as_ref().ok_or_else(|| StageError::order(call, Stage::UploadScene))
     }
 
-    /// Stores, sorts and compacts the photon pass's output, reads the counts back and
-    /// builds the acceleration structure over the sorted boxes. Returns the counts.
-    pub fn store_and_build(&mut self, ctx: &GpuContext, settings: &StoreSettings) -> Result<StoreCounts, WgpuError> {
-        let counts = self.store_sorted(ctx, settings)?;
-        self.build(ctx)?;
-        Ok(counts)
+    /// Drops every batch (the start of an iteration's photon pass).
+    pub fn clear_batches(&mut self) {
+        self.batches.clear();
     }
 
-    /// Stores, sorts and compacts the photon pass's output and reads the counts back
-    /// (drops the previous acceleration structure).
-    pub fn store_sorted(&mut self, ctx: &GpuContext, settings: &StoreSettings) -> Result<StoreCounts, WgpuError> {
-        self.accel = None;
-        let store = self.store("photon_pass")?;
+    /// The first half of a batch's store: stores the photon pass's output (heuristics,
+    /// fallbacks, sort items) and reads the counts back. Then [`PhotonMaps::sort`] (before
+    /// the next [`PhotonMaps::bind_inputs`]) or, to drop the batch, nothing.
+    pub fn store(&self, ctx: &GpuContext, settings: &StoreSettings) -> Result<Stored, WgpuError> {
+        let store = self.store_for(Stage::PhotonPass)?;
         scoped(ctx, "store", || {
             let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa store") });
             store.encode_store(&ctx.queue, &self.pipelines, &mut encoder, settings).map_err(|e| WgpuError::Size(e.to_string()))?;
             ctx.queue.submit([encoder.finish()]);
             Ok(())
         })?;
-        let bytes = read_buffer(ctx, "store counts", store.counts_buffer(), std::mem::size_of::<StoreCounts>() as u64)?;
-        let counts: StoreCounts = bytemuck::pod_read_unaligned(&bytes);
-        scoped(ctx, "sort", || {
-            let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa sort") });
-            store.encode_sort(&ctx.device, &ctx.queue, &self.pipelines, &mut encoder, settings, &counts).map_err(|e| WgpuError::Size(e.to_string()))?;
-            ctx.queue.submit([encoder.finish()]);
-            Ok(())
-        })?;
-        self.counts = counts;
-        self.radii = settings.radii;
-        Ok(counts)
+        let bytes = read_buffer(ctx, "store counts", store.counts_buffer(), size_of::<StoreCounts>() as u64)?;
+        Ok(Stored { counts: bytemuck::pod_read_unaligned(&bytes), settings: *settings })
     }
 
-    /// Builds the acceleration structure over the boxes of the last
-    /// [`PhotonMaps::store_sorted`].
-    pub fn build(&mut self, ctx: &GpuContext) -> Result<(), WgpuError> {
-        self.accel = None;
-        let store = self.store("build_acceleration_structure")?;
-        let counts = self.counts;
-        let accel = scoped(ctx, "acceleration-structure build", || {
-            let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa build") });
-            let accel = crate::accel::build(&ctx.device, &mut encoder, &store.footprint_boxes, &store.photon_boxes, &counts).map_err(|e| WgpuError::Size(e.to_string()))?;
+    /// The second half: sorts and compacts what [`PhotonMaps::store`] stored and keeps it
+    /// as the next batch. `last`: the iteration's last batch, which keeps the store's
+    /// output buffers themselves; an earlier batch's records are copied out, since the
+    /// next batch's store reuses those buffers.
+    pub fn sort(&mut self, ctx: &GpuContext, stored: Stored, last: bool) -> Result<(), WgpuError> {
+        let Stored { counts, settings } = stored;
+        let store = self.store_for(Stage::PhotonPass)?;
+        let device = &ctx.device;
+        let batch = scoped(ctx, "sort", || {
+            let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa sort") });
+            store.encode_sort(device, &ctx.queue, &self.pipelines, &mut encoder, &settings, &counts).map_err(|e| WgpuError::Size(e.to_string()))?;
+            let batch = if last {
+                BatchMaps {
+                    footprints: store.footprints.clone(),
+                    footprint_boxes: store.footprint_boxes.clone(),
+                    photons: store.photons.clone(),
+                    photon_boxes: store.photon_boxes.clone(),
+                    counts,
+                    radii: settings.radii,
+                    accel: None,
+                }
+            } else {
+                use wgpu::BufferUsages as U;
+                let copy = |encoder: &mut wgpu::CommandEncoder, source: &wgpu::Buffer, bytes: u64, usage: U| {
+                    let b = device.create_buffer(&wgpu::BufferDescriptor {
+                        label: Some("arpa photon batch"),
+                        // Bindings must hold at least one record.
+                        size: bytes.max(FOOTPRINT_BYTES),
+                        usage: U::STORAGE | U::COPY_SRC | U::COPY_DST | usage,
+                        mapped_at_creation: false,
+                    });
+                    if bytes > 0 {
+                        encoder.copy_buffer_to_buffer(source, 0, &b, 0, bytes);
+                    }
+                    b
+                };
+                let (nf, np) = (counts.total_footprints() as u64, counts.total_photons() as u64);
+                BatchMaps {
+                    footprints: copy(&mut encoder, &store.footprints, nf * FOOTPRINT_BYTES, U::empty()),
+                    footprint_boxes: copy(&mut encoder, &store.footprint_boxes, nf * BOX_BYTES, U::BLAS_INPUT),
+                    photons: copy(&mut encoder, &store.photons, np * PHOTON_BYTES, U::empty()),
+                    photon_boxes: copy(&mut encoder, &store.photon_boxes, np * BOX_BYTES, U::BLAS_INPUT),
+                    counts,
+                    radii: settings.radii,
+                    accel: None,
+                }
+            };
             ctx.queue.submit([encoder.finish()]);
-            Ok(accel)
+            Ok(batch)
         })?;
-        self.accel = Some(accel);
+        self.batches.push(batch);
         Ok(())
     }
 
-    /// Counts of the last [`PhotonMaps::store_and_build`].
-    pub fn counts(&self) -> StoreCounts {
-        self.counts
+    /// Photon batches kept (the iteration's, after its photon pass).
+    pub fn batch_count(&self) -> u32 {
+        self.batches.len() as u32
     }
 
-    /// Records the gather of `pixels` query records into `image`, as photon batch `batch`
-    /// of the iteration with the per-pixel batch sum in `irradiance` (see
-    /// [`ImageGather::encode`]; [`GatherBatch::WHOLE`] for an iteration in one batch).
+    /// The batches kept, in batch order.
+    pub fn batches(&self) -> &[BatchMaps] {
+        &self.batches
+    }
+
+    /// Builds every batch's acceleration structure over its sorted boxes (one submission).
+    pub fn build(&mut self, ctx: &GpuContext) -> Result<(), WgpuError> {
+        let device = &ctx.device;
+        let batches = &mut self.batches;
+        for b in batches.iter_mut() {
+            b.accel = None;
+        }
+        scoped(ctx, "acceleration-structure build", || {
+            let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa build") });
+            for b in batches.iter_mut() {
+                let accel = crate::accel::build(device, &mut encoder, &b.footprint_boxes, &b.photon_boxes, &b.counts).map_err(|e| WgpuError::Size(e.to_string()))?;
+                b.accel = Some(accel);
+            }
+            ctx.queue.submit([encoder.finish()]);
+            Ok(())
+        })
+    }
+
+    /// Records the gather of batch `k` of the [`PhotonMaps::batch_count`] batches for
+    /// `pixels` query records into `image`, with the per-pixel batch sum in `irradiance`
+    /// ([`crate::gather::ImageGather::encode`]). Each batch's gather needs a submission of
+    /// its own (its parameters are written through the queue).
     #[allow(clippy::too_many_arguments)]
     pub fn encode_gather(
         &self,
         ctx: &GpuContext,
         encoder: &mut wgpu::CommandEncoder,
+        k: u32,
         records: &wgpu::Buffer,
         image: &wgpu::Buffer,
         irradiance: &wgpu::Buffer,
         kernel: Kernel,
         pixels: u32,
-        batch: GatherBatch,
     ) -> Result<(), WgpuError> {
-        let store = self.store("gather")?;
-        let accel = self.accel.as_ref().ok_or(WgpuError::StageOrder { stage: "gather", needs: "build_acceleration_structure" })?;
-        self.gather.encode(&ctx.device, &ctx.queue, encoder, &store.footprints, &store.photons, &accel.tlas, records, image, irradiance, self.radii, kernel, pixels, batch);
+        let b = self.batches.get(k as usize).ok_or_else(|| StageError::order(Stage::Gather, Stage::PhotonPass))?;
+        let accel = b.accel.as_ref().ok_or_else(|| StageError::order(Stage::Gather, Stage::BuildAccelerationStructure))?;
+        let batch = GatherBatch::of(k, self.batch_count());
+        self.gather.encode(&ctx.device, &ctx.queue, encoder, &b.footprints, &b.photons, &accel.tlas, records, image, irradiance, b.radii, kernel, pixels, batch);
         Ok(())
     }
 
@@ -184,97 +252,24 @@ impl PhotonMaps {
         self.gather.total_buffer()
     }
 
-    /// The sorted footprints of the last store (caustic first): with photon batches, the
-    /// last batch's.
+    /// The sorted footprints of every batch, batch after batch (each caustic first).
     pub fn read_footprints(&self, ctx: &GpuContext) -> Result<Vec<PackedFootprint>, WgpuError> {
-        let store = self.store("read_footprints")?;
-        let n = self.counts.total_footprints() as u64;
-        Ok(bytemuck::pod_collect_to_vec(&read_buffer(ctx, "read_footprints", &store.footprints, n * 64)?))
-    }
-
-    /// The sorted progressive photons of the last store (caustic first, padding zero): with
-    /// photon batches, the last batch's.
-    pub fn read_photons(&self, ctx: &GpuContext) -> Result<Vec<PackedPhoton>, WgpuError> {
-        let store = self.store("read_photons")?;
-        let n = self.counts.total_photons() as u64;
-        Ok(bytemuck::pod_collect_to_vec(&read_buffer(ctx, "read_photons", &store.photons, n * 48)?))
-    }
-}
-
-/// What [`run_from_host`] read back.
-#[derive(Clone, Debug, Default)]
-pub struct HostRun {
-    /// Store counts.
-    pub counts: StoreCounts,
-    /// Sorted footprints.
-    pub footprints: Vec<PackedFootprint>,
-    /// Sorted progressive photons.
-    pub photons: Vec<PackedPhoton>,
-    /// The iteration image (radiance per pixel, RGB).
-    pub image: Vec<[f32; 3]>,
-    /// Contributions the gather found.
-    pub gathered: u64,
-    /// The running mean after accumulating `image` `iterations` times.
-    pub mean: Vec<arpa_core::glam::Vec3>,
-}
-
-/// Uploads `raw` and `photons` as a photon pass would leave them, runs store, sort,
-/// build and gather for `records`, and accumulates the iteration image `iterations` times
-/// (to exercise the running mean). For tests and benchmarks.
-pub fn run_from_host(
-    ctx: &GpuContext,
-    raw: &[KeyedFootprint],
-    photons: &[KeyedPhoton],
-    settings: &StoreSettings,
-    records: &[QueryRecord],
-    kernel: Kernel,
-    iterations: u32,
-) -> Result<HostRun, WgpuError> {
-    let device = &ctx.device;
-    let pixels = u32::try_from(records.len()).map_err(|_| WgpuError::Size(format!("{} query records", records.len())))?;
-    let upload = |bytes: &[u8], usage| {
-        let pad = [0u8; 96];
-        let contents = if bytes.is_empty() { &pad[..] } else { bytes };
-        device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some("arpa host upload"), contents, usage: wgpu::BufferUsages::STORAGE | usage })
-    };
-    let (raw_buf, ph_buf, rec_buf) = scoped(ctx, "upload", || {
-        Ok((
-            upload(bytemuck::cast_slice(raw), wgpu::BufferUsages::empty()),
-            upload(bytemuck::cast_slice(photons), wgpu::BufferUsages::empty()),
-            upload(bytemuck::cast_slice(records), wgpu::BufferUsages::empty()),
-        ))
-    })?;
-    let mut maps = PhotonMaps::new(ctx)?;
-    maps.bind_inputs(ctx, &raw_buf, &ph_buf, raw.len() as u32, photons.len() as u32)?;
-    let counts = maps.store_and_build(ctx, settings)?;
-    let (image_buf, acc) = scoped(ctx, "gather", || {
-        let pixel_buffer = || {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("arpa image"),
-                size: pixels.max(1) as u64 * 16,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            })
-        };
-        let (image_buf, irradiance) = (pixel_buffer(), pixel_buffer());
-        let acc = DeviceAccumulator::new(device, pixels);
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa gather") });
-        maps.encode_gather(ctx, &mut encoder, &rec_buf, &image_buf, &irradiance, kernel, pixels, GatherBatch::WHOLE)?;
-        for _ in 0..iterations {
-            acc.encode(device, &mut encoder, &image_buf);
+        let mut out = Vec::new();
+        for b in &self.batches {
+            let n = b.counts.total_footprints() as u64;
+            out.extend(bytemuck::pod_collect_to_vec::<u8, PackedFootprint>(&read_buffer(ctx, "read_footprints", &b.footprints, n * FOOTPRINT_BYTES)?));
         }
-        ctx.queue.submit([encoder.finish()]);
-        Ok((image_buf, acc))
-    })?;
-    let image: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, "image", &image_buf, pixels as u64 * 16)?);
-    let total: [u32; 4] = bytemuck::pod_read_unaligned(&read_buffer(ctx, "gathered", maps.gathered_buffer(), 16)?);
-    let acc_pixels: Vec<AccumPixel> = bytemuck::pod_collect_to_vec(&read_buffer(ctx, "accumulator", &acc.pixels, pixels as u64 * 32)?);
-    Ok(HostRun {
-        counts,
-        footprints: maps.read_footprints(ctx)?,
-        photons: maps.read_photons(ctx)?,
-        image: image.iter().map(|p| [p[0], p[1], p[2]]).collect(),
-        gathered: total[0] as u64 | (total[1] as u64) << 32,
-        mean: DeviceAccumulator::mean(&acc_pixels, iterations),
-    })
+        Ok(out)
+    }
+
+    /// The sorted progressive photons of every batch, batch after batch (each caustic
+    /// first, padding zero).
+    pub fn read_photons(&self, ctx: &GpuContext) -> Result<Vec<PackedPhoton>, WgpuError> {
+        let mut out = Vec::new();
+        for b in &self.batches {
+            let n = b.counts.total_photons() as u64;
+            out.extend(bytemuck::pod_collect_to_vec::<u8, PackedPhoton>(&read_buffer(ctx, "read_photons", &b.photons, n * PHOTON_BYTES)?));
+        }
+        Ok(out)
+    }
 }

@@ -7,7 +7,7 @@
 //! What a photon stores goes into [`PhotonOutputs`] by atomic append, each record tagged with
 //! the unique key `photon_index · max_depth + depth` (`depth`: 0-based index of the ray
 //! segment that ended at the hit), so sorting by key gives an order independent of the
-//! append order:
+//! append order (the records are the core's [`arpa_core::gpu::layout`]):
 //! * [`KeyedFootprint`]s: photons stored as footprints (method ARPA with the differential
 //!   intact), *before* the heuristics: `D_u`, `D_v` projected into the tangent plane and
 //!   already scaled by the map's smoothing factor (`S_c`, `S_g`). The store stage
@@ -24,133 +24,16 @@
 //! `row_n` and the fallback photon's normal then come out flipped too, exactly).
 
 use crate::device::GpuContext;
-use crate::harness::{HarnessError, scene_pipeline, storage_entry, submit_and_read, uniform_entry};
-use crate::scene::{GpuScene, SCENE_WGSL};
-use crate::store::RawFootprint;
+use crate::harness::{HarnessError, scene_pipeline, storage_entry, uniform_entry};
+use crate::scene::GpuScene;
 use arpa_core::emission::PackedLight;
+use arpa_core::gpu::layout::{EmitterRange, PhotonParams, emitter_tables};
+pub use arpa_core::gpu::layout::{KeyedFootprint, KeyedPhoton, PhotonCounters};
 use arpa_core::photon_path::PhotonPassSetup;
-use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::tracer::{Method, RenderSettings};
-
-/// WGSL of the photon pass (entry point `photon_pass`, bind group 1), after the core's twin
-/// files it needs ([`photon_pass_source`] assembles the whole module).
-pub const PHOTON_PASS_WGSL: &str = include_str!("shaders/photon_pass.wgsl");
+use arpa_core::tracer::RenderSettings;
 
 /// Workgroup size of the photon pass (photons per workgroup).
-pub const PHOTON_WORKGROUP_SIZE: u32 = 64;
-
-/// The complete WGSL module of the photon pass: `enable wgpu_ray_query;`, the core's twin
-/// files it uses, the scene ([`SCENE_WGSL`], bind group 0) and [`PHOTON_PASS_WGSL`].
-pub fn photon_pass_source() -> String {
-    use arpa_core::shaders as s;
-    let twin = [s::MATH, s::RNG, s::DIFFERENTIAL, s::FRESNEL, s::FRAME, s::SAMPLING, s::EMISSION, s::REEMISSION, s::LAMBERTIAN].join("\n");
-    format!("enable wgpu_ray_query;\n{twin}\n{SCENE_WGSL}\n{PHOTON_PASS_WGSL}")
-}
-
-/// A raw footprint with its key: the footprint buffer's element (96 bytes).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct KeyedFootprint {
-    /// The footprint (metres, unit normal towards the arriving photon, tangent-plane
-    /// differentials with the map's smoothing applied, W).
-    pub footprint: RawFootprint,
-    /// `photon_index · max_depth + depth`, unique within the iteration.
-    pub key: u32,
-    /// Padding (zero).
-    pub pad: [u32; 3],
-}
-
-/// A progressive photon with its key: the photon buffer's element (64 bytes).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct KeyedPhoton {
-    /// The photon (metres, unit normal towards the arrival side, W).
-    pub photon: PackedPhoton,
-    /// `photon_index · max_depth + depth`, unique within the iteration.
-    pub key: u32,
-    /// Padding (zero).
-    pub pad: [u32; 3],
-}
-
-/// What the photon pass counted (48 bytes, the WGSL `PhotonCounters`).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct PhotonCounters {
-    /// Photons traced (the dispatch's photon count: the iteration's, or the batch's with
-    /// [`PhotonPass::encode_batch`]; also those whose emitter could not emit, as the CPU
-    /// backend counts them).
-    pub emitted: u32,
-    /// Ray segments cast.
-    pub segments: u32,
-    /// Raw footprints stored, caustic map (appends attempted, overflowed ones included).
-    pub footprints_caustic: u32,
-    /// Raw footprints stored, global map.
-    pub footprints_global: u32,
-    /// Progressive photons stored, caustic map (appends attempted).
-    pub progressive_caustic: u32,
-    /// Progressive photons stored, global map.
-    pub progressive_global: u32,
-    /// Progressive photons stored because the differential was lost (method ARPA).
-    pub differential_lost: u32,
-    /// Footprint appends attempted (= footprints_caustic + footprints_global); the first
-    /// `min(footprint_appends, capacity)` slots of the footprint buffer are written.
-    pub footprint_appends: u32,
-    /// Photon appends attempted; the first `min(photon_appends, capacity)` slots are written.
-    pub photon_appends: u32,
-    /// Footprints dropped because the buffer was full.
-    pub footprint_overflowed: u32,
-    /// Progressive photons dropped because the buffer was full.
-    pub photon_overflowed: u32,
-    /// Padding (zero).
-    pub pad: u32,
-}
-
-impl PhotonCounters {
-    /// Footprints written to the buffer.
-    pub fn footprints_written(&self) -> u32 {
-        self.footprint_appends - self.footprint_overflowed
-    }
-
-    /// Progressive photons written to the buffer.
-    pub fn photons_written(&self) -> u32 {
-        self.photon_appends - self.photon_overflowed
-    }
-
-    /// Appends dropped for lack of capacity, both buffers.
-    pub fn overflowed(&self) -> u64 {
-        self.footprint_overflowed as u64 + self.photon_overflowed as u64
-    }
-}
-
-// The WGSL structs of photon_pass.wgsl have exactly these sizes.
-const _: () = assert!(size_of::<KeyedFootprint>() == 96 && size_of::<KeyedPhoton>() == 64 && size_of::<PhotonCounters>() == 48);
-const _: () = assert!(size_of::<PhotonParams>() == 48 && size_of::<EmitterRange>() == 16);
-
-/// Per-iteration uniforms (the WGSL `PhotonParams`, 48 bytes).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
-struct PhotonParams {
-    photon_count: u32,
-    iteration: u32,
-    seed: u32,
-    max_depth: u32,
-    method: u32,
-    direct_lighting: u32,
-    emitter_count: u32,
-    first_photon: u32,
-    smoothing: [f32; 2],
-    pad1: [f32; 2],
-}
-
-/// Global photon range of one emitter (the WGSL `PhotonEmitterRange`).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
-struct EmitterRange {
-    first_index: u32,
-    count: u32,
-    valid: u32,
-    pad: u32,
-}
+pub const PHOTON_WORKGROUP_SIZE: u32 = arpa_core::gpu::codes::WORKGROUP_SIZE;
 
 /// Why the photon pass could not be built or encoded.
 #[derive(Debug, thiserror::Error)]
@@ -214,17 +97,6 @@ pub struct PhotonOutputs {
     photon_capacity: u32,
 }
 
-/// What [`PhotonOutputs::read`] read back.
-#[derive(Clone, Debug, Default)]
-pub struct PhotonReadback {
-    /// The counters.
-    pub counters: PhotonCounters,
-    /// The footprints written, in append order (not deterministic; sort by key).
-    pub footprints: Vec<KeyedFootprint>,
-    /// The progressive photons written, in append order.
-    pub photons: Vec<KeyedPhoton>,
-}
-
 impl PhotonOutputs {
     /// Buffers for `footprint_capacity` footprints and `photon_capacity` progressive
     /// photons (each at least 1 and within the device's storage binding size).
@@ -277,56 +149,6 @@ impl PhotonOutputs {
     pub fn photon_capacity(&self) -> u32 {
         self.photon_capacity
     }
-
-    /// Reads the counters and the written records back (waits for the device). For tests
-    /// and read-backs; the tracer keeps them on the device.
-    pub fn read(&self, ctx: &GpuContext) -> Result<PhotonReadback, HarnessError> {
-        let label = "photon pass read-back";
-        let device = &ctx.device;
-        let staging = |bytes: u64| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: bytes,
-                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        };
-        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
-        let c = staging(size_of::<PhotonCounters>() as u64);
-        encoder.copy_buffer_to_buffer(&self.counters, 0, &c, 0, c.size());
-        let [counters] = submit_and_read(ctx, scope, encoder, label, [&c])?;
-        let counters: PhotonCounters = bytemuck::pod_read_unaligned(&counters);
-        let nf = counters.footprint_appends.min(self.footprint_capacity) as u64;
-        let np = counters.photon_appends.min(self.photon_capacity) as u64;
-        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some(label) });
-        // Staging buffers of at least 4 bytes (no zero-size copies).
-        let f = staging((nf * size_of::<KeyedFootprint>() as u64).max(4));
-        let p = staging((np * size_of::<KeyedPhoton>() as u64).max(4));
-        if nf > 0 {
-            encoder.copy_buffer_to_buffer(&self.footprints, 0, &f, 0, f.size());
-        }
-        if np > 0 {
-            encoder.copy_buffer_to_buffer(&self.photons, 0, &p, 0, p.size());
-        }
-        let [fb, pb] = submit_and_read(ctx, scope, encoder, label, [&f, &p])?;
-        Ok(PhotonReadback {
-            counters,
-            footprints: bytemuck::pod_collect_to_vec(&fb[..nf as usize * size_of::<KeyedFootprint>()]),
-            photons: bytemuck::pod_collect_to_vec(&pb[..np as usize * size_of::<KeyedPhoton>()]),
-        })
-    }
-}
-
-/// The settings the photon pass takes from [`RenderSettings`].
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct PassSettings {
-    method: u32,
-    seed: u32,
-    max_depth: u32,
-    direct_lighting: u32,
-    smoothing: [f32; 2],
 }
 
 /// The photon pass's pipeline and per-iteration input buffers for one scene.
@@ -337,7 +159,7 @@ pub struct PhotonPass {
     lights: wgpu::Buffer,
     ranges: wgpu::Buffer,
     emitters: usize,
-    settings: PassSettings,
+    settings: RenderSettings,
 }
 
 impl PhotonPass {
@@ -349,7 +171,7 @@ impl PhotonPass {
         let device = &ctx.device;
         let label = "photon pass";
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(label), source: wgpu::ShaderSource::Wgsl(photon_pass_source().into()) });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(label), source: wgpu::ShaderSource::Wgsl(crate::shaders::photon_pass().into()) });
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some(label),
             entries: &[
@@ -369,16 +191,6 @@ impl PhotonPass {
             device.create_buffer(&wgpu::BufferDescriptor { label: Some(label), size, usage: usage | wgpu::BufferUsages::COPY_DST, mapped_at_creation: false })
         };
         let n = emitters.max(1) as u64;
-        let settings = PassSettings {
-            method: match settings.method {
-                Method::Arpa => 0,
-                Method::Rtpm => 1,
-            },
-            seed: settings.seed,
-            max_depth: settings.max_depth,
-            direct_lighting: settings.direct_lighting as u32,
-            smoothing: [settings.smoothing.caustic as f32, settings.smoothing.global as f32],
-        };
         Ok(Self {
             pipeline,
             layout,
@@ -386,7 +198,7 @@ impl PhotonPass {
             lights: buffer(n * size_of::<PackedLight>() as u64, wgpu::BufferUsages::STORAGE),
             ranges: buffer(n * size_of::<EmitterRange>() as u64, wgpu::BufferUsages::STORAGE),
             emitters,
-            settings,
+            settings: *settings,
         })
     }
 
@@ -442,26 +254,8 @@ impl PhotonPass {
         if gy > max {
             return Err(PhotonPassError::TooManyPhotons { photons, max });
         }
-        let mut lights = vec![PackedLight::default(); self.emitters.max(1)];
-        let mut ranges = vec![EmitterRange::default(); self.emitters.max(1)];
-        for (e, light) in setup.lights.iter().enumerate() {
-            ranges[e] = EmitterRange { first_index: setup.first_index[e], count: setup.allocation[e], valid: light.is_some() as u32, pad: 0 };
-            if let Some(l) = light {
-                lights[e] = l.pack();
-            }
-        }
-        let params = PhotonParams {
-            photon_count: photons,
-            iteration: setup.iteration,
-            seed: s.seed,
-            max_depth: s.max_depth,
-            method: s.method,
-            direct_lighting: s.direct_lighting,
-            emitter_count: self.emitters as u32,
-            first_photon: batch.start,
-            smoothing: s.smoothing,
-            pad1: [0.0; 2],
-        };
+        let (lights, ranges) = emitter_tables(setup);
+        let params = PhotonParams::new(s, setup.iteration, self.emitters as u32, batch);
         let queue = &ctx.queue;
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         queue.write_buffer(&self.lights, 0, bytemuck::cast_slice(&lights));

@@ -1,22 +1,39 @@
 //! [`WgpuTracer`]: the wgpu backend of [`arpa_core::tracer::Tracer`] on ray queries.
 
-use crate::device::DeviceError;
+use crate::accumulate::{AccumPixel, DeviceAccumulator};
+use crate::camera::CameraPass;
+use crate::device::{AdapterChoice, DeviceError, GpuContext};
+use crate::maps::{PhotonMaps, read_buffer, scoped};
+use crate::photon::{PhotonOutputs, PhotonPass};
+use crate::scene::GpuScene;
+use arpa_core::footprint::PackedFootprint;
+use arpa_core::gpu::batch::{RecordLimits, batch_count, batch_range, grow, initial_capacity, shrink};
+use arpa_core::gpu::layout::{PhotonCounters, StoreSettings};
+use arpa_core::gpu::sort::{MAX_SORT_ITEMS, sorted_len};
+use arpa_core::photon_path::PhotonPassSetup;
+use arpa_core::prepared_scene::PreparedScene;
+use arpa_core::progressive_photon::PackedPhoton;
+use arpa_core::scene::Scene;
+use arpa_core::tracer::{
+    BackendKind, Call, Capabilities, Image, InvalidSettings, IterationStats, Method, QueryRecord, RenderSettings, Stage, StageClock, StageError, Tracer,
+    prepare_upload, uploaded,
+};
+use std::time::Instant;
 
 /// Errors of the wgpu backend.
 #[derive(Debug, thiserror::Error)]
 pub enum WgpuError {
+    /// A call out of order, the iteration limit, or a scene or settings no render can use
+    /// (the errors every backend shares; this backend adds one setting check: the `u32`
+    /// record keys bound `photons_per_iteration · max_depth`).
+    #[error(transparent)]
+    Stage(#[from] StageError),
     /// No usable adapter or device (the message names the adapter).
     #[error(transparent)]
     Adapter(#[from] DeviceError),
-    /// The scene failed validation.
-    #[error("invalid scene: {0}")]
-    Scene(#[from] arpa_core::scene::SceneError),
     /// The scene could not be uploaded to the device.
     #[error("scene upload: {0}")]
     SceneUpload(String),
-    /// A render setting is out of range.
-    #[error("invalid render settings: {0}")]
-    Settings(String),
     /// wgpu reported a validation or out-of-memory error while recording `stage`.
     #[error("wgpu error in {stage}: {message}")]
     Device {
@@ -36,44 +53,13 @@ pub enum WgpuError {
     /// A size beyond what a buffer, dispatch or acceleration structure takes.
     #[error("size limit: {0}")]
     Size(String),
-    /// A stage was called before the stage it depends on (in this iteration).
-    #[error("{stage} called before {needs}")]
-    StageOrder {
-        /// The stage called.
-        stage: &'static str,
-        /// What has to run first.
-        needs: &'static str,
-    },
     /// The camera pass could not be built.
     #[error(transparent)]
     CameraPass(#[from] crate::camera::CameraPassError),
     /// The photon pass could not be built or run.
     #[error(transparent)]
     PhotonPass(#[from] crate::photon::PhotonPassError),
-    /// `u32::MAX − 1` iterations have been accumulated.
-    #[error("iteration limit reached ({0} iterations)")]
-    IterationLimit(u32),
 }
-
-use crate::accumulate::{AccumPixel, DeviceAccumulator};
-use crate::device::{AdapterChoice, GpuContext};
-use crate::gather::GatherBatch;
-use crate::maps::{PhotonMaps, read_buffer, scoped};
-use crate::camera::CameraPass;
-use crate::photon::{PhotonCounters, PhotonOutputs, PhotonPass};
-use crate::scene::GpuScene;
-use crate::store::StoreSettings;
-use arpa_core::footprint::PackedFootprint;
-use arpa_core::photon_path::PhotonPassSetup;
-use arpa_core::prepared_scene::PreparedScene;
-use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::scene::Scene;
-use arpa_core::tracer::{Capabilities, Image, IterationStats, Method, QueryRecord, RenderSettings, Tracer};
-use std::time::Instant;
-
-/// Stored records per photon of a batch the photon buffers start with (each buffer; they
-/// grow when a batch overflows them).
-pub const INITIAL_RECORDS_PER_PHOTON: u32 = 2;
 
 /// Bytes of one query record ([`QueryRecord`]).
 const QUERY_BYTES: u64 = std::mem::size_of::<QueryRecord>() as u64;
@@ -81,47 +67,50 @@ const QUERY_BYTES: u64 = std::mem::size_of::<QueryRecord>() as u64;
 /// The photon-mapping pipeline on wgpu ray queries (a GPU, or lavapipe).
 ///
 /// Every buffer lives on the device: scene ([`GpuScene`]), query records, the photon
-/// pass's append buffers, the sorted maps and their acceleration structure
-/// ([`PhotonMaps`]), the iteration image and the running mean ([`DeviceAccumulator`]).
+/// pass's append buffers, the sorted maps of each photon batch and their acceleration
+/// structures ([`PhotonMaps`]), the iteration image and the running mean
+/// ([`DeviceAccumulator`]). The stage bookkeeping is the core's ([`StageClock`]).
 ///
 /// | stage | on the device | read back |
 /// |---|---|---|
-/// | [`upload_scene`](Tracer::upload_scene) | validates scene and settings ([`PreparedScene`]), uploads the scene, zeroes the accumulation | — |
+/// | [`upload_scene`](Tracer::upload_scene) | validates scene and settings ([`prepare_upload`]), uploads the scene, zeroes the accumulation | — |
 /// | [`camera_pass`](Tracer::camera_pass) | one query record per pixel ([`CameraPass`]) | — |
-/// | [`photon_pass`](Tracer::photon_pass) | photons (of batch 0) traced into append buffers ([`PhotonPass`]); then keyed store, sort and compaction ([`crate::store::MapStore`]) | the pass's and the store's counters (overflow check, sizes for the build) |
-/// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | AABB BLAS per (kind, map), one TLAS ([`crate::accel`]) | — |
-/// | [`gather`](Tracer::gather) | per pixel `radiance + weight · E` ([`crate::gather::ImageGather`]); with several photon batches, the other batches' photon pass, store, build and gather, `E` summed over them | contribution and query-point counts (16 bytes); per further batch, the photon pass's and store's counters |
+/// | [`photon_pass`](Tracer::photon_pass) | every photon batch of the iteration: photons traced into append buffers ([`PhotonPass`]), keyed store, sort and compaction into the batch's maps ([`crate::store::MapStore`], [`crate::maps::BatchMaps`]) | per batch, the pass's and the store's counters (overflow check, sizes for the sort and the build) |
+/// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | per batch, AABB BLAS per (kind, map) and one TLAS ([`crate::accel`]) | — |
+/// | [`gather`](Tracer::gather) | per pixel `radiance + weight · E`, `E` summed over the batches in batch order ([`crate::gather::ImageGather`]) | contribution and query-point counts (16 bytes) |
 /// | [`accumulate`](Tracer::accumulate) | compensated running sum | — |
 ///
 /// # Photon batches
 /// An iteration's records can need more than one storage binding holds (lavapipe: 128 MiB,
-/// 1.4 M raw footprints of 96 bytes). The iteration's photons are then traced in batches of
-/// at most B photons: batch `k` traces the global photon indices `[k·B, (k+1)·B)` with
-/// exactly the random streams, emitters and record keys of one pass over the iteration
-/// ([`PhotonPass::encode_batch`]; the flux is normalised by the iteration's photon count
-/// at emission), and each batch runs photon pass → store → sort → build → gather, the
-/// gather adding the batch's irradiance per pixel to a sum on the device
-/// ([`crate::gather::ImageGather::encode`]); the last batch writes the iteration image,
-/// accumulated once. Since the estimate is a sum over records, the batches' sum is the
-/// one-pass estimate up to the order of the `f32` additions.
+/// 1.4 M raw footprints of 96 bytes). The iteration's photons are then traced in *batches*
+/// of at most B photons: batch `k` is the global photon indices `[k·B, (k+1)·B)`, traced
+/// with exactly the random streams, emitters and record keys of one pass over the
+/// iteration, and stored, sorted and kept as maps of its own; the gather adds each batch's
+/// irradiance per pixel in batch order ([`arpa_core::gpu::batch`] has the policy: batch
+/// ranges, buffer growth, when and how B shrinks). Since the estimate is a sum over
+/// records, the batches' sum is the one-pass estimate up to the order of the `f32`
+/// additions.
 ///
 /// B starts at the iteration's photon count (one batch) or [`WgpuTracer::set_batch_photons`].
 /// When a batch's records exceed what one binding of the adapter holds (raw footprints,
-/// progressive photons, or the sorted progressive photons incl. the store's fallbacks),
-/// B becomes 90 % of the share of the batch that would have fitted (by the batch's
-/// measured record counts) and the iteration is traced again from batch 0; B then stays for
-/// the following iterations of the render (it only shrinks; [`Tracer::upload_scene`]
-/// resets it). [`Tracer::photon_pass`] and [`Tracer::build_acceleration_structure`] run
-/// batch 0; [`Tracer::gather`] runs the other batches (their photon, build and gather
-/// times are added to those stages' [`IterationStats::times`]). Counts in
-/// [`IterationStats`] are summed over the batches. [`Tracer::read_footprints`] and
-/// [`Tracer::read_photons`] return the records of the batch the maps hold: batch 0 after
-/// the photon pass, the *last* batch after a gather of an iteration of several batches.
+/// progressive photons, or the sorted progressive photons incl. the store's fallbacks), B
+/// shrinks and the photon pass starts the iteration again from batch 0; B then stays for
+/// the following iterations of the render ([`Tracer::upload_scene`] resets it).
+///
+/// The batches are part of the stage outputs: [`Tracer::photon_pass`] traces and stores
+/// every batch of the iteration (its time and [`IterationStats`] counts cover all of them),
+/// [`Tracer::build_acceleration_structure`] builds every batch's structure and
+/// [`Tracer::gather`] gathers them all; nothing is traced after the photon pass.
+/// [`Tracer::read_footprints`] and [`Tracer::read_photons`] return the iteration's records,
+/// batch after batch (each batch sorted by map, caustic first, then by Morton code and
+/// key); with one batch, the maps exactly. Every batch but the last is a device copy of
+/// the store's output, so an iteration of several batches holds all its sorted records on
+/// the device at once (a binding's worth per batch).
 ///
 /// # Overflow
 /// When the photon pass drops appends because a buffer is full (but the batch fits one
-/// binding), the batch's photons are discarded, the buffers grow (to 1.25× what was
-/// attempted, at least double) and the batch is traced again with the same random
+/// binding), the batch's photons are discarded, the buffers grow
+/// ([`arpa_core::gpu::batch::grow`]) and the batch is traced again with the same random
 /// streams, so the iteration is the one a large enough buffer gives (no bias); the dropped
 /// appends are counted in [`IterationStats::overflowed`] (also those of a batch that was
 /// split).
@@ -129,7 +118,7 @@ const QUERY_BYTES: u64 = std::mem::size_of::<QueryRecord>() as u64;
 /// # Determinism
 /// Each photon's and pixel's random stream depends only on `(seed, iteration, index)`;
 /// the stored records are sorted by `(map, Morton code, photon key)`, so the maps, their
-/// acceleration structure and the gather's traversal order do not depend on the order of
+/// acceleration structures and the gather's traversal order do not depend on the order of
 /// the atomic appends. Images are bit-identical for the same scene, settings and seed on
 /// the same adapter and driver. The batch size is part of that key: a different B sums the
 /// same contributions in another `f32` order (relative differences of a few `f32` ulps
@@ -138,8 +127,8 @@ const QUERY_BYTES: u64 = std::mem::size_of::<QueryRecord>() as u64;
 /// render repeated on the same adapter takes the same B.
 ///
 /// # Stage order
-/// As [`arpa_core::tracer::Tracer`]; a stage whose input is missing returns
-/// [`WgpuError::StageOrder`].
+/// As [`arpa_core::tracer::Tracer`] ([`StageClock`]); a call whose input is missing returns
+/// [`WgpuError::Stage`].
 pub struct WgpuTracer {
     ctx: GpuContext,
     maps: PhotonMaps,
@@ -166,42 +155,10 @@ struct Loaded {
     accumulator: DeviceAccumulator,
     /// Photons per batch (B): the iteration's photons `[k·B, (k+1)·B)` form batch `k`.
     batch_photons: u32,
-    /// [`WgpuTracer::set_binding_limit`] at upload.
-    binding_limit: Option<u64>,
-    /// The current iteration's photon-pass setup (from [`Tracer::photon_pass`]).
-    setup: Option<PhotonPassSetup>,
-    /// Whether the maps on the device are batch 0's (set by the photon pass; cleared when
-    /// a gather traced later batches into them).
-    first_batch_in_maps: bool,
-    completed: u32,
-    stats: IterationStats,
-    stats_for: Option<u32>,
-    queries_for: Option<u32>,
-    store_for: Option<u32>,
-    accel_for: Option<u32>,
-    image_for: Option<u32>,
-}
-
-impl Loaded {
-    fn begin_stage(&mut self) {
-        if self.stats_for != Some(self.completed) {
-            self.stats = IterationStats { iteration: self.completed, radii: self.stats.radii, ..IterationStats::default() };
-            self.stats_for = Some(self.completed);
-        }
-    }
-
-    fn require(&self, have: Option<u32>, stage: &'static str, needs: &'static str) -> Result<(), WgpuError> {
-        if have == Some(self.completed) { Ok(()) } else { Err(WgpuError::StageOrder { stage, needs }) }
-    }
-
-    fn check_iteration_limit(&self) -> Result<(), WgpuError> {
-        if self.completed >= u32::MAX - 1 { Err(WgpuError::IterationLimit(self.completed)) } else { Ok(()) }
-    }
-}
-
-/// Rejects settings no render can use ([`RenderSettings::validate`], as arpa-cpu does).
-pub fn validate_settings(s: &RenderSettings) -> Result<(), WgpuError> {
-    s.validate().map_err(|e| WgpuError::Settings(e.0))
+    /// What one photon-pass binding holds ([`WgpuTracer::set_binding_limit`] at upload, or
+    /// the adapter's limits).
+    limits: RecordLimits,
+    clock: StageClock,
 }
 
 impl WgpuTracer {
@@ -218,17 +175,18 @@ impl WgpuTracer {
     }
 
     /// Records each photon buffer holds after the next [`Tracer::upload_scene`] (`None`:
-    /// [`INITIAL_RECORDS_PER_PHOTON`] per photon of a batch, within the adapter's binding). The buffers grow when an
-    /// iteration overflows them; a small value exercises that path.
+    /// [`arpa_core::gpu::batch::INITIAL_RECORDS_PER_PHOTON`] per photon of a batch, within
+    /// the adapter's binding). The buffers grow when an iteration overflows them; a small
+    /// value exercises that path.
     pub fn set_initial_capacity(&mut self, records: Option<u32>) {
         self.initial_capacity = records;
     }
 
-    /// Forces the photons per batch (B) of the renders uploaded after this call (`None`:
-    /// automatic, see [`WgpuTracer`]'s *Photon batches*). A test hook: a small B splits an
-    /// iteration into many batches. The image depends on B at f32 rounding level.
+    /// Forces the photons per batch (B, at least 1) of the renders uploaded after this call
+    /// (`None`: automatic, see [`WgpuTracer`]'s *Photon batches*). A test hook: a small B
+    /// splits an iteration into many batches. The image depends on B at f32 rounding level.
     pub fn set_batch_photons(&mut self, photons: Option<u32>) {
-        self.batch_photons = photons;
+        self.batch_photons = photons.map(|b| b.max(1));
     }
 
     /// Caps the bytes one photon-pass storage binding may hold for the renders uploaded
@@ -249,34 +207,20 @@ impl WgpuTracer {
         &self.ctx
     }
 
-    fn loaded(&self, stage: &'static str) -> Result<&Loaded, WgpuError> {
-        self.state.as_deref().ok_or(WgpuError::StageOrder { stage, needs: "upload_scene" })
+    fn loaded(&self, call: impl Into<Call>) -> Result<&Loaded, StageError> {
+        uploaded(self.state.as_deref(), call)
     }
+}
 
-    fn loaded_mut(&mut self, stage: &'static str) -> Result<&mut Loaded, WgpuError> {
-        self.state.as_deref_mut().ok_or(WgpuError::StageOrder { stage, needs: "upload_scene" })
-    }
-
-    /// Waits until the device has finished the submitted work (stage timings).
-    fn wait(&self, stage: &'static str) -> Result<(), WgpuError> {
-        self.ctx.device.poll(wgpu::PollType::wait_indefinitely()).map(|_| ()).map_err(|e| WgpuError::Readback { stage, message: e.to_string() })
-    }
+/// Waits until the device has finished the submitted work (stage timings).
+fn wait(ctx: &GpuContext, stage: &'static str) -> Result<(), WgpuError> {
+    ctx.device.poll(wgpu::PollType::wait_indefinitely()).map(|_| ()).map_err(|e| WgpuError::Readback { stage, message: e.to_string() })
 }
 
 /// Bytes of the largest storage binding of this device (or the test hook's smaller limit).
 fn binding_bytes(ctx: &GpuContext, binding_limit: Option<u64>) -> u64 {
     let limits = ctx.device.limits();
     limits.max_storage_buffer_binding_size.min(limits.max_buffer_size).min(binding_limit.unwrap_or(u64::MAX))
-}
-
-/// The most raw footprints and progressive photons one photon-pass buffer holds on this
-/// device (its storage-binding and buffer-size limits; the keyed store's 64-byte slots
-/// and the sort's item limit too).
-fn max_capacities(ctx: &GpuContext, binding_limit: Option<u64>) -> (u32, u32) {
-    let bytes = binding_bytes(ctx, binding_limit);
-    let fit = |record: usize| u32::try_from(bytes / record as u64).unwrap_or(u32::MAX);
-    let sort = crate::sort::MAX_SORT_ITEMS / 2;
-    (fit(std::mem::size_of::<crate::photon::KeyedFootprint>()).min(sort), fit(std::mem::size_of::<crate::photon::KeyedPhoton>()).min(sort))
 }
 
 /// Zeroes the per-iteration counts the batches sum into (not `overflowed`, which keeps
@@ -292,27 +236,14 @@ fn reset_counts(stats: &mut IterationStats) {
     stats.differential_lost = 0;
 }
 
-/// Global photon indices of batch `k` with `batch` photons per batch.
-fn batch_range(setup: &PhotonPassSetup, batch: u32, k: u32) -> std::ops::Range<u32> {
-    let n = setup.photon_count() as u64;
-    let start = (k as u64 * batch as u64).min(n);
-    start as u32..(start + batch as u64).min(n) as u32
-}
-
-/// B for a batch of `photons` that needed `1 / fits` times what one binding holds: 90 % of
-/// the share that would have fitted, strictly fewer photons, at least 1.
-fn shrink(photons: u32, fits: f64) -> u32 {
-    ((photons as f64 * fits * 0.9) as u32).clamp(1, photons.saturating_sub(1).max(1))
-}
-
 /// Traces the photons `range` of the iteration `setup` into the photon buffers, stores,
-/// sorts and compacts them into `maps` (growing the buffers and tracing again on overflow)
-/// and adds the batch's counts to the stats. `Some(B)`: the batch needs more than one
-/// storage binding of this adapter holds; nothing was stored and the caller retraces the
-/// iteration with B photons per batch.
-fn trace_batch(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, setup: &PhotonPassSetup, range: std::ops::Range<u32>) -> Result<Option<u32>, WgpuError> {
+/// sorts and compacts them into the next batch of `maps` (growing the buffers and tracing
+/// again on overflow) and adds the batch's counts to the stats. `Some(B)`: the batch needs
+/// more than one storage binding of this adapter holds; nothing was kept and the caller
+/// traces the iteration again with B photons per batch.
+fn trace_batch(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, setup: &PhotonPassSetup, range: std::ops::Range<u32>, last: bool) -> Result<Option<u32>, WgpuError> {
     let photons = range.end - range.start;
-    let (fp_max, ph_max) = max_capacities(ctx, st.binding_limit);
+    let limits = st.limits;
     // Trace; on overflow discard the batch's records, grow the buffers and trace the same
     // photons again.
     let counters = loop {
@@ -326,51 +257,48 @@ fn trace_batch(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, setup: 
         if c.overflowed() == 0 {
             break c;
         }
-        st.stats.overflowed += c.overflowed();
-        if c.footprint_appends > fp_max || c.photon_appends > ph_max {
+        st.clock.stats_mut().overflowed += c.overflowed();
+        if c.footprint_appends > limits.raw_footprints || c.photon_appends > limits.photons {
             if photons <= 1 {
                 return Err(WgpuError::Size(format!(
-                    "one photon stores {} raw footprints and {} progressive photons; adapter {:?} binds at most {fp_max} and {ph_max}",
-                    c.footprint_appends, c.photon_appends, ctx.info.name
+                    "one photon stores {} raw footprints and {} progressive photons; adapter {:?} binds at most {} and {}",
+                    c.footprint_appends, c.photon_appends, ctx.info.name, limits.raw_footprints, limits.photons
                 )));
             }
-            let fits = (fp_max as f64 / c.footprint_appends.max(1) as f64).min(ph_max as f64 / c.photon_appends.max(1) as f64);
-            return Ok(Some(shrink(photons, fits)));
+            return Ok(Some(shrink(photons, limits.fits(c.footprint_appends, c.photon_appends))));
         }
-        let grow = |appends: u32, capacity: u32, max: u32| {
-            if appends > capacity { capacity.saturating_mul(2).max(appends.saturating_add(appends / 4)).min(max) } else { capacity }
-        };
-        let fp_cap = grow(c.footprint_appends, st.outputs.footprint_capacity(), fp_max);
-        let ph_cap = grow(c.photon_appends, st.outputs.photon_capacity(), ph_max);
-        if crate::sort::sorted_len(fp_cap.saturating_add(ph_cap)) > crate::sort::MAX_SORT_ITEMS || fp_cap.saturating_add(ph_cap) < fp_cap {
-            return Err(WgpuError::Size(format!("{} footprints and {} photons in one batch exceed the device sort's {} records", c.footprint_appends, c.photon_appends, crate::sort::MAX_SORT_ITEMS)));
+        let fp_cap = grow(c.footprint_appends, st.outputs.footprint_capacity(), limits.raw_footprints);
+        let ph_cap = grow(c.photon_appends, st.outputs.photon_capacity(), limits.photons);
+        if sorted_len(fp_cap.saturating_add(ph_cap)) > MAX_SORT_ITEMS || fp_cap.saturating_add(ph_cap) < fp_cap {
+            return Err(WgpuError::Size(format!("{} footprints and {} photons in one batch exceed the device sort's {MAX_SORT_ITEMS} records", c.footprint_appends, c.photon_appends)));
         }
         // Free the old buffers before allocating the larger ones.
         st.outputs = PhotonOutputs::new(ctx, 1, 1)?;
         st.outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
         maps.bind_inputs(ctx, st.outputs.footprints(), st.outputs.photons(), fp_cap, ph_cap)?;
     };
-    let store = StoreSettings {
+    let settings = StoreSettings {
         heuristics: setup.heuristics.pack(),
         radii: setup.radii.map(|r| r as f32),
         bounds: st.prepared.bounds().to_f32_conservative(),
         raw_count: counters.footprints_written(),
         photon_count: counters.photons_written(),
     };
-    let counts = maps.store_sorted(ctx, &store)?;
+    let stored = maps.store(ctx, &settings)?;
+    let counts = stored.counts;
     // The sorted progressive photons (the pass's plus the footprints' fallbacks) must fit
     // one binding too.
-    let sorted_max = binding_bytes(ctx, st.binding_limit) / std::mem::size_of::<PackedPhoton>() as u64;
-    if counts.photon_items as u64 > sorted_max {
-        st.stats.overflowed += counts.photon_items as u64 - sorted_max;
+    if counts.photon_items as u64 > limits.sorted_photons {
+        st.clock.stats_mut().overflowed += counts.photon_items as u64 - limits.sorted_photons;
         if photons <= 1 {
-            return Err(WgpuError::Size(format!("one photon stores {} progressive photons; adapter {:?} binds at most {sorted_max}", counts.photon_items, ctx.info.name)));
+            return Err(WgpuError::Size(format!("one photon stores {} progressive photons; adapter {:?} binds at most {}", counts.photon_items, ctx.info.name, limits.sorted_photons)));
         }
-        return Ok(Some(shrink(photons, sorted_max as f64 / counts.photon_items as f64)));
+        return Ok(Some(shrink(photons, limits.sorted_photons as f64 / counts.photon_items as f64)));
     }
+    maps.sort(ctx, stored, last)?;
     // The sort's device time belongs to the photon stage.
-    ctx.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| WgpuError::Readback { stage: "photon_pass", message: e.to_string() })?;
-    let stats = &mut st.stats;
+    wait(ctx, "photon_pass")?;
+    let stats = st.clock.stats_mut();
     stats.photons_emitted += counters.emitted as u64;
     stats.photon_segments += counters.segments as u64;
     for m in 0..2 {
@@ -384,61 +312,13 @@ fn trace_batch(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, setup: 
     Ok(None)
 }
 
-/// The gather of the iteration `setup`, batch 0's maps already built: gathers them and,
-/// when the iteration has more batches, traces, stores, builds and gathers each of the
-/// others in turn, summing the irradiance per pixel on the device; the last batch writes
-/// the image. A batch too large for the adapter shrinks B and restarts the iteration at
-/// batch 0 (counts reset). Times go to the stage each step belongs to.
-fn gather_batches(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, setup: &PhotonPassSetup) -> Result<(), WgpuError> {
-    let n = setup.photon_count();
-    let wait = |stage: &'static str| ctx.device.poll(wgpu::PollType::wait_indefinitely()).map(|_| ()).map_err(|e| WgpuError::Readback { stage, message: e.to_string() });
-    let mut k = 0u32;
-    let mut traced = true;
-    st.stats.times.gather = 0.0;
-    loop {
-        let batches = n.div_ceil(st.batch_photons).max(1);
-        if !traced {
-            let start = Instant::now();
-            let range = batch_range(setup, st.batch_photons, k);
-            let smaller = trace_batch(ctx, maps, st, setup, range)?;
-            st.stats.times.photon += start.elapsed().as_secs_f64();
-            if let Some(b) = smaller {
-                st.batch_photons = b;
-                reset_counts(&mut st.stats);
-                k = 0;
-                continue;
-            }
-            let start = Instant::now();
-            maps.build(ctx)?;
-            wait("build_acceleration_structure")?;
-            st.stats.times.build += start.elapsed().as_secs_f64();
-        }
-        st.first_batch_in_maps = k == 0;
-        let start = Instant::now();
-        let batch = GatherBatch { first: k == 0, last: k + 1 >= batches };
-        scoped(ctx, "gather", || {
-            let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa gather") });
-            maps.encode_gather(ctx, &mut encoder, &st.queries, &st.image, &st.irradiance, st.settings.kernel, st.pixels, batch)?;
-            ctx.queue.submit([encoder.finish()]);
-            Ok(())
-        })?;
-        wait("gather")?;
-        st.stats.times.gather += start.elapsed().as_secs_f64();
-        k += 1;
-        traced = false;
-        if k >= batches {
-            return Ok(());
-        }
-    }
-}
-
 impl Tracer for WgpuTracer {
     type Error = WgpuError;
 
     fn capabilities(&self) -> Capabilities {
         let i = &self.ctx.info;
         Capabilities {
-            backend: arpa_core::tracer::BackendKind::Wgpu,
+            backend: BackendKind::Wgpu,
             device: format!("{} ({:?}, {} {})", i.name, i.device_type, i.driver, i.driver_info),
             methods: vec![Method::Arpa, Method::Rtpm],
             // Batches lift the buffer limits; the record keys bound photons · max_depth
@@ -450,19 +330,16 @@ impl Tracer for WgpuTracer {
 
     fn upload_scene(&mut self, scene: &Scene, settings: &RenderSettings) -> Result<(), WgpuError> {
         self.state = None;
-        validate_settings(settings)?;
+        let prepared = prepare_upload(scene, settings)?;
         if settings.photons_per_iteration as u64 * settings.max_depth as u64 > u32::MAX as u64 {
-            return Err(WgpuError::Settings(format!(
-                "photons_per_iteration {} × max_depth {} exceeds the u32 record keys of this backend (at most {} photons at this depth)",
+            return Err(StageError::Settings(InvalidSettings(format!(
+                "photons_per_iteration {} × max_depth {} exceeds the u32 record keys of the wgpu backend (at most {} photons at this depth)",
                 settings.photons_per_iteration,
                 settings.max_depth,
                 u32::MAX / settings.max_depth
-            )));
+            )))
+            .into());
         }
-        if self.batch_photons == Some(0) {
-            return Err(WgpuError::Settings("the forced batch size must be at least 1 photon".into()));
-        }
-        let prepared = PreparedScene::new(scene.clone())?;
         let (width, height) = (scene.camera.width, scene.camera.height);
         let pixels = (width as u64 * height as u64).try_into().ok().filter(|&p: &u32| (p as u64) * QUERY_BYTES <= self.ctx.device.limits().max_storage_buffer_binding_size);
         let Some(pixels) = pixels else {
@@ -472,11 +349,12 @@ impl Tracer for WgpuTracer {
         let ctx = &self.ctx;
         let camera = CameraPass::new(ctx, &gpu_scene, &prepared, settings)?;
         let photon = PhotonPass::new(ctx, &gpu_scene, prepared.emitters().len(), settings)?;
-        let (fp_max, ph_max) = max_capacities(ctx, self.binding_limit);
+        let limits = RecordLimits::new(binding_bytes(ctx, self.binding_limit));
         let batch_photons = self.batch_photons.unwrap_or(settings.photons_per_iteration).min(settings.photons_per_iteration);
-        let capacity = self.initial_capacity.unwrap_or(batch_photons.saturating_mul(INITIAL_RECORDS_PER_PHOTON)).max(1);
-        let (fp_cap, ph_cap) = (capacity.min(fp_max), capacity.min(ph_max));
+        let fp_cap = initial_capacity(batch_photons, self.initial_capacity, limits.raw_footprints);
+        let ph_cap = initial_capacity(batch_photons, self.initial_capacity, limits.photons);
         let outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
+        self.maps.clear_batches();
         self.maps.bind_inputs(ctx, outputs.footprints(), outputs.photons(), fp_cap, ph_cap)?;
         let (queries, image, irradiance, accumulator) = scoped(ctx, "allocating the image buffers", || {
             let buffer = |size: u64| {
@@ -504,109 +382,96 @@ impl Tracer for WgpuTracer {
             irradiance,
             accumulator,
             batch_photons,
-            binding_limit: self.binding_limit,
-            setup: None,
-            first_batch_in_maps: false,
-            completed: 0,
-            stats: IterationStats::default(),
-            stats_for: Some(0),
-            queries_for: None,
-            store_for: None,
-            accel_for: None,
-            image_for: None,
+            limits,
+            clock: StageClock::new(),
         }));
         Ok(())
     }
 
     fn camera_pass(&mut self) -> Result<(), WgpuError> {
-        let st = self.loaded("camera_pass")?;
-        st.check_iteration_limit()?;
+        let st = uploaded(self.state.as_deref_mut(), Stage::CameraPass)?;
+        st.clock.begin(Stage::CameraPass)?;
         let start = Instant::now();
         let ctx = &self.ctx;
         scoped(ctx, "camera_pass", || {
             let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa camera pass") });
-            st.camera.encode(&mut encoder, st.completed, &st.queries);
+            st.camera.encode(&mut encoder, st.clock.completed(), &st.queries);
             ctx.queue.submit([encoder.finish()]);
             Ok(())
         })?;
-        self.wait("camera_pass")?;
-        let st = self.loaded_mut("camera_pass")?;
-        st.begin_stage();
-        st.queries_for = Some(st.completed);
-        st.image_for = None;
-        st.stats.times.camera = start.elapsed().as_secs_f64();
+        wait(ctx, "camera_pass")?;
+        st.clock.stats_mut().times.camera = start.elapsed().as_secs_f64();
+        st.clock.finish(Stage::CameraPass);
         Ok(())
     }
 
     fn photon_pass(&mut self) -> Result<(), WgpuError> {
+        let st = uploaded(self.state.as_deref_mut(), Stage::PhotonPass)?;
+        st.clock.begin(Stage::PhotonPass)?;
         let start = Instant::now();
-        let st = self.state.as_deref_mut().ok_or(WgpuError::StageOrder { stage: "photon_pass", needs: "upload_scene" })?;
-        st.check_iteration_limit()?;
-        st.begin_stage();
-        st.store_for = None;
-        st.accel_for = None;
-        st.image_for = None;
-        st.first_batch_in_maps = false;
-        let setup = PhotonPassSetup::new(&st.prepared, &st.settings, st.completed);
-        st.stats.overflowed = 0;
-        // Batch 0 (the whole iteration when it fits); a batch too large for one binding
-        // shrinks B and is traced again.
-        loop {
-            reset_counts(&mut st.stats);
-            let range = batch_range(&setup, st.batch_photons, 0);
-            match trace_batch(&self.ctx, &mut self.maps, st, &setup, range)? {
-                None => break,
-                Some(smaller) => st.batch_photons = smaller,
+        let setup = PhotonPassSetup::new(&st.prepared, &st.settings, st.clock.completed());
+        let n = setup.photon_count();
+        st.clock.stats_mut().overflowed = 0;
+        // Every batch; a batch too large for one binding shrinks B and starts the
+        // iteration again.
+        'iteration: loop {
+            reset_counts(st.clock.stats_mut());
+            self.maps.clear_batches();
+            let batches = batch_count(n, st.batch_photons);
+            for k in 0..batches {
+                let range = batch_range(n, st.batch_photons, k);
+                if let Some(smaller) = trace_batch(&self.ctx, &mut self.maps, st, &setup, range, k + 1 == batches)? {
+                    st.batch_photons = smaller;
+                    continue 'iteration;
+                }
             }
+            break;
         }
-        st.stats.radii = setup.radii;
-        st.setup = Some(setup);
-        st.first_batch_in_maps = true;
-        st.store_for = Some(st.completed);
-        st.stats.times.photon = start.elapsed().as_secs_f64();
+        let stats = st.clock.stats_mut();
+        stats.radii = setup.radii;
+        stats.times.photon = start.elapsed().as_secs_f64();
+        st.clock.finish(Stage::PhotonPass);
         Ok(())
     }
 
     fn build_acceleration_structure(&mut self) -> Result<(), WgpuError> {
-        let st = self.loaded("build_acceleration_structure")?;
-        st.require(st.store_for, "build_acceleration_structure", "photon_pass")?;
+        let st = uploaded(self.state.as_deref_mut(), Stage::BuildAccelerationStructure)?;
+        st.clock.begin(Stage::BuildAccelerationStructure)?;
         let start = Instant::now();
         self.maps.build(&self.ctx)?;
-        self.wait("build_acceleration_structure")?;
-        let st = self.loaded_mut("build_acceleration_structure")?;
-        st.begin_stage();
-        st.accel_for = Some(st.completed);
-        st.image_for = None;
-        st.stats.times.build = start.elapsed().as_secs_f64();
+        wait(&self.ctx, "build_acceleration_structure")?;
+        st.clock.stats_mut().times.build = start.elapsed().as_secs_f64();
+        st.clock.finish(Stage::BuildAccelerationStructure);
         Ok(())
     }
 
     fn gather(&mut self) -> Result<(), WgpuError> {
-        let st = self.state.as_deref_mut().ok_or(WgpuError::StageOrder { stage: "gather", needs: "upload_scene" })?;
-        st.require(st.queries_for, "gather", "camera_pass")?;
-        st.require(st.accel_for, "gather", "build_acceleration_structure")?;
-        if !st.first_batch_in_maps {
-            // The maps hold a later batch of an iteration already gathered.
-            return Err(WgpuError::StageOrder { stage: "gather", needs: "photon_pass" });
+        let st = uploaded(self.state.as_deref_mut(), Stage::Gather)?;
+        st.clock.begin(Stage::Gather)?;
+        let start = Instant::now();
+        let ctx = &self.ctx;
+        let maps = &self.maps;
+        // One submission per batch: each writes its gather parameters through the queue.
+        for k in 0..maps.batch_count() {
+            scoped(ctx, "gather", || {
+                let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa gather") });
+                maps.encode_gather(ctx, &mut encoder, k, &st.queries, &st.image, &st.irradiance, st.settings.kernel, st.pixels)?;
+                ctx.queue.submit([encoder.finish()]);
+                Ok(())
+            })?;
         }
-        let Some(setup) = st.setup.take() else {
-            return Err(WgpuError::StageOrder { stage: "gather", needs: "photon_pass" });
-        };
-        let result = gather_batches(&self.ctx, &mut self.maps, st, &setup);
-        st.setup = Some(setup);
-        result?;
-        let total: [u32; 4] = bytemuck::pod_read_unaligned(&read_buffer(&self.ctx, "gather counts", self.maps.gathered_buffer(), 16)?);
-        let st = self.loaded_mut("gather")?;
-        st.begin_stage();
-        st.stats.gathered = total[0] as u64 | (total[1] as u64) << 32;
-        st.stats.query_points = total[2] as u64;
-        st.image_for = Some(st.completed);
+        let total: [u32; 4] = bytemuck::pod_read_unaligned(&read_buffer(ctx, "gather counts", maps.gathered_buffer(), 16)?);
+        let stats = st.clock.stats_mut();
+        stats.gathered = total[0] as u64 | (total[1] as u64) << 32;
+        stats.query_points = total[2] as u64;
+        stats.times.gather = start.elapsed().as_secs_f64();
+        st.clock.finish(Stage::Gather);
         Ok(())
     }
 
     fn accumulate(&mut self) -> Result<(), WgpuError> {
-        let st = self.loaded("accumulate")?;
-        st.require(st.image_for, "accumulate", "gather")?;
+        let st = uploaded(self.state.as_deref_mut(), Stage::Accumulate)?;
+        st.clock.begin(Stage::Accumulate)?;
         let start = Instant::now();
         let ctx = &self.ctx;
         scoped(ctx, "accumulate", || {
@@ -615,52 +480,46 @@ impl Tracer for WgpuTracer {
             ctx.queue.submit([encoder.finish()]);
             Ok(())
         })?;
-        self.wait("accumulate")?;
-        let st = self.loaded_mut("accumulate")?;
-        st.begin_stage();
-        st.completed += 1;
-        st.image_for = None;
-        st.stats.iteration = st.completed;
-        st.stats.times.accumulate = start.elapsed().as_secs_f64();
+        wait(ctx, "accumulate")?;
+        st.clock.stats_mut().times.accumulate = start.elapsed().as_secs_f64();
+        st.clock.finish(Stage::Accumulate);
         Ok(())
     }
 
     fn iterations(&self) -> u32 {
-        self.state.as_ref().map_or(0, |s| s.completed)
+        self.state.as_ref().map_or(0, |s| s.clock.completed())
     }
 
     fn read_image(&self) -> Result<Image, WgpuError> {
-        let st = self.loaded("read_image")?;
-        let bytes = read_buffer(&self.ctx, "read_image", &st.accumulator.pixels, st.pixels as u64 * 32)?;
+        let st = self.loaded(Call::ReadImage)?;
+        let bytes = read_buffer(&self.ctx, "read_image", &st.accumulator.pixels, st.pixels as u64 * std::mem::size_of::<AccumPixel>() as u64)?;
         let acc: Vec<AccumPixel> = bytemuck::pod_collect_to_vec(&bytes);
-        Ok(Image { width: st.width, height: st.height, pixels: DeviceAccumulator::mean(&acc, st.completed) })
+        let n = st.clock.completed();
+        Ok(Image { width: st.width, height: st.height, pixels: acc.iter().map(|p| p.mean(n)).collect() })
     }
 
     fn read_query_points(&self) -> Result<Vec<QueryRecord>, WgpuError> {
-        let st = self.loaded("read_query_points")?;
-        if st.queries_for.is_none() {
-            return Err(WgpuError::StageOrder { stage: "read_query_points", needs: "camera_pass" });
-        }
+        let st = self.loaded(Call::ReadQueryPoints)?;
+        st.clock.require_output(Call::ReadQueryPoints, Stage::CameraPass)?;
         Ok(bytemuck::pod_collect_to_vec(&read_buffer(&self.ctx, "read_query_points", &st.queries, st.pixels as u64 * QUERY_BYTES)?))
     }
 
+    /// The last photon pass's footprints: every batch's, batch after batch (see
+    /// [`WgpuTracer`]'s *Photon batches*).
     fn read_footprints(&self) -> Result<Vec<PackedFootprint>, WgpuError> {
-        let st = self.loaded("read_footprints")?;
-        if st.store_for.is_none() {
-            return Err(WgpuError::StageOrder { stage: "read_footprints", needs: "photon_pass" });
-        }
+        let st = self.loaded(Call::ReadFootprints)?;
+        st.clock.require_output(Call::ReadFootprints, Stage::PhotonPass)?;
         self.maps.read_footprints(&self.ctx)
     }
 
+    /// The last photon pass's progressive photons: every batch's, batch after batch.
     fn read_photons(&self) -> Result<Vec<PackedPhoton>, WgpuError> {
-        let st = self.loaded("read_photons")?;
-        if st.store_for.is_none() {
-            return Err(WgpuError::StageOrder { stage: "read_photons", needs: "photon_pass" });
-        }
+        let st = self.loaded(Call::ReadPhotons)?;
+        st.clock.require_output(Call::ReadPhotons, Stage::PhotonPass)?;
         self.maps.read_photons(&self.ctx)
     }
 
     fn read_stats(&self) -> Result<IterationStats, WgpuError> {
-        Ok(self.loaded("read_stats")?.stats)
+        Ok(*self.loaded(Call::ReadStats)?.clock.stats())
     }
 }

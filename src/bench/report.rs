@@ -314,3 +314,18 @@ fn plot_scene(path: &Path, header: &Header, scene: &str, runs: &[&RunResult]) ->
     }
     image::save_buffer(path, &buf, w, h, image::ExtendedColorType::Rgb8).with_context(|| format!("cannot write plot '{}'", path.display()))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn axis_numbers_are_short() {
+        assert_eq!(short_number(0.30000000000000004), "0.3");
+        assert_eq!(short_number(2.0), "2");
+        assert_eq!(short_number(0.0125), "0.0125");
+        assert_eq!(short_number(150.0), "150");
+        assert_eq!(super::super::budget_label(1_000_000), "1000K");
+        assert_eq!(super::super::budget_label(12_345), "12345");
+    }
+}

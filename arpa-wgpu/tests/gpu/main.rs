@@ -3,7 +3,9 @@
 //! adapter `common::gpu` picks (lavapipe in CI) and skip loudly without one outside CI.
 
 mod common;
+mod support;
 
+mod aabb_twin;
 mod camera_pass;
 
 mod gather;

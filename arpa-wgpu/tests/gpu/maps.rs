@@ -1,6 +1,6 @@
 //! The tracer's device chain (`arpa_wgpu::maps`: keyed store → sort → compaction → AABB
-//! build → image gather → running mean) on raw footprints and photons uploaded as a photon
-//! pass would append them, against the core:
+//! build → image gather → running mean, run by `support::run_from_host`) on raw footprints
+//! and photons uploaded as a photon pass would append them, against the core:
 //! * every raw footprint's outcome (footprint or progressive fallback, per map) is
 //!   `store_footprint_resolved`'s after the map's smoothing (applied by the photon pass, so
 //!   here by the test in f32), except within 1e-3 of a heuristic threshold (as in `store`);
@@ -26,9 +26,9 @@ use arpa_core::progressive_photon::PackedPhoton;
 use arpa_core::rng::{Rng, StreamDomain};
 use arpa_core::store::{StoredPhoton, store_footprint_resolved};
 use arpa_core::tracer::QueryRecord;
-use arpa_wgpu::maps::{HostRun, run_from_host};
-use arpa_wgpu::sort::morton_code;
-use arpa_wgpu::store::{KeyedFootprint, KeyedPhoton, RawFootprint, StoreSettings};
+use crate::support::{HostRun, run_from_host};
+use arpa_core::gpu::layout::{KeyedFootprint, KeyedPhoton, RawFootprint, StoreSettings};
+use arpa_core::gpu::morton::morton_code;
 use glam::{DVec3, Vec3};
 
 const RADII: [f32; 2] = [0.02, 0.05];
@@ -107,7 +107,7 @@ fn settings(input: &Input) -> StoreSettings {
 }
 
 fn run(ctx: &arpa_wgpu::GpuContext, input: &Input, kernel: Kernel) -> HostRun {
-    run_from_host(ctx, &input.raw, &input.photons, &settings(input), &input.records, kernel, 3).unwrap()
+    run_from_host(ctx, &input.raw, &input.photons, &settings(input), &input.records, kernel, 3)
 }
 
 #[test]

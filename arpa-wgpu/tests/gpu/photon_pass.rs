@@ -38,7 +38,8 @@ use arpa_core::shapes::{icosphere, parallelogram};
 use arpa_core::store::{ProgressiveReason, StoredPhoton, store_footprint_resolved};
 use arpa_core::tracer::{Method, RenderSettings};
 use arpa_wgpu::GpuContext;
-use arpa_wgpu::photon::{PhotonOutputs, PhotonPass, PhotonReadback};
+use arpa_wgpu::photon::{PhotonOutputs, PhotonPass};
+use crate::support::{PhotonReadback, read_outputs};
 use arpa_wgpu::scene::GpuScene;
 
 fn camera() -> Camera {
@@ -142,7 +143,7 @@ fn device_pass(ctx: &GpuContext, prepared: &PreparedScene, s: &RenderSettings, i
     let mut encoder = ctx.device.create_command_encoder(&Default::default());
     pass.encode(ctx, &mut encoder, &scene, &setup, &out).expect("encode");
     ctx.queue.submit([encoder.finish()]);
-    out.read(ctx).expect("read-back")
+    read_outputs(ctx, &out)
 }
 
 /// `D_u`, `D_v` (metres), the unit normal and the flux (W) of a packed footprint, from
@@ -250,7 +251,7 @@ fn same_kind(a: &StoredPhoton, b: &StoredPhoton) -> bool {
 /// * `TIGHT`, the `f32` bounds with little amplification: a photon counts as agreeing when
 ///   its decisions agree and all its records are within them;
 /// * `COARSE`, what any record of a photon with the same decisions must meet: amplified
-///   rounding (measured up to 8e-4 m after six diffuse bounces and a pass through the glass
+///   rounding (of order 1e-3 m after six diffuse bounces and a pass through the glass
 ///   sphere) stays well inside it, while a wrong formula moves a record by a sizeable part
 ///   of the scene or changes its flux by a factor.
 ///
@@ -473,7 +474,7 @@ fn batches_store_exactly_the_records_of_one_pass() {
             let mut encoder = ctx.device.create_command_encoder(&Default::default());
             pass.encode_batch(ctx, &mut encoder, &scene, &setup, range, &out).expect("encode");
             ctx.queue.submit([encoder.finish()]);
-            out.read(ctx).expect("read-back")
+            read_outputs(ctx, &out)
         };
         let whole = run(0..2000);
         let parts: Vec<PhotonReadback> = [0..700, 700..1301, 1301..2000].into_iter().map(run).collect();
@@ -513,7 +514,7 @@ fn batches_store_exactly_the_records_of_one_pass() {
 /// without a GPU.
 #[test]
 fn photon_pass_module_validates_with_naga() {
-    let src = arpa_wgpu::photon::photon_pass_source();
+    let src = arpa_wgpu::shaders::photon_pass();
     let module = naga::front::wgsl::parse_str(&src).unwrap_or_else(|e| panic!("photon pass: {}", e.emit_to_string(&src)));
     naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::RAY_QUERY)
         .validate(&module)

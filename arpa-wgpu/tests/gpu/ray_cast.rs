@@ -65,7 +65,7 @@ proptest! {
         let gpu_scene = GpuGeometry::upload(ctx, &scene.meshes).map_err(|e| TestCaseError::fail(e.to_string()))?;
         prop_assert_eq!(gpu_scene.instance_count(), scene.meshes.len() - 1);
         let rs = rays(seed, 5000);
-        let got = gpu_scene.intersect(ctx, &rs).map_err(|e| TestCaseError::fail(e.to_string()))?;
+        let got = crate::support::cast_rays(ctx, &gpu_scene, &rs);
         let (mut hits, mut misses, mut sphere, mut panel) = (0, 0, 0, 0);
         for (&(o, d, t_max), g) in rs.iter().zip(&got) {
             let want = reference.intersect(o, d, t_max);

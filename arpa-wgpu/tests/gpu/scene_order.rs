@@ -2,8 +2,10 @@
 //! each mesh's triangles whose centroid Morton codes ascend, and lookups by (mesh, triangle)
 //! that still speak the core's numbering. A grid of triangles stored in a scrambled order
 //! (so the Morton order is far from the file's) is hit through its centroids by vertical
-//! rays: `arpa_scene_intersect`, `arpa_scene_surface`, `arpa_scene_triangle_vertices` and
-//! `GpuGeometry::intersect` must each name the triangle the core's brute-force caster hits,
+//! rays: `arpa_scene_intersect`, `arpa_scene_surface`, `arpa_scene_triangle_vertices` and a
+//! ray cast against the top-level structure alone (`support::cast_rays`, mapping the BLAS
+//! primitive back through `GpuGeometry::triangle_orders`) must each name the triangle the
+//! core's brute-force caster hits,
 //! on every ray (a centroid lies far from every edge, so no tie is possible), with the
 //! core's vertices exactly.
 
@@ -12,9 +14,10 @@ use crate::scenes::mixed_scene;
 use arpa_core::prepared_scene::PreparedScene;
 use arpa_core::ray_cast::{BruteForceCaster, RayCaster};
 use arpa_core::scene::TriangleMesh;
-use arpa_wgpu::harness::run_scene_kernel;
-use arpa_wgpu::scene::{GpuScene, SCENE_WGSL, morton_triangle_order};
-use arpa_wgpu::sort::morton_code;
+use crate::support::run_scene_kernel;
+use arpa_core::gpu::morton::morton_code;
+use arpa_core::gpu::scene::morton_triangle_order;
+use arpa_wgpu::scene::GpuScene;
 use glam::Vec3;
 
 const KERNEL: &str = r#"
@@ -106,10 +109,10 @@ fn scrambled_triangles_keep_the_core_numbering() {
     let grid = &prepared.scene().meshes[0];
     let origins: Vec<Vec3> = (0..grid.indices.len()).map(|t| centroid(grid, t) + Vec3::new(0.0, 1.0, 0.0)).collect();
     let input: Vec<u32> = origins.iter().flat_map(|o| o.to_array().map(fb)).collect();
-    let source = format!("enable wgpu_ray_query;\n{}\n{SCENE_WGSL}\n{KERNEL}", arpa_core::shaders::MATH);
-    let out = run_scene_kernel(ctx, &gpu_scene, "scene order", &source, "main", &input, origins.len() as u32, origins.len() * 13).unwrap_or_else(|e| panic!("{e}"));
+    let source = format!("{}\n{KERNEL}", arpa_wgpu::shaders::scene());
+    let out = run_scene_kernel(ctx, &gpu_scene, "scene order", &source, "main", &input, origins.len() as u32, origins.len() * 13);
     let rays: Vec<(Vec3, Vec3, f32)> = origins.iter().map(|&o| (o, Vec3::new(0.0, -1.0, 0.0), 10.0)).collect();
-    let cast = gpu_scene.geometry().intersect(ctx, &rays).unwrap_or_else(|e| panic!("{e}"));
+    let cast = crate::support::cast_rays(ctx, gpu_scene.geometry(), &rays);
     for (t, (g, c)) in out.chunks(13).zip(&cast).enumerate() {
         let want = caster.intersect(rays[t].0, rays[t].1, rays[t].2).expect("the core hits the grid");
         assert_eq!((want.mesh, want.triangle), (0, t as u32), "core");
@@ -118,7 +121,7 @@ fn scrambled_triangles_keep_the_core_numbering() {
         for (k, p) in tri.iter().enumerate() {
             assert_eq!(v3(g, 4 + 3 * k), p.as_vec3().as_dvec3(), "vertex {k} of triangle {t}");
         }
-        let c = c.expect("GpuGeometry::intersect hits the grid");
-        assert_eq!((c.mesh, c.triangle), (0, t as u32), "GpuGeometry::intersect for triangle {t}");
+        let c = c.expect("the ray cast hits the grid");
+        assert_eq!((c.mesh, c.triangle), (0, t as u32), "ray cast for triangle {t}");
     }
 }

@@ -19,8 +19,8 @@ use arpa_core::prepared_scene::{offset_origin, PreparedScene};
 use arpa_core::ray_cast::{BruteForceCaster, RayCaster, RayHit};
 use arpa_core::rng::{Rng, StreamDomain};
 use arpa_core::scene::Scattering;
-use arpa_wgpu::harness::run_scene_kernel;
-use arpa_wgpu::scene::{GpuScene, SCENE_WGSL};
+use crate::support::run_scene_kernel;
+use arpa_wgpu::scene::GpuScene;
 use glam::{DVec3, Vec3};
 
 const EPS: f64 = f32::EPSILON as f64;
@@ -103,8 +103,8 @@ fn surfaces_match_prepared_scene() {
         push3(&mut input, d.to_array());
         input.push(fb(*t));
     }
-    let source = format!("enable wgpu_ray_query;\n{}\n{SCENE_WGSL}\n{KERNEL}", arpa_core::shaders::MATH);
-    let out = run_scene_kernel(ctx, &scene, "scene surface", &source, "main", &input, rs.len() as u32, rs.len() * OUT).unwrap_or_else(|e| panic!("{e}"));
+    let source = format!("{}\n{KERNEL}", arpa_wgpu::shaders::scene());
+    let out = run_scene_kernel(ctx, &scene, "scene surface", &source, "main", &input, rs.len() as u32, rs.len() * OUT);
     let meshes = &prepared.scene().meshes;
     let (mut hits, mut agree, mut differ) = (0usize, 0usize, 0usize);
     let mut kinds = [0usize; 3];

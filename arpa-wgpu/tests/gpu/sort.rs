@@ -1,11 +1,14 @@
-//! The device sort (`arpa_wgpu::sort`) against the host's `sort`: random `(hi, lo, value)`
+//! The device sort (`arpa_wgpu::sort`, run by `support::sort_items`) against the host's
+//! `sort`: random `(hi, lo, value)`
 //! items with many equal `hi` and `lo` words (the `value` tie-breaker decides), lengths
 //! around the block size and up to several global merge steps; and the WGSL Morton code
 //! against its host twin bit for bit (points inside, outside and on the scene box, NaN).
 
 use crate::common::*;
 use arpa_core::rng::{Rng, StreamDomain};
-use arpa_wgpu::sort::{SortItem, morton_code, sort_items, MORTON_WGSL};
+use crate::support::sort_items;
+use arpa_core::gpu::layout::SortItem;
+use arpa_core::gpu::morton::morton_code;
 
 fn items(seed: u32, n: usize) -> Vec<SortItem> {
     let mut rng = Rng::new(seed, 0, 0, StreamDomain::User);
@@ -21,12 +24,12 @@ fn sort_matches_host_sort() {
         let input = items(seed, n);
         let mut want = input.clone();
         want.sort();
-        let got = sort_items(ctx, &input).unwrap();
+        let got = sort_items(ctx, &input);
         assert!(got == want, "n = {n}: device order differs from the host's");
         // Another arrival order of the same items: the same result.
         let mut reversed = input.clone();
         reversed.reverse();
-        assert!(sort_items(ctx, &reversed).unwrap() == want, "n = {n}: order depends on the input order");
+        assert!(sort_items(ctx, &reversed) == want, "n = {n}: order depends on the input order");
     }
 }
 
@@ -52,8 +55,8 @@ fn morton_matches_host_twin() {
         points.push(p);
         push3(&mut input, p);
     }
-    let helpers = format!("{MORTON_WGSL}\nconst LO = vec3<f32>({:?}, {:?}, {:?});\nconst INV = vec3<f32>({:?}, {:?}, {:?});", lo[0], lo[1], lo[2], inv[0], inv[1], inv[2]);
-    let out = run_with(ctx, "morton", &helpers, "out_u(ob, morton_code(in_v3(ib), LO, INV));", &input, 3, 1);
+    let helpers = format!("const LO = vec3<f32>({:?}, {:?}, {:?});\nconst INV = vec3<f32>({:?}, {:?}, {:?});", lo[0], lo[1], lo[2], inv[0], inv[1], inv[2]);
+    let out = run_with(ctx, "morton", &helpers, "out_u(ob, arpa_morton_code(in_v3(ib), LO, INV));", &input, 3, 1);
     let mut distinct = std::collections::HashSet::new();
     for (p, o) in points.iter().zip(&out) {
         assert_eq!(o[0], morton_code(*p, lo, inv), "{p:?}");

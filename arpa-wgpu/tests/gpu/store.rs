@@ -1,5 +1,6 @@
 //! Store → acceleration structure → gather on the device in one submission
-//! (`arpa_wgpu::store::store_and_gather`), against the core: every raw footprint's outcome
+//! (`support::store_and_gather`: the twin's heuristics, then the gather's box traversal),
+//! against the core: every raw footprint's outcome
 //! equals `ResolvedHeuristics::store`'s (except within 1e-3 of a threshold, as in the
 //! conformance case `twin-heuristics`), the stored records' centres are the core's, the
 //! gather over the device-built structure (rejected footprints as far zero-size boxes)
@@ -13,7 +14,8 @@ use arpa_core::footprint::{Footprint, PackedFootprint, PhotonMap};
 use arpa_core::heuristics::{HeuristicContext, Heuristics, Rejection, StoreRejection};
 use arpa_core::kernel::Kernel;
 use arpa_core::rng::{Rng, StreamDomain};
-use arpa_wgpu::store::{RawFootprint, store_and_gather};
+use arpa_core::gpu::layout::RawFootprint;
+use crate::support::store_and_gather;
 use glam::DVec3;
 use proptest::prelude::*;
 
@@ -73,7 +75,7 @@ proptest! {
         let resolved = heuristics.resolve(&scene_bounds());
         let raws = raw(seed, 3000);
         let qs = queries(seed, 3000);
-        let out = store_and_gather(ctx, &raws, resolved.pack(), RADII, &qs, Kernel::Silverman).map_err(|e| TestCaseError::fail(e.to_string()))?;
+        let out = store_and_gather(ctx, &raws, resolved.pack(), RADII, &qs, Kernel::Silverman);
         let mut counts = [0usize; 4];
         for (i, r) in raws.iter().enumerate() {
             let fp = core_footprint(r);
@@ -98,7 +100,7 @@ proptest! {
         prop_assert!(counts[0] > 500 && counts[1] > 50 && counts[2] > 50, "outcomes {:?}", counts);
         let stored: Vec<PackedFootprint> = out.records.iter().zip(&out.status).filter(|(_, s)| **s == 0).map(|(r, _)| *r).collect();
         check(&stored, &qs, &out.gathered, Kernel::Silverman)?;
-        let again = store_and_gather(ctx, &raws, resolved.pack(), RADII, &qs, Kernel::Silverman).map_err(|e| TestCaseError::fail(e.to_string()))?;
+        let again = store_and_gather(ctx, &raws, resolved.pack(), RADII, &qs, Kernel::Silverman);
         prop_assert_eq!(&again.status, &out.status);
         prop_assert!(again.records == out.records && again.gathered == out.gathered, "second run differs");
     }

@@ -20,9 +20,9 @@
 //! items) is one dispatch; there is no shrinking: the failure message names the failing
 //! item, the batch and the seed.
 //!
-//! The kernels follow the [`crate::kernel_runner`] contract: every twin file concatenated
-//! ([`arpa_core::shaders::ALL`]), a prelude with the two buffers and bit-cast accessors,
-//! then the case's WGSL statements per item.
+//! The kernels follow the [`crate::kernel_runner`] contract: every twin file
+//! ([`arpa_core::shaders::TWIN`], composed by [`arpa_core::shaders::compose`]), a prelude
+//! with the two buffers and bit-cast accessors, then the case's WGSL statements per item.
 
 use std::cell::Cell;
 
@@ -93,11 +93,7 @@ pub(crate) fn run_with(
     let items = input.len() / in_stride;
     let invocations =
         u32::try_from(items).map_err(|_| format!("kernel {label:?}: {items} items"))?;
-    let twin: String = arpa_core::shaders::ALL
-        .iter()
-        .map(|(_, s)| *s)
-        .collect::<Vec<_>>()
-        .join("\n");
+    let twin = arpa_core::shaders::compose(&arpa_core::shaders::TWIN);
     let source = format!(
         "{twin}\n{PRELUDE}\n{helpers}\n@compute @workgroup_size({WORKGROUP_SIZE})\nfn main(@builtin(global_invocation_id) gid: vec3<u32>) {{\n    let item = gid.x;\n    if item >= {items}u {{ return; }}\n    let ib = item * {in_stride}u;\n    let ob = item * {out_stride}u;\n{body}\n}}\n"
     );

@@ -1,8 +1,10 @@
 // Running mean of the iteration images on the device: per pixel an f32 sum with Neumaier
 // compensation (arpa_core::accumulate::RunningMean, in f32) and the count of rejected
 // (non-finite) samples; the host divides by the iteration count when it reads the mean.
-// A non-finite sample counts as an iteration that contributed 0, as in the core.
+// A non-finite sample counts as an iteration that contributed 0, as in the core. Needs
+// math.wgsl.
 
+// arpa_core::gpu::layout::AccumPixel (32 bytes).
 struct AccumPixel {
     sum: vec3<f32>,           // W/(m^2 sr) summed over iterations
     rejected: u32,            // non-finite samples
@@ -13,10 +15,6 @@ struct AccumPixel {
 @group(0) @binding(0) var<storage, read> acc_image: array<vec4<f32>>;
 @group(0) @binding(1) var<storage, read_write> acc_pixels: array<AccumPixel>;
 
-fn acc_is_finite(x: f32) -> bool {
-    return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;
-}
-
 @compute @workgroup_size(64)
 fn accumulate(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let i = gid.x + gid.y * groups.x * 64u;
@@ -25,7 +23,7 @@ fn accumulate(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
     }
     let x = acc_image[i].xyz;
     var p = acc_pixels[i];
-    if !(acc_is_finite(x.x) && acc_is_finite(x.y) && acc_is_finite(x.z)) {
+    if !(arpa_finite(x.x) && arpa_finite(x.y) && arpa_finite(x.z)) {
         p.rejected += 1u;
         acc_pixels[i] = p;
         return;

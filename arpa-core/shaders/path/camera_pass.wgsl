@@ -1,12 +1,12 @@
 // The camera pass: one invocation per pixel traces the camera path of
-// arpa_core::camera_path::trace_camera_path in f32 and writes its QueryRecord.
-// Needs, before it: `enable wgpu_ray_query;`, math.wgsl, rng.wgsl, differential.wgsl,
-// fresnel.wgsl, frame.wgsl, sampling.wgsl, emission.wgsl, lambertian.wgsl (arpa_core::shaders) and
-// scene.wgsl (group 0); camera.rs camera_pass_source assembles the module. Group 1: the pass's
-// parameters and the query records. Units: metres, world space; radiance W/(m^2 sr).
+// arpa_core::camera_path::trace_camera_path in f32 and writes its QueryRecord. Group 0: the
+// scene (scene.wgsl, with the backend's arpa_scene_intersect / arpa_scene_occluded); group
+// 1: the pass's parameters and the query records. Units: metres, world space; radiance
+// W/(m^2 sr).
 
 const ARPA_CAMERA_FRAC_1_PI: f32 = 0.31830988618379067;
 
+// arpa_core::gpu::layout::CameraParams (uniform, 96 bytes).
 struct ArpaCameraParams {
     // Eye position (metres).
     position: vec3<f32>,
@@ -29,18 +29,6 @@ struct ArpaCameraParams {
     // Invocations per row of the dispatch grid (workgroups in x times 64).
     row_invocations: u32,
     pad0: u32,
-    pad1: u32,
-}
-
-// arpa_core::tracer::QueryRecord (48 bytes).
-struct ArpaQueryRecord {
-    position: vec3<f32>,
-    pixel: u32,
-    normal: vec3<f32>,
-    valid: u32,
-    weight: vec3<f32>,
-    pad0: u32,
-    radiance: vec3<f32>,
     pad1: u32,
 }
 
@@ -138,13 +126,9 @@ fn arpa_camera_direct(s: ArpaSurface, sh: ArpaDiffuseShading, rng: ptr<function,
     return e;
 }
 
-@compute @workgroup_size(64)
-fn arpa_camera_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+// The query record of pixel `pixel` (< pixel_count) of this iteration.
+fn arpa_camera_trace(pixel: u32) -> ArpaQueryRecord {
     let c = arpa_camera;
-    let pixel = gid.x + gid.y * c.row_invocations;
-    if gid.x >= c.row_invocations || pixel >= c.pixel_count {
-        return;
-    }
     var rng = arpa_rng_new(c.seed, c.iteration, pixel, ARPA_DOMAIN_CAMERA);
     let px = pixel % c.width;
     let py = pixel / c.width;
@@ -213,5 +197,15 @@ fn arpa_camera_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let finite = vec3<bool>(arpa_finite(radiance.x), arpa_finite(radiance.y), arpa_finite(radiance.z));
     rec.radiance = select(vec3<f32>(0.0), radiance, finite);
-    arpa_camera_queries[pixel] = rec;
+    return rec;
+}
+
+@compute @workgroup_size(64)
+fn arpa_camera_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let c = arpa_camera;
+    let pixel = gid.x + gid.y * c.row_invocations;
+    if gid.x >= c.row_invocations || pixel >= c.pixel_count {
+        return;
+    }
+    arpa_camera_queries[pixel] = arpa_camera_trace(pixel);
 }

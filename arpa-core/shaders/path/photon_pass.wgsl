@@ -6,20 +6,17 @@
 // re-emission (arpa_core::lambertian), re-emission with the virtual distance
 // (reemission.wgsl), caustic/global classification (arpa_core::classify), max_depth.
 //
-// Needs, before it: math.wgsl, rng.wgsl, differential.wgsl, fresnel.wgsl, frame.wgsl,
-// sampling.wgsl, emission.wgsl, reemission.wgsl, lambertian.wgsl (the core's twin) and the scene (group 0: arpa_scene_intersect,
-// arpa_scene_surface, arpa_scene_triangle_vertices / _normals, arpa_offset_origin).
+// Group 0: the scene (scene.wgsl, with the backend's arpa_scene_intersect).
 //
 // Outputs (group 1), appended with atomics, each record tagged with the unique key
 // photon_index * max_depth + depth (depth = 0-based index of the ray segment that ended at
 // the hit), so a later sort by key gives an order independent of the append order:
-// * raw footprints (arpa-wgpu store.rs RawFootprint + key): photons stored as footprints
-//   (method arpa, differential intact), with D_u, D_v projected into the tangent plane and
-//   already scaled by the map's smoothing factor S_c / S_g; the store stage applies only the
+// * raw footprints (ArpaKeyedFootprint): photons stored as footprints (method arpa,
+//   differential intact), with D_u, D_v projected into the tangent plane and already
+//   scaled by the map's smoothing factor S_c / S_g; the store (store.wgsl) applies only the
 //   heuristics (heuristics.wgsl arpa_store), and turns a rejected footprint into a
 //   progressive photon at its centre (arpa_core::store's fallback).
-// * progressive photons (arpa_core::progressive_photon::PackedPhoton + key): method rtpm,
-//   or a lost differential.
+// * progressive photons (ArpaKeyedPhoton): method rtpm, or a lost differential.
 // An append beyond a buffer's capacity (its arrayLength) is dropped and counted; nothing is
 // written out of bounds.
 //
@@ -30,11 +27,11 @@
 // the albedo is f32 in both). Directions drawn from 2-D samples use the 24-bit draws of
 // rng.wgsl (within 2^-24 of the core's).
 
-// Method (PhotonParams::method).
+// Method (PhotonParams::method; arpa_core::gpu::codes::METHOD_*).
 const ARPA_PHOTON_METHOD_ARPA: u32 = 0u;
 const ARPA_PHOTON_METHOD_RTPM: u32 = 1u;
 
-// Per-iteration parameters (photon.rs PhotonParams).
+// Per-batch parameters (arpa_core::gpu::layout::PhotonParams, uniform, 48 bytes).
 struct PhotonParams {
     photon_count: u32,     // photons of this dispatch (the batch)
     iteration: u32,        // 0-based
@@ -48,7 +45,7 @@ struct PhotonParams {
     pad1: vec2<f32>,
 }
 
-// Per emitter: its global photon range and whether it emits (photon.rs EmitterRange).
+// Per emitter: its global photon range and whether it emits (layout::EmitterRange, 16 bytes).
 struct PhotonEmitterRange {
     first_index: u32,
     count: u32,
@@ -56,39 +53,7 @@ struct PhotonEmitterRange {
     pad: u32,
 }
 
-// arpa-wgpu store.rs RawFootprint (80 B) + key: photon.rs KeyedFootprint (96 B).
-struct PhotonKeyedFootprint {
-    center: vec3<f32>,  // metres
-    map: u32,           // 0 caustic, 1 global
-    normal: vec3<f32>,  // unit, towards the arriving photon (flipped below the shading plane)
-    pad0: u32,
-    du: vec3<f32>,      // metres, tangent plane, smoothing applied
-    pad1: u32,
-    dv: vec3<f32>,
-    pad2: u32,
-    flux: vec3<f32>,    // W, RGB
-    pad3: u32,
-    key: u32,
-    pad4: u32,
-    pad5: u32,
-    pad6: u32,
-}
-
-// arpa_core PackedPhoton (48 B) + key: photon.rs KeyedPhoton (64 B).
-struct PhotonKeyedPhoton {
-    position: vec3<f32>, // metres
-    map: u32,
-    normal: vec3<f32>,   // unit, towards the arrival side (flipped below the shading plane)
-    pad0: u32,
-    flux: vec3<f32>,     // W, RGB
-    pad1: u32,
-    key: u32,
-    pad2: u32,
-    pad3: u32,
-    pad4: u32,
-}
-
-// photon.rs PhotonCounters.
+// layout::PhotonCounters (48 bytes).
 struct PhotonCounters {
     emitted: atomic<u32>,
     segments: atomic<u32>,
@@ -107,8 +72,8 @@ struct PhotonCounters {
 @group(1) @binding(0) var<uniform> photon_params: PhotonParams;
 @group(1) @binding(1) var<storage, read> photon_lights: array<ArpaLight>;
 @group(1) @binding(2) var<storage, read> photon_ranges: array<PhotonEmitterRange>;
-@group(1) @binding(3) var<storage, read_write> photon_footprints: array<PhotonKeyedFootprint>;
-@group(1) @binding(4) var<storage, read_write> photon_photons: array<PhotonKeyedPhoton>;
+@group(1) @binding(3) var<storage, read_write> photon_footprints: array<ArpaKeyedFootprint>;
+@group(1) @binding(4) var<storage, read_write> photon_photons: array<ArpaKeyedPhoton>;
 @group(1) @binding(5) var<storage, read_write> photon_counters: PhotonCounters;
 
 var<workgroup> photon_wg_emitted: atomic<u32>;
@@ -194,7 +159,7 @@ fn photon_append_progressive(position: vec3<f32>, normal: vec3<f32>, incoming: v
         atomicAdd(&photon_counters.photon_overflowed, 1u);
         return;
     }
-    photon_photons[slot] = PhotonKeyedPhoton(position, map, n, 0u, flux, 0u, key, 0u, 0u, 0u);
+    photon_photons[slot] = ArpaKeyedPhoton(position, map, n, 0u, flux, 0u, key, 0u, 0u, 0u);
 }
 
 // photon_path's store: a raw footprint (method arpa, differential intact; Footprint::from_hit
@@ -230,7 +195,7 @@ fn photon_store(at: ArpaRayDiff, normal: vec3<f32>, flux: vec3<f32>, map: u32, v
         atomicAdd(&photon_counters.footprint_overflowed, 1u);
         return;
     }
-    photon_footprints[slot] = PhotonKeyedFootprint(at.p, map, n, 0u, du * s, 0u, dv * s, 0u, flux, 0u, key, 0u, 0u, 0u);
+    photon_footprints[slot] = ArpaKeyedFootprint(at.p, map, n, 0u, du * s, 0u, dv * s, 0u, flux, 0u, key, 0u, 0u, 0u);
 }
 
 // Emitter of global photon `index` (PhotonPassSetup::locate): the last emitter whose first

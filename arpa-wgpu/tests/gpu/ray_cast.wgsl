@@ -1,6 +1,7 @@
-// Closest-hit ray casting on ray queries against the uploaded scene (one triangle BLAS per
-// mesh, instance custom data = mesh index): the device side of arpa_core's RayCaster.
-// The module must start with `enable wgpu_ray_query;`.
+// Test kernel: closest-hit ray casting on ray queries against the scene's top-level
+// structure alone (one triangle BLAS per mesh, instance custom data = mesh index), the
+// device side of arpa_core's RayCaster; reports the BLAS primitive (support.rs maps it back
+// to the mesh's triangle).
 
 struct CastRay {
     origin: vec3<f32>,   // metres

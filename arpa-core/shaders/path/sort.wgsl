@@ -6,15 +6,11 @@
 // Stages with a compare distance j < SORT_BLOCK run within one workgroup in shared memory
 // (sort_local: every stage of blocks of SORT_BLOCK items; sort_merge: the j < SORT_BLOCK
 // tail of one merge step k); stages with j >= SORT_BLOCK run one dispatch each
-// (sort_global). Each invocation compares one pair.
+// (sort_global). Each invocation compares one pair. Items: ArpaSortItem (records.wgsl);
+// the host schedule of the steps is arpa_core::gpu::sort::sort_steps.
 
-struct SortItem {
-    hi: u32,
-    lo: u32,
-    value: u32,
-}
-
-// One step: merge size k and compare distance j (both powers of two).
+// One step: merge size k and compare distance j (both powers of two); the first 16 bytes of
+// arpa_core::gpu::layout::SortStep.
 struct SortStep {
     k: u32,
     j: u32,
@@ -22,16 +18,16 @@ struct SortStep {
     pad1: u32,
 }
 
-const SORT_BLOCK: u32 = 512u;
-const SORT_INVALID: u32 = 0xffffffffu;
+const SORT_BLOCK: u32 = 512u;           // arpa_core::gpu::sort::SORT_BLOCK
+const SORT_INVALID: u32 = 0xffffffffu;  // arpa_core::gpu::sort::SORT_INVALID
 
-@group(0) @binding(0) var<storage, read_write> sort_items: array<SortItem>;
+@group(0) @binding(0) var<storage, read_write> sort_items: array<ArpaSortItem>;
 @group(0) @binding(1) var<uniform> sort_step: SortStep;
 
-var<workgroup> sort_shared: array<SortItem, 512>;
+var<workgroup> sort_shared: array<ArpaSortItem, 512>;
 
 // a > b in (hi, lo, value) order.
-fn sort_greater(a: SortItem, b: SortItem) -> bool {
+fn sort_greater(a: ArpaSortItem, b: ArpaSortItem) -> bool {
     if a.hi != b.hi {
         return a.hi > b.hi;
     }

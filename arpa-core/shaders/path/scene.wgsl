@@ -1,13 +1,23 @@
-// The scene on the device (bind group 0 of every pass): the triangle acceleration structure
-// (one BLAS per mesh with the triangles in Morton order, instance custom data = mesh index;
-// ArpaSceneTriangle.blas_triangle maps a BLAS primitive back to the mesh's triangle), per-mesh materials with the
-// scene's roughness cut-off resolved on the host, per-triangle geometry, and the emitters
-// for next-event estimation. Mirrors arpa_core::prepared_scene::PreparedScene.
-// Needs the core twin's math.wgsl (arpa_core::shaders::MATH) before it; the module must
-// start with `enable wgpu_ray_query;`. Units: metres,
-// world space; radiance W/(m^2 sr), intensity W/sr, irradiance W/m^2 (linear RGB).
+// The scene on the device (bind group 0 of the camera and photon passes): per-mesh
+// materials with the scene's roughness cut-off resolved on the host, per-triangle geometry,
+// and the emitters for next-event estimation, as arpa_core::gpu::scene::SceneTables
+// uploads them; mirrors arpa_core::prepared_scene::PreparedScene. Needs math.wgsl.
+// Units: metres, world space; radiance W/(m^2 sr), intensity W/sr, irradiance W/m^2
+// (linear RGB).
+//
+// Ray casting is the backend's: its glue declares binding 0 of group 0 (its acceleration
+// structure over the triangles: one bottom level per mesh holding the mesh's triangles in
+// the order of SceneTables::triangle_orders, instance custom index = mesh index) and
+// defines
+//   fn arpa_scene_intersect(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> ArpaSceneHit
+//     closest hit along origin + t dir, 0 < t <= t_max (RayCaster::intersect), built with
+//     arpa_scene_hit / arpa_scene_miss from what the hit reports;
+//   fn arpa_scene_occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool
+//     whether anything lies along origin + t dir, 0 < t <= t_max (RayCaster::occluded);
+// both with opaque triangles, unit dir and t_max up to ARPA_SCENE_T_MAX (arpa-wgpu:
+// ray queries).
 
-// Scattering kinds (arpa_core::scene::Scattering).
+// Scattering kinds (arpa_core::scene::Scattering; arpa_core::gpu::codes::SCATTER_*).
 const ARPA_SCATTER_DIFFUSE: u32 = 0u;
 const ARPA_SCATTER_MIRROR: u32 = 1u;
 const ARPA_SCATTER_REFRACTIVE: u32 = 2u;
@@ -16,7 +26,7 @@ const ARPA_SCATTER_REFRACTIVE: u32 = 2u;
 // finite f32 (metres).
 const ARPA_SCENE_T_MAX: f32 = 3.40282347e38;
 
-// Per-triangle flags.
+// Per-triangle flags (arpa_core::gpu::codes::TRIANGLE_*).
 // The triangle has vertex normals that differ from its face normal
 // (PreparedScene::has_shading_normals).
 const ARPA_TRIANGLE_SHADED: u32 = 1u;
@@ -24,6 +34,7 @@ const ARPA_TRIANGLE_SHADED: u32 = 1u;
 // PreparedScene::shading_normal interpolates them (specular bounces).
 const ARPA_TRIANGLE_NORMALS: u32 = 2u;
 
+// arpa_core::gpu::layout::SceneInfo (uniform, 32 bytes).
 struct ArpaSceneInfo {
     mesh_count: u32,
     // Emitters: first the delta lights (point, spot, directional) in the core's emitter
@@ -36,6 +47,7 @@ struct ArpaSceneInfo {
     sphere_radius: f32,
 }
 
+// layout::SceneMesh (48 bytes).
 struct ArpaSceneMesh {
     first_triangle: u32,
     triangle_count: u32,
@@ -52,6 +64,7 @@ struct ArpaSceneMesh {
     has_normals: u32,
 }
 
+// layout::SceneTriangle (112 bytes).
 struct ArpaSceneTriangle {
     p0: vec3<f32>,
     // ARPA_TRIANGLE_* bits.
@@ -59,7 +72,7 @@ struct ArpaSceneTriangle {
     p1: vec3<f32>,
     // Not about this triangle: the mesh's triangle index of BLAS primitive i, where i is
     // this record's index within its mesh (the BLAS holds the triangles in the Morton order
-    // of their centroids, scene.rs morton_triangle_order).
+    // of their centroids, arpa_core::gpu::scene::morton_triangle_order).
     blas_triangle: u32,
     p2: vec3<f32>,
     pad2: u32,
@@ -76,6 +89,7 @@ struct ArpaSceneTriangle {
     pad6: u32,
 }
 
+// layout::SceneEmitter (80 bytes).
 struct ArpaSceneEmitter {
     // ARPA_LIGHT_* (the light kinds of emission.wgsl, arpa_core::emission::PackedLight::kind).
     kind: u32,
@@ -101,7 +115,6 @@ struct ArpaSceneEmitter {
     pad1: f32,
 }
 
-@group(0) @binding(0) var arpa_scene_tlas: acceleration_structure;
 @group(0) @binding(1) var<uniform> arpa_scene_info: ArpaSceneInfo;
 @group(0) @binding(2) var<storage, read> arpa_scene_meshes: array<ArpaSceneMesh>;
 @group(0) @binding(3) var<storage, read> arpa_scene_triangles: array<ArpaSceneTriangle>;
@@ -118,29 +131,17 @@ struct ArpaSceneHit {
     hit: u32,
 }
 
-// Closest hit along origin + t dir, 0 < t <= t_max (RayCaster::intersect); `triangle` is
-// the mesh's triangle index as the core numbers it.
-fn arpa_scene_intersect(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> ArpaSceneHit {
-    var rq: ray_query;
-    rayQueryInitialize(&rq, arpa_scene_tlas, RayDesc(RAY_FLAG_FORCE_OPAQUE, 0xffu, 0.0, t_max, origin, dir));
-    while rayQueryProceed(&rq) {}
-    let h = rayQueryGetCommittedIntersection(&rq);
-    if h.kind == RAY_QUERY_INTERSECTION_TRIANGLE && h.t > 0.0 {
-        let mesh = h.instance_custom_data;
-        let triangle = arpa_scene_triangles[arpa_scene_meshes[mesh].first_triangle + h.primitive_index].blas_triangle;
-        return ArpaSceneHit(h.t, mesh, triangle, h.barycentrics.x, h.barycentrics.y, 1u);
-    }
-    return ArpaSceneHit(0.0, 0xffffffffu, 0u, 0.0, 0.0, 0u);
+// The hit of BLAS primitive `primitive` of mesh `mesh`'s bottom level at distance t
+// (metres) with barycentric weights b of vertices 1 and 2: `triangle` becomes the mesh's
+// triangle index as the core numbers it.
+fn arpa_scene_hit(mesh: u32, primitive: u32, t: f32, b: vec2<f32>) -> ArpaSceneHit {
+    let triangle = arpa_scene_triangles[arpa_scene_meshes[mesh].first_triangle + primitive].blas_triangle;
+    return ArpaSceneHit(t, mesh, triangle, b.x, b.y, 1u);
 }
 
-// Whether anything lies along origin + t dir, 0 < t <= t_max (RayCaster::occluded).
-fn arpa_scene_occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
-    var rq: ray_query;
-    rayQueryInitialize(&rq, arpa_scene_tlas,
-        RayDesc(RAY_FLAG_FORCE_OPAQUE | RAY_FLAG_TERMINATE_ON_FIRST_HIT, 0xffu, 0.0, t_max, origin, dir));
-    while rayQueryProceed(&rq) {}
-    let h = rayQueryGetCommittedIntersection(&rq);
-    return h.kind == RAY_QUERY_INTERSECTION_TRIANGLE && h.t > 0.0;
+// No hit.
+fn arpa_scene_miss() -> ArpaSceneHit {
+    return ArpaSceneHit(0.0, 0xffffffffu, 0u, 0.0, 0.0, 0u);
 }
 
 // A surface point (SurfacePoint plus its normals).

@@ -1,0 +1,136 @@
+//! The photon-batch policy of the GPU backends: how an iteration whose stored records need
+//! more than one storage binding of the device holds is traced in batches, as functions of
+//! numbers only (the backends supply the binding limit and the counts they read back).
+//!
+//! A *batch* is a contiguous range of the iteration's global photon indices: with `B`
+//! photons per batch, batch `k` traces `[k·B, (k+1)·B)` ([`batch_range`]) with exactly the
+//! random streams, emitters and record keys of one pass over the iteration (the flux is
+//! normalised by the iteration's photon count at emission), so the batches' records are,
+//! together, the iteration's. Each batch is stored, sorted and gathered on its own, and the
+//! gather sums each pixel's irradiance over the batches in batch order
+//! ([`crate::gpu::layout::GatherBatch`]): the estimate is a sum over records, so this is
+//! the one-pass estimate up to the order of the `f32` additions.
+//!
+//! `B` starts at the iteration's photon count (one batch). The photon pass's append buffers
+//! start at [`INITIAL_RECORDS_PER_PHOTON`] records per photon of a batch and grow
+//! ([`grow`]) when a batch overflows them, within what one binding holds
+//! ([`RecordLimits`]); the batch is then traced again with the same random streams, so the
+//! iteration is the one a large enough buffer gives. When a batch's records exceed what one
+//! binding holds, `B` shrinks ([`shrink`]) and the iteration is traced again from batch 0;
+//! `B` only shrinks during a render, so a render repeated on the same device takes the same
+//! batches.
+
+use core::ops::Range;
+
+use crate::gpu::layout::{KeyedFootprint, KeyedPhoton};
+use crate::progressive_photon::PackedPhoton;
+
+/// Stored records per photon of a batch the photon pass's append buffers start with (each
+/// buffer).
+pub const INITIAL_RECORDS_PER_PHOTON: u32 = 2;
+
+/// The share of a batch that would have fitted one binding that the next `B` takes
+/// ([`shrink`]): a margin for the next batches' different record counts.
+pub const SHRINK_MARGIN: f64 = 0.9;
+
+/// Batches of an iteration of `photons` photons with `batch` photons per batch (at least
+/// one, also for no photons).
+pub fn batch_count(photons: u32, batch: u32) -> u32 {
+    photons.div_ceil(batch.max(1)).max(1)
+}
+
+/// Global photon indices of batch `k` of an iteration of `photons` photons with `batch`
+/// photons per batch (empty beyond the last batch).
+pub fn batch_range(photons: u32, batch: u32, k: u32) -> Range<u32> {
+    let n = photons as u64;
+    let start = (k as u64 * batch as u64).min(n);
+    start as u32..(start + batch as u64).min(n) as u32
+}
+
+/// `B` for a batch of `photons` photons whose records needed `1 / fits` times what one
+/// binding holds (`fits < 1`): [`SHRINK_MARGIN`] of the share that would have fitted,
+/// strictly fewer photons, at least 1.
+pub fn shrink(photons: u32, fits: f64) -> u32 {
+    ((photons as f64 * fits * SHRINK_MARGIN) as u32).clamp(1, photons.saturating_sub(1).max(1))
+}
+
+/// The capacity of an append buffer of `capacity` records after a batch attempted
+/// `appends` appends: unchanged if they fitted, else 1.25× the appends and at least
+/// double, at most `max`.
+pub fn grow(appends: u32, capacity: u32, max: u32) -> u32 {
+    if appends > capacity { capacity.saturating_mul(2).max(appends.saturating_add(appends / 4)).min(max) } else { capacity }
+}
+
+/// What one storage binding of `binding_bytes` bytes holds of each record a batch stores.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RecordLimits {
+    /// Raw footprints ([`KeyedFootprint`]) of the photon pass's footprint buffer; also at
+    /// most half the sort's items ([`crate::gpu::sort::MAX_SORT_ITEMS`]).
+    pub raw_footprints: u32,
+    /// Progressive photons ([`KeyedPhoton`]) of its photon buffer; also at most half the
+    /// sort's items.
+    pub photons: u32,
+    /// Sorted progressive photons ([`PackedPhoton`]: the pass's plus the store's fallbacks).
+    pub sorted_photons: u64,
+}
+
+impl RecordLimits {
+    /// The limits of a binding of `binding_bytes` bytes.
+    pub fn new(binding_bytes: u64) -> Self {
+        let fit = |record: usize| u32::try_from(binding_bytes / record as u64).unwrap_or(u32::MAX);
+        let sort = crate::gpu::sort::MAX_SORT_ITEMS / 2;
+        Self {
+            raw_footprints: fit(size_of::<KeyedFootprint>()).min(sort),
+            photons: fit(size_of::<KeyedPhoton>()).min(sort),
+            sorted_photons: binding_bytes / size_of::<PackedPhoton>() as u64,
+        }
+    }
+
+    /// The share of a batch that fits when its photon pass attempted `footprint_appends`
+    /// and `photon_appends` appends (below 1: the batch must shrink).
+    pub fn fits(&self, footprint_appends: u32, photon_appends: u32) -> f64 {
+        (self.raw_footprints as f64 / footprint_appends.max(1) as f64).min(self.photons as f64 / photon_appends.max(1) as f64)
+    }
+}
+
+/// Records each append buffer starts with for batches of `batch` photons (`forced`: a
+/// caller's choice), at least 1 and at most `max`.
+pub fn initial_capacity(batch: u32, forced: Option<u32>, max: u32) -> u32 {
+    forced.unwrap_or(batch.saturating_mul(INITIAL_RECORDS_PER_PHOTON)).max(1).min(max)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn batches_cover_the_iteration() {
+        assert_eq!(batch_count(4000, 700), 6);
+        assert_eq!(batch_count(0, 700), 1);
+        let ranges: [Range<u32>; 3] = core::array::from_fn(|k| batch_range(1000, 400, k as u32));
+        assert_eq!(ranges, [0..400, 400..800, 800..1000]);
+        assert!(batch_range(1000, 400, 3).is_empty());
+        assert_eq!(batch_range(u32::MAX, u32::MAX, 1), u32::MAX..u32::MAX);
+    }
+
+    #[test]
+    fn shrink_and_grow() {
+        assert_eq!(shrink(4000, 0.5), 1800);
+        assert_eq!(shrink(4000, 0.9999), 3599);
+        assert_eq!(shrink(2, 1e-9), 1);
+        assert_eq!(grow(10, 100, 1000), 100);
+        assert_eq!(grow(101, 100, 1000), 200);
+        assert_eq!(grow(400, 100, 1000), 500);
+        assert_eq!(grow(4000, 100, 1000), 1000);
+    }
+
+    #[test]
+    fn limits_of_a_binding() {
+        let l = RecordLimits::new(128 << 20);
+        assert_eq!((l.raw_footprints, l.photons, l.sorted_photons), ((128 << 20) / 96, 1 << 21, (128 << 20) / 48));
+        assert!(l.fits(l.raw_footprints, 1) >= 1.0 && l.fits(2 * l.raw_footprints, 1) == 0.5);
+        assert_eq!(initial_capacity(1000, None, 5000), 2000);
+        assert_eq!(initial_capacity(0, None, 5000), 1);
+        assert_eq!(initial_capacity(1000, Some(64), 50), 50);
+    }
+}

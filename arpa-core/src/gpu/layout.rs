@@ -1,0 +1,665 @@
+//! The `#[repr(C)]` records of the device buffers the path-level WGSL
+//! ([`crate::shaders::PATH`]) reads and writes, each the host side of the WGSL struct it
+//! names (same size and field offsets, checked below at compile time against the WGSL
+//! layout rules: `vec3<f32>` aligned to 16 bytes, so a `u32` or `f32` fills its fourth
+//! word), with the host computations that fill them from the core's types.
+//!
+//! Records of the twin have theirs beside the Rust types they pack:
+//! [`crate::footprint::PackedFootprint`], [`crate::progressive_photon::PackedPhoton`],
+//! [`crate::heuristics::PackedHeuristics`], [`crate::emission::PackedLight`],
+//! [`crate::tracer::QueryRecord`].
+
+use core::mem::{offset_of, size_of};
+
+use crate::heuristics::PackedHeuristics;
+use crate::progressive_photon::PackedPhoton;
+
+/// Checks a record's size and field offsets at compile time.
+macro_rules! layout {
+    ($t:ty, $size:expr, { $($field:ident: $offset:expr),* $(,)? }) => {
+        const _: () = assert!(size_of::<$t>() == $size);
+        $(const _: () = assert!(offset_of!($t, $field) == $offset);)*
+    };
+}
+
+/// A footprint as the photon pass leaves it at a diffuse hit, before the heuristics
+/// (world space: metres, unit normal towards the arriving photon, W). 80 bytes; the first
+/// five fields of `ArpaKeyedFootprint` (`records.wgsl`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct RawFootprint {
+    /// Centre (m).
+    pub center: [f32; 3],
+    /// 0 caustic, 1 global.
+    pub map: u32,
+    /// Unit normal.
+    pub normal: [f32; 3],
+    /// Padding.
+    pub pad0: u32,
+    /// `D_u` (m).
+    pub du: [f32; 3],
+    /// Padding.
+    pub pad1: u32,
+    /// `D_v` (m).
+    pub dv: [f32; 3],
+    /// Padding.
+    pub pad2: u32,
+    /// Flux (W, RGB).
+    pub flux: [f32; 3],
+    /// Padding.
+    pub pad3: u32,
+}
+layout!(RawFootprint, 80, { center: 0, map: 12, normal: 16, du: 32, dv: 48, flux: 64 });
+
+/// A raw footprint with its key: the photon pass's footprint append buffer element
+/// (`ArpaKeyedFootprint`, 96 bytes). The footprint has the map's smoothing applied to
+/// `D_u`, `D_v` and, where the photon arrived from below the shading plane, its normal
+/// flipped (which flips the packed record's `row_n` exactly as the core's
+/// `orient_to_shading_side`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct KeyedFootprint {
+    /// The footprint (metres, unit normal towards the arriving photon, tangent-plane
+    /// differentials with the map's smoothing applied, W).
+    pub footprint: RawFootprint,
+    /// `photon_index · max_depth + depth`, unique within the iteration.
+    pub key: u32,
+    /// Padding (zero).
+    pub pad: [u32; 3],
+}
+layout!(KeyedFootprint, 96, { footprint: 0, key: 80 });
+
+/// A progressive photon with its key: the photon pass's photon append buffer element
+/// (`ArpaKeyedPhoton`, 64 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct KeyedPhoton {
+    /// The photon (metres, unit normal towards the arrival side, W).
+    pub photon: PackedPhoton,
+    /// `photon_index · max_depth + depth`, unique within the iteration.
+    pub key: u32,
+    /// Padding (zero).
+    pub pad: [u32; 3],
+}
+layout!(KeyedPhoton, 64, { photon: 0, key: 48 });
+layout!(PackedPhoton, 48, { position: 0, map: 12, normal: 16, flux: 32 });
+
+/// What the photon pass counted (`PhotonCounters` of `photon_pass.wgsl`, 48 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct PhotonCounters {
+    /// Photons traced (the dispatch's photon count, the batch's; also those whose emitter
+    /// could not emit, as the CPU backend counts them).
+    pub emitted: u32,
+    /// Ray segments cast.
+    pub segments: u32,
+    /// Raw footprints stored, caustic map (appends attempted, overflowed ones included).
+    pub footprints_caustic: u32,
+    /// Raw footprints stored, global map.
+    pub footprints_global: u32,
+    /// Progressive photons stored, caustic map (appends attempted).
+    pub progressive_caustic: u32,
+    /// Progressive photons stored, global map.
+    pub progressive_global: u32,
+    /// Progressive photons stored because the differential was lost (method ARPA).
+    pub differential_lost: u32,
+    /// Footprint appends attempted (= footprints_caustic + footprints_global); the first
+    /// `min(footprint_appends, capacity)` slots of the footprint buffer are written.
+    pub footprint_appends: u32,
+    /// Photon appends attempted; the first `min(photon_appends, capacity)` slots are written.
+    pub photon_appends: u32,
+    /// Footprints dropped because the buffer was full.
+    pub footprint_overflowed: u32,
+    /// Progressive photons dropped because the buffer was full.
+    pub photon_overflowed: u32,
+    /// Padding (zero).
+    pub pad: u32,
+}
+layout!(PhotonCounters, 48, { emitted: 0, segments: 4, differential_lost: 24, footprint_appends: 28, photon_appends: 32, footprint_overflowed: 36, photon_overflowed: 40 });
+
+impl PhotonCounters {
+    /// Footprints written to the buffer.
+    pub fn footprints_written(&self) -> u32 {
+        self.footprint_appends - self.footprint_overflowed
+    }
+
+    /// Progressive photons written to the buffer.
+    pub fn photons_written(&self) -> u32 {
+        self.photon_appends - self.photon_overflowed
+    }
+
+    /// Appends dropped for lack of capacity, both buffers.
+    pub fn overflowed(&self) -> u64 {
+        self.footprint_overflowed as u64 + self.photon_overflowed as u64
+    }
+}
+
+/// Per-batch uniforms of the photon pass (`PhotonParams` of `photon_pass.wgsl`, 48 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct PhotonParams {
+    /// Photons of this dispatch (the batch).
+    pub photon_count: u32,
+    /// 0-based iteration.
+    pub iteration: u32,
+    /// Seed of the random streams.
+    pub seed: u32,
+    /// Surface interactions per photon.
+    pub max_depth: u32,
+    /// [`crate::gpu::codes::METHOD_ARPA`] or [`crate::gpu::codes::METHOD_RTPM`].
+    pub method: u32,
+    /// 1: the first diffuse hits of direct paths are not stored.
+    pub direct_lighting: u32,
+    /// Emitters (elements of the light and range buffers).
+    pub emitter_count: u32,
+    /// Global index of the batch's first photon (0: the whole iteration).
+    pub first_photon: u32,
+    /// `S_c`, `S_g` (dimensionless).
+    pub smoothing: [f32; 2],
+    /// Padding.
+    pub pad1: [f32; 2],
+}
+layout!(PhotonParams, 48, { photon_count: 0, iteration: 4, seed: 8, max_depth: 12, method: 16, direct_lighting: 20, emitter_count: 24, first_photon: 28, smoothing: 32 });
+
+#[cfg(feature = "alloc")]
+impl PhotonParams {
+    /// The parameters of the photons `batch` (global indices) of iteration `iteration`
+    /// under `settings`, with `emitters` emitters.
+    pub fn new(settings: &crate::tracer::RenderSettings, iteration: u32, emitters: u32, batch: core::ops::Range<u32>) -> Self {
+        Self {
+            photon_count: batch.end.saturating_sub(batch.start),
+            iteration,
+            seed: settings.seed,
+            max_depth: settings.max_depth,
+            method: crate::gpu::codes::method_code(settings.method),
+            direct_lighting: settings.direct_lighting as u32,
+            emitter_count: emitters,
+            first_photon: batch.start,
+            smoothing: [settings.smoothing.caustic as f32, settings.smoothing.global as f32],
+            pad1: [0.0; 2],
+        }
+    }
+}
+
+/// Global photon range of one emitter (`PhotonEmitterRange` of `photon_pass.wgsl`,
+/// 16 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct EmitterRange {
+    /// First global photon index.
+    pub first_index: u32,
+    /// Photons of the emitter.
+    pub count: u32,
+    /// 1 if the emitter can emit.
+    pub valid: u32,
+    /// Padding.
+    pub pad: u32,
+}
+layout!(EmitterRange, 16, { first_index: 0, count: 4, valid: 8 });
+
+/// The photon pass's light and range buffers of an iteration: one
+/// [`crate::emission::PackedLight`] and one [`EmitterRange`] per emitter (one zeroed
+/// element each for a scene without emitters: storage bindings must not be empty).
+#[cfg(feature = "alloc")]
+pub fn emitter_tables(setup: &crate::photon_path::PhotonPassSetup) -> (alloc::vec::Vec<crate::emission::PackedLight>, alloc::vec::Vec<EmitterRange>) {
+    let n = setup.lights.len().max(1);
+    let mut lights = alloc::vec![crate::emission::PackedLight::default(); n];
+    let mut ranges = alloc::vec![EmitterRange::default(); n];
+    for (e, light) in setup.lights.iter().enumerate() {
+        ranges[e] = EmitterRange { first_index: setup.first_index[e], count: setup.allocation[e], valid: light.is_some() as u32, pad: 0 };
+        if let Some(l) = light {
+            lights[e] = l.pack();
+        }
+    }
+    (lights, ranges)
+}
+
+/// Per-batch inputs of the keyed store (not a device record: [`StoreParams::new`] makes
+/// one).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StoreSettings {
+    /// The settings' heuristics resolved for the scene, packed.
+    pub heuristics: PackedHeuristics,
+    /// Progressive radii of the iteration, `[caustic, global]` (metres).
+    pub radii: [f32; 2],
+    /// Scene bounds `(min, max)` (metres): the Morton grid.
+    pub bounds: ([f32; 3], [f32; 3]),
+    /// Raw footprints the photon pass appended (at most the raw capacity).
+    pub raw_count: u32,
+    /// Progressive photons the photon pass appended (at most the photon capacity).
+    pub photon_count: u32,
+}
+
+/// Parameters of the store kernels (`StoreParams` of `store.wgsl`, 112 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct StoreParams {
+    /// The heuristics.
+    pub heuristics: PackedHeuristics,
+    /// Progressive radius per map (metres).
+    pub radii: [f32; 2],
+    /// Padding.
+    pub pad0: [f32; 2],
+    /// Scene bounds' low corner (metres).
+    pub scene_lo: [f32; 3],
+    /// Raw footprints appended by the photon pass.
+    pub raw_count: u32,
+    /// `1 / scene extent` per axis ([`crate::gpu::morton::inverse_extent`]).
+    pub scene_inv: [f32; 3],
+    /// Progressive photons appended by the photon pass.
+    pub photon_count: u32,
+    /// Sorted length of the footprint items.
+    pub fp_sorted: u32,
+    /// Sorted length of the photon items.
+    pub ph_sorted: u32,
+    /// Footprint items appended by `store_keyed`.
+    pub fp_count: u32,
+    /// Photon items appended by `store_keyed` and `photon_keys`.
+    pub ph_count: u32,
+}
+layout!(StoreParams, 112, { heuristics: 0, radii: 48, scene_lo: 64, raw_count: 76, scene_inv: 80, photon_count: 92, fp_sorted: 96, ph_sorted: 100, fp_count: 104, ph_count: 108 });
+layout!(PackedHeuristics, 48, {});
+
+impl StoreParams {
+    /// The parameters of the store half (`counts: None`: before the items are counted) or
+    /// of the sort and compaction half (with the [`StoreCounts`] the store half counted).
+    pub fn new(settings: &StoreSettings, counts: Option<&StoreCounts>) -> Self {
+        let (lo, hi) = settings.bounds;
+        let (fp_count, ph_count) = counts.map_or((0, 0), |c| (c.total_footprints(), c.total_photons()));
+        Self {
+            heuristics: settings.heuristics,
+            radii: settings.radii,
+            pad0: [0.0; 2],
+            scene_lo: lo,
+            raw_count: settings.raw_count,
+            scene_inv: crate::gpu::morton::inverse_extent(lo, hi),
+            photon_count: settings.photon_count,
+            fp_sorted: crate::gpu::sort::sorted_len(fp_count),
+            ph_sorted: crate::gpu::sort::sorted_len(ph_count),
+            fp_count,
+            ph_count,
+        }
+    }
+}
+
+/// What the keyed store counted (`store_counts` of `store.wgsl`, 48 bytes): sizes of the
+/// sorted maps and why footprints fell back to progressive photons.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct StoreCounts {
+    /// Footprints stored, `[caustic, global]` (sorted output: caustic first).
+    pub footprints: [u32; 2],
+    /// Progressive photons (the photon pass's plus the fallbacks), `[caustic, global]`.
+    pub photons: [u32; 2],
+    /// Fallbacks by reason: degenerate, culled, unrepresentable.
+    pub degenerate: u32,
+    /// See [`StoreCounts::degenerate`].
+    pub culled: u32,
+    /// See [`StoreCounts::degenerate`].
+    pub unrepresentable: u32,
+    /// Progressive photons beyond the sorted output's capacity (0 unless the device's
+    /// binding limit was hit; guarded, never written out of bounds).
+    pub overflowed: u32,
+    /// Footprint sort items appended (= both maps' footprints).
+    pub footprint_items: u32,
+    /// Photon sort items appended (= both maps' photons).
+    pub photon_items: u32,
+    /// Padding.
+    pub pad: [u32; 2],
+}
+layout!(StoreCounts, 48, { footprints: 0, photons: 8, degenerate: 16, culled: 20, unrepresentable: 24, overflowed: 28, footprint_items: 32, photon_items: 36 });
+
+impl StoreCounts {
+    /// Footprints of both maps.
+    pub fn total_footprints(&self) -> u32 {
+        self.footprints[0] + self.footprints[1]
+    }
+
+    /// Progressive photons of both maps.
+    pub fn total_photons(&self) -> u32 {
+        self.photons[0] + self.photons[1]
+    }
+}
+
+/// One item of the device sort (`ArpaSortItem`, 12 bytes): sorted by `hi`, then `lo`, then
+/// `value` (ascending). The store's items: `hi` = `map << 30 | Morton code`, `lo` = photon
+/// key, `value` = slot.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SortItem {
+    /// Most significant key word.
+    pub hi: u32,
+    /// Least significant key word.
+    pub lo: u32,
+    /// Payload, last tie-breaker (a slot index).
+    pub value: u32,
+}
+layout!(SortItem, 12, { hi: 0, lo: 4, value: 8 });
+
+/// One step of the sort (`SortStep` of `sort.wgsl` in its first 16 bytes), padded to
+/// 256 bytes: the steps of one sort sit in one uniform buffer read at dynamic offsets,
+/// whose alignment is at most 256 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SortStep {
+    /// Merge size (a power of two).
+    pub k: u32,
+    /// Compare distance (a power of two; 0: the shared-memory stages).
+    pub j: u32,
+    /// Padding.
+    pub pad: [[u32; 2]; 31],
+}
+layout!(SortStep, 256, { k: 0, j: 4 });
+
+impl SortStep {
+    /// The step of merge size `k` and distance `j`.
+    pub const fn new(k: u32, j: u32) -> Self {
+        Self { k, j, pad: [[0; 2]; 31] }
+    }
+}
+
+/// Irradiance gathered at one query point (`ArpaGatherResult` of `gather.wgsl`, 32 bytes;
+/// W/m², RGB, summed in `f32` on the device).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GatherResult {
+    /// Caustic-map irradiance.
+    pub caustic: [f32; 3],
+    /// Caustic records that contributed.
+    pub caustic_count: u32,
+    /// Global-map irradiance.
+    pub global: [f32; 3],
+    /// Global records that contributed.
+    pub global_count: u32,
+}
+layout!(GatherResult, 32, { caustic: 0, caustic_count: 12, global: 16, global_count: 28 });
+
+/// Where one gather stands among the photon batches of an iteration
+/// ([`crate::gpu::batch`]: each batch's maps are gathered in turn).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct GatherBatch {
+    /// The iteration's first batch: starts the per-pixel irradiance sum, clears the
+    /// counters and counts the valid query records.
+    pub first: bool,
+    /// The iteration's last batch: writes the image.
+    pub last: bool,
+}
+
+impl GatherBatch {
+    /// The whole iteration in one batch (first and last).
+    pub const WHOLE: Self = Self { first: true, last: true };
+
+    /// Batch `k` of `batches`.
+    pub const fn of(k: u32, batches: u32) -> Self {
+        Self { first: k == 0, last: k + 1 >= batches }
+    }
+
+    /// [`crate::gpu::codes::GATHER_BATCH_FIRST`] | [`crate::gpu::codes::GATHER_BATCH_LAST`]
+    /// as they apply.
+    pub const fn bits(self) -> u32 {
+        (if self.first { crate::gpu::codes::GATHER_BATCH_FIRST } else { 0 }) | (if self.last { crate::gpu::codes::GATHER_BATCH_LAST } else { 0 })
+    }
+}
+
+/// Parameters of the image gather (`GatherImageParams` of `gather.wgsl`, 32 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GatherImageParams {
+    /// Progressive radius per map (metres).
+    pub radii: [f32; 2],
+    /// [`crate::gpu::codes::kernel_code`] of the footprints' kernel.
+    pub kernel: u32,
+    /// Query records (one per pixel).
+    pub pixels: u32,
+    /// [`GatherBatch::bits`].
+    pub batch: u32,
+    /// Padding.
+    pub pad: [u32; 3],
+}
+layout!(GatherImageParams, 32, { radii: 0, kernel: 8, pixels: 12, batch: 16 });
+
+impl GatherImageParams {
+    /// The parameters of gathering `pixels` query records as `batch`.
+    pub fn new(radii: [f32; 2], kernel: crate::kernel::Kernel, pixels: u32, batch: GatherBatch) -> Self {
+        Self { radii, kernel: crate::gpu::codes::kernel_code(kernel), pixels, batch: batch.bits(), pad: [0; 3] }
+    }
+}
+
+/// One pixel's accumulator of the running mean (`AccumPixel` of `accumulate.wgsl`,
+/// 32 bytes): a compensated `f32` sum (Neumaier, as [`crate::accumulate::RunningMean`] in
+/// `f64`) and the count of rejected non-finite samples.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct AccumPixel {
+    /// Sum of the finite samples (W/(m²·sr), RGB).
+    pub sum: [f32; 3],
+    /// Non-finite samples rejected.
+    pub rejected: u32,
+    /// Neumaier compensation of `sum`.
+    pub compensation: [f32; 3],
+    /// Padding.
+    pub pad: u32,
+}
+layout!(AccumPixel, 32, { sum: 0, rejected: 12, compensation: 16 });
+
+impl AccumPixel {
+    /// The mean over `iterations` iterations: `(sum + compensation) / iterations` in
+    /// `f64`; 0 before any iteration and where not finite (so no NaN or Inf reaches a pixel).
+    pub fn mean(&self, iterations: u32) -> glam::Vec3 {
+        if iterations == 0 {
+            return glam::Vec3::ZERO;
+        }
+        let s = glam::Vec3::from_array(self.sum).as_dvec3() + glam::Vec3::from_array(self.compensation).as_dvec3();
+        let m = (s / iterations as f64).as_vec3();
+        glam::Vec3::select(m.is_finite_mask(), m, glam::Vec3::ZERO)
+    }
+}
+
+/// Uniforms of the camera pass (`ArpaCameraParams` of `camera_pass.wgsl`, 96 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct CameraParams {
+    /// Eye position (metres).
+    pub position: [f32; 3],
+    /// Image width (pixels).
+    pub width: u32,
+    /// Unit viewing direction ([`crate::scene::CameraFrame`]).
+    pub forward: [f32; 3],
+    /// Image height (pixels).
+    pub height: u32,
+    /// Unit right vector.
+    pub right: [f32; 3],
+    /// `tan(fov/2)`.
+    pub tan_half_fov: f32,
+    /// Unit up vector.
+    pub up: [f32; 3],
+    /// Width over height.
+    pub aspect: f32,
+    /// Seed of the random streams.
+    pub seed: u32,
+    /// 0-based iteration.
+    pub iteration: u32,
+    /// Surface interactions per camera path.
+    pub max_depth: u32,
+    /// 1: next-event estimation at the query point.
+    pub direct_lighting: u32,
+    /// `width · height`.
+    pub pixel_count: u32,
+    /// Invocations per row of the dispatch grid (workgroups in x times 64).
+    pub row_invocations: u32,
+    /// Padding.
+    pub pad: [u32; 2],
+}
+layout!(CameraParams, 96, { position: 0, width: 12, forward: 16, height: 28, right: 32, tan_half_fov: 44, up: 48, aspect: 60, seed: 64, iteration: 68, max_depth: 72, direct_lighting: 76, pixel_count: 80, row_invocations: 84 });
+
+#[cfg(feature = "alloc")]
+impl CameraParams {
+    /// The parameters of iteration 0 for `camera` under `settings`, dispatched on a grid of
+    /// `row_invocations` invocations per row (the caller checks that `width · height`
+    /// fits a `u32` and its grid).
+    pub fn new(camera: &crate::scene::Camera, settings: &crate::tracer::RenderSettings, row_invocations: u32) -> Result<Self, crate::scene::SceneError> {
+        let frame = camera.frame()?;
+        Ok(Self {
+            position: camera.position.to_array(),
+            width: camera.width,
+            forward: frame.forward.to_array(),
+            height: camera.height,
+            right: frame.right.to_array(),
+            tan_half_fov: frame.tan_half_fov,
+            up: frame.up.to_array(),
+            aspect: frame.aspect,
+            seed: settings.seed,
+            iteration: 0,
+            max_depth: settings.max_depth,
+            direct_lighting: settings.direct_lighting as u32,
+            pixel_count: camera.width.wrapping_mul(camera.height),
+            row_invocations,
+            pad: [0; 2],
+        })
+    }
+}
+
+/// `ArpaSceneInfo` of `scene.wgsl` (uniform, 32 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SceneInfo {
+    /// Meshes.
+    pub mesh_count: u32,
+    /// Delta lights (point, spot, directional), the first emitters.
+    pub delta_count: u32,
+    /// Area emitters (triangles, quads), after the delta lights; 0 without positive power.
+    pub area_count: u32,
+    /// Padding.
+    pub pad0: u32,
+    /// Centre of the bounding sphere (metres).
+    pub sphere_centre: [f32; 3],
+    /// Its radius (metres).
+    pub sphere_radius: f32,
+}
+layout!(SceneInfo, 32, { mesh_count: 0, delta_count: 4, area_count: 8, sphere_centre: 16, sphere_radius: 28 });
+
+/// `ArpaSceneMesh` of `scene.wgsl` (48 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SceneMesh {
+    /// Index of the mesh's first triangle record.
+    pub first_triangle: u32,
+    /// Triangles of the mesh.
+    pub triangle_count: u32,
+    /// [`crate::gpu::codes::SCATTER_DIFFUSE`], `…_MIRROR` or `…_REFRACTIVE`.
+    pub kind: u32,
+    /// 1 if the mesh emits `emission` on its geometric-normal side.
+    pub emissive: u32,
+    /// Albedo (diffuse), reflectance (mirror) or transmittance (refractive).
+    pub color: [f32; 3],
+    /// Interior over exterior index of refraction (refractive only).
+    pub ior: f32,
+    /// Emitted radiance (W/(m²·sr)).
+    pub emission: [f32; 3],
+    /// 1 if the mesh has vertex normals.
+    pub has_normals: u32,
+}
+layout!(SceneMesh, 48, { first_triangle: 0, triangle_count: 4, kind: 8, emissive: 12, color: 16, ior: 28, emission: 32, has_normals: 44 });
+
+/// `ArpaSceneTriangle` of `scene.wgsl` (112 bytes). The table is in the meshes' triangle
+/// order; `blas_triangle` of the record at `first_triangle + i` is the mesh's triangle at
+/// primitive `i` of the mesh's bottom-level structure (it rides in the record's padding,
+/// so that group 0 keeps three storage buffers: the photon pass binds eight in all,
+/// WebGPU's default limit).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SceneTriangle {
+    /// Vertex 0 (metres).
+    pub p0: [f32; 3],
+    /// [`crate::gpu::codes::TRIANGLE_SHADED`] | [`crate::gpu::codes::TRIANGLE_NORMALS`].
+    pub flags: u32,
+    /// Vertex 1.
+    pub p1: [f32; 3],
+    /// See the type's docs.
+    pub blas_triangle: u32,
+    /// Vertex 2.
+    pub p2: [f32; 3],
+    /// Padding.
+    pub pad2: u32,
+    /// Unit geometric normal (computed in `f64`).
+    pub normal: [f32; 3],
+    /// Padding.
+    pub pad3: u32,
+    /// Vertex normal 0 as the mesh stores it; the geometric normal without vertex normals.
+    pub n0: [f32; 3],
+    /// Padding.
+    pub pad4: u32,
+    /// Vertex normal 1.
+    pub n1: [f32; 3],
+    /// Padding.
+    pub pad5: u32,
+    /// Vertex normal 2.
+    pub n2: [f32; 3],
+    /// Padding.
+    pub pad6: u32,
+}
+layout!(SceneTriangle, 112, { p0: 0, flags: 12, p1: 16, blas_triangle: 28, p2: 32, normal: 48, n0: 64, n1: 80, n2: 96 });
+
+/// `ArpaSceneEmitter` of `scene.wgsl` (80 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SceneEmitter {
+    /// [`crate::emission::Light::kind_code`].
+    pub kind: u32,
+    /// Spot falloff ([`crate::emission::SpotFalloff::code`]).
+    pub falloff: u32,
+    /// Spot cut-off half-angle (rad).
+    pub cutoff: f32,
+    /// Spot full-intensity half-angle (rad).
+    pub beam_width: f32,
+    /// Point/spot position, directional unit direction of travel, triangle vertex 0, quad
+    /// origin.
+    pub p0: [f32; 3],
+    /// Area emitters: cumulative power up to and including this one over the total.
+    pub cdf: f32,
+    /// Spot unit axis, triangle vertex 1, quad `edge_u`.
+    pub p1: [f32; 3],
+    /// Area emitters: probability of being picked (power / total).
+    pub probability: f32,
+    /// Triangle vertex 2, quad `edge_v`.
+    pub p2: [f32; 3],
+    /// Padding.
+    pub pad0: f32,
+    /// Intensity (point, spot), irradiance (directional), radiance (area).
+    pub color: [f32; 3],
+    /// Padding.
+    pub pad1: f32,
+}
+layout!(SceneEmitter, 80, { kind: 0, falloff: 4, cutoff: 8, beam_width: 12, p0: 16, cdf: 28, p1: 32, probability: 44, p2: 48, color: 64 });
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gather_batch_bits() {
+        assert_eq!(GatherBatch::WHOLE.bits(), 3);
+        assert_eq!(GatherBatch::of(0, 3).bits(), 1);
+        assert_eq!(GatherBatch::of(1, 3).bits(), 0);
+        assert_eq!(GatherBatch::of(2, 3).bits(), 2);
+        assert_eq!(GatherBatch::of(0, 1), GatherBatch::WHOLE);
+    }
+
+    #[test]
+    fn means_are_finite() {
+        let p = AccumPixel { sum: [3.0, f32::MAX, 1.0], compensation: [1e-8, f32::MAX, 0.0], ..AccumPixel::default() };
+        assert_eq!(p.mean(0), glam::Vec3::ZERO);
+        assert_eq!(p.mean(1), glam::Vec3::new(3.0, 0.0, 1.0), "MAX + MAX overflows f32: 0");
+        assert_eq!(p.mean(2), glam::Vec3::new(1.5, f32::MAX, 0.5), "the sum is taken in f64");
+    }
+
+    #[test]
+    fn store_params_count_the_sorted_lengths() {
+        let s = StoreSettings { heuristics: PackedHeuristics::default(), radii: [0.1, 0.2], bounds: ([0.0; 3], [2.0, 0.0, 4.0]), raw_count: 5, photon_count: 7 };
+        let p = StoreParams::new(&s, None);
+        assert_eq!((p.scene_inv, p.fp_sorted, p.ph_count), ([0.5, 0.0, 0.25], 512, 0));
+        let c = StoreCounts { footprints: [600, 10], photons: [1, 2], ..StoreCounts::default() };
+        let p = StoreParams::new(&s, Some(&c));
+        assert_eq!((p.fp_count, p.fp_sorted, p.ph_count, p.ph_sorted), (610, 1024, 3, 512));
+    }
+}

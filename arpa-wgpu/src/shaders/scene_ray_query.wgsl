@@ -1,0 +1,31 @@
+// arpa-wgpu's ray casting for the scene of arpa-core's path/scene.wgsl, on ray queries
+// (wgpu EXPERIMENTAL_RAY_QUERY): binding 0 of group 0 is the scene's top-level structure
+// (one instance per mesh with triangles, custom index = mesh index, over a bottom level
+// holding the mesh's triangles in SceneTables::triangle_orders order), and
+// arpa_scene_intersect / arpa_scene_occluded are the functions scene.wgsl names.
+enable wgpu_ray_query;
+
+@group(0) @binding(0) var arpa_scene_tlas: acceleration_structure;
+
+// Closest hit along origin + t dir, 0 < t <= t_max (RayCaster::intersect); `triangle` is
+// the mesh's triangle index as the core numbers it.
+fn arpa_scene_intersect(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> ArpaSceneHit {
+    var rq: ray_query;
+    rayQueryInitialize(&rq, arpa_scene_tlas, RayDesc(RAY_FLAG_FORCE_OPAQUE, 0xffu, 0.0, t_max, origin, dir));
+    while rayQueryProceed(&rq) {}
+    let h = rayQueryGetCommittedIntersection(&rq);
+    if h.kind == RAY_QUERY_INTERSECTION_TRIANGLE && h.t > 0.0 {
+        return arpa_scene_hit(h.instance_custom_data, h.primitive_index, h.t, h.barycentrics);
+    }
+    return arpa_scene_miss();
+}
+
+// Whether anything lies along origin + t dir, 0 < t <= t_max (RayCaster::occluded).
+fn arpa_scene_occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
+    var rq: ray_query;
+    rayQueryInitialize(&rq, arpa_scene_tlas,
+        RayDesc(RAY_FLAG_FORCE_OPAQUE | RAY_FLAG_TERMINATE_ON_FIRST_HIT, 0xffu, 0.0, t_max, origin, dir));
+    while rayQueryProceed(&rq) {}
+    let h = rayQueryGetCommittedIntersection(&rq);
+    return h.kind == RAY_QUERY_INTERSECTION_TRIANGLE && h.t > 0.0;
+}
