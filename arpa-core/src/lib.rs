@@ -23,7 +23,11 @@
 //! [`camera_path`], over a [`ray_cast::RayCaster`]).
 //!
 //! [`shaders`] holds the WGSL twin of the per-photon maths (rng, kernel, footprint,
-//! radius, differentials) as source strings for GPU backends.
+//! radius, differentials) and the path-level WGSL of the GPU stages (camera pass, photon
+//! pass, store, sort, gather, accumulate) as source strings, composed in dependency order
+//! by [`shaders::compose`]. [`gpu`] is the host side both GPU backends share: the record
+//! layouts those shaders read and write, their codes, Morton codes and the photon batch
+//! policy. No backend depends on another backend; both depend on these two modules.
 //!
 //! ## Conventions
 //! * World space is right-handed, units are *scene units* (the scene's length unit, called

@@ -516,7 +516,8 @@ pub struct StageTimes {
     pub accumulate: f64,
 }
 
-/// Statistics of the last iteration (counts are per iteration).
+/// Statistics of the last iteration (counts are per iteration, summed over the photon
+/// batches of a backend that traces an iteration in several).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct IterationStats {
     /// Iterations completed so far (1-based index of the last one).
