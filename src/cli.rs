@@ -190,7 +190,7 @@ pub struct RenderArgs {
     pub define: Vec<(String, String)>,
 
     /// Rendering backend (only those compiled in are accepted).
-    #[arg(long, value_name = "NAME", default_value = "cpu", value_parser = backends::parse)]
+    #[arg(long, value_name = "NAME", default_value_t = BackendKind::Cpu, value_parser = backends::parse)]
     pub backend: BackendKind,
 
     /// GPU backends: use the adapter whose name contains NAME (case-insensitive), e.g.

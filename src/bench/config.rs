@@ -73,7 +73,7 @@ fn default_seconds() -> f64 {
     10.0
 }
 fn default_backends() -> Vec<String> {
-    vec!["cpu".into()]
+    vec![BackendKind::Cpu.name().into()]
 }
 fn default_methods() -> Vec<String> {
     vec!["arpa".into(), "rtpm".into()]
