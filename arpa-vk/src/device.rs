@@ -9,9 +9,10 @@
 //! What an adapter needs: Vulkan 1.2, the device extensions
 //! [`REQUIRED_EXTENSIONS`] (`VK_KHR_acceleration_structure`, `VK_KHR_ray_tracing_pipeline`,
 //! `VK_KHR_deferred_host_operations`), the features `accelerationStructure`,
-//! `rayTracingPipeline` and `bufferDeviceAddress` (core in 1.2), and a queue family with
-//! compute. Ray queries are not needed; whether the adapter has them is reported in
-//! [`DeviceInfo::ray_query`].
+//! `rayTracingPipeline`, `bufferDeviceAddress` (core in 1.2) and `geometryShader` (naga
+//! declares the SPIR-V `Geometry` capability for `primitive_index`, even in hit shaders), and
+//! a queue family with compute. Ray queries are not needed; whether the adapter has them is
+//! reported in [`DeviceInfo::ray_query`].
 
 use crate::error::{AdapterSummary, VkError, VkResultExt};
 use ash::vk;
@@ -437,6 +438,10 @@ fn inspect(instance: &InstanceOwner, pd: vk::PhysicalDevice) -> Result<Candidate
         }
         // SAFETY: the chain holds only structures the adapter knows; they live across the call.
         unsafe { inst.get_physical_device_features2(pd, &mut features) };
+        let geometry_shader = features.features.geometry_shader == vk::TRUE;
+        if !geometry_shader {
+            missing.push("feature geometryShader".into());
+        }
         if v12.buffer_device_address != vk::TRUE {
             missing.push("feature bufferDeviceAddress".into());
         }
@@ -580,12 +585,14 @@ impl VkContext {
         let priorities = [1.0f32];
         let queues = [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family_index).queue_priorities(&priorities)];
         let extensions: Vec<*const std::ffi::c_char> = REQUIRED_EXTENSIONS.iter().map(|e| e.as_ptr()).collect();
+        let base_features = vk::PhysicalDeviceFeatures::default().geometry_shader(true);
         let mut v12 = vk::PhysicalDeviceVulkan12Features::default().buffer_device_address(true);
         let mut accel = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default().acceleration_structure(true);
         let mut pipeline = vk::PhysicalDeviceRayTracingPipelineFeaturesKHR::default().ray_tracing_pipeline(true);
         let create = vk::DeviceCreateInfo::default()
             .queue_create_infos(&queues)
             .enabled_extension_names(&extensions)
+            .enabled_features(&base_features)
             .push_next(&mut v12)
             .push_next(&mut accel)
             .push_next(&mut pipeline);

@@ -166,6 +166,25 @@ pub enum VkError {
         result: vk::Result,
     },
 
+    /// A WGSL shader did not parse, validate or translate to SPIR-V (naga's message).
+    #[error("shader {label:?}: {message}")]
+    Shader {
+        /// The shader's label.
+        label: String,
+        /// naga's diagnostic.
+        message: String,
+    },
+
+    /// An argument the device layer cannot use: a mesh index out of range, a binding of the
+    /// wrong kind, a launch larger than the device allows, and the like.
+    #[error("{what}: {reason}")]
+    InvalidInput {
+        /// What was being built or recorded.
+        what: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+
     /// gpu-allocator failed for a reason other than running out of memory.
     #[error("allocating {what:?}: {source}")]
     Allocator {

@@ -1,37 +1,56 @@
-//! The device layer of ARPA's Vulkan backend, which will trace with ray-tracing pipelines
-//! (raygen, closest-hit and miss over the triangle BVH; an AABB hit group whose intersection
-//! shader does the exact filter-space test of each photon footprint).
+//! ARPA's Vulkan backend on ray-tracing pipelines (raygen, closest-hit and miss over the
+//! triangle BVH; an AABB hit group whose intersection shader does the exact filter-space test
+//! of each photon footprint), built up layer by layer. Not yet a backend of the facade.
 //!
 //! The crate opens the Vulkan loader at run time (`ash` with `loaded`), so it builds everywhere
 //! without a Vulkan SDK; where there is no Vulkan, [`VkContext::new`] returns an error.
 //!
-//! What works:
-//! - [`VkContext`]: instance (Vulkan 1.3 when the loader has it, else 1.2), optionally the
-//!   Khronos validation layer with a debug messenger that records every error and warning
-//!   ([`VkContext::validation_messages`]); adapter choice by type or by name
+//! What works (tested on lavapipe under the Khronos validation layer):
+//! - **Device layer.** [`VkContext`]: instance (Vulkan 1.3 when the loader has it, else 1.2),
+//!   optionally the validation layer with a debug messenger that records every error and
+//!   warning ([`VkContext::validation_messages`]); adapter choice by type or by name
 //!   ([`AdapterChoice`]: a GPU that has everything, else lavapipe); a device with
 //!   `VK_KHR_acceleration_structure`, `VK_KHR_ray_tracing_pipeline`,
-//!   `VK_KHR_deferred_host_operations` and buffer device addresses; one compute queue; a
-//!   gpu-allocator memory allocator. [`DeviceInfo`], [`RayTracingProperties`] (shader-group
-//!   handle size and alignments, recursion depth, scratch alignment) and [`MemoryLimits`] are
-//!   queried from the adapter, never assumed.
-//! - [`Buffer`]s with device addresses, host writes and reads, staged
-//!   [`upload`](VkContext::upload) and [`read_back`](VkContext::read_back), and one-time
+//!   `VK_KHR_deferred_host_operations`, buffer device addresses and `geometryShader` (see
+//!   [`shaders`]); one compute queue; a gpu-allocator memory allocator. [`DeviceInfo`],
+//!   [`RayTracingProperties`] and [`MemoryLimits`] are queried from the adapter, never
+//!   assumed. [`Buffer`]s with device addresses, host access, staged
+//!   [`upload`](VkContext::upload) and [`read_back`](VkContext::read_back), one-time
 //!   submissions ([`VkContext::submit_and_wait`]).
-//! - Every failure is a [`VkError`]: no loader, no adapter, a missing extension or feature (naming
-//!   the adapter and each one), out of device memory, device lost, a failing Vulkan call.
+//! - **Acceleration structures** ([`accel`]): triangle bottom levels per mesh in Morton order
+//!   with the map back to the mesh's triangles, AABB bottom levels (not opaque, no duplicate
+//!   any-hit), top levels over instances with mask, custom index and SBT offset;
+//!   [`SceneAccel`] for a whole `PreparedScene`. Sizes, scratch alignment from the device; one
+//!   submission per build.
+//! - **Ray-tracing pipelines** ([`pipeline`]): raygen, miss and hit groups (triangle and
+//!   procedural) from SPIR-V, recursion depth 1, a shader binding table laid out from the
+//!   queried handle size and alignments ([`SbtLayout`]), descriptor sets of buffers and top
+//!   levels ([`RtPipeline::bind`]), push constants, traces ([`RtPipeline::record_trace`],
+//!   [`RtPipeline::trace_and_wait`]).
+//! - **Shaders** ([`shaders`]): WGSL ray-tracing stages compiled to SPIR-V by naga 30 at run
+//!   time, composed with the core's WGSL; closest-hit ray casting ([`shaders::RAY_CAST`]) agrees
+//!   with the core's `BruteForceCaster` (`tests/ray_cast.rs`).
+//! - Every failure is a [`VkError`]: no loader, no adapter, a missing extension or feature
+//!   (naming the adapter and each one), out of device memory, device lost, a failing Vulkan
+//!   call, a shader naga rejects, an invalid input.
 //!
-//! What the tracer will add: acceleration structures (triangle BLAS, footprint and photon AABB
-//! BLASes, TLAS), the ray-tracing pipelines and shader binding tables, the passes of one
-//! iteration in one submission, and the `arpa_core::tracer::Tracer` implementation with its
-//! registry entry. Until then the crate is not a backend of the facade.
+//! What the tracer still needs: the intersection and ignoring any-hit shaders of the gather
+//! (naga 30 has no intersection stage, no `ignoreIntersection` and no hit attributes: GLSL via
+//! `glslc`, checked-in SPIR-V, as issue 20 plans), the camera and photon passes as raygen
+//! shaders over the core's path WGSL, the store/sort/box-build/gather/accumulate chain in one
+//! submission per iteration (box BLASes over the full capacity with inactive boxes), and the
+//! `arpa_core::tracer::Tracer` implementation with its registry entry.
 
 #![warn(missing_docs)]
 
+pub mod accel;
 pub mod buffer;
 pub mod device;
 pub mod error;
+pub mod pipeline;
+pub mod shaders;
 
+pub use accel::{AccelerationStructure, SceneAccel, TlasInstance};
 pub use ash;
 pub use ash::vk;
 pub use buffer::Buffer;
@@ -41,6 +60,10 @@ pub use device::{
 };
 pub use error::{AdapterSummary, VkError};
 pub use gpu_allocator::MemoryLocation;
+pub use pipeline::{
+    BindingKind, Bindings, HitGroup, Resource, RtPipeline, RtPipelineDesc, SbtLayout, SbtRegion, ShaderEntry, ShaderModule,
+};
+pub use shaders::{SpirvModule, compile_wgsl};
 
 #[cfg(test)]
 mod tests {
