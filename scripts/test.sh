@@ -8,6 +8,8 @@ bash scripts/setup-debian.sh
 # shellcheck disable=SC1091
 [ -f .deps/embree4/env.sh ] && source .deps/embree4/env.sh
 
+# arpa-vk's GLSL stages: recompile, compare with the checked-in SPIR-V, spirv-val.
+bash scripts/build-vk-shaders.sh --check
 # arpa-core must build without std and without alloc.
 cargo build -p arpa-core --no-default-features
 cargo build -p arpa-core --no-default-features --features alloc

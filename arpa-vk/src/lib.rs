@@ -30,16 +30,26 @@
 //! - **Shaders** ([`shaders`]): WGSL ray-tracing stages compiled to SPIR-V by naga 30 at run
 //!   time, composed with the core's WGSL; closest-hit ray casting ([`shaders::RAY_CAST`]) agrees
 //!   with the core's `BruteForceCaster` (`tests/ray_cast.rs`).
+//! - **The gather's AABB hit group** ([`shaders::GATHER_INTERSECTION`],
+//!   [`shaders::GATHER_ANY_HIT`]): what naga cannot express, in GLSL (`arpa-vk/shaders/*.rint`,
+//!   `*.rahit`, `gather_common.glsl`) compiled by `scripts/build-vk-shaders.sh` (Debian's
+//!   `glslc`, pinned flags, `spirv-val`) into checked-in SPIR-V embedded here ([`GlslStage`]);
+//!   `--check` recompiles and compares the bytes (CI). The intersection shader does the exact
+//!   test (filter-space ellipse and slab for footprints, progressive-radius sphere for
+//!   photons), the any-hit shader adds the irradiance and count to the payload and ignores the
+//!   intersection. One short ray per query point through it agrees with
+//!   `arpa_core::estimate::gather_brute_force` (counts exact, sums to f32 summation error;
+//!   `tests/gather_hit_group.rs`, with a GLSL test ray generation and miss).
 //! - Every failure is a [`VkError`]: no loader, no adapter, a missing extension or feature
 //!   (naming the adapter and each one), out of device memory, device lost, a failing Vulkan
 //!   call, a shader naga rejects, an invalid input.
 //!
-//! What the tracer still needs: the intersection and ignoring any-hit shaders of the gather
-//! (naga 30 has no intersection stage, no `ignoreIntersection` and no hit attributes: GLSL via
-//! `glslc`, checked-in SPIR-V, as issue 20 plans), the camera and photon passes as raygen
-//! shaders over the core's path WGSL, the store/sort/box-build/gather/accumulate chain in one
-//! submission per iteration (box BLASes over the full capacity with inactive boxes), and the
-//! `arpa_core::tracer::Tracer` implementation with its registry entry.
+//! What the tracer still needs: the gather's production ray generation (query records in,
+//! image out, an order-independent sum), the camera and photon passes as raygen shaders over
+//! the core's path WGSL, the store/sort/box-build/gather/accumulate chain in one submission
+//! per iteration, and the `arpa_core::tracer::Tracer` implementation with its registry entry.
+//! Box BLASes cannot simply be built over the full capacity with inactive (NaN) boxes: on
+//! lavapipe that loses real boxes in traversal (see [`VkContext::build_aabb_blas`]).
 
 #![warn(missing_docs)]
 
@@ -63,7 +73,7 @@ pub use gpu_allocator::MemoryLocation;
 pub use pipeline::{
     BindingKind, Bindings, HitGroup, Resource, RtPipeline, RtPipelineDesc, SbtLayout, SbtRegion, ShaderEntry, ShaderModule,
 };
-pub use shaders::{SpirvModule, compile_wgsl};
+pub use shaders::{GlslStage, SpirvModule, compile_wgsl};
 
 #[cfg(test)]
 mod tests {

@@ -14,6 +14,13 @@
 //! - `traceRay` always passes SBT record offset 0, SBT stride 0 and miss index 0: one miss
 //!   shader per pipeline, and the hit group comes from the instance's
 //!   `instanceShaderBindingTableRecordOffset` alone.
+//!
+//! So the gather's AABB hit group is GLSL (`GL_EXT_ray_tracing`), compiled by Debian's
+//! `glslc` with `scripts/build-vk-shaders.sh` into checked-in SPIR-V that this module embeds
+//! ([`GlslStage`]: [`GATHER_INTERSECTION`], [`GATHER_ANY_HIT`], and the test's
+//! [`GATHER_TEST_RAYGEN`] and [`GATHER_TEST_MISS`]); CI runs the script's `--check` (same bytes,
+//! `spirv-val`). The GLSL's copy of the footprint test, the sphere test and the kernel
+//! (`arpa-vk/shaders/gather_common.glsl`) is held to the core by `tests/gather_hit_group.rs`.
 
 use crate::error::VkError;
 use arpa_core::shaders::{SCENE, WgslFile};
@@ -34,6 +41,81 @@ pub fn ray_cast_source() -> String {
     arpa_core::shaders::compose(&[&RAY_CAST])
 }
 
+/// A GLSL ray-tracing stage compiled ahead of time by `scripts/build-vk-shaders.sh`
+/// (`arpa-vk/shaders/<name>` to `arpa-vk/shaders/spv/<name>.spv`), entry point `main`.
+#[derive(Clone, Copy, Debug)]
+pub struct GlslStage {
+    /// The GLSL file's name under `arpa-vk/shaders`.
+    pub name: &'static str,
+    /// Its pipeline stage.
+    pub stage: ash::vk::ShaderStageFlags,
+    /// The checked-in SPIR-V (little-endian words).
+    pub spirv: &'static [u8],
+}
+
+impl GlslStage {
+    /// The entry point of every GLSL stage.
+    pub const ENTRY: &'static str = "main";
+
+    /// The SPIR-V as a module for [`crate::VkContext::create_shader_module`]
+    /// (`entry_points` is empty: naga has no intersection stage to name; the entry is
+    /// [`Self::ENTRY`]).
+    ///
+    /// Errors: [`VkError::Shader`] when the bytes are not SPIR-V (length not a multiple of 4,
+    /// wrong magic number).
+    pub fn module(&self) -> Result<SpirvModule, VkError> {
+        let err = |message: String| VkError::Shader { label: self.name.into(), message };
+        if self.spirv.is_empty() || !self.spirv.len().is_multiple_of(4) {
+            return Err(err(format!("{} bytes of SPIR-V (a positive multiple of 4 expected)", self.spirv.len())));
+        }
+        let words: Vec<u32> = self.spirv.chunks_exact(4).map(|w| u32::from_le_bytes([w[0], w[1], w[2], w[3]])).collect();
+        if words[0] != SPIRV_MAGIC {
+            return Err(err(format!("magic number {:#010x}, not SPIR-V's {SPIRV_MAGIC:#010x}", words[0])));
+        }
+        Ok(SpirvModule { label: self.name.into(), words, entry_points: Vec::new() })
+    }
+}
+
+/// The SPIR-V magic number (first word of every module).
+pub const SPIRV_MAGIC: u32 = 0x0723_0203;
+
+/// The gather's intersection shader (`gather.rint`): the exact test of the candidate record
+/// (`PackedFootprint::contains`, `PackedPhoton::contains`), reporting hit kind 0 (footprint)
+/// or 1 (progressive photon) at `t_min`. Bindings of set 0: 1 footprints, 2 photons;
+/// push constants: progressive radius per map (`vec2<f32>`), kernel id, query count.
+pub const GATHER_INTERSECTION: GlslStage = GlslStage {
+    name: "gather.rint",
+    stage: ash::vk::ShaderStageFlags::INTERSECTION_KHR,
+    spirv: include_bytes!("../shaders/spv/gather.rint.spv"),
+};
+
+/// The gather's any-hit shader (`gather.rahit`): adds the accepted record's irradiance
+/// (`PackedFootprint::irradiance`, `PackedPhoton::irradiance`) and count to its map's sum in
+/// the payload (location 0) and ignores the intersection.
+pub const GATHER_ANY_HIT: GlslStage = GlslStage {
+    name: "gather.rahit",
+    stage: ash::vk::ShaderStageFlags::ANY_HIT_KHR,
+    spirv: include_bytes!("../shaders/spv/gather.rahit.spv"),
+};
+
+/// Ray generation of the gather test (`gather_test.rgen`): one point query per query point
+/// (set 0: 0 the top level, 3 the queries, 4 the results).
+pub const GATHER_TEST_RAYGEN: GlslStage = GlslStage {
+    name: "gather_test.rgen",
+    stage: ash::vk::ShaderStageFlags::RAYGEN_KHR,
+    spirv: include_bytes!("../shaders/spv/gather_test.rgen.spv"),
+};
+
+/// The empty miss shader of the gather test (`gather_test.rmiss`).
+pub const GATHER_TEST_MISS: GlslStage = GlslStage {
+    name: "gather_test.rmiss",
+    stage: ash::vk::ShaderStageFlags::MISS_KHR,
+    spirv: include_bytes!("../shaders/spv/gather_test.rmiss.spv"),
+};
+
+/// Every embedded GLSL stage.
+pub const GLSL_STAGES: [GlslStage; 4] = [GATHER_INTERSECTION, GATHER_ANY_HIT, GATHER_TEST_RAYGEN, GATHER_TEST_MISS];
+
 /// A WGSL module as SPIR-V words, with the names of its entry points.
 #[derive(Clone, Debug)]
 pub struct SpirvModule {
@@ -41,7 +123,8 @@ pub struct SpirvModule {
     pub label: String,
     /// SPIR-V words (every entry point of the source).
     pub words: Vec<u32>,
-    /// `(stage, name)` of each entry point.
+    /// `(stage, name)` of each entry point (naga's; empty for a [`GlslStage`], whose entry
+    /// is `main`).
     pub entry_points: Vec<(naga::ShaderStage, String)>,
 }
 
@@ -82,6 +165,19 @@ mod tests {
         ] {
             assert!(names.contains(&want), "{names:?}");
         }
+    }
+
+    #[test]
+    fn glsl_stages_are_embedded_spirv() {
+        for g in GLSL_STAGES {
+            let m = g.module().unwrap_or_else(|e| panic!("{}: {e}", g.name));
+            // Version word: 1.5 (Vulkan 1.2).
+            assert_eq!(m.words[1], 0x0001_0500, "{}", g.name);
+        }
+        let bad = GlslStage { spirv: &[1, 2, 3, 4], ..GATHER_TEST_MISS };
+        assert!(matches!(bad.module(), Err(VkError::Shader { .. })));
+        let bad = GlslStage { spirv: &[3, 2, 35], ..GATHER_TEST_MISS };
+        assert!(matches!(bad.module(), Err(VkError::Shader { .. })));
     }
 
     #[test]
