@@ -452,6 +452,12 @@ impl SceneAccel {
     /// Builds the structures of `scene` (the bottom levels in one submission, the top level in
     /// another) and waits for them.
     pub fn build(ctx: &VkContext, scene: &PreparedScene) -> Result<Self, VkError> {
+        Self::build_with_sbt_offsets(ctx, scene, |_| 0)
+    }
+
+    /// [`SceneAccel::build`] with mesh `i`'s instance taking SBT record offset
+    /// `sbt_offset(i)` (which hit group its hits run).
+    pub fn build_with_sbt_offsets(ctx: &VkContext, scene: &PreparedScene, sbt_offset: impl Fn(usize) -> u32) -> Result<Self, VkError> {
         let meshes = &scene.scene().meshes;
         if meshes.len() > MAX_INSTANCE_FIELD as usize {
             return Err(VkError::InvalidInput {
@@ -470,7 +476,7 @@ impl SceneAccel {
                     transform: IDENTITY_TRANSFORM,
                     custom_index: mi as u32,
                     mask: 0xff,
-                    sbt_record_offset: 0,
+                    sbt_record_offset: sbt_offset(mi),
                     flags: vk::GeometryInstanceFlagsKHR::empty(),
                 })
             })

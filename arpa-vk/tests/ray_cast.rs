@@ -298,26 +298,10 @@ static MARKED_HIT: arpa_core::shaders::WgslFile = arpa_core::shaders::WgslFile {
 fn instance_sbt_offsets_select_hit_groups() {
     let Some(ctx) = context() else { return };
     let prepared = PreparedScene::new(scene()).expect("valid test scene");
-    let meshes = &prepared.scene().meshes;
-    let orders: Vec<Vec<u32>> = meshes.iter().map(arpa_core::gpu::scene::morton_triangle_order).collect();
-    let blases = ctx.build_triangle_blases(meshes, &orders).expect("BLASes");
     // Odd meshes use hit group 1 (the marking one), even meshes hit group 0.
-    let instances: Vec<TlasInstance<'_>> = blases
-        .iter()
-        .enumerate()
-        .filter_map(|(mi, b)| {
-            b.as_ref().map(|blas| TlasInstance {
-                blas,
-                transform: IDENTITY_TRANSFORM,
-                custom_index: mi as u32,
-                mask: 0xff,
-                sbt_record_offset: mi as u32 % 2,
-                flags: vk::GeometryInstanceFlagsKHR::empty(),
-            })
-        })
-        .collect();
-    let tlas = ctx.build_tlas("test TLAS with two hit groups", &instances).expect("TLAS");
-    let tables = SceneTables::new(&prepared, &orders).expect("tables");
+    let accel = SceneAccel::build_with_sbt_offsets(&ctx, &prepared, |mesh| mesh as u32 % 2).expect("acceleration structures");
+    let (tlas, orders) = (accel.tlas(), accel.triangle_orders());
+    let tables = SceneTables::new(&prepared, orders).expect("tables");
 
     let spirv = compile_wgsl("marked", &arpa_core::shaders::compose(&[&MARKED_HIT])).expect("marked_hit.wgsl");
     let module = ctx.create_shader_module(&spirv).expect("shader module");
@@ -352,7 +336,7 @@ fn instance_sbt_offsets_select_hit_groups() {
     let ray_buf = storage(&ctx, "rays", bytemuck::cast_slice(&rs), 0, storage_usage);
     let hit_buf = ctx.create_buffer("hits", (n * 32) as u64, storage_usage, MemoryLocation::GpuToCpu).expect("hits");
     let scene_set = [
-        Resource::AccelerationStructure(&tlas),
+        Resource::AccelerationStructure(tlas),
         Resource::UniformBuffer(&info),
         Resource::StorageBuffer(&mesh_buf),
         Resource::StorageBuffer(&triangles),
@@ -371,7 +355,7 @@ fn instance_sbt_offsets_select_hit_groups() {
     eprintln!("arpa-vk hit groups: {} hits through group 0, {} through group 1", per_group[0], per_group[1]);
     assert!(per_group.iter().all(|&c| c > 100), "{per_group:?}");
     let log = ctx.validation_log();
-    drop((bindings, pipeline, module, tlas, blases, ray_buf, hit_buf, info, mesh_buf, triangles, emitters));
+    drop((bindings, pipeline, module, accel, ray_buf, hit_buf, info, mesh_buf, triangles, emitters));
     drop(ctx);
     assert_clean(&log, "tracing with two hit groups");
 }
