@@ -231,46 +231,23 @@ impl EmbreeSceneBuilder {
                 .unwrap_or(EmbreeError::Unknown("rtcNewGeometry returned NULL".into())));
         }
         let geom = GeometryGuard(geom);
-        // SAFETY: the buffers Embree returns hold `count * stride` bytes (vertex buffers
-        // padded for SSE loads); we write exactly `len * 12` bytes into each after checking
-        // for NULL. `[f32; 3]` and `[u32; 3]` are 12 bytes, matching FLOAT3 / UINT3.
-        unsafe {
-            let vb = sys::rtcSetNewGeometryBuffer(
-                geom.0,
-                sys::RTCBufferType::VERTEX,
-                0,
-                sys::RTCFormat::FLOAT3,
-                12,
-                vertices.len(),
-            );
-            self.device.check()?;
-            if vb.is_null() {
-                return Err(EmbreeError::OutOfMemory("vertex buffer".into()));
+        // Copies `items` (12-byte triples, FLOAT3 / UINT3) into a new buffer of the geometry.
+        let fill = |kind: sys::RTCBufferType, format: sys::RTCFormat, bytes: &[u8], items: usize, what: &str| -> Result<()> {
+            // SAFETY: the buffer Embree returns holds `items * 12` bytes (vertex buffers padded
+            // for SSE loads); we write exactly `bytes.len() == items * 12` bytes into it after
+            // checking for NULL.
+            unsafe {
+                let buf = sys::rtcSetNewGeometryBuffer(geom.0, kind, 0, format, 12, items);
+                self.device.check()?;
+                if buf.is_null() {
+                    return Err(EmbreeError::OutOfMemory(what.into()));
+                }
+                core::ptr::copy_nonoverlapping(bytes.as_ptr(), buf.cast::<u8>(), bytes.len());
             }
-            core::ptr::copy_nonoverlapping(
-                vertices.as_ptr().cast::<u8>(),
-                vb.cast::<u8>(),
-                vertices.len() * 12,
-            );
-
-            let ib = sys::rtcSetNewGeometryBuffer(
-                geom.0,
-                sys::RTCBufferType::INDEX,
-                0,
-                sys::RTCFormat::UINT3,
-                12,
-                indices.len(),
-            );
-            self.device.check()?;
-            if ib.is_null() {
-                return Err(EmbreeError::OutOfMemory("index buffer".into()));
-            }
-            core::ptr::copy_nonoverlapping(
-                indices.as_ptr().cast::<u8>(),
-                ib.cast::<u8>(),
-                indices.len() * 12,
-            );
-        }
+            Ok(())
+        };
+        fill(sys::RTCBufferType::VERTEX, sys::RTCFormat::FLOAT3, bytemuck::cast_slice(vertices), vertices.len(), "vertex buffer")?;
+        fill(sys::RTCBufferType::INDEX, sys::RTCFormat::UINT3, bytemuck::cast_slice(indices), indices.len(), "index buffer")?;
         self.attach(geom)
     }
 
