@@ -349,11 +349,9 @@ impl VkContext {
     /// The geometry is **not** `OPAQUE` and has `NO_DUPLICATE_ANY_HIT_INVOCATION`: the gather's
     /// any-hit shader must run exactly once per box a ray reaches (an opaque geometry, or the
     /// opaque ray flag, would skip any-hit and collect nothing). Vulkan makes a box whose
-    /// min x is NaN an inactive primitive. **lavapipe mishandles them:** a BLAS of ~2 000
-    /// gather boxes with 64 inactive ones (min x NaN, alone or with every coordinate NaN)
-    /// after the real ones lost most real boxes in traversal (13 810 of 29 219 contributions
-    /// missing in the gather hit-group test); without them every box is found. Build over the
-    /// active boxes only, or keep inactive boxes out of lavapipe's BLASes. (Unchecked on a GPU.)
+    /// min x is NaN an inactive primitive, but lavapipe mishandles them: with inactive boxes
+    /// after the real ones, traversal misses many real boxes. So build over the active boxes
+    /// only, or keep inactive boxes out of lavapipe's BLASes. (Unchecked on a GPU.)
     ///
     /// Errors: [`VkError::InvalidInput`] for no boxes or more than `maxPrimitiveCount`.
     pub fn build_aabb_blas(&self, label: &str, boxes: &[[f32; 6]]) -> Result<AccelerationStructure, VkError> {

@@ -14,10 +14,9 @@
 //! wrong acceptance is caught by the any-hit shader's own test, so only the any-hit's decision
 //! reaches the counts in that case.)
 //!
-//! No inactive boxes: on lavapipe (Mesa 25) an AABB BLAS with inactive boxes (min x NaN,
-//! 64 of them after ~2000 real ones) loses most of its real primitives in traversal (13 810 of
-//! 29 219 contributions were missing, 2 873 of 3 000 queries wrong), so building over the
-//! full capacity with NaN boxes is not an option there (see `accel::build_aabb_blas`).
+//! No inactive boxes: on lavapipe an AABB BLAS with inactive boxes (min x NaN) after the real
+//! ones loses real primitives in traversal, so building over the full capacity with NaN boxes
+//! is not an option there (see `accel::build_aabb_blas`).
 //!
 //! Bounds:
 //! - **Counts** (per query and map) exact. The GLSL forms the tests' dot products in glam's
