@@ -30,7 +30,9 @@ for tool in glslc spirv-val; do
         exit 2
     fi
 done
-version="$(glslc --version | head -n 1)"
+# The first line of --version; no `| head`, whose early exit would SIGPIPE glslc under pipefail.
+version="$(glslc --version)"
+version="${version%%$'\n'*}"
 
 check=0
 case "${1:-}" in
@@ -66,7 +68,7 @@ for stage in "${STAGES[@]}"; do
         status=1
     elif ! cmp -s "$dest/$stage.spv" "$want"; then
         echo "build-vk-shaders --check: arpa-vk/shaders/spv/$stage.spv differs from $stage compiled now" \
-             "($(cmp "$dest/$stage.spv" "$want" 2>&1 | head -n 1 || true))" >&2
+             "($(cmp "$dest/$stage.spv" "$want" 2>&1 || true))" >&2
         status=1
     fi
 done

@@ -81,7 +81,7 @@ apt_install() {
     log "apt-get install $*"
     as_root env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "$@" >/dev/null
 }
-deb_installed() { dpkg-query -W -f='${Status}' "$1" 2>/dev/null | grep -q "install ok installed"; }
+deb_installed() { [[ "$(dpkg-query -W -f='${Status}' "$1" 2>/dev/null)" == *"install ok installed"* ]]; }
 
 # ------------------------------------------------------------- 1. libclang (bindgen)
 if [[ -n "${LIBCLANG_PATH:-}" ]]; then
@@ -202,7 +202,7 @@ cp "$STAGE/unpacked/embreex-$EMBREEX_VERSION.dist-info/licenses/LICENSE" "$STAGE
 
 # Every dependency of the library must resolve (libtbb via its RPATH=$ORIGIN).
 if command -v ldd >/dev/null 2>&1; then
-    if ldd "$STAGE/prefix/lib/libembree4.so" | grep -q "not found"; then
+    if [[ "$(ldd "$STAGE/prefix/lib/libembree4.so")" == *"not found"* ]]; then
         ldd "$STAGE/prefix/lib/libembree4.so" >&2
         die "unresolved dependencies of libembree4"
     fi
