@@ -153,19 +153,20 @@ pub const RECORDS: WgslFile = WgslFile { name: "path/records.wgsl", source: incl
 /// `arpa_scene_intersect` and `arpa_scene_occluded` (the file states their contract).
 pub const SCENE: WgslFile = WgslFile { name: "path/scene.wgsl", source: include_str!("../shaders/path/scene.wgsl"), deps: &[&MATH, &RECORDS] };
 
-/// `path/camera_pass.wgsl`: entry point `arpa_camera_main` (one invocation per pixel,
-/// group 1: [`crate::gpu::layout::CameraParams`] and the query records), per pixel
-/// `arpa_camera_trace`.
+/// `path/camera_pass.wgsl`: per pixel `arpa_camera_trace` (group 1:
+/// [`crate::gpu::layout::CameraParams`] and the query records); the backend's entry point
+/// writes one record per pixel.
 pub const CAMERA_PASS: WgslFile = WgslFile {
     name: "path/camera_pass.wgsl",
     source: include_str!("../shaders/path/camera_pass.wgsl"),
     deps: &[&MATH, &RNG, &DIFFERENTIAL, &FRESNEL, &FRAME, &SAMPLING, &EMISSION, &LAMBERTIAN, &RECORDS, &SCENE],
 };
 
-/// `path/photon_pass.wgsl`: entry point `photon_pass` (one invocation per photon of a
-/// batch; group 1: [`crate::gpu::layout::PhotonParams`], the packed lights, the
+/// `path/photon_pass.wgsl`: per photon `photon_trace` (group 1:
+/// [`crate::gpu::layout::PhotonParams`], the packed lights, the
 /// [`crate::gpu::layout::EmitterRange`]s, the keyed footprint and photon append buffers and
-/// [`crate::gpu::layout::PhotonCounters`]), per photon `photon_trace`.
+/// [`crate::gpu::layout::PhotonCounters`]); the backend's entry point runs one photon per
+/// invocation and counts emitted photons and segments.
 pub const PHOTON_PASS: WgslFile = WgslFile {
     name: "path/photon_pass.wgsl",
     source: include_str!("../shaders/path/photon_pass.wgsl"),
@@ -182,8 +183,8 @@ pub const STORE: WgslFile =
 /// sort of [`crate::gpu::sort`]).
 pub const SORT: WgslFile = WgslFile { name: "path/sort.wgsl", source: include_str!("../shaders/path/sort.wgsl"), deps: &[&RECORDS] };
 
-/// `path/gather.wgsl`: entry point `gather_image` (group 0, bindings 0 to 6;
-/// [`crate::gpu::layout::GatherImageParams`]), per record `arpa_gather_pixel`, per candidate
+/// `path/gather.wgsl`: per record `arpa_gather_pixel` (group 0, bindings 0 to 6;
+/// [`crate::gpu::layout::GatherImageParams`]; the backend's entry point calls it per record), per candidate
 /// `arpa_gather_candidate`, `ArpaGatherResult`. The backend's glue adds binding 7 (its
 /// acceleration structure over the record boxes) and defines `arpa_gather_at` (the file
 /// states its contract).

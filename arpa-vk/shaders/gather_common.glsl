@@ -53,17 +53,25 @@ struct ArpaPackedPhoton {
     uint pad1;
 };
 
-// The gather's parameters (push constants, 16 bytes): progressive radius per map (metres),
-// the footprints' kernel id (ARPA_KERNEL_*: 0 constant, 1 Epanechnikov, 2 Silverman) and
-// the number of query points.
-layout(push_constant, std430) uniform ArpaGatherParams {
+// Bindings of set 0 as arpa-core's path/gather.wgsl declares them (the ray generation is
+// that file's arpa_gather_pixel, composed by arpa-vk): 0 footprints, 1 photons, 4 the
+// parameters, 7 the top level over the record boxes.
+//
+// The gather's parameters (arpa_core::gpu::layout::GatherImageParams, 32 bytes): progressive
+// radius per map (metres), the footprints' kernel id (ARPA_KERNEL_*: 0 constant,
+// 1 Epanechnikov, 2 Silverman), the number of query records, the batch flags (unused here).
+layout(set = 0, binding = 4, std430) readonly buffer ArpaGatherParams {
     vec2 radii;
     uint kernel;
     uint query_count;
+    uint batch;
+    uint pad0;
+    uint pad1;
+    uint pad2;
 } arpa_params;
 
-layout(set = 0, binding = 1, std430) readonly buffer ArpaFootprints { ArpaPackedFootprint arpa_footprints[]; };
-layout(set = 0, binding = 2, std430) readonly buffer ArpaPhotons { ArpaPackedPhoton arpa_photons[]; };
+layout(set = 0, binding = 0, std430) readonly buffer ArpaFootprints { ArpaPackedFootprint arpa_footprints[]; };
+layout(set = 0, binding = 1, std430) readonly buffer ArpaPhotons { ArpaPackedPhoton arpa_photons[]; };
 
 bool arpa_is_finite(float x) {
     return (floatBitsToUint(x) & 0x7f800000u) != 0x7f800000u;

@@ -29,12 +29,44 @@ use arpa_core::shaders::{SCENE, WgslFile};
 /// 1.4 is what `VK_KHR_ray_tracing_pipeline` is specified against).
 pub const SPIRV_VERSION: (u8, u8) = (1, 4);
 
-/// Closest-hit ray casting (`arpa-vk/shaders/ray_cast.wgsl`): entry points
-/// `vk_cast_raygen`, `vk_cast_miss`, `vk_cast_closest_hit`; needs the core's `scene.wgsl`
-/// (its bind group 0 with the top-level structure at binding 0) — compose with
-/// [`ray_cast_source`].
+/// The scene's ray casting on a ray-tracing pipeline (`arpa-vk/shaders/scene_trace.wgsl`):
+/// `arpa_scene_intersect` and `arpa_scene_occluded` for the core's `scene.wgsl` (top level
+/// at binding 0 of group 0), each a `traceRay` from the ray generation, and the miss and
+/// triangle closest-hit shaders `vk_cast_miss`, `vk_cast_closest_hit` every pipeline that
+/// traces the scene takes.
+pub const SCENE_TRACE: WgslFile =
+    WgslFile { name: "arpa-vk/scene_trace.wgsl", source: include_str!("../shaders/scene_trace.wgsl"), deps: &[&SCENE] };
+
+/// Closest-hit ray casting of given rays (`arpa-vk/shaders/ray_cast.wgsl`, the ray-casting
+/// test's kernel): ray generation `vk_cast_raygen` with [`SCENE_TRACE`]'s miss and
+/// closest-hit shaders — compose with [`ray_cast_source`].
 pub const RAY_CAST: WgslFile =
-    WgslFile { name: "arpa-vk/ray_cast.wgsl", source: include_str!("../shaders/ray_cast.wgsl"), deps: &[&SCENE] };
+    WgslFile { name: "arpa-vk/ray_cast.wgsl", source: include_str!("../shaders/ray_cast.wgsl"), deps: &[&SCENE_TRACE] };
+
+/// The camera pass's ray generation `vk_camera_raygen` (one invocation per pixel), over the
+/// core's `camera_pass.wgsl` and [`SCENE_TRACE`].
+pub const CAMERA_RAYGEN: WgslFile = WgslFile {
+    name: "arpa-vk/camera_raygen.wgsl",
+    source: include_str!("../shaders/camera_raygen.wgsl"),
+    deps: &[&arpa_core::shaders::CAMERA_PASS, &SCENE_TRACE],
+};
+
+/// The photon pass's ray generation `vk_photon_raygen` (one invocation per photon), over the
+/// core's `photon_pass.wgsl` and [`SCENE_TRACE`].
+pub const PHOTON_RAYGEN: WgslFile = WgslFile {
+    name: "arpa-vk/photon_raygen.wgsl",
+    source: include_str!("../shaders/photon_raygen.wgsl"),
+    deps: &[&arpa_core::shaders::PHOTON_PASS, &SCENE_TRACE],
+};
+
+/// The gather's ray generation `vk_gather_raygen` (one point query per query record) and
+/// miss `vk_gather_miss` over the core's `gather.wgsl`; its hit group is
+/// [`GATHER_INTERSECTION`] and [`GATHER_ANY_HIT`].
+pub const GATHER_RAYGEN: WgslFile = WgslFile {
+    name: "arpa-vk/gather_raygen.wgsl",
+    source: include_str!("../shaders/gather_raygen.wgsl"),
+    deps: &[&arpa_core::shaders::GATHER],
+};
 
 /// The composed WGSL of [`RAY_CAST`] and the core files it needs.
 pub fn ray_cast_source() -> String {
@@ -164,6 +196,23 @@ mod tests {
             (naga::ShaderStage::ClosestHit, "vk_cast_closest_hit"),
         ] {
             assert!(names.contains(&want), "{names:?}");
+        }
+    }
+
+    #[test]
+    fn pass_modules_compile_with_their_stages() {
+        use naga::ShaderStage::{ClosestHit, Miss, RayGeneration};
+        for (file, want) in [
+            (&CAMERA_RAYGEN, vec![(RayGeneration, "vk_camera_raygen"), (Miss, "vk_cast_miss"), (ClosestHit, "vk_cast_closest_hit")]),
+            (&PHOTON_RAYGEN, vec![(RayGeneration, "vk_photon_raygen"), (Miss, "vk_cast_miss"), (ClosestHit, "vk_cast_closest_hit")]),
+            (&GATHER_RAYGEN, vec![(RayGeneration, "vk_gather_raygen"), (Miss, "vk_gather_miss")]),
+        ] {
+            let m = compile_wgsl(file.name, &arpa_core::shaders::compose(&[file])).unwrap_or_else(|e| panic!("{e}"));
+            let names: Vec<_> = m.entry_points.iter().map(|(s, n)| (*s, n.as_str())).collect();
+            assert_eq!(names.len(), want.len(), "{}: {names:?}", file.name);
+            for w in want {
+                assert!(names.contains(&w), "{}: {names:?}", file.name);
+            }
         }
     }
 

@@ -344,18 +344,27 @@ fn gather_hit_group_matches_the_core() {
             raygen: entry(&rgen),
             miss: &[entry(&rmiss)],
             hit_groups: &[HitGroup::Procedural { intersection: entry(&rint), any_hit: Some(entry(&rahit)), closest_hit: None }],
-            sets: &[&[As, Sb, Sb, Sb, Sb]],
-            push_constant_size: 16,
+            // gather.wgsl's set 0: footprints, photons, queries (records), results (image),
+            // parameters, two slots the test does not use, the top level.
+            sets: &[&[Sb, Sb, Sb, Sb, Sb, Sb, Sb, As]],
+            push_constant_size: 0,
         },
     )
     .expect("pipeline");
     drop((rgen, rmiss, rint, rahit));
+    let mut params_buf = ctx
+        .create_buffer("gather params", 32, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::CpuToGpu)
+        .expect("params buffer");
+    let unused = ctx.create_buffer("unused binding", 16, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::GpuOnly).expect("buffer");
     let set = [
-        Resource::AccelerationStructure(&tlas),
         Resource::StorageBuffer(&fp_buf),
         Resource::StorageBuffer(&ph_buf),
         Resource::StorageBuffer(&q_buf),
         Resource::StorageBuffer(&result_buf),
+        Resource::StorageBuffer(&params_buf),
+        Resource::StorageBuffer(&unused),
+        Resource::StorageBuffer(&unused),
+        Resource::AccelerationStructure(&tlas),
     ];
     let bindings = pipeline.bind(&[&set]).expect("bind");
     let setup = start.elapsed().as_secs_f64();
@@ -364,12 +373,15 @@ fn gather_hit_group_matches_the_core() {
     let near_count = near.iter().filter(|&&b| b).count();
     let width = 64u32;
     for kernel in [Kernel::Silverman, Kernel::Epanechnikov, Kernel::Constant] {
-        let mut push = Vec::with_capacity(16);
-        push.extend_from_slice(bytemuck::cast_slice(&RADII));
-        push.extend_from_slice(&kernel_code(kernel).to_le_bytes());
-        push.extend_from_slice(&(n as u32).to_le_bytes());
+        // layout::GatherImageParams: radii, kernel, query count, batch flags, padding.
+        let mut params = Vec::with_capacity(32);
+        params.extend_from_slice(bytemuck::cast_slice(&RADII));
+        params.extend_from_slice(&kernel_code(kernel).to_le_bytes());
+        params.extend_from_slice(&(n as u32).to_le_bytes());
+        params.extend_from_slice(&[0u8; 16]);
+        params_buf.write(0, &params).expect("write params");
         let t0 = std::time::Instant::now();
-        pipeline.trace_and_wait(&ctx, &bindings, &push, [width, (n as u32).div_ceil(width), 1]).expect("trace");
+        pipeline.trace_and_wait(&ctx, &bindings, &[], [width, (n as u32).div_ceil(width), 1]).expect("trace");
         let trace_s = t0.elapsed().as_secs_f64();
         let got: Vec<GpuResult> =
             result_buf.read(0, (n * 32) as u64).expect("read results").chunks_exact(32).map(bytemuck::pod_read_unaligned).collect();
@@ -418,7 +430,7 @@ fn gather_hit_group_matches_the_core() {
     let log = ctx.validation_log();
     let messages = ctx.validation_messages();
     assert!(messages.is_empty(), "validation: {messages:#?}");
-    drop((bindings, pipeline, tlas, blases, fp_buf, ph_buf, q_buf, result_buf));
+    drop((bindings, pipeline, tlas, blases, fp_buf, ph_buf, q_buf, result_buf, params_buf, unused));
     drop(ctx);
     let messages = log.messages();
     assert!(messages.is_empty(), "validation while destroying: {messages:#?}");

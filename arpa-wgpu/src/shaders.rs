@@ -14,10 +14,19 @@ use arpa_core::shaders::{self as core, WgslFile, compose};
 pub const SCENE_RAY_QUERY: WgslFile =
     WgslFile { name: "arpa-wgpu/scene_ray_query.wgsl", source: include_str!("shaders/scene_ray_query.wgsl"), deps: &[&core::SCENE] };
 
-/// `arpa_gather_at` on ray queries, with the maps' top-level structure as binding 7 of
+/// `arpa_gather_at` on ray queries and the gather's compute entry point `gather_image`, with the maps' top-level structure as binding 7 of
 /// group 0 ([`crate::accel`]).
 pub const GATHER_RAY_QUERY: WgslFile =
     WgslFile { name: "arpa-wgpu/gather_ray_query.wgsl", source: include_str!("shaders/gather_ray_query.wgsl"), deps: &[&core::GATHER] };
+
+/// The camera pass's compute entry point `arpa_camera_main` (one invocation per pixel).
+pub const CAMERA_COMPUTE: WgslFile =
+    WgslFile { name: "arpa-wgpu/camera_compute.wgsl", source: include_str!("shaders/camera_compute.wgsl"), deps: &[&core::CAMERA_PASS] };
+
+/// The photon pass's compute entry point `photon_pass` (one invocation per photon of a
+/// batch, counters summed per workgroup).
+pub const PHOTON_COMPUTE: WgslFile =
+    WgslFile { name: "arpa-wgpu/photon_compute.wgsl", source: include_str!("shaders/photon_compute.wgsl"), deps: &[&core::PHOTON_PASS] };
 
 /// The scene (group 0) with ray casting: what a kernel that reads the scene starts with
 /// (the scene's bind group is [`crate::scene::GpuScene::bind_group`]).
@@ -27,12 +36,12 @@ pub fn scene() -> String {
 
 /// The camera pass (entry point `arpa_camera_main`).
 pub fn camera_pass() -> String {
-    compose(&[&core::CAMERA_PASS, &SCENE_RAY_QUERY])
+    compose(&[&CAMERA_COMPUTE, &SCENE_RAY_QUERY])
 }
 
 /// The photon pass (entry point `photon_pass`).
 pub fn photon_pass() -> String {
-    compose(&[&core::PHOTON_PASS, &SCENE_RAY_QUERY])
+    compose(&[&PHOTON_COMPUTE, &SCENE_RAY_QUERY])
 }
 
 /// The keyed store (entry points `store_keyed`, `photon_keys`, `pad_items`,
@@ -48,7 +57,7 @@ pub fn sort() -> String {
 
 /// The image gather (entry point `gather_image`).
 pub fn gather() -> String {
-    compose(&[&core::GATHER, &GATHER_RAY_QUERY])
+    compose(&[&GATHER_RAY_QUERY])
 }
 
 /// The running mean (entry point `accumulate`).

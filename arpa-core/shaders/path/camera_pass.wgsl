@@ -1,5 +1,7 @@
-// The camera pass: one invocation per pixel traces the camera path of
-// arpa_core::camera_path::trace_camera_path in f32 and writes its QueryRecord. Group 0: the
+// The camera pass: per pixel, arpa_camera_trace traces the camera path of
+// arpa_core::camera_path::trace_camera_path in f32 and gives its QueryRecord, which the
+// backend's entry point (one invocation per pixel; arpa-wgpu: compute, arpa-vk: ray
+// generation) writes to arpa_camera_queries. Group 0: the
 // scene (scene.wgsl, with the backend's arpa_scene_intersect / arpa_scene_occluded); group
 // 1: the pass's parameters and the query records. Units: metres, world space; radiance
 // W/(m^2 sr).
@@ -198,14 +200,4 @@ fn arpa_camera_trace(pixel: u32) -> ArpaQueryRecord {
     let finite = vec3<bool>(arpa_finite(radiance.x), arpa_finite(radiance.y), arpa_finite(radiance.z));
     rec.radiance = select(vec3<f32>(0.0), radiance, finite);
     return rec;
-}
-
-@compute @workgroup_size(64)
-fn arpa_camera_main(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let c = arpa_camera;
-    let pixel = gid.x + gid.y * c.row_invocations;
-    if gid.x >= c.row_invocations || pixel >= c.pixel_count {
-        return;
-    }
-    arpa_camera_queries[pixel] = arpa_camera_trace(pixel);
 }

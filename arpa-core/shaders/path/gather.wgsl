@@ -17,9 +17,9 @@
 //     the viewer) passed to arpa_gather_candidate in traversal order, then
 //     arpa_gather_result (arpa-wgpu: a point query on ray queries).
 //
-// Entry point gather_image (arpa_gather_pixel per query record, 64-wide workgroups over a
-// 2D grid, linearised): the camera pass's query records in, the iteration's radiance per
-// pixel out, radiance + weight * (E_caustic + E_global) with non-finite components set to
+// Per query record, arpa_gather_pixel (the backend's entry point calls it once per
+// record; arpa-wgpu: compute, arpa-vk: ray generation): the camera pass's query records
+// in, the iteration's radiance per pixel out, radiance + weight * (E_caustic + E_global) with non-finite components set to
 // 0. Photon batches (arpa_core::gpu::batch): an iteration traced in several batches
 // gathers each batch's maps in turn; E is summed over the batches in batch_irradiance and
 // the last batch writes the radiance.
@@ -151,13 +151,4 @@ fn arpa_gather_pixel(i: u32) {
             atomicAdd(&gathered_total[1], 1u);
         }
     }
-}
-
-@compute @workgroup_size(64)
-fn gather_image(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    let i = gid.x + gid.y * groups.x * 64u;
-    if i >= image_params.pixels {
-        return;
-    }
-    arpa_gather_pixel(i);
 }

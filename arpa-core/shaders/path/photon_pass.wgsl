@@ -1,5 +1,8 @@
-// Photon pass on the device: one invocation per photon of the iteration, the WGSL twin of
-// arpa_core::photon_path::trace_photon. Emission from the iteration's prepared lights
+// Photon pass on the device: photon_trace is the WGSL twin of
+// arpa_core::photon_path::trace_photon for one photon; the backend's entry point (one
+// invocation per photon of a batch; arpa-wgpu: compute, arpa-vk: ray generation) calls it
+// for global photon first_photon + local and adds the photon and its segments to
+// photon_counters.emitted / .segments. Emission from the iteration's prepared lights
 // (arpa_core::emission::PackedLight, lattice shift drawn on the host as PhotonPassSetup does),
 // transfer / reflection / refraction of the ray differential (differential.wgsl), Fresnel
 // choice, Russian roulette, diffuse store with the adjoint shading-normal ratio and lobe
@@ -75,9 +78,6 @@ struct PhotonCounters {
 @group(1) @binding(3) var<storage, read_write> photon_footprints: array<ArpaKeyedFootprint>;
 @group(1) @binding(4) var<storage, read_write> photon_photons: array<ArpaKeyedPhoton>;
 @group(1) @binding(5) var<storage, read_write> photon_counters: PhotonCounters;
-
-var<workgroup> photon_wg_emitted: atomic<u32>;
-var<workgroup> photon_wg_segments: atomic<u32>;
 
 fn photon_max3(v: vec3<f32>) -> f32 {
     return max(v.x, max(v.y, v.z));
@@ -396,23 +396,4 @@ fn photon_reflect(at: ArpaRayDiff, valid: bool, nd: PhotonNormal, geometric: vec
         n = nd.nd.n;
     }
     return PhotonReflected(photon_lost(at.p, arpa_reflect_direction(at.d, n)), false);
-}
-
-@compute @workgroup_size(64)
-fn photon_pass(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_index) lid: u32,
-               @builtin(num_workgroups) groups: vec3<u32>) {
-    // Local index within the batch; the photon's global index (its random stream, emitter
-    // and record keys) is first_photon + local, so a batch traces exactly the photons a
-    // single pass over the iteration would at those indices.
-    let local = gid.x + gid.y * groups.x * 64u;
-    if local < photon_params.photon_count {
-        let segments = photon_trace(photon_params.first_photon + local);
-        atomicAdd(&photon_wg_emitted, 1u);
-        atomicAdd(&photon_wg_segments, segments);
-    }
-    workgroupBarrier();
-    if lid == 0u {
-        atomicAdd(&photon_counters.emitted, atomicLoad(&photon_wg_emitted));
-        atomicAdd(&photon_counters.segments, atomicLoad(&photon_wg_segments));
-    }
 }

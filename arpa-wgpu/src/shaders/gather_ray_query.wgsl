@@ -23,3 +23,14 @@ fn arpa_gather_at(q: vec3<f32>, n: vec3<f32>, kernel: u32, radii: vec2<f32>) -> 
     }
     return arpa_gather_result(acc);
 }
+
+// The entry point: arpa_gather_pixel per query record, 64-wide workgroups over a 2D grid,
+// linearised.
+@compute @workgroup_size(64)
+fn gather_image(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = gid.x + gid.y * groups.x * 64u;
+    if i >= image_params.pixels {
+        return;
+    }
+    arpa_gather_pixel(i);
+}
