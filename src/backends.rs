@@ -78,7 +78,25 @@ pub const REGISTRY: &[BackendEntry] = &[
         create: |o| Ok(Box::new(arpa_wgpu::WgpuTracer::new(&wgpu_adapter(o))?)),
         kernel_runner: Some(kernel_runner::wgpu_kernel_runner),
     },
+    #[cfg(feature = "vk")]
+    BackendEntry {
+        kind: BackendKind::Vk,
+        feature: "vk",
+        description: "Vulkan ray-tracing pipelines (ash): a GPU, or lavapipe",
+        takes_adapter: true,
+        create: |o| Ok(Box::new(arpa_vk::VkTracer::new(&vk_adapter(o))?)),
+        kernel_runner: Some(kernel_runner::vk_kernel_runner),
+    },
 ];
+
+/// The Vulkan adapter [`BackendOptions::adapter`] asks for.
+#[cfg(feature = "vk")]
+fn vk_adapter(options: &BackendOptions) -> arpa_vk::AdapterChoice {
+    match &options.adapter {
+        Some(name) => arpa_vk::AdapterChoice::NameContains(name.clone()),
+        None => arpa_vk::AdapterChoice::Auto,
+    }
+}
 
 /// The wgpu adapter [`BackendOptions::adapter`] asks for.
 #[cfg(feature = "wgpu")]

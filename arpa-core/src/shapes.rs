@@ -127,6 +127,42 @@ pub fn icosphere(name: &str, centre: Vec3, radius: f32, subdivisions: u32, smoot
     }
 }
 
+/// The GPU backends' benchmark scene (`cargo bench -p arpa-wgpu`, `-p arpa-vk`): a closed
+/// Cornell-like room (2 m cube, coloured side walls, 12 triangles), a smooth glass icosphere
+/// (IOR 1.5, 1280 triangles), a mirror block and a downward quad light (15 W/(m²·sr)) under
+/// the ceiling; the camera inside the room looks at the sphere, `width × height` pixels.
+/// Metres, world space, y up.
+pub fn glass_room(width: u32, height: u32) -> crate::scene::Scene {
+    use crate::scene::{Camera, Material, Scene};
+    let s = 1.0;
+    let mut light = parallelogram("light", Vec3::new(-0.25, 1.98, -0.25), Vec3::new(0.5, 0.0, 0.0), Vec3::new(0.0, 0.0, 0.5), 0);
+    light.emission = Some(Vec3::splat(15.0));
+    let meshes = vec![
+        parallelogram("floor", Vec3::new(-s, 0.0, -s), Vec3::new(0.0, 0.0, 2.0 * s), Vec3::new(2.0 * s, 0.0, 0.0), 0),
+        parallelogram("ceiling", Vec3::new(-s, 2.0, -s), Vec3::new(2.0 * s, 0.0, 0.0), Vec3::new(0.0, 0.0, 2.0 * s), 0),
+        parallelogram("back", Vec3::new(-s, 0.0, -s), Vec3::new(2.0 * s, 0.0, 0.0), Vec3::new(0.0, 2.0, 0.0), 0),
+        parallelogram("front", Vec3::new(-s, 0.0, s), Vec3::new(0.0, 2.0, 0.0), Vec3::new(2.0 * s, 0.0, 0.0), 0),
+        parallelogram("left", Vec3::new(-s, 0.0, -s), Vec3::new(0.0, 2.0, 0.0), Vec3::new(0.0, 0.0, 2.0 * s), 1),
+        parallelogram("right", Vec3::new(s, 0.0, -s), Vec3::new(0.0, 0.0, 2.0 * s), Vec3::new(0.0, 2.0, 0.0), 2),
+        icosphere("glass", Vec3::new(0.35, 0.45, 0.1), 0.35, 3, true, 3),
+        light,
+        cuboid("mirror block", Vec3::new(-0.7, 0.0, -0.7), Vec3::new(-0.2, 1.1, -0.3), 4),
+    ];
+    Scene {
+        meshes,
+        materials: vec![
+            Material::Diffuse { albedo: Vec3::splat(0.75) },
+            Material::Diffuse { albedo: Vec3::new(0.6, 0.06, 0.05) },
+            Material::Diffuse { albedo: Vec3::new(0.1, 0.6, 0.08) },
+            Material::Dielectric { ior: 1.5, transmittance: Vec3::ONE, roughness: 0.0 },
+            Material::Conductor { reflectance: Vec3::splat(0.95), roughness: 0.0 },
+        ],
+        lights: vec![],
+        camera: Camera { position: Vec3::new(0.0, 1.0, 0.97), target: Vec3::new(0.0, 0.8, 0.0), up: Vec3::Y, vertical_fov: 1.3, width, height },
+        roughness_cutoff: 0.5,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -55,9 +55,13 @@
 
 pub mod accel;
 pub mod buffer;
+pub mod camera;
 pub mod device;
 pub mod error;
+pub mod gather;
+pub mod photons;
 pub mod pipeline;
+pub mod scene;
 pub mod shaders;
 
 pub use accel::{AccelerationStructure, SceneAccel, TlasInstance};

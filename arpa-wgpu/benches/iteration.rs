@@ -6,9 +6,8 @@
 //! cargo bench -p arpa-wgpu --bench iteration
 //! ```
 //!
-//! The scene is built in code: a closed Cornell-like room (2 m cube, coloured side walls,
-//! 12 triangles), a smooth glass icosphere (IOR 1.5, 1280 triangles), a mirror block and a
-//! downward quad light under the ceiling; camera inside the room at 256×256 pixels
+//! The scene is `arpa_core::shapes::glass_room` (a closed Cornell-like room with a glass
+//! sphere, a mirror block and a quad light; arpa-vk's benchmark renders it too) at 256×256 pixels
 //! (`ARPA_WGPU_BENCH_RESOLUTION=WxH` overrides it, e.g. `1920x1080` on a GPU). Each size runs
 //! one warm-up iteration and then `ARPA_WGPU_BENCH_ITERATIONS` (default 3) measured ones and
 //! prints `name: value unit` lines: the mean iteration time and the mean of each stage, the
@@ -24,41 +23,9 @@
 
 use std::time::Instant;
 
-use arpa_core::glam::Vec3;
-use arpa_core::scene::{Camera, Material, Scene};
-use arpa_core::shapes::{cuboid, icosphere, parallelogram};
+use arpa_core::shapes::glass_room;
 use arpa_core::tracer::{IterationStats, Method, RenderSettings, StageTimes, Tracer};
 use arpa_wgpu::{AdapterChoice, WgpuTracer};
-
-fn scene(width: u32, height: u32) -> Scene {
-    let s = 1.0;
-    let mut light = parallelogram("light", Vec3::new(-0.25, 1.98, -0.25), Vec3::new(0.5, 0.0, 0.0), Vec3::new(0.0, 0.0, 0.5), 0);
-    light.emission = Some(Vec3::splat(15.0));
-    let meshes = vec![
-        parallelogram("floor", Vec3::new(-s, 0.0, -s), Vec3::new(0.0, 0.0, 2.0 * s), Vec3::new(2.0 * s, 0.0, 0.0), 0),
-        parallelogram("ceiling", Vec3::new(-s, 2.0, -s), Vec3::new(2.0 * s, 0.0, 0.0), Vec3::new(0.0, 0.0, 2.0 * s), 0),
-        parallelogram("back", Vec3::new(-s, 0.0, -s), Vec3::new(2.0 * s, 0.0, 0.0), Vec3::new(0.0, 2.0, 0.0), 0),
-        parallelogram("front", Vec3::new(-s, 0.0, s), Vec3::new(0.0, 2.0, 0.0), Vec3::new(2.0 * s, 0.0, 0.0), 0),
-        parallelogram("left", Vec3::new(-s, 0.0, -s), Vec3::new(0.0, 2.0, 0.0), Vec3::new(0.0, 0.0, 2.0 * s), 1),
-        parallelogram("right", Vec3::new(s, 0.0, -s), Vec3::new(0.0, 0.0, 2.0 * s), Vec3::new(0.0, 2.0, 0.0), 2),
-        icosphere("glass", Vec3::new(0.35, 0.45, 0.1), 0.35, 3, true, 3),
-        light,
-        cuboid("mirror block", Vec3::new(-0.7, 0.0, -0.7), Vec3::new(-0.2, 1.1, -0.3), 4),
-    ];
-    Scene {
-        meshes,
-        materials: vec![
-            Material::Diffuse { albedo: Vec3::splat(0.75) },
-            Material::Diffuse { albedo: Vec3::new(0.6, 0.06, 0.05) },
-            Material::Diffuse { albedo: Vec3::new(0.1, 0.6, 0.08) },
-            Material::Dielectric { ior: 1.5, transmittance: Vec3::ONE, roughness: 0.0 },
-            Material::Conductor { reflectance: Vec3::splat(0.95), roughness: 0.0 },
-        ],
-        lights: vec![],
-        camera: Camera { position: Vec3::new(0.0, 1.0, 0.97), target: Vec3::new(0.0, 0.8, 0.0), up: Vec3::Y, vertical_fov: 1.3, width, height },
-        roughness_cutoff: 0.5,
-    }
-}
 
 fn load() -> String {
     std::fs::read_to_string("/proc/loadavg").map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" ")).unwrap_or_else(|_| "?".into())
@@ -90,7 +57,7 @@ fn main() {
     };
     println!("device: {}", tracer.capabilities().device);
     println!("resolution: {width}x{height}");
-    let scene = scene(width, height);
+    let scene = glass_room(width, height);
     for &photons in &sizes {
         for method in [Method::Arpa, Method::Rtpm] {
             let settings = RenderSettings { method, photons_per_iteration: photons, seed: 1, ..RenderSettings::default() };

@@ -102,3 +102,38 @@ pub fn wgpu_kernel_runner() -> Result<Box<dyn KernelRunner>, BoxError> {
     Ok(Box::new(WgpuKernelRunner::new(&arpa_wgpu::AdapterChoice::Auto)?))
 }
 
+
+/// The Vulkan backend's runner: `arpa_vk::kernel::run_kernel` (naga → SPIR-V compute) on a
+/// context of its own.
+#[cfg(feature = "vk")]
+pub struct VkKernelRunner {
+    ctx: arpa_vk::VkContext,
+}
+
+#[cfg(feature = "vk")]
+impl VkKernelRunner {
+    /// A runner on the adapter `choice` selects (a context of its own, beside the tracer's).
+    pub fn new(choice: &arpa_vk::AdapterChoice) -> Result<Self, arpa_vk::VkError> {
+        Ok(Self { ctx: arpa_vk::VkContext::new(choice, &arpa_vk::ContextOptions::default())? })
+    }
+}
+
+#[cfg(feature = "vk")]
+impl KernelRunner for VkKernelRunner {
+    fn device(&self) -> String {
+        let i = self.ctx.info();
+        format!("{} ({})", i.name, i.device_type)
+    }
+
+    fn run(&self, job: &KernelJob<'_>) -> Result<Vec<u32>, BoxError> {
+        Ok(arpa_vk::kernel::run_kernel(&self.ctx, job.label, job.source, job.entry, job.input, job.invocations, job.output_words)?)
+    }
+}
+
+/// The Vulkan backend's entry in [`super::BackendEntry::kernel_runner`]: a
+/// [`VkKernelRunner`] on the adapter `AdapterChoice::Auto` picks (a GPU with ray-tracing
+/// pipelines, else lavapipe).
+#[cfg(feature = "vk")]
+pub fn vk_kernel_runner() -> Result<Box<dyn KernelRunner>, BoxError> {
+    Ok(Box::new(VkKernelRunner::new(&arpa_vk::AdapterChoice::Auto)?))
+}

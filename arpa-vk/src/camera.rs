@@ -1,0 +1,69 @@
+//! The camera pass on a ray-tracing pipeline: ray generation `vk_camera_raygen`
+//! ([`crate::shaders::CAMERA_RAYGEN`], the core's `camera_pass.wgsl` per pixel) launched
+//! `(width, height, 1)`, its rays through `scene_trace.wgsl`'s miss and triangle
+//! closest-hit shaders. Writes one [`QueryRecord`] per pixel. Descriptor set 0 is the scene
+//! ([`VkScene`]); set 1 the parameters ([`CameraParams`], uniform) and the query records.
+
+use crate::buffer::Buffer;
+use crate::device::VkContext;
+use crate::error::VkError;
+use crate::pipeline::{BindingKind, Bindings, HitGroup, Resource, RtPipeline, RtPipelineDesc, ShaderEntry};
+use crate::scene::{SCENE_SET, VkScene};
+use crate::shaders::{CAMERA_RAYGEN, compile_wgsl};
+use arpa_core::gpu::layout::CameraParams;
+use arpa_core::tracer::QueryRecord;
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+
+/// Bytes of one query record.
+pub const QUERY_RECORD_BYTES: u64 = size_of::<QueryRecord>() as u64;
+
+/// The camera pass of one render (pipeline, parameters, bindings to its query buffer).
+pub struct CameraPass {
+    bindings: Bindings,
+    pipeline: RtPipeline,
+    params: Buffer,
+    base: CameraParams,
+}
+
+/// A pipeline whose ray generation `raygen` of `module` traces the scene through
+/// `scene_trace.wgsl`'s miss and closest-hit shaders; set 0 the scene, set 1 `pass_set`.
+pub(crate) fn scene_pipeline(ctx: &VkContext, label: &str, source: &str, raygen: &str, pass_set: &[BindingKind]) -> Result<RtPipeline, VkError> {
+    let spirv = compile_wgsl(label, source)?;
+    let module = ctx.create_shader_module(&spirv)?;
+    let entry = |entry| ShaderEntry { module: &module, entry };
+    RtPipeline::new(
+        ctx,
+        &RtPipelineDesc {
+            label,
+            raygen: entry(raygen),
+            miss: &[entry("vk_cast_miss")],
+            hit_groups: &[HitGroup::Triangles { closest_hit: Some(entry("vk_cast_closest_hit")), any_hit: None }],
+            sets: &[&SCENE_SET, pass_set],
+            push_constant_size: 0,
+        },
+    )
+}
+
+impl CameraPass {
+    /// The pass for `params` (iteration 0; [`CameraPass::run`] sets the iteration), writing
+    /// `width · height` records into `queries`.
+    pub fn new(ctx: &VkContext, scene: &VkScene, params: CameraParams, queries: &Buffer) -> Result<Self, VkError> {
+        let source = arpa_core::shaders::compose(&[&CAMERA_RAYGEN]);
+        let pipeline = scene_pipeline(ctx, "camera pass", &source, "vk_camera_raygen", &[BindingKind::UniformBuffer, BindingKind::StorageBuffer])?;
+        let mut uniform = ctx.create_buffer("camera pass parameters", size_of::<CameraParams>() as u64, vk::BufferUsageFlags::UNIFORM_BUFFER, MemoryLocation::CpuToGpu)?;
+        uniform.write(0, bytemuck::bytes_of(&params))?;
+        let bindings = pipeline.bind(&[&scene.resources(), &[Resource::UniformBuffer(&uniform), Resource::StorageBuffer(queries)]])?;
+        Ok(Self { bindings, pipeline, params: uniform, base: params })
+    }
+
+    /// Traces iteration `iteration`'s query records and waits for them.
+    pub fn run(&mut self, ctx: &VkContext, iteration: u32) -> Result<(), VkError> {
+        let p = CameraParams { iteration, ..self.base };
+        self.params.write(0, bytemuck::bytes_of(&p))?;
+        if p.pixel_count == 0 {
+            return Ok(());
+        }
+        self.pipeline.trace_and_wait(ctx, &self.bindings, &[], [p.width, p.height, 1])
+    }
+}

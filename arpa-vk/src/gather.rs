@@ -1,0 +1,127 @@
+//! The gather on a ray-tracing pipeline: ray generation `vk_gather_raygen`
+//! ([`crate::shaders::GATHER_RAYGEN`], the core's `gather.wgsl` per query record) casts one
+//! ray of negligible length from each valid query point through the top level over the
+//! photon maps' boxes; the AABB hit group is GLSL ([`GATHER_INTERSECTION`]: the exact
+//! filter-space or sphere test; [`GATHER_ANY_HIT`]: the contribution into the payload, then
+//! `ignoreIntersectionEXT`), the miss shader is WGSL. Writes
+//! `radiance + weight · (E_caustic + E_global)` per pixel and counts contributions and valid
+//! query points.
+//!
+//! Descriptor set 0 as `gather.wgsl` declares it: 0 footprints, 1 photons, 2 query records,
+//! 3 image, 4 parameters ([`GatherImageParams`]), 5 the counts, 6 the per-pixel batch
+//! irradiance (unused: one batch per iteration), 7 the top level.
+//!
+//! # Order of the sum
+//! The any-hit shader adds contributions in the order the traversal visits the boxes. That
+//! order is a function of the acceleration structure, which is built from records sorted by
+//! (map, Morton code, photon key) — independent of the order the photon pass appended them —
+//! so the sum, and the image, are the same for the same seed on the same adapter and driver.
+//! It is not the core's order: the image agrees with the CPU backend's to `f32` summation
+//! error, not bit for bit.
+
+use crate::accel::AccelerationStructure;
+use crate::buffer::Buffer;
+use crate::device::VkContext;
+use crate::error::VkError;
+use crate::pipeline::{BindingKind, HitGroup, Resource, RtPipeline, RtPipelineDesc, ShaderEntry};
+use crate::shaders::{GATHER_ANY_HIT, GATHER_INTERSECTION, GATHER_RAYGEN, GlslStage, compile_wgsl};
+use arpa_core::gpu::layout::{GatherBatch, GatherImageParams};
+use arpa_core::kernel::Kernel;
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+
+/// Rays per row of the gather's launch (`(x, y, 1)`, x fastest).
+const LAUNCH_WIDTH: u32 = 16_384;
+
+/// What the records of one iteration give the gather.
+pub struct GatherInputs<'a> {
+    /// Sorted footprints (`PackedFootprint`), at least one record's bytes.
+    pub footprints: &'a Buffer,
+    /// Sorted progressive photons (`PackedPhoton`), at least one record's bytes.
+    pub photons: &'a Buffer,
+    /// The top level over their boxes (custom index and mask as `gather.wgsl` states).
+    pub tlas: &'a AccelerationStructure,
+    /// Progressive radius per map (metres).
+    pub radii: [f32; 2],
+}
+
+/// The gather of one render: pipeline and its parameter and count buffers.
+pub struct GatherPass {
+    pipeline: RtPipeline,
+    params: Buffer,
+    counts: Buffer,
+    batch_irradiance: Buffer,
+    kernel: Kernel,
+    pixels: u32,
+}
+
+/// Contributions summed and valid query points of one gather.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct GatherCounts {
+    /// Records that contributed, over every query point.
+    pub contributions: u64,
+    /// Query records with a valid query point.
+    pub query_points: u64,
+}
+
+impl GatherPass {
+    /// The gather of `pixels` query records with footprint kernel `kernel`.
+    pub fn new(ctx: &VkContext, kernel: Kernel, pixels: u32) -> Result<Self, VkError> {
+        let spirv = compile_wgsl("gather", &arpa_core::shaders::compose(&[&GATHER_RAYGEN]))?;
+        let module = ctx.create_shader_module(&spirv)?;
+        let glsl = |g: &GlslStage| ctx.create_shader_module(&g.module()?);
+        let (rint, rahit) = (glsl(&GATHER_INTERSECTION)?, glsl(&GATHER_ANY_HIT)?);
+        let main = |entry: &'static str| ShaderEntry { module: &module, entry };
+        use BindingKind::{AccelerationStructure as As, StorageBuffer as Sb};
+        let pipeline = RtPipeline::new(
+            ctx,
+            &RtPipelineDesc {
+                label: "gather",
+                raygen: main("vk_gather_raygen"),
+                miss: &[main("vk_gather_miss")],
+                hit_groups: &[HitGroup::Procedural {
+                    intersection: ShaderEntry { module: &rint, entry: GlslStage::ENTRY },
+                    any_hit: Some(ShaderEntry { module: &rahit, entry: GlslStage::ENTRY }),
+                    closest_hit: None,
+                }],
+                sets: &[&[Sb, Sb, Sb, Sb, Sb, Sb, Sb, As]],
+                push_constant_size: 0,
+            },
+        )?;
+        let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        Ok(Self {
+            pipeline,
+            params: ctx.create_buffer("gather parameters", size_of::<GatherImageParams>() as u64, storage, MemoryLocation::CpuToGpu)?,
+            counts: ctx.create_buffer("gather counts", 16, storage, MemoryLocation::GpuToCpu)?,
+            batch_irradiance: ctx.create_buffer("gather batch irradiance (unused)", 16, storage, MemoryLocation::GpuOnly)?,
+            kernel,
+            pixels,
+        })
+    }
+
+    /// Gathers every query record of `queries` from `maps` into `image` (one `vec4<f32>`
+    /// per pixel), waits, and returns the counts.
+    pub fn run(&mut self, ctx: &VkContext, queries: &Buffer, image: &Buffer, maps: &GatherInputs<'_>) -> Result<GatherCounts, VkError> {
+        let params = GatherImageParams::new(maps.radii, self.kernel, self.pixels, GatherBatch { first: true, last: true });
+        self.params.write(0, bytemuck::bytes_of(&params))?;
+        self.counts.write(0, &[0u8; 16])?;
+        if self.pixels == 0 {
+            return Ok(GatherCounts::default());
+        }
+        let set = [
+            Resource::StorageBuffer(maps.footprints),
+            Resource::StorageBuffer(maps.photons),
+            Resource::StorageBuffer(queries),
+            Resource::StorageBuffer(image),
+            Resource::StorageBuffer(&self.params),
+            Resource::StorageBuffer(&self.counts),
+            Resource::StorageBuffer(&self.batch_irradiance),
+            Resource::AccelerationStructure(maps.tlas),
+        ];
+        let bindings = self.pipeline.bind(&[&set])?;
+        let x = self.pixels.min(LAUNCH_WIDTH);
+        self.pipeline.trace_and_wait(ctx, &bindings, &[], [x, self.pixels.div_ceil(x), 1])?;
+        let c: [u32; 4] = bytemuck::pod_read_unaligned(&self.counts.read(0, 16)?);
+        Ok(GatherCounts { contributions: u64::from(c[0]) | u64::from(c[1]) << 32, query_points: u64::from(c[2]) })
+    }
+}

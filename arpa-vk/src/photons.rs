@@ -1,0 +1,150 @@
+//! The photon pass on a ray-tracing pipeline: ray generation `vk_photon_raygen`
+//! ([`crate::shaders::PHOTON_RAYGEN`], the core's `photon_pass.wgsl` per photon), its rays
+//! through `scene_trace.wgsl`'s miss and triangle closest-hit shaders. Photons append keyed
+//! raw footprints and keyed progressive photons with atomics into [`PhotonOutputs`] and
+//! count themselves in [`PhotonCounters`]. Descriptor set 0 is the scene ([`VkScene`]);
+//! set 1: the parameters ([`PhotonParams`], uniform), the packed lights, the emitter ranges,
+//! the two append buffers and the counters, as `photon_pass.wgsl` declares them.
+
+use crate::buffer::Buffer;
+use crate::camera::scene_pipeline;
+use crate::device::VkContext;
+use crate::error::VkError;
+use crate::pipeline::{BindingKind, Bindings, Resource, RtPipeline};
+use crate::scene::VkScene;
+use crate::shaders::PHOTON_RAYGEN;
+use arpa_core::emission::PackedLight;
+use arpa_core::gpu::layout::{EmitterRange, KeyedFootprint, KeyedPhoton, PhotonCounters, PhotonParams, emitter_tables};
+use arpa_core::photon_path::PhotonPassSetup;
+use arpa_core::tracer::RenderSettings;
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+
+/// Rays per row of the photon pass's launch (the launch is `(x, y, 1)`, x fastest).
+const LAUNCH_WIDTH: u32 = 16_384;
+
+/// The photon pass's append buffers and counters.
+pub struct PhotonOutputs {
+    footprints: Buffer,
+    photons: Buffer,
+    counters: Buffer,
+    footprint_capacity: u32,
+    photon_capacity: u32,
+}
+
+impl PhotonOutputs {
+    /// Buffers for `footprint_capacity` keyed footprints and `photon_capacity` keyed photons
+    /// (each at least 1).
+    pub fn new(ctx: &VkContext, footprint_capacity: u32, photon_capacity: u32) -> Result<Self, VkError> {
+        let (fc, pc) = (footprint_capacity.max(1), photon_capacity.max(1));
+        let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC;
+        Ok(Self {
+            footprints: ctx.create_buffer("photon pass footprints", u64::from(fc) * size_of::<KeyedFootprint>() as u64, usage, MemoryLocation::GpuOnly)?,
+            photons: ctx.create_buffer("photon pass progressive photons", u64::from(pc) * size_of::<KeyedPhoton>() as u64, usage, MemoryLocation::GpuOnly)?,
+            // Zeroed and read by the host around each pass.
+            counters: ctx.create_buffer("photon pass counters", size_of::<PhotonCounters>() as u64, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::GpuToCpu)?,
+            footprint_capacity: fc,
+            photon_capacity: pc,
+        })
+    }
+
+    /// The keyed raw footprints ([`KeyedFootprint`]).
+    pub fn footprints(&self) -> &Buffer {
+        &self.footprints
+    }
+
+    /// The keyed progressive photons ([`KeyedPhoton`]).
+    pub fn photons(&self) -> &Buffer {
+        &self.photons
+    }
+
+    /// Records the footprint buffer holds.
+    pub fn footprint_capacity(&self) -> u32 {
+        self.footprint_capacity
+    }
+
+    /// Records the photon buffer holds.
+    pub fn photon_capacity(&self) -> u32 {
+        self.photon_capacity
+    }
+}
+
+/// The photon pass of one render.
+pub struct PhotonPass {
+    bindings: Option<Bindings>,
+    pipeline: RtPipeline,
+    params: Buffer,
+    lights: Buffer,
+    ranges: Buffer,
+    emitters: usize,
+    settings: RenderSettings,
+}
+
+impl PhotonPass {
+    /// The pass for a scene with `emitters` emitters under `settings`.
+    pub fn new(ctx: &VkContext, emitters: usize, settings: &RenderSettings) -> Result<Self, VkError> {
+        let source = arpa_core::shaders::compose(&[&PHOTON_RAYGEN]);
+        use BindingKind::{StorageBuffer as Sb, UniformBuffer as Ub};
+        let pipeline = scene_pipeline(ctx, "photon pass", &source, "vk_photon_raygen", &[Ub, Sb, Sb, Sb, Sb, Sb])?;
+        let n = emitters.max(1) as u64;
+        let host = MemoryLocation::CpuToGpu;
+        Ok(Self {
+            bindings: None,
+            pipeline,
+            params: ctx.create_buffer("photon pass parameters", size_of::<PhotonParams>() as u64, vk::BufferUsageFlags::UNIFORM_BUFFER, host)?,
+            lights: ctx.create_buffer("photon pass lights", n * size_of::<PackedLight>() as u64, vk::BufferUsageFlags::STORAGE_BUFFER, host)?,
+            ranges: ctx.create_buffer("photon pass emitter ranges", n * size_of::<EmitterRange>() as u64, vk::BufferUsageFlags::STORAGE_BUFFER, host)?,
+            emitters,
+            settings: *settings,
+        })
+    }
+
+    /// Binds the scene and `out` (call again after `out` is replaced).
+    pub fn bind(&mut self, scene: &VkScene, out: &PhotonOutputs) -> Result<(), VkError> {
+        self.bindings = None;
+        let pass = [
+            Resource::UniformBuffer(&self.params),
+            Resource::StorageBuffer(&self.lights),
+            Resource::StorageBuffer(&self.ranges),
+            Resource::StorageBuffer(&out.footprints),
+            Resource::StorageBuffer(&out.photons),
+            Resource::StorageBuffer(&out.counters),
+        ];
+        self.bindings = Some(self.pipeline.bind(&[&scene.resources(), &pass])?);
+        Ok(())
+    }
+
+    /// Traces every photon of the iteration `setup` into `out` (bound with
+    /// [`PhotonPass::bind`]), waits, and returns the counters.
+    ///
+    /// Errors: [`VkError::InvalidInput`] when `setup` is for another emitter count, when the
+    /// record keys `photons · max_depth` overflow `u32`, or when nothing is bound.
+    pub fn run(&mut self, ctx: &VkContext, setup: &PhotonPassSetup, out: &mut PhotonOutputs) -> Result<PhotonCounters, VkError> {
+        let invalid = |reason: String| VkError::InvalidInput { what: "photon pass".into(), reason };
+        if setup.lights.len() != self.emitters || setup.allocation.len() != self.emitters || setup.first_index.len() != self.emitters {
+            return Err(invalid(format!("{} emitters in the setup, the pass was made for {}", setup.lights.len(), self.emitters)));
+        }
+        let photons = setup.photon_count();
+        if u64::from(photons) * u64::from(self.settings.max_depth) > u64::from(u32::MAX) {
+            return Err(invalid(format!("{photons} photons × max_depth {} overflow the u32 record keys", self.settings.max_depth)));
+        }
+        if self.bindings.is_none() {
+            return Err(invalid("no output buffers bound".into()));
+        }
+        let (lights, ranges) = emitter_tables(setup);
+        let params = PhotonParams::new(&self.settings, setup.iteration, self.emitters as u32, 0..photons);
+        self.params.write(0, bytemuck::bytes_of(&params))?;
+        self.lights.write(0, bytemuck::cast_slice(&lights))?;
+        self.ranges.write(0, bytemuck::cast_slice(&ranges))?;
+        // Host-visible: zeroed by the host before the submission, read after the wait.
+        let mut counters = PhotonCounters::default();
+        out.counters.write(0, bytemuck::bytes_of(&counters))?;
+        if photons > 0 {
+            let x = photons.min(LAUNCH_WIDTH);
+            let bindings = self.bindings.as_ref().ok_or_else(|| invalid("no output buffers bound".into()))?;
+            self.pipeline.trace_and_wait(ctx, bindings, &[], [x, photons.div_ceil(x), 1])?;
+            counters = bytemuck::pod_read_unaligned(&out.counters.read(0, size_of::<PhotonCounters>() as u64)?);
+        }
+        Ok(counters)
+    }
+}
