@@ -93,6 +93,24 @@ impl Drop for AccelerationStructure {
     }
 }
 
+/// Bytes of one box of an AABB geometry (`VkAabbPositionsKHR`: min xyz, max xyz, `f32`).
+pub const AABB_STRIDE: u64 = 24;
+
+/// A range of boxes in a device buffer, the input of one AABB bottom level
+/// ([`VkContext::build_aabb_blases`]).
+#[derive(Clone, Copy)]
+pub struct AabbRange<'a> {
+    /// Names the bottom level.
+    pub label: &'a str,
+    /// The boxes (`[min x, min y, min z, max x, max y, max z]`, metres, 24 bytes each), with
+    /// `ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR | SHADER_DEVICE_ADDRESS` usage.
+    pub boxes: &'a Buffer,
+    /// Index of the first box of the range.
+    pub first: u32,
+    /// Boxes in the range (at least 1).
+    pub count: u32,
+}
+
 /// One instance of a top-level structure (`VkAccelerationStructureInstanceKHR`).
 #[derive(Clone, Copy, Debug)]
 pub struct TlasInstance<'a> {
@@ -363,22 +381,59 @@ impl VkContext {
             });
         }
         let b = input_buffer(self, &format!("{label} boxes"), bytemuck::cast_slice(boxes))?;
-        let aabbs = vk::AccelerationStructureGeometryAabbsDataKHR::default()
-            .data(vk::DeviceOrHostAddressConstKHR { device_address: input_address(&b, 8)? })
-            .stride(24);
-        let geometry = vk::AccelerationStructureGeometryKHR::default()
-            .geometry_type(vk::GeometryTypeKHR::AABBS)
-            .geometry(vk::AccelerationStructureGeometryDataKHR { aabbs })
-            .flags(vk::GeometryFlagsKHR::NO_DUPLICATE_ANY_HIT_INVOCATION);
-        let request = BuildRequest {
-            label: label.into(),
-            level: vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL,
-            geometry,
-            primitive_count: boxes.len() as u32,
-        };
-        let mut built = self.build_structures(std::slice::from_ref(&request))?;
+        let range = AabbRange { label, boxes: &b, first: 0, count: boxes.len() as u32 };
+        let mut built = self.build_aabb_blases(std::slice::from_ref(&range))?;
         drop(b);
         Ok(built.remove(0))
+    }
+
+    /// Builds one AABB bottom level per range of boxes already on the device (e.g. the
+    /// sorted box buffers of [`crate::maps::MapStore`]), all in one submission, without
+    /// copying them: range `r`'s geometry reads `r.count` boxes of [`AABB_STRIDE`] bytes from
+    /// `r.boxes`' device address + `r.first` × 24. Geometry flags as
+    /// [`VkContext::build_aabb_blas`] (not opaque, no duplicate any-hit). The boxes must have
+    /// been written before this call's submission with a barrier to the build stage (e.g.
+    /// [`crate::compute::record_compute_barrier`]).
+    ///
+    /// Errors: [`VkError::InvalidInput`] for an empty range or one beyond
+    /// `maxPrimitiveCount` or past the buffer's end, or a buffer without
+    /// `ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR` and `SHADER_DEVICE_ADDRESS` usage;
+    /// device errors as [`VkContext::create_buffer`].
+    pub fn build_aabb_blases(&self, ranges: &[AabbRange<'_>]) -> Result<Vec<AccelerationStructure>, VkError> {
+        let max = self.ray_tracing().max_primitive_count;
+        let needed = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+        let mut requests = Vec::with_capacity(ranges.len());
+        for r in ranges {
+            let invalid = |reason: String| VkError::InvalidInput { what: r.label.into(), reason };
+            if r.count == 0 || u64::from(r.count) > max {
+                return Err(invalid(format!("{} boxes (1 to maxPrimitiveCount {max} allowed)", r.count)));
+            }
+            if !r.boxes.usage().contains(needed) {
+                return Err(invalid(format!("box buffer {:?} lacks BUILD_INPUT_READ_ONLY and SHADER_DEVICE_ADDRESS usage", r.boxes.label())));
+            }
+            let end = (u64::from(r.first) + u64::from(r.count)) * AABB_STRIDE;
+            if end > r.boxes.size() {
+                return Err(invalid(format!("boxes {}..{} past the {}-byte buffer {:?}", r.first, r.first + r.count, r.boxes.size(), r.boxes.label())));
+            }
+            let address = input_address(r.boxes, 8)? + u64::from(r.first) * AABB_STRIDE;
+            let aabbs = vk::AccelerationStructureGeometryAabbsDataKHR::default()
+                .data(vk::DeviceOrHostAddressConstKHR { device_address: address })
+                .stride(AABB_STRIDE);
+            let geometry = vk::AccelerationStructureGeometryKHR::default()
+                .geometry_type(vk::GeometryTypeKHR::AABBS)
+                .geometry(vk::AccelerationStructureGeometryDataKHR { aabbs })
+                .flags(vk::GeometryFlagsKHR::NO_DUPLICATE_ANY_HIT_INVOCATION);
+            requests.push(BuildRequest {
+                label: r.label.into(),
+                level: vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL,
+                geometry,
+                primitive_count: r.count,
+            });
+        }
+        if requests.is_empty() {
+            return Ok(Vec::new());
+        }
+        self.build_structures(&requests)
     }
 
     /// Builds a top level over `instances` (possibly none) in one submission, after every

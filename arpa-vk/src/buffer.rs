@@ -157,6 +157,11 @@ impl Drop for Buffer {
     }
 }
 
+/// Bytes read back as `T`s (whole records; the host copy need not be aligned for `T`).
+pub(crate) fn pod_vec<T: bytemuck::Pod>(bytes: &[u8]) -> Vec<T> {
+    bytes.chunks_exact(size_of::<T>()).map(bytemuck::pod_read_unaligned).collect()
+}
+
 /// Unfinished one-time submission: frees its command buffer and fence however it ends.
 struct OneShot<'a> {
     device: &'a ash::Device,

@@ -40,44 +40,77 @@
 //!   intersection. One short ray per query point through it agrees with
 //!   `arpa_core::estimate::gather_brute_force` (counts exact, sums to f32 summation error;
 //!   `tests/gather_hit_group.rs`, with a GLSL test ray generation and miss).
+//! - **Compute** ([`compute`]): compute pipelines of one WGSL entry point (naga → SPIR-V),
+//!   descriptor sets shared with the ray-tracing pipelines, push constants, dispatches checked
+//!   against `maxComputeWorkGroupCount`, the core's linear 64-wide dispatch
+//!   ([`compute::linear_groups`]) and a compute barrier ([`record_compute_barrier`]).
+//!   [`run_kernel`] runs one WGSL kernel under the facade's kernel contract (the twin cases);
+//!   tested on a tiny kernel and the core's rng twin (`tests/maps.rs`).
+//! - **Photon maps on the device** ([`maps`], [`map_accel`]): the core's keyed store, bitonic
+//!   sort and compaction ([`MapStore`]: one batch per iteration, one 48-byte counter readback
+//!   between the store and the sort), then AABB bottom levels over ranges of the sorted box
+//!   buffers by device address and a top level with the core's instance convention
+//!   ([`MapAccel`]). Tested against a CPU reference (outcomes = the core's heuristics, photons
+//!   = the host's sort bit for bit, independent of the append order) and through the GLSL
+//!   gather hit group (counts = brute force).
+//! - **Running mean** ([`accumulate`]): the core's `accumulate.wgsl` ([`DeviceAccumulator`]).
 //! - Every failure is a [`VkError`]: no loader, no adapter, a missing extension or feature
 //!   (naming the adapter and each one), out of device memory, device lost, a failing Vulkan
 //!   call, a shader naga rejects, an invalid input.
 //!
 //! What the tracer still needs: the gather's production ray generation (query records in,
 //! image out, an order-independent sum), the camera and photon passes as raygen shaders over
-//! the core's path WGSL, the store/sort/box-build/gather/accumulate chain in one submission
-//! per iteration, and the `arpa_core::tracer::Tracer` implementation with its registry entry.
+//! the core's path WGSL, the chain (photon pass, store, sort, build, gather, accumulate) in as
+//! few submissions per iteration as the counter readback allows, and the
+//! `arpa_core::tracer::Tracer` implementation with its registry entry.
 //! Box BLASes cannot simply be built over the full capacity with inactive (NaN) boxes: on
-//! lavapipe that loses real boxes in traversal (see [`VkContext::build_aabb_blas`]).
+//! lavapipe that loses real boxes in traversal (see [`VkContext::build_aabb_blas`]), hence the
+//! readback that sizes them.
+//!
+//! On lavapipe the first dispatch of a pipeline compiles it (llvmpipe). naga's polyfill of
+//! WGSL's workgroup-memory zero initialisation made the sort's shared-memory kernels take
+//! minutes to compile there on a cold Mesa shader cache, so the sort is compiled without it
+//! ([`shaders::compile_wgsl_with`]; the kernels write every shared element before reading).
 
 #![warn(missing_docs)]
 
 pub mod accel;
+pub mod accumulate;
 pub mod buffer;
 pub mod camera;
+pub mod compute;
 pub mod device;
 pub mod error;
 pub mod gather;
+pub mod kernel;
+pub mod map_accel;
+pub mod maps;
 pub mod photons;
 pub mod pipeline;
 pub mod scene;
 pub mod shaders;
+pub mod tracer;
 
-pub use accel::{AccelerationStructure, SceneAccel, TlasInstance};
+pub use accel::{AabbRange, AccelerationStructure, SceneAccel, TlasInstance};
+pub use accumulate::DeviceAccumulator;
 pub use ash;
 pub use ash::vk;
 pub use buffer::Buffer;
+pub use compute::{ComputePipeline, ComputePipelineDesc, record_compute_barrier};
 pub use device::{
     AdapterChoice, ApiVersion, ContextOptions, DeviceInfo, DeviceType, MemoryHeap, MemoryLimits, RayTracingProperties, Severity,
     ValidationLog, ValidationMessage, VkContext,
 };
 pub use error::{AdapterSummary, VkError};
 pub use gpu_allocator::MemoryLocation;
+pub use kernel::run_kernel;
+pub use map_accel::{MapAccel, MapInstance};
+pub use maps::MapStore;
 pub use pipeline::{
     BindingKind, Bindings, HitGroup, Resource, RtPipeline, RtPipelineDesc, SbtLayout, SbtRegion, ShaderEntry, ShaderModule,
 };
-pub use shaders::{GlslStage, SpirvModule, compile_wgsl};
+pub use shaders::{GlslStage, SpirvModule, compile_wgsl, compile_wgsl_with};
+pub use tracer::{VkTracer, VkTracerError};
 
 #[cfg(test)]
 mod tests {

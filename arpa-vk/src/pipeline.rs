@@ -199,11 +199,11 @@ pub struct RtPipeline {
 }
 
 /// The objects made so far while creating a pipeline, destroyed if creation fails.
-struct Partial<'a> {
-    device: &'a ash::Device,
-    set_layouts: Vec<vk::DescriptorSetLayout>,
-    layout: vk::PipelineLayout,
-    pipeline: vk::Pipeline,
+pub(crate) struct Partial<'a> {
+    pub(crate) device: &'a ash::Device,
+    pub(crate) set_layouts: Vec<vk::DescriptorSetLayout>,
+    pub(crate) layout: vk::PipelineLayout,
+    pub(crate) pipeline: vk::Pipeline,
 }
 
 impl Drop for Partial<'_> {
@@ -233,30 +233,8 @@ impl RtPipeline {
         let device = ctx.device();
         let loader = ash::khr::ray_tracing_pipeline::Device::new(ctx.instance(), device);
         let mut partial = Partial { device, set_layouts: Vec::new(), layout: vk::PipelineLayout::null(), pipeline: vk::Pipeline::null() };
-        for kinds in desc.sets {
-            let bindings: Vec<vk::DescriptorSetLayoutBinding<'_>> = kinds
-                .iter()
-                .enumerate()
-                .map(|(i, k)| {
-                    vk::DescriptorSetLayoutBinding::default()
-                        .binding(i as u32)
-                        .descriptor_type(k.descriptor_type())
-                        .descriptor_count(1)
-                        .stage_flags(RT_STAGES)
-                })
-                .collect();
-            let info = vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings);
-            // SAFETY: a valid create info.
-            let l = unsafe { device.create_descriptor_set_layout(&info, None) }.vk("vkCreateDescriptorSetLayout")?;
-            partial.set_layouts.push(l);
-        }
-        let push = [vk::PushConstantRange::default().stage_flags(RT_STAGES).offset(0).size(desc.push_constant_size)];
-        let mut layout_info = vk::PipelineLayoutCreateInfo::default().set_layouts(&partial.set_layouts);
-        if desc.push_constant_size > 0 {
-            layout_info = layout_info.push_constant_ranges(&push);
-        }
-        // SAFETY: valid set layouts.
-        partial.layout = unsafe { device.create_pipeline_layout(&layout_info, None) }.vk("vkCreatePipelineLayout")?;
+        create_set_layouts(device, desc.sets, RT_STAGES, &mut partial.set_layouts)?;
+        partial.layout = create_pipeline_layout(device, &partial.set_layouts, RT_STAGES, desc.push_constant_size)?;
 
         // Stages and groups.
         let mut names: Vec<CString> = Vec::new();
@@ -395,68 +373,7 @@ impl RtPipeline {
     ///
     /// Errors: [`VkError::InvalidInput`] for a count or kind that does not match.
     pub fn bind(&self, sets: &[&[Resource<'_>]]) -> Result<Bindings, VkError> {
-        let invalid = |reason: String| VkError::InvalidInput { what: format!("bindings of ray-tracing pipeline {:?}", self.label), reason };
-        if sets.len() != self.set_kinds.len() {
-            return Err(invalid(format!("{} sets given, the pipeline has {}", sets.len(), self.set_kinds.len())));
-        }
-        let mut counts = [0u32; 3];
-        for (s, (given, kinds)) in sets.iter().zip(&self.set_kinds).enumerate() {
-            if given.len() != kinds.len() {
-                return Err(invalid(format!("set {s}: {} bindings given, the layout has {}", given.len(), kinds.len())));
-            }
-            for (b, (r, k)) in given.iter().zip(kinds).enumerate() {
-                if r.kind() != *k {
-                    return Err(invalid(format!("set {s} binding {b}: a {:?} given, the layout has a {k:?}", r.kind())));
-                }
-                if let Resource::AccelerationStructure(a) = r
-                    && a.level() != vk::AccelerationStructureTypeKHR::TOP_LEVEL
-                {
-                    return Err(invalid(format!("set {s} binding {b}: {:?} is not a top-level structure", a.label())));
-                }
-                counts[*k as usize] += 1;
-            }
-        }
-        let device = &self.shared.device.device;
-        let sizes: Vec<vk::DescriptorPoolSize> =
-            [BindingKind::StorageBuffer, BindingKind::UniformBuffer, BindingKind::AccelerationStructure]
-                .iter()
-                .filter(|k| counts[**k as usize] > 0)
-                .map(|k| vk::DescriptorPoolSize::default().ty(k.descriptor_type()).descriptor_count(counts[*k as usize]))
-                .collect();
-        let pool_info = vk::DescriptorPoolCreateInfo::default().max_sets(sets.len().max(1) as u32).pool_sizes(&sizes);
-        // SAFETY: a valid create info.
-        let pool = unsafe { device.create_descriptor_pool(&pool_info, None) }.vk("vkCreateDescriptorPool")?;
-        let mut bindings = Bindings { pool, sets: Vec::new(), shared: Arc::clone(&self.shared) };
-        if sets.is_empty() {
-            return Ok(bindings);
-        }
-        let alloc = vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&self.set_layouts);
-        // SAFETY: the pool has room for these sets.
-        let allocated = unsafe { device.allocate_descriptor_sets(&alloc) }.vk("vkAllocateDescriptorSets")?;
-        bindings.sets = allocated;
-        for (s, given) in sets.iter().enumerate() {
-            for (b, r) in given.iter().enumerate() {
-                let write = vk::WriteDescriptorSet::default()
-                    .dst_set(bindings.sets[s])
-                    .dst_binding(b as u32)
-                    .descriptor_type(r.kind().descriptor_type());
-                match r {
-                    Resource::StorageBuffer(buf) | Resource::UniformBuffer(buf) => {
-                        let info = [vk::DescriptorBufferInfo::default().buffer(buf.raw()).offset(0).range(vk::WHOLE_SIZE)];
-                        // SAFETY: a live buffer of the right usage (checked by validation).
-                        unsafe { device.update_descriptor_sets(&[write.buffer_info(&info)], &[]) };
-                    }
-                    Resource::AccelerationStructure(a) => {
-                        let handles = [a.raw()];
-                        let mut as_write = vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(&handles);
-                        let write = write.descriptor_count(1).push_next(&mut as_write);
-                        // SAFETY: a live top-level structure.
-                        unsafe { device.update_descriptor_sets(&[write], &[]) };
-                    }
-                }
-            }
-        }
-        Ok(bindings)
+        allocate_bindings(&self.shared, &format!("bindings of ray-tracing pipeline {:?}", self.label), &self.set_layouts, &self.set_kinds, sets)
     }
 
     /// Checks a launch against `maxRayDispatchInvocationCount` and the push-constant size.
@@ -597,11 +514,11 @@ impl Resource<'_> {
     }
 }
 
-/// Descriptor sets of one pipeline ([`RtPipeline::bind`]) and their pool, destroyed on drop.
+/// Descriptor sets of one pipeline ([`RtPipeline::bind`], `ComputePipeline::bind`) and their pool, destroyed on drop.
 /// The resources they name must outlive every trace that uses them.
 pub struct Bindings {
     pool: vk::DescriptorPool,
-    sets: Vec<vk::DescriptorSet>,
+    pub(crate) sets: Vec<vk::DescriptorSet>,
     shared: Arc<Shared>,
 }
 
@@ -610,6 +527,127 @@ impl Drop for Bindings {
         // SAFETY: no submission using the sets is pending (every one is waited for).
         unsafe { self.shared.device.device.destroy_descriptor_pool(self.pool, None) };
     }
+}
+
+/// Creates one descriptor-set layout per entry of `sets` (binding `b` of set `s` of kind
+/// `sets[s][b]`, visible to `stages`), pushing each onto `out` as it is made (so a caller's
+/// [`Partial`] destroys them if a later one fails). Shared by ray-tracing and compute
+/// pipelines.
+pub(crate) fn create_set_layouts(
+    device: &ash::Device,
+    sets: &[&[BindingKind]],
+    stages: vk::ShaderStageFlags,
+    out: &mut Vec<vk::DescriptorSetLayout>,
+) -> Result<(), VkError> {
+    for kinds in sets {
+        let bindings: Vec<vk::DescriptorSetLayoutBinding<'_>> = kinds
+            .iter()
+            .enumerate()
+            .map(|(i, k)| {
+                vk::DescriptorSetLayoutBinding::default()
+                    .binding(i as u32)
+                    .descriptor_type(k.descriptor_type())
+                    .descriptor_count(1)
+                    .stage_flags(stages)
+            })
+            .collect();
+        let info = vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings);
+        // SAFETY: a valid create info.
+        let l = unsafe { device.create_descriptor_set_layout(&info, None) }.vk("vkCreateDescriptorSetLayout")?;
+        out.push(l);
+    }
+    Ok(())
+}
+
+/// Creates a pipeline layout over `set_layouts` with a push-constant block of
+/// `push_constant_size` bytes (none when 0) visible to `stages`.
+pub(crate) fn create_pipeline_layout(
+    device: &ash::Device,
+    set_layouts: &[vk::DescriptorSetLayout],
+    stages: vk::ShaderStageFlags,
+    push_constant_size: u32,
+) -> Result<vk::PipelineLayout, VkError> {
+    let push = [vk::PushConstantRange::default().stage_flags(stages).offset(0).size(push_constant_size)];
+    let mut layout_info = vk::PipelineLayoutCreateInfo::default().set_layouts(set_layouts);
+    if push_constant_size > 0 {
+        layout_info = layout_info.push_constant_ranges(&push);
+    }
+    // SAFETY: valid set layouts of this device.
+    unsafe { device.create_pipeline_layout(&layout_info, None) }.vk("vkCreatePipelineLayout")
+}
+
+/// Descriptor sets holding `sets[s][b]` at set `s`, binding `b`, allocated with
+/// `set_layouts` (made from `set_kinds` by [`create_set_layouts`]) from a pool of their own.
+/// `what` names the pipeline in errors. Shared by ray-tracing and compute pipelines.
+///
+/// Errors: [`VkError::InvalidInput`] for a count or kind that does not match, or a bottom
+/// level given for an acceleration structure.
+pub(crate) fn allocate_bindings(
+    shared: &Arc<Shared>,
+    what: &str,
+    set_layouts: &[vk::DescriptorSetLayout],
+    set_kinds: &[Vec<BindingKind>],
+    sets: &[&[Resource<'_>]],
+) -> Result<Bindings, VkError> {
+    let invalid = |reason: String| VkError::InvalidInput { what: what.into(), reason };
+    if sets.len() != set_kinds.len() {
+        return Err(invalid(format!("{} sets given, the pipeline has {}", sets.len(), set_kinds.len())));
+    }
+    let mut counts = [0u32; 3];
+    for (s, (given, kinds)) in sets.iter().zip(set_kinds).enumerate() {
+        if given.len() != kinds.len() {
+            return Err(invalid(format!("set {s}: {} bindings given, the layout has {}", given.len(), kinds.len())));
+        }
+        for (b, (r, k)) in given.iter().zip(kinds).enumerate() {
+            if r.kind() != *k {
+                return Err(invalid(format!("set {s} binding {b}: a {:?} given, the layout has a {k:?}", r.kind())));
+            }
+            if let Resource::AccelerationStructure(a) = r
+                && a.level() != vk::AccelerationStructureTypeKHR::TOP_LEVEL
+            {
+                return Err(invalid(format!("set {s} binding {b}: {:?} is not a top-level structure", a.label())));
+            }
+            counts[*k as usize] += 1;
+        }
+    }
+    let device = &shared.device.device;
+    let sizes: Vec<vk::DescriptorPoolSize> = [BindingKind::StorageBuffer, BindingKind::UniformBuffer, BindingKind::AccelerationStructure]
+        .iter()
+        .filter(|k| counts[**k as usize] > 0)
+        .map(|k| vk::DescriptorPoolSize::default().ty(k.descriptor_type()).descriptor_count(counts[*k as usize]))
+        .collect();
+    let pool_info = vk::DescriptorPoolCreateInfo::default().max_sets(sets.len().max(1) as u32).pool_sizes(&sizes);
+    // SAFETY: a valid create info.
+    let pool = unsafe { device.create_descriptor_pool(&pool_info, None) }.vk("vkCreateDescriptorPool")?;
+    let mut bindings = Bindings { pool, sets: Vec::new(), shared: Arc::clone(shared) };
+    if sets.is_empty() {
+        return Ok(bindings);
+    }
+    let alloc = vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(set_layouts);
+    // SAFETY: the pool has room for these sets.
+    let allocated = unsafe { device.allocate_descriptor_sets(&alloc) }.vk("vkAllocateDescriptorSets")?;
+    bindings.sets = allocated;
+    for (s, given) in sets.iter().enumerate() {
+        for (b, r) in given.iter().enumerate() {
+            let write =
+                vk::WriteDescriptorSet::default().dst_set(bindings.sets[s]).dst_binding(b as u32).descriptor_type(r.kind().descriptor_type());
+            match r {
+                Resource::StorageBuffer(buf) | Resource::UniformBuffer(buf) => {
+                    let info = [vk::DescriptorBufferInfo::default().buffer(buf.raw()).offset(0).range(vk::WHOLE_SIZE)];
+                    // SAFETY: a live buffer of the right usage (checked by validation).
+                    unsafe { device.update_descriptor_sets(&[write.buffer_info(&info)], &[]) };
+                }
+                Resource::AccelerationStructure(a) => {
+                    let handles = [a.raw()];
+                    let mut as_write = vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(&handles);
+                    let write = write.descriptor_count(1).push_next(&mut as_write);
+                    // SAFETY: a live top-level structure.
+                    unsafe { device.update_descriptor_sets(&[write], &[]) };
+                }
+            }
+        }
+    }
+    Ok(bindings)
 }
 
 #[cfg(test)]

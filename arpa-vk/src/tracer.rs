@@ -280,10 +280,10 @@ impl Tracer for VkTracer {
             photon_count: counters.photons_written(),
         };
         let counts = st.store.store(ctx, st.outputs.footprints(), st.outputs.photons(), &settings)?;
+        let counts = st.store.sort(ctx, st.outputs.footprints(), st.outputs.photons(), &counts, &settings)?;
         if counts.overflowed > 0 {
             return Err(size(format!("{} progressive photons (with the footprints' fallbacks) exceed the sorted buffer", counts.photon_items)));
         }
-        st.store.sort(ctx, &counts, &settings)?;
         st.counts = counts;
         st.radii = radii;
         let stats = st.clock.stats_mut();
@@ -353,7 +353,7 @@ impl Tracer for VkTracer {
     fn read_query_points(&self) -> Result<Vec<QueryRecord>, VkTracerError> {
         let st = self.loaded(Call::ReadQueryPoints)?;
         st.clock.require_output(Call::ReadQueryPoints, Stage::CameraPass)?;
-        Ok(bytemuck::pod_collect_to_vec(&self.ctx.read_back(&st.queries, 0, u64::from(st.pixels) * QUERY_RECORD_BYTES)?))
+        Ok(crate::buffer::pod_vec(&self.ctx.read_back(&st.queries, 0, u64::from(st.pixels) * QUERY_RECORD_BYTES)?))
     }
 
     /// The last photon pass's footprints, sorted by map (caustic first), then by Morton code

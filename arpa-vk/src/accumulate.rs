@@ -1,0 +1,108 @@
+//! The running mean of the iteration images on the device (the core's `accumulate.wgsl`,
+//! entry `accumulate`, as a compute pipeline): per pixel a compensated `f32` sum and a count
+//! of rejected non-finite samples ([`AccumPixel`]); [`AccumPixel::mean`] turns a read-back
+//! into the image, so the mean is the core's and arpa-wgpu's.
+
+use crate::buffer::Buffer;
+use crate::compute::{ComputePipeline, record_compute_barrier, record_fill};
+use crate::device::VkContext;
+use crate::error::VkError;
+use crate::pipeline::{BindingKind, Bindings, Resource};
+pub use arpa_core::gpu::layout::AccumPixel;
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+
+/// Bytes of one image pixel the accumulation reads (`vec4<f32>`, RGB used; W/(m²·sr)).
+pub const IMAGE_PIXEL_BYTES: u64 = 16;
+
+/// The accumulation buffer and pipeline of one image size.
+pub struct DeviceAccumulator {
+    pipeline: ComputePipeline,
+    /// `pixels` × [`AccumPixel`] (exactly: the kernel bounds itself by its length).
+    pixels: Buffer,
+    count: u32,
+}
+
+impl DeviceAccumulator {
+    /// A zeroed accumulator of `pixels` pixels (at least one; one submission waited for).
+    ///
+    /// Errors: [`VkError::InvalidInput`] for 0 pixels; [`VkError::Shader`] if naga rejects
+    /// the core's WGSL; device errors.
+    pub fn new(ctx: &VkContext, pixels: u32) -> Result<Self, VkError> {
+        if pixels == 0 {
+            return Err(VkError::InvalidInput { what: "accumulator".into(), reason: "0 pixels".into() });
+        }
+        let source = arpa_core::shaders::compose(&[&arpa_core::shaders::ACCUMULATE]);
+        use BindingKind::StorageBuffer as Sb;
+        let pipeline = ComputePipeline::from_wgsl(ctx, "arpa accumulate", &source, "accumulate", &[&[Sb, Sb]])?;
+        use vk::BufferUsageFlags as U;
+        let buffer = ctx.create_buffer(
+            "arpa accumulator",
+            u64::from(pixels) * size_of::<AccumPixel>() as u64,
+            U::STORAGE_BUFFER | U::TRANSFER_SRC | U::TRANSFER_DST,
+            MemoryLocation::GpuOnly,
+        )?;
+        let device = ctx.device();
+        ctx.submit_and_wait(|cmd| {
+            record_fill(device, cmd, &buffer, 0);
+            record_compute_barrier(device, cmd);
+        })?;
+        Ok(Self { pipeline, pixels: buffer, count: pixels })
+    }
+
+    /// Pixels of the image.
+    pub fn pixel_count(&self) -> u32 {
+        self.count
+    }
+
+    /// The per-pixel sums ([`AccumPixel`], 32 bytes each).
+    pub fn pixels(&self) -> &Buffer {
+        &self.pixels
+    }
+
+    /// Descriptor sets for adding `image` (a storage buffer of at least
+    /// [`DeviceAccumulator::pixel_count`] `vec4<f32>`), for [`DeviceAccumulator::record`];
+    /// keep them and `image` until the submission is waited for.
+    ///
+    /// Errors: [`VkError::InvalidInput`] for an image smaller than the accumulator.
+    pub fn bind(&self, image: &Buffer) -> Result<Bindings, VkError> {
+        if image.size() < u64::from(self.count) * IMAGE_PIXEL_BYTES {
+            return Err(VkError::InvalidInput {
+                what: "accumulator".into(),
+                reason: format!("image {:?} of {} bytes for {} pixels", image.label(), image.size(), self.count),
+            });
+        }
+        self.pipeline.bind(&[&[Resource::StorageBuffer(image), Resource::StorageBuffer(&self.pixels)]])
+    }
+
+    /// Records the addition of the image `bindings` name (from [`DeviceAccumulator::bind`]) to
+    /// the sums, then a compute barrier (the sums are visible to a later addition, transfer
+    /// or host read). The image's writes must be visible to compute shaders.
+    pub fn record(&self, ctx: &VkContext, cmd: vk::CommandBuffer, bindings: &Bindings) -> Result<(), VkError> {
+        self.pipeline.record_dispatch_linear(cmd, bindings, &[], self.count)?;
+        record_compute_barrier(ctx.device(), cmd);
+        Ok(())
+    }
+
+    /// Adds `image` to the sums in one submission and waits (a barrier before, so earlier
+    /// transfer and compute writes of the image are visible).
+    pub fn accumulate_and_wait(&self, ctx: &VkContext, image: &Buffer) -> Result<(), VkError> {
+        let bindings = self.bind(image)?;
+        ctx.submit_and_wait(|cmd| {
+            record_compute_barrier(ctx.device(), cmd);
+            self.record(ctx, cmd, &bindings)
+        })??;
+        Ok(())
+    }
+
+    /// The per-pixel accumulators, read back.
+    pub fn read_pixels(&self, ctx: &VkContext) -> Result<Vec<AccumPixel>, VkError> {
+        Ok(crate::buffer::pod_vec(&ctx.read_back(&self.pixels, 0, self.pixels.size())?))
+    }
+
+    /// The mean over `iterations` iterations per pixel (RGB, W/(m²·sr); [`AccumPixel::mean`]:
+    /// 0 before any iteration and where not finite).
+    pub fn read_mean(&self, ctx: &VkContext, iterations: u32) -> Result<Vec<[f32; 3]>, VkError> {
+        Ok(self.read_pixels(ctx)?.iter().map(|p| p.mean(iterations).to_array()).collect())
+    }
+}

@@ -1,0 +1,378 @@
+//! The keyed store, sort and compaction of one iteration's photon maps on the device: a port
+//! of arpa-wgpu's `store.rs`, `sort.rs` and `maps.rs` without photon batches (one batch per
+//! iteration), running the core's WGSL kernels (`path/store.wgsl`, `path/sort.wgsl`,
+//! [`arpa_core::shaders::STORE`], [`arpa_core::shaders::SORT`]) as compute pipelines.
+//!
+//! Raw footprints ([`KeyedFootprint`], smoothed by the photon pass) go through the twin's
+//! heuristics; rejected ones fall back to progressive photons as in [`arpa_core::store`].
+//! They and the pass's progressive photons ([`KeyedPhoton`]) are keyed by
+//! `(map << 30 | Morton code of the box centre, unique photon key, slot)`, bitonic-sorted on
+//! the device ([`arpa_core::gpu::sort`]) and compacted into sorted record buffers
+//! ([`PackedFootprint`], [`PackedPhoton`]) and box buffers (6 `f32` per record: min xyz then
+//! max xyz, metres, stride [`BOX_BYTES`]): caustic records first, then global ones. The order
+//! is total, so the result does not depend on the order the photon pass appended in, and it
+//! is spatial, which the acceleration-structure build needs ([`crate::map_accel`]).
+//!
+//! Two submissions, with one documented host readback between them: [`MapStore::store`]
+//! runs the store and reads back the 48-byte [`StoreCounts`]; the sort's step schedule and
+//! the acceleration-structure build (sized on the host) depend on them. [`MapStore::sort`]
+//! pads, sorts and compacts. The store's parameters ([`StoreParams`], a storage buffer in
+//! `store.wgsl`) go through a small host-visible buffer per submission; the sort's step (a
+//! uniform in `sort.wgsl`, read at dynamic offsets on wgpu) is written into one uniform
+//! buffer with `vkCmdUpdateBuffer` before each step's dispatch.
+
+use crate::buffer::Buffer;
+use crate::compute::{ComputePipeline, ComputePipelineDesc, record_compute_barrier, record_fill};
+use crate::device::VkContext;
+use crate::error::VkError;
+use crate::pipeline::{BindingKind, Bindings, Resource};
+use arpa_core::footprint::PackedFootprint;
+use arpa_core::gpu::layout::{KeyedFootprint, KeyedPhoton, SortItem, StoreCounts, StoreParams, StoreSettings};
+use arpa_core::gpu::sort::{MAX_SORT_ITEMS, SORT_BLOCK, sort_steps, sorted_len};
+use arpa_core::progressive_photon::PackedPhoton;
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+
+/// Bytes of a sorted footprint record ([`PackedFootprint`]).
+pub const FOOTPRINT_BYTES: u64 = size_of::<PackedFootprint>() as u64;
+/// Bytes of a sorted progressive photon ([`PackedPhoton`]).
+pub const PHOTON_BYTES: u64 = size_of::<PackedPhoton>() as u64;
+/// Bytes of one box (min xyz, max xyz, `f32`, metres): the AABB stride.
+pub const BOX_BYTES: u64 = crate::accel::AABB_STRIDE;
+const ITEM_BYTES: u64 = size_of::<SortItem>() as u64;
+const COUNTS_BYTES: u64 = size_of::<StoreCounts>() as u64;
+/// Bytes of the sort step the kernels read (`SortStep` of `sort.wgsl`: k, j, two pads).
+const STEP_BYTES: usize = 16;
+
+/// Usage of the box buffers: acceleration-structure build input by device address, written
+/// by the compaction kernels, readable back.
+pub const BOX_USAGE: vk::BufferUsageFlags = vk::BufferUsageFlags::from_raw(
+    vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR.as_raw()
+        | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS.as_raw()
+        | vk::BufferUsageFlags::STORAGE_BUFFER.as_raw()
+        | vk::BufferUsageFlags::TRANSFER_SRC.as_raw(),
+);
+
+/// The keyed store's pipelines and device buffers for given input capacities: slots, sort
+/// items, counters and the sorted outputs (see the module docs). Dropping it frees them
+/// (every submission it made was waited for).
+pub struct MapStore {
+    raw_capacity: u32,
+    photon_capacity: u32,
+    photons_out_capacity: u32,
+    keyed: ComputePipeline,
+    photon_keys: ComputePipeline,
+    pad_items: ComputePipeline,
+    compact_footprints: ComputePipeline,
+    compact_photons: ComputePipeline,
+    sort_local: ComputePipeline,
+    sort_merge: ComputePipeline,
+    sort_global: ComputePipeline,
+    /// `StoreCounts` as the kernels count them (device-local).
+    counts: Buffer,
+    /// Host-visible copy of `counts`, read after each submission.
+    counts_host: Buffer,
+    fp_slots: Buffer,
+    fp_box_slots: Buffer,
+    ph_extra: Buffer,
+    fp_items: Buffer,
+    ph_items: Buffer,
+    /// The current sort step (uniform, written by `vkCmdUpdateBuffer`).
+    step: Buffer,
+    footprints: Buffer,
+    footprint_boxes: Buffer,
+    photons: Buffer,
+    photon_boxes: Buffer,
+}
+
+fn size_error(reason: String) -> VkError {
+    VkError::InvalidInput { what: "keyed store".into(), reason }
+}
+
+impl MapStore {
+    /// Compiles the store and sort kernels and allocates buffers for up to `raw_capacity` raw
+    /// footprints ([`KeyedFootprint`]) and `photon_capacity` progressive photons
+    /// ([`KeyedPhoton`]) per iteration.
+    ///
+    /// Errors: [`VkError::InvalidInput`] when the capacities exceed the sort's
+    /// [`MAX_SORT_ITEMS`] or a buffer exceeds the device's `maxStorageBufferRange` (the sorted
+    /// photons are capped at what one binding holds; the compaction counts any beyond in
+    /// [`StoreCounts::overflowed`]); [`VkError::Shader`] if naga rejects the core's WGSL;
+    /// device errors as [`VkContext::create_buffer`].
+    pub fn new(ctx: &VkContext, raw_capacity: u32, photon_capacity: u32) -> Result<Self, VkError> {
+        let total = raw_capacity.checked_add(photon_capacity).filter(|&t| sorted_len(t) <= MAX_SORT_ITEMS).ok_or_else(|| {
+            size_error(format!("{raw_capacity} raw footprints + {photon_capacity} photons exceed the sort's {MAX_SORT_ITEMS} items"))
+        })?;
+        // SAFETY: a physical device of this instance.
+        let limits = unsafe { ctx.instance().get_physical_device_properties(ctx.physical_device()) }.limits;
+        let max_range = u64::from(limits.max_storage_buffer_range);
+        for (what, bytes) in [
+            ("footprint slots", u64::from(raw_capacity) * FOOTPRINT_BYTES),
+            ("raw-footprint photon slots", u64::from(raw_capacity) * size_of::<KeyedPhoton>() as u64),
+            ("photon sort items", u64::from(sorted_len(total)) * ITEM_BYTES),
+        ] {
+            if bytes > max_range {
+                return Err(size_error(format!("{what}: {bytes} bytes exceed the device's maxStorageBufferRange {max_range}")));
+            }
+        }
+        let photons_out_capacity = total.min(u32::try_from(max_range / PHOTON_BYTES).unwrap_or(u32::MAX));
+
+        let store_spirv = crate::shaders::compile_wgsl("arpa store", &arpa_core::shaders::compose(&[&arpa_core::shaders::STORE]))?;
+        // sort.wgsl's shared-memory kernels copy all SORT_BLOCK items into workgroup memory
+        // before the first barrier and read nothing else, so WGSL's zero initialisation of
+        // workgroup memory is dead work; naga's polyfill of it makes lavapipe's first
+        // compilation of sort_merge take over 10 minutes (see `compile_wgsl_with`).
+        let sort_spirv =
+            crate::shaders::compile_wgsl_with("arpa sort", &arpa_core::shaders::compose(&[&arpa_core::shaders::SORT]), false)?;
+        let store_set = [BindingKind::StorageBuffer; 13];
+        let sort_set = [BindingKind::StorageBuffer, BindingKind::UniformBuffer];
+        let make = |spirv, entry, set: &[BindingKind]| {
+            ComputePipeline::new(ctx, &ComputePipelineDesc { label: entry, spirv, entry, sets: &[set], push_constant_size: 0 })
+        };
+
+        use vk::BufferUsageFlags as U;
+        let gpu = |label: &str, records: u32, bytes: u64, usage: U| {
+            ctx.create_buffer(&format!("arpa store {label}"), u64::from(records.max(1)) * bytes, usage, MemoryLocation::GpuOnly)
+        };
+        let storage = U::STORAGE_BUFFER;
+        Ok(Self {
+            raw_capacity,
+            photon_capacity,
+            photons_out_capacity,
+            keyed: make(&store_spirv, "store_keyed", &store_set)?,
+            photon_keys: make(&store_spirv, "photon_keys", &store_set)?,
+            pad_items: make(&store_spirv, "pad_items", &store_set)?,
+            compact_footprints: make(&store_spirv, "compact_footprints", &store_set)?,
+            compact_photons: make(&store_spirv, "compact_photons", &store_set)?,
+            sort_local: make(&sort_spirv, "sort_local", &sort_set)?,
+            sort_merge: make(&sort_spirv, "sort_merge", &sort_set)?,
+            sort_global: make(&sort_spirv, "sort_global", &sort_set)?,
+            counts: gpu("counts", 1, COUNTS_BYTES, storage | U::TRANSFER_SRC | U::TRANSFER_DST)?,
+            counts_host: ctx.create_buffer("arpa store counts (host)", COUNTS_BYTES, U::TRANSFER_DST, MemoryLocation::GpuToCpu)?,
+            fp_slots: gpu("footprint slots", raw_capacity, FOOTPRINT_BYTES, storage)?,
+            fp_box_slots: gpu("footprint box slots", raw_capacity, BOX_BYTES, storage)?,
+            ph_extra: gpu("fallback photons", raw_capacity, size_of::<KeyedPhoton>() as u64, storage)?,
+            fp_items: gpu("footprint items", sorted_len(raw_capacity), ITEM_BYTES, storage)?,
+            ph_items: gpu("photon items", sorted_len(total), ITEM_BYTES, storage)?,
+            step: gpu("sort step", 1, STEP_BYTES as u64, U::UNIFORM_BUFFER | U::TRANSFER_DST)?,
+            footprints: gpu("sorted footprints", raw_capacity, FOOTPRINT_BYTES, storage | U::TRANSFER_SRC)?,
+            footprint_boxes: gpu("sorted footprint boxes", raw_capacity, BOX_BYTES, BOX_USAGE)?,
+            photons: gpu("sorted photons", photons_out_capacity, PHOTON_BYTES, storage | U::TRANSFER_SRC)?,
+            photon_boxes: gpu("sorted photon boxes", photons_out_capacity, BOX_BYTES, BOX_USAGE)?,
+        })
+    }
+
+    /// Raw-footprint and photon capacities this store was made for.
+    pub fn capacities(&self) -> (u32, u32) {
+        (self.raw_capacity, self.photon_capacity)
+    }
+
+    /// Sorted progressive photons one iteration can hold (both capacities together, capped at
+    /// one storage binding).
+    pub fn photons_out_capacity(&self) -> u32 {
+        self.photons_out_capacity
+    }
+
+    /// Sorted footprint records ([`PackedFootprint`], 64 bytes); after [`MapStore::sort`] the
+    /// first [`StoreCounts::total_footprints`] are valid, caustic first.
+    pub fn footprints(&self) -> &Buffer {
+        &self.footprints
+    }
+
+    /// The footprints' boxes (24 bytes each, metres; [`BOX_USAGE`]): the AABB build input.
+    pub fn footprint_boxes(&self) -> &Buffer {
+        &self.footprint_boxes
+    }
+
+    /// Sorted progressive photons ([`PackedPhoton`], 48 bytes, padding zero); after
+    /// [`MapStore::sort`] the first [`StoreCounts::total_photons`] are valid, caustic first.
+    pub fn photons(&self) -> &Buffer {
+        &self.photons
+    }
+
+    /// The photons' boxes: the sphere of the map's progressive radius, padded as every
+    /// acceleration-structure box (`arpa_padded_box`, the twin of
+    /// [`arpa_core::aabb::Aabb::padded_f32`]); 24 bytes each, [`BOX_USAGE`].
+    pub fn photon_boxes(&self) -> &Buffer {
+        &self.photon_boxes
+    }
+
+    fn check_inputs(&self, raw: &Buffer, photons: &Buffer, settings: &StoreSettings) -> Result<(), VkError> {
+        if settings.raw_count > self.raw_capacity || settings.photon_count > self.photon_capacity {
+            return Err(size_error(format!(
+                "{} raw footprints / {} photons given for capacities {} / {}",
+                settings.raw_count, settings.photon_count, self.raw_capacity, self.photon_capacity
+            )));
+        }
+        for (b, count, bytes) in
+            [(raw, settings.raw_count, size_of::<KeyedFootprint>() as u64), (photons, settings.photon_count, size_of::<KeyedPhoton>() as u64)]
+        {
+            if !b.usage().contains(vk::BufferUsageFlags::STORAGE_BUFFER) {
+                return Err(VkError::MissingUsage { what: b.label().into(), usage: "STORAGE_BUFFER" });
+            }
+            if u64::from(count) * bytes > b.size() {
+                return Err(size_error(format!("{count} records of {bytes} bytes in the {}-byte buffer {:?}", b.size(), b.label())));
+            }
+        }
+        Ok(())
+    }
+
+    /// A host-visible copy of `params` for one submission.
+    fn params(ctx: &VkContext, params: &StoreParams) -> Result<Buffer, VkError> {
+        let mut b = ctx.create_buffer(
+            "arpa store params",
+            size_of::<StoreParams>() as u64,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            MemoryLocation::CpuToGpu,
+        )?;
+        b.write(0, bytemuck::bytes_of(params))?;
+        Ok(b)
+    }
+
+    fn store_bindings(&self, raw: &Buffer, photons: &Buffer, params: &Buffer) -> Result<Bindings, VkError> {
+        let set = [raw, photons, params, &self.fp_slots, &self.fp_box_slots, &self.ph_extra, &self.fp_items, &self.ph_items, &self.counts]
+            .into_iter()
+            .chain([&self.footprints, &self.footprint_boxes, &self.photons, &self.photon_boxes])
+            .map(Resource::StorageBuffer)
+            .collect::<Vec<_>>();
+        // One set for all five store pipelines: their set layouts are identically defined,
+        // hence compatible.
+        self.keyed.bind(&[&set])
+    }
+
+    /// Records the copy of the counters to the host-visible buffer (after a barrier).
+    fn record_counts_copy(&self, device: &ash::Device, cmd: vk::CommandBuffer) {
+        record_compute_barrier(device, cmd);
+        let region = vk::BufferCopy::default().size(COUNTS_BYTES);
+        // SAFETY: both buffers are alive until the caller's wait and have the transfer usages.
+        unsafe { device.cmd_copy_buffer(cmd, self.counts.raw(), self.counts_host.raw(), &[region]) };
+        record_compute_barrier(device, cmd);
+    }
+
+    fn read_counts(&self) -> Result<StoreCounts, VkError> {
+        Ok(bytemuck::pod_read_unaligned(&self.counts_host.read(0, COUNTS_BYTES)?))
+    }
+
+    /// The first half, one submission waited for: stores the photon pass's output (`raw`:
+    /// `settings.raw_count` [`KeyedFootprint`]s, `photons`: `settings.photon_count`
+    /// [`KeyedPhoton`]s; storage buffers whose writes are visible to compute shaders, e.g.
+    /// uploaded or written by an earlier submission ending in a barrier), appends the sort
+    /// items and reads the counters back (the one host readback of the chain).
+    ///
+    /// Errors: [`VkError::InvalidInput`] for counts above the capacities or past the input
+    /// buffers; [`VkError::MissingUsage`] for inputs without `STORAGE_BUFFER`; device errors.
+    pub fn store(&self, ctx: &VkContext, raw: &Buffer, photons: &Buffer, settings: &StoreSettings) -> Result<StoreCounts, VkError> {
+        self.check_inputs(raw, photons, settings)?;
+        let params = Self::params(ctx, &StoreParams::new(settings, None))?;
+        let bindings = self.store_bindings(raw, photons, &params)?;
+        let device = ctx.device();
+        ctx.submit_and_wait(|cmd| {
+            record_fill(device, cmd, &self.counts, 0);
+            record_compute_barrier(device, cmd);
+            self.keyed.record_dispatch_linear(cmd, &bindings, &[], settings.raw_count)?;
+            record_compute_barrier(device, cmd);
+            self.photon_keys.record_dispatch_linear(cmd, &bindings, &[], settings.photon_count)?;
+            self.record_counts_copy(device, cmd);
+            Ok::<(), VkError>(())
+        })??;
+        drop((bindings, params));
+        self.read_counts()
+    }
+
+    /// Records the sort of the first `n` items (a power of two ≥ [`SORT_BLOCK`]) of the
+    /// buffer `bindings` binds: per step of [`sort_steps`], the step written into the uniform,
+    /// then `n / SORT_BLOCK` workgroups of `sort_local`, `sort_global` or `sort_merge`.
+    fn record_sort(&self, device: &ash::Device, cmd: vk::CommandBuffer, bindings: &Bindings, n: u32) -> Result<(), VkError> {
+        debug_assert!(n.is_power_of_two() && (SORT_BLOCK..=MAX_SORT_ITEMS).contains(&n));
+        for (i, s) in sort_steps(n).iter().enumerate() {
+            let pipeline = match (i, s.j) {
+                (0, _) => &self.sort_local,
+                (_, 0) => &self.sort_merge,
+                _ => &self.sort_global,
+            };
+            if i > 0 {
+                // SAFETY: the step buffer is alive, has TRANSFER_DST usage and holds 16 bytes;
+                // the previous step's barrier (compute → transfer) orders its uniform read
+                // before this write.
+                unsafe { device.cmd_update_buffer(cmd, self.step.raw(), 0, &bytemuck::bytes_of(s)[..STEP_BYTES]) };
+                record_compute_barrier(device, cmd);
+            }
+            pipeline.record_dispatch(cmd, bindings, &[], [n / SORT_BLOCK, 1, 1])?;
+            record_compute_barrier(device, cmd);
+        }
+        Ok(())
+    }
+
+    /// The second half, one submission waited for, with the `counts` that
+    /// [`MapStore::store`] returned for the same `raw`, `photons` and `settings`: pads the
+    /// appended items to their sorted lengths, sorts them and compacts the records and boxes
+    /// into [`MapStore::footprints`], [`MapStore::footprint_boxes`], [`MapStore::photons`] and
+    /// [`MapStore::photon_boxes`]. The submission ends with a barrier that makes them visible
+    /// to later shaders, transfers, acceleration-structure builds and the host. Returns the
+    /// counters after the compaction (with [`StoreCounts::overflowed`]).
+    ///
+    /// Errors: [`VkError::InvalidInput`] for more photons than [`MapStore::photons_out_capacity`]
+    /// and the errors of [`MapStore::store`].
+    pub fn sort(
+        &self,
+        ctx: &VkContext,
+        raw: &Buffer,
+        photons: &Buffer,
+        counts: &StoreCounts,
+        settings: &StoreSettings,
+    ) -> Result<StoreCounts, VkError> {
+        self.check_inputs(raw, photons, settings)?;
+        if counts.total_photons() > self.photons_out_capacity {
+            return Err(size_error(format!(
+                "{} progressive photons in one iteration; one storage binding of this device holds {}",
+                counts.total_photons(),
+                self.photons_out_capacity
+            )));
+        }
+        if counts.total_footprints() > settings.raw_count {
+            return Err(size_error(format!("{} footprints counted from {} raw footprints", counts.total_footprints(), settings.raw_count)));
+        }
+        let p = StoreParams::new(settings, Some(counts));
+        let params = Self::params(ctx, &p)?;
+        let bindings = self.store_bindings(raw, photons, &params)?;
+        let fp_sort = self.sort_local.bind(&[&[Resource::StorageBuffer(&self.fp_items), Resource::UniformBuffer(&self.step)]])?;
+        let ph_sort = self.sort_local.bind(&[&[Resource::StorageBuffer(&self.ph_items), Resource::UniformBuffer(&self.step)]])?;
+        let device = ctx.device();
+        ctx.submit_and_wait(|cmd| {
+            self.pad_items.record_dispatch_linear(cmd, &bindings, &[], p.fp_sorted.max(p.ph_sorted))?;
+            record_compute_barrier(device, cmd);
+            self.record_sort(device, cmd, &fp_sort, p.fp_sorted)?;
+            self.record_sort(device, cmd, &ph_sort, p.ph_sorted)?;
+            self.compact_footprints.record_dispatch_linear(cmd, &bindings, &[], p.fp_sorted)?;
+            self.compact_photons.record_dispatch_linear(cmd, &bindings, &[], p.ph_sorted)?;
+            self.record_counts_copy(device, cmd);
+            Ok::<(), VkError>(())
+        })??;
+        drop((bindings, fp_sort, ph_sort, params));
+        self.read_counts()
+    }
+
+    /// The sorted footprints of `counts` (caustic first), read back.
+    pub fn read_footprints(&self, ctx: &VkContext, counts: &StoreCounts) -> Result<Vec<PackedFootprint>, VkError> {
+        let n = u64::from(counts.total_footprints());
+        Ok(crate::buffer::pod_vec(&ctx.read_back(&self.footprints, 0, n * FOOTPRINT_BYTES)?))
+    }
+
+    /// The sorted progressive photons of `counts` (caustic first, padding zero), read back.
+    pub fn read_photons(&self, ctx: &VkContext, counts: &StoreCounts) -> Result<Vec<PackedPhoton>, VkError> {
+        let n = u64::from(counts.total_photons().min(self.photons_out_capacity));
+        Ok(crate::buffer::pod_vec(&ctx.read_back(&self.photons, 0, n * PHOTON_BYTES)?))
+    }
+
+    /// The boxes of the sorted footprints of `counts` (min xyz, max xyz; metres), read back.
+    pub fn read_footprint_boxes(&self, ctx: &VkContext, counts: &StoreCounts) -> Result<Vec<[f32; 6]>, VkError> {
+        let n = u64::from(counts.total_footprints());
+        Ok(crate::buffer::pod_vec(&ctx.read_back(&self.footprint_boxes, 0, n * BOX_BYTES)?))
+    }
+
+    /// The boxes of the sorted photons of `counts` (min xyz, max xyz; metres), read back.
+    pub fn read_photon_boxes(&self, ctx: &VkContext, counts: &StoreCounts) -> Result<Vec<[f32; 6]>, VkError> {
+        let n = u64::from(counts.total_photons().min(self.photons_out_capacity));
+        Ok(crate::buffer::pod_vec(&ctx.read_back(&self.photon_boxes, 0, n * BOX_BYTES)?))
+    }
+}
