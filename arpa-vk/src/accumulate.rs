@@ -3,6 +3,7 @@
 //! of rejected non-finite samples ([`AccumPixel`]); [`AccumPixel::mean`] turns a read-back
 //! into the image, so the mean is the core's and arpa-wgpu's.
 
+use std::sync::Arc;
 use crate::buffer::Buffer;
 use crate::compute::{ComputePipeline, record_compute_barrier, record_fill};
 use crate::device::VkContext;
@@ -15,9 +16,19 @@ use gpu_allocator::MemoryLocation;
 /// Bytes of one image pixel the accumulation reads (`vec4<f32>`, RGB used; W/(m²·sr)).
 pub const IMAGE_PIXEL_BYTES: u64 = 16;
 
-/// The accumulation buffer and pipeline of one image size.
+/// The running mean's compute pipeline (the core's `accumulate.wgsl`), shared by every
+/// [`DeviceAccumulator`] of a context.
+///
+/// Errors: [`VkError::Shader`] if naga rejects the core's WGSL; device errors.
+pub fn accumulate_pipeline(ctx: &VkContext) -> Result<ComputePipeline, VkError> {
+    let source = arpa_core::shaders::compose(&[&arpa_core::shaders::ACCUMULATE]);
+    use BindingKind::StorageBuffer as Sb;
+    ComputePipeline::from_wgsl(ctx, "arpa accumulate", &source, "accumulate", &[&[Sb, Sb]])
+}
+
+/// The accumulation buffer of one image size, with the shared pipeline.
 pub struct DeviceAccumulator {
-    pipeline: ComputePipeline,
+    pipeline: Arc<ComputePipeline>,
     /// `pixels` × [`AccumPixel`] (exactly: the kernel bounds itself by its length).
     pixels: Buffer,
     count: u32,
@@ -28,13 +39,11 @@ impl DeviceAccumulator {
     ///
     /// Errors: [`VkError::InvalidInput`] for 0 pixels; [`VkError::Shader`] if naga rejects
     /// the core's WGSL; device errors.
-    pub fn new(ctx: &VkContext, pixels: u32) -> Result<Self, VkError> {
+    pub fn new(ctx: &VkContext, pipeline: &Arc<ComputePipeline>, pixels: u32) -> Result<Self, VkError> {
         if pixels == 0 {
             return Err(VkError::InvalidInput { what: "accumulator".into(), reason: "0 pixels".into() });
         }
-        let source = arpa_core::shaders::compose(&[&arpa_core::shaders::ACCUMULATE]);
-        use BindingKind::StorageBuffer as Sb;
-        let pipeline = ComputePipeline::from_wgsl(ctx, "arpa accumulate", &source, "accumulate", &[&[Sb, Sb]])?;
+        let pipeline = Arc::clone(pipeline);
         use vk::BufferUsageFlags as U;
         let buffer = ctx.create_buffer(
             "arpa accumulator",

@@ -13,6 +13,7 @@ use crate::shaders::{CAMERA_RAYGEN, compile_wgsl};
 use arpa_core::gpu::layout::CameraParams;
 use arpa_core::tracer::QueryRecord;
 use ash::vk;
+use std::sync::Arc;
 use gpu_allocator::MemoryLocation;
 
 /// Bytes of one query record.
@@ -21,7 +22,7 @@ pub const QUERY_RECORD_BYTES: u64 = size_of::<QueryRecord>() as u64;
 /// The camera pass of one render (pipeline, parameters, bindings to its query buffer).
 pub struct CameraPass {
     bindings: Bindings,
-    pipeline: RtPipeline,
+    pipeline: Arc<RtPipeline>,
     params: Buffer,
     base: CameraParams,
 }
@@ -45,12 +46,18 @@ pub(crate) fn scene_pipeline(ctx: &VkContext, label: &str, source: &str, raygen:
     )
 }
 
+/// The camera pass's pipeline (independent of scene and settings; shared by every
+/// [`CameraPass`] of a context).
+pub fn camera_pipeline(ctx: &VkContext) -> Result<RtPipeline, VkError> {
+    let source = arpa_core::shaders::compose(&[&CAMERA_RAYGEN]);
+    scene_pipeline(ctx, "camera pass", &source, "vk_camera_raygen", &[BindingKind::UniformBuffer, BindingKind::StorageBuffer])
+}
+
 impl CameraPass {
-    /// The pass for `params` (iteration 0; [`CameraPass::run`] sets the iteration), writing
-    /// `width · height` records into `queries`.
-    pub fn new(ctx: &VkContext, scene: &VkScene, params: CameraParams, queries: &Buffer) -> Result<Self, VkError> {
-        let source = arpa_core::shaders::compose(&[&CAMERA_RAYGEN]);
-        let pipeline = scene_pipeline(ctx, "camera pass", &source, "vk_camera_raygen", &[BindingKind::UniformBuffer, BindingKind::StorageBuffer])?;
+    /// The pass for `params` (iteration 0; [`CameraPass::run`] sets the iteration) on
+    /// `pipeline` ([`camera_pipeline`]), writing `width · height` records into `queries`.
+    pub fn new(ctx: &VkContext, pipeline: &Arc<RtPipeline>, scene: &VkScene, params: CameraParams, queries: &Buffer) -> Result<Self, VkError> {
+        let pipeline = Arc::clone(pipeline);
         let mut uniform = ctx.create_buffer("camera pass parameters", size_of::<CameraParams>() as u64, vk::BufferUsageFlags::UNIFORM_BUFFER, MemoryLocation::CpuToGpu)?;
         uniform.write(0, bytemuck::bytes_of(&params))?;
         let bindings = pipeline.bind(&[&scene.resources(), &[Resource::UniformBuffer(&uniform), Resource::StorageBuffer(queries)]])?;

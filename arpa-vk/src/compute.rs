@@ -135,7 +135,7 @@ impl ComputePipeline {
         let stage = vk::PipelineShaderStageCreateInfo::default().stage(stages).module(module.raw()).name(&name);
         let info = vk::ComputePipelineCreateInfo::default().stage(stage).layout(partial.layout);
         // SAFETY: the module, name and layout live across the call.
-        let created = unsafe { device.create_compute_pipelines(vk::PipelineCache::null(), &[info], None) };
+        let created = unsafe { device.create_compute_pipelines(ctx.shared.pipeline_cache, &[info], None) };
         partial.pipeline = match created {
             Ok(p) => p[0],
             Err((p, r)) => {

@@ -523,6 +523,10 @@ pub(crate) struct Submitter {
 /// outlive every buffer.
 pub(crate) struct Shared {
     pub(crate) submitter: Mutex<Submitter>,
+    /// Every pipeline of the context is created through it, so a pipeline made again (the
+    /// next render's, another tracer's on a shared context) reuses the driver's compiled
+    /// shaders; on lavapipe compiling the passes costs seconds.
+    pub(crate) pipeline_cache: vk::PipelineCache,
     pub(crate) allocator: ManuallyDrop<Mutex<Allocator>>,
     /// `VK_EXT_debug_utils` device functions (object names), when validation is on.
     pub(crate) debug_utils: Option<ash::ext::debug_utils::Device>,
@@ -545,6 +549,7 @@ impl Drop for Shared {
         unsafe {
             let _ = device.device_wait_idle();
             device.destroy_command_pool(self.submitter.get_mut().unwrap_or_else(|e| e.into_inner()).pool, None);
+            device.destroy_pipeline_cache(self.pipeline_cache, None);
             ManuallyDrop::drop(&mut self.allocator);
         }
     }
@@ -556,6 +561,9 @@ impl Drop for Shared {
 /// Dropping the context destroys, in order: the command pool, the allocator (its memory
 /// blocks), the device, the debug messenger, the instance. Buffers keep the device alive
 /// (see [`crate::Buffer`]), so this happens when the context and its last buffer are gone.
+///
+/// Cloning gives another handle on the same device (reference-counted).
+#[derive(Clone)]
 pub struct VkContext {
     pub(crate) shared: Arc<Shared>,
 }
@@ -623,10 +631,21 @@ impl VkContext {
                 return Err(VkError::Allocator { what: "the allocator".into(), source });
             }
         };
+        // SAFETY: a valid device; an empty cache.
+        let pipeline_cache = match unsafe { dev.create_pipeline_cache(&vk::PipelineCacheCreateInfo::default(), None) } {
+            Ok(c) => c,
+            Err(e) => {
+                drop(allocator);
+                // SAFETY: the pool is unused.
+                unsafe { dev.destroy_command_pool(pool, None) };
+                return Err(VkError::from_vk("vkCreatePipelineCache", e));
+            }
+        };
         let debug_utils = options.validation.then(|| ash::ext::debug_utils::Device::new(inst, dev));
         Ok(Self {
             shared: Arc::new(Shared {
                 submitter: Mutex::new(Submitter { queue, pool }),
+                pipeline_cache,
                 allocator: ManuallyDrop::new(Mutex::new(allocator)),
                 debug_utils,
                 device,

@@ -28,6 +28,7 @@ use crate::shaders::{GATHER_ANY_HIT, GATHER_INTERSECTION, GATHER_RAYGEN, GlslSta
 use arpa_core::gpu::layout::{GatherBatch, GatherImageParams};
 use arpa_core::kernel::Kernel;
 use ash::vk;
+use std::sync::Arc;
 use gpu_allocator::MemoryLocation;
 
 /// Rays per row of the gather's launch (`(x, y, 1)`, x fastest).
@@ -45,9 +46,35 @@ pub struct GatherInputs<'a> {
     pub radii: [f32; 2],
 }
 
+/// The gather's pipeline (independent of scene and settings; shared by every
+/// [`GatherPass`] of a context).
+pub fn gather_pipeline(ctx: &VkContext) -> Result<RtPipeline, VkError> {
+    let spirv = compile_wgsl("gather", &arpa_core::shaders::compose(&[&GATHER_RAYGEN]))?;
+    let module = ctx.create_shader_module(&spirv)?;
+    let glsl = |g: &GlslStage| ctx.create_shader_module(&g.module()?);
+    let (rint, rahit) = (glsl(&GATHER_INTERSECTION)?, glsl(&GATHER_ANY_HIT)?);
+    let main = |entry: &'static str| ShaderEntry { module: &module, entry };
+    use BindingKind::{AccelerationStructure as As, StorageBuffer as Sb};
+    RtPipeline::new(
+        ctx,
+        &RtPipelineDesc {
+            label: "gather",
+            raygen: main("vk_gather_raygen"),
+            miss: &[main("vk_gather_miss")],
+            hit_groups: &[HitGroup::Procedural {
+                intersection: ShaderEntry { module: &rint, entry: GlslStage::ENTRY },
+                any_hit: Some(ShaderEntry { module: &rahit, entry: GlslStage::ENTRY }),
+                closest_hit: None,
+            }],
+            sets: &[&[Sb, Sb, Sb, Sb, Sb, Sb, Sb, As]],
+            push_constant_size: 0,
+        },
+    )
+}
+
 /// The gather of one render: pipeline and its parameter and count buffers.
 pub struct GatherPass {
-    pipeline: RtPipeline,
+    pipeline: Arc<RtPipeline>,
     params: Buffer,
     counts: Buffer,
     batch_irradiance: Buffer,
@@ -65,29 +92,10 @@ pub struct GatherCounts {
 }
 
 impl GatherPass {
-    /// The gather of `pixels` query records with footprint kernel `kernel`.
-    pub fn new(ctx: &VkContext, kernel: Kernel, pixels: u32) -> Result<Self, VkError> {
-        let spirv = compile_wgsl("gather", &arpa_core::shaders::compose(&[&GATHER_RAYGEN]))?;
-        let module = ctx.create_shader_module(&spirv)?;
-        let glsl = |g: &GlslStage| ctx.create_shader_module(&g.module()?);
-        let (rint, rahit) = (glsl(&GATHER_INTERSECTION)?, glsl(&GATHER_ANY_HIT)?);
-        let main = |entry: &'static str| ShaderEntry { module: &module, entry };
-        use BindingKind::{AccelerationStructure as As, StorageBuffer as Sb};
-        let pipeline = RtPipeline::new(
-            ctx,
-            &RtPipelineDesc {
-                label: "gather",
-                raygen: main("vk_gather_raygen"),
-                miss: &[main("vk_gather_miss")],
-                hit_groups: &[HitGroup::Procedural {
-                    intersection: ShaderEntry { module: &rint, entry: GlslStage::ENTRY },
-                    any_hit: Some(ShaderEntry { module: &rahit, entry: GlslStage::ENTRY }),
-                    closest_hit: None,
-                }],
-                sets: &[&[Sb, Sb, Sb, Sb, Sb, Sb, Sb, As]],
-                push_constant_size: 0,
-            },
-        )?;
+    /// The gather of `pixels` query records with footprint kernel `kernel` on `pipeline`
+    /// ([`gather_pipeline`]).
+    pub fn new(ctx: &VkContext, pipeline: &Arc<RtPipeline>, kernel: Kernel, pixels: u32) -> Result<Self, VkError> {
+        let pipeline = Arc::clone(pipeline);
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
         Ok(Self {
             pipeline,

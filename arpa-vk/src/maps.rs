@@ -21,6 +21,7 @@
 //! uniform in `sort.wgsl`, read at dynamic offsets on wgpu) is written into one uniform
 //! buffer with `vkCmdUpdateBuffer` before each step's dispatch.
 
+use std::sync::Arc;
 use crate::buffer::Buffer;
 use crate::compute::{ComputePipeline, ComputePipelineDesc, record_compute_barrier, record_fill};
 use crate::device::VkContext;
@@ -53,13 +54,11 @@ pub const BOX_USAGE: vk::BufferUsageFlags = vk::BufferUsageFlags::from_raw(
         | vk::BufferUsageFlags::TRANSFER_SRC.as_raw(),
 );
 
-/// The keyed store's pipelines and device buffers for given input capacities: slots, sort
-/// items, counters and the sorted outputs (see the module docs). Dropping it frees them
-/// (every submission it made was waited for).
-pub struct MapStore {
-    raw_capacity: u32,
-    photon_capacity: u32,
-    photons_out_capacity: u32,
+/// The keyed store's and the sort's compute pipelines (the core's `store.wgsl` and
+/// `sort.wgsl`), independent of any capacity: made once per context and shared by every
+/// [`MapStore`] (on lavapipe a pipeline is compiled at its first dispatch, which takes
+/// seconds).
+pub struct StorePipelines {
     keyed: ComputePipeline,
     photon_keys: ComputePipeline,
     pad_items: ComputePipeline,
@@ -68,6 +67,47 @@ pub struct MapStore {
     sort_local: ComputePipeline,
     sort_merge: ComputePipeline,
     sort_global: ComputePipeline,
+}
+
+impl StorePipelines {
+    /// Compiles the store and sort kernels.
+    ///
+    /// Errors: [`VkError::Shader`] if naga rejects the core's WGSL; device errors.
+    pub fn new(ctx: &VkContext) -> Result<Self, VkError> {
+        let store_spirv = crate::shaders::compile_wgsl("arpa store", &arpa_core::shaders::compose(&[&arpa_core::shaders::STORE]))?;
+        // sort.wgsl's shared-memory kernels copy all SORT_BLOCK items into workgroup memory
+        // before the first barrier and read nothing else, so WGSL's zero initialisation of
+        // workgroup memory is dead work; naga's polyfill of it makes lavapipe's first
+        // compilation of sort_merge take over 10 minutes (see `compile_wgsl_with`).
+        let sort_spirv =
+            crate::shaders::compile_wgsl_with("arpa sort", &arpa_core::shaders::compose(&[&arpa_core::shaders::SORT]), false)?;
+        let store_set = [BindingKind::StorageBuffer; 13];
+        let sort_set = [BindingKind::StorageBuffer, BindingKind::UniformBuffer];
+        let make = |spirv, entry, set: &[BindingKind]| {
+            ComputePipeline::new(ctx, &ComputePipelineDesc { label: entry, spirv, entry, sets: &[set], push_constant_size: 0 })
+        };
+
+        Ok(Self {
+            keyed: make(&store_spirv, "store_keyed", &store_set)?,
+            photon_keys: make(&store_spirv, "photon_keys", &store_set)?,
+            pad_items: make(&store_spirv, "pad_items", &store_set)?,
+            compact_footprints: make(&store_spirv, "compact_footprints", &store_set)?,
+            compact_photons: make(&store_spirv, "compact_photons", &store_set)?,
+            sort_local: make(&sort_spirv, "sort_local", &sort_set)?,
+            sort_merge: make(&sort_spirv, "sort_merge", &sort_set)?,
+            sort_global: make(&sort_spirv, "sort_global", &sort_set)?,
+        })
+    }
+}
+
+/// The keyed store's device buffers for given input capacities: slots, sort items, counters
+/// and the sorted outputs (see the module docs), with the shared [`StorePipelines`].
+/// Dropping it frees the buffers (every submission it made was waited for).
+pub struct MapStore {
+    raw_capacity: u32,
+    photon_capacity: u32,
+    photons_out_capacity: u32,
+    pipelines: Arc<StorePipelines>,
     /// `StoreCounts` as the kernels count them (device-local).
     counts: Buffer,
     /// Host-visible copy of `counts`, read after each submission.
@@ -90,7 +130,7 @@ fn size_error(reason: String) -> VkError {
 }
 
 impl MapStore {
-    /// Compiles the store and sort kernels and allocates buffers for up to `raw_capacity` raw
+    /// Allocates buffers for up to `raw_capacity` raw
     /// footprints ([`KeyedFootprint`]) and `photon_capacity` progressive photons
     /// ([`KeyedPhoton`]) per iteration.
     ///
@@ -99,7 +139,7 @@ impl MapStore {
     /// photons are capped at what one binding holds; the compaction counts any beyond in
     /// [`StoreCounts::overflowed`]); [`VkError::Shader`] if naga rejects the core's WGSL;
     /// device errors as [`VkContext::create_buffer`].
-    pub fn new(ctx: &VkContext, raw_capacity: u32, photon_capacity: u32) -> Result<Self, VkError> {
+    pub fn new(ctx: &VkContext, pipelines: &Arc<StorePipelines>, raw_capacity: u32, photon_capacity: u32) -> Result<Self, VkError> {
         let total = raw_capacity.checked_add(photon_capacity).filter(|&t| sorted_len(t) <= MAX_SORT_ITEMS).ok_or_else(|| {
             size_error(format!("{raw_capacity} raw footprints + {photon_capacity} photons exceed the sort's {MAX_SORT_ITEMS} items"))
         })?;
@@ -117,19 +157,6 @@ impl MapStore {
         }
         let photons_out_capacity = total.min(u32::try_from(max_range / PHOTON_BYTES).unwrap_or(u32::MAX));
 
-        let store_spirv = crate::shaders::compile_wgsl("arpa store", &arpa_core::shaders::compose(&[&arpa_core::shaders::STORE]))?;
-        // sort.wgsl's shared-memory kernels copy all SORT_BLOCK items into workgroup memory
-        // before the first barrier and read nothing else, so WGSL's zero initialisation of
-        // workgroup memory is dead work; naga's polyfill of it makes lavapipe's first
-        // compilation of sort_merge take over 10 minutes (see `compile_wgsl_with`).
-        let sort_spirv =
-            crate::shaders::compile_wgsl_with("arpa sort", &arpa_core::shaders::compose(&[&arpa_core::shaders::SORT]), false)?;
-        let store_set = [BindingKind::StorageBuffer; 13];
-        let sort_set = [BindingKind::StorageBuffer, BindingKind::UniformBuffer];
-        let make = |spirv, entry, set: &[BindingKind]| {
-            ComputePipeline::new(ctx, &ComputePipelineDesc { label: entry, spirv, entry, sets: &[set], push_constant_size: 0 })
-        };
-
         use vk::BufferUsageFlags as U;
         let gpu = |label: &str, records: u32, bytes: u64, usage: U| {
             ctx.create_buffer(&format!("arpa store {label}"), u64::from(records.max(1)) * bytes, usage, MemoryLocation::GpuOnly)
@@ -139,14 +166,7 @@ impl MapStore {
             raw_capacity,
             photon_capacity,
             photons_out_capacity,
-            keyed: make(&store_spirv, "store_keyed", &store_set)?,
-            photon_keys: make(&store_spirv, "photon_keys", &store_set)?,
-            pad_items: make(&store_spirv, "pad_items", &store_set)?,
-            compact_footprints: make(&store_spirv, "compact_footprints", &store_set)?,
-            compact_photons: make(&store_spirv, "compact_photons", &store_set)?,
-            sort_local: make(&sort_spirv, "sort_local", &sort_set)?,
-            sort_merge: make(&sort_spirv, "sort_merge", &sort_set)?,
-            sort_global: make(&sort_spirv, "sort_global", &sort_set)?,
+            pipelines: Arc::clone(pipelines),
             counts: gpu("counts", 1, COUNTS_BYTES, storage | U::TRANSFER_SRC | U::TRANSFER_DST)?,
             counts_host: ctx.create_buffer("arpa store counts (host)", COUNTS_BYTES, U::TRANSFER_DST, MemoryLocation::GpuToCpu)?,
             fp_slots: gpu("footprint slots", raw_capacity, FOOTPRINT_BYTES, storage)?,
@@ -237,7 +257,7 @@ impl MapStore {
             .collect::<Vec<_>>();
         // One set for all five store pipelines: their set layouts are identically defined,
         // hence compatible.
-        self.keyed.bind(&[&set])
+        self.pipelines.keyed.bind(&[&set])
     }
 
     /// Records the copy of the counters to the host-visible buffer (after a barrier).
@@ -269,9 +289,9 @@ impl MapStore {
         ctx.submit_and_wait(|cmd| {
             record_fill(device, cmd, &self.counts, 0);
             record_compute_barrier(device, cmd);
-            self.keyed.record_dispatch_linear(cmd, &bindings, &[], settings.raw_count)?;
+            self.pipelines.keyed.record_dispatch_linear(cmd, &bindings, &[], settings.raw_count)?;
             record_compute_barrier(device, cmd);
-            self.photon_keys.record_dispatch_linear(cmd, &bindings, &[], settings.photon_count)?;
+            self.pipelines.photon_keys.record_dispatch_linear(cmd, &bindings, &[], settings.photon_count)?;
             self.record_counts_copy(device, cmd);
             Ok::<(), VkError>(())
         })??;
@@ -286,9 +306,9 @@ impl MapStore {
         debug_assert!(n.is_power_of_two() && (SORT_BLOCK..=MAX_SORT_ITEMS).contains(&n));
         for (i, s) in sort_steps(n).iter().enumerate() {
             let pipeline = match (i, s.j) {
-                (0, _) => &self.sort_local,
-                (_, 0) => &self.sort_merge,
-                _ => &self.sort_global,
+                (0, _) => &self.pipelines.sort_local,
+                (_, 0) => &self.pipelines.sort_merge,
+                _ => &self.pipelines.sort_global,
             };
             if i > 0 {
                 // SAFETY: the step buffer is alive, has TRANSFER_DST usage and holds 16 bytes;
@@ -335,16 +355,16 @@ impl MapStore {
         let p = StoreParams::new(settings, Some(counts));
         let params = Self::params(ctx, &p)?;
         let bindings = self.store_bindings(raw, photons, &params)?;
-        let fp_sort = self.sort_local.bind(&[&[Resource::StorageBuffer(&self.fp_items), Resource::UniformBuffer(&self.step)]])?;
-        let ph_sort = self.sort_local.bind(&[&[Resource::StorageBuffer(&self.ph_items), Resource::UniformBuffer(&self.step)]])?;
+        let fp_sort = self.pipelines.sort_local.bind(&[&[Resource::StorageBuffer(&self.fp_items), Resource::UniformBuffer(&self.step)]])?;
+        let ph_sort = self.pipelines.sort_local.bind(&[&[Resource::StorageBuffer(&self.ph_items), Resource::UniformBuffer(&self.step)]])?;
         let device = ctx.device();
         ctx.submit_and_wait(|cmd| {
-            self.pad_items.record_dispatch_linear(cmd, &bindings, &[], p.fp_sorted.max(p.ph_sorted))?;
+            self.pipelines.pad_items.record_dispatch_linear(cmd, &bindings, &[], p.fp_sorted.max(p.ph_sorted))?;
             record_compute_barrier(device, cmd);
             self.record_sort(device, cmd, &fp_sort, p.fp_sorted)?;
             self.record_sort(device, cmd, &ph_sort, p.ph_sorted)?;
-            self.compact_footprints.record_dispatch_linear(cmd, &bindings, &[], p.fp_sorted)?;
-            self.compact_photons.record_dispatch_linear(cmd, &bindings, &[], p.ph_sorted)?;
+            self.pipelines.compact_footprints.record_dispatch_linear(cmd, &bindings, &[], p.fp_sorted)?;
+            self.pipelines.compact_photons.record_dispatch_linear(cmd, &bindings, &[], p.ph_sorted)?;
             self.record_counts_copy(device, cmd);
             Ok::<(), VkError>(())
         })??;

@@ -18,6 +18,7 @@ use arpa_core::gpu::layout::{EmitterRange, KeyedFootprint, KeyedPhoton, PhotonCo
 use arpa_core::photon_path::PhotonPassSetup;
 use arpa_core::tracer::RenderSettings;
 use ash::vk;
+use std::sync::Arc;
 use gpu_allocator::MemoryLocation;
 
 /// Rays per row of the photon pass's launch (the launch is `(x, y, 1)`, x fastest).
@@ -72,7 +73,7 @@ impl PhotonOutputs {
 /// The photon pass of one render.
 pub struct PhotonPass {
     bindings: Option<Bindings>,
-    pipeline: RtPipeline,
+    pipeline: Arc<RtPipeline>,
     params: Buffer,
     lights: Buffer,
     ranges: Buffer,
@@ -80,12 +81,19 @@ pub struct PhotonPass {
     settings: RenderSettings,
 }
 
+/// The photon pass's pipeline (independent of scene and settings; shared by every
+/// [`PhotonPass`] of a context).
+pub fn photon_pipeline(ctx: &VkContext) -> Result<RtPipeline, VkError> {
+    let source = arpa_core::shaders::compose(&[&PHOTON_RAYGEN]);
+    use BindingKind::{StorageBuffer as Sb, UniformBuffer as Ub};
+    scene_pipeline(ctx, "photon pass", &source, "vk_photon_raygen", &[Ub, Sb, Sb, Sb, Sb, Sb])
+}
+
 impl PhotonPass {
-    /// The pass for a scene with `emitters` emitters under `settings`.
-    pub fn new(ctx: &VkContext, emitters: usize, settings: &RenderSettings) -> Result<Self, VkError> {
-        let source = arpa_core::shaders::compose(&[&PHOTON_RAYGEN]);
-        use BindingKind::{StorageBuffer as Sb, UniformBuffer as Ub};
-        let pipeline = scene_pipeline(ctx, "photon pass", &source, "vk_photon_raygen", &[Ub, Sb, Sb, Sb, Sb, Sb])?;
+    /// The pass on `pipeline` ([`photon_pipeline`]) for a scene with `emitters` emitters
+    /// under `settings`.
+    pub fn new(ctx: &VkContext, pipeline: &Arc<RtPipeline>, emitters: usize, settings: &RenderSettings) -> Result<Self, VkError> {
+        let pipeline = Arc::clone(pipeline);
         let n = emitters.max(1) as u64;
         let host = MemoryLocation::CpuToGpu;
         Ok(Self {

@@ -286,7 +286,7 @@ impl RtPipeline {
             .layout(partial.layout);
         // SAFETY: the stages, groups and layout live across the call.
         let created =
-            unsafe { loader.create_ray_tracing_pipelines(vk::DeferredOperationKHR::null(), vk::PipelineCache::null(), &[info], None) };
+            unsafe { loader.create_ray_tracing_pipelines(vk::DeferredOperationKHR::null(), ctx.shared.pipeline_cache, &[info], None) };
         partial.pipeline = match created {
             Ok(p) => p[0],
             Err((p, r)) => {

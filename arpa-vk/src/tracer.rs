@@ -1,15 +1,17 @@
 //! [`VkTracer`]: the Vulkan backend of [`arpa_core::tracer::Tracer`] on ray-tracing
 //! pipelines.
 
-use crate::accumulate::DeviceAccumulator;
+use crate::accumulate::{DeviceAccumulator, accumulate_pipeline};
 use crate::buffer::Buffer;
-use crate::camera::{CameraPass, QUERY_RECORD_BYTES};
+use crate::camera::{CameraPass, QUERY_RECORD_BYTES, camera_pipeline};
+use crate::compute::ComputePipeline;
+use crate::pipeline::RtPipeline;
 use crate::device::{AdapterChoice, ContextOptions, VkContext};
 use crate::error::VkError;
-use crate::gather::{GatherInputs, GatherPass};
+use crate::gather::{GatherInputs, GatherPass, gather_pipeline};
 use crate::map_accel::MapAccel;
-use crate::maps::MapStore;
-use crate::photons::{PhotonOutputs, PhotonPass};
+use crate::maps::{MapStore, StorePipelines};
+use crate::photons::{PhotonOutputs, PhotonPass, photon_pipeline};
 use crate::scene::VkScene;
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::gpu::batch::{RecordLimits, grow, initial_capacity};
@@ -24,6 +26,7 @@ use arpa_core::tracer::{
 };
 use ash::vk;
 use gpu_allocator::MemoryLocation;
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 /// Errors of the Vulkan backend.
@@ -83,12 +86,38 @@ pub enum VkTracerError {
 pub struct VkTracer {
     state: Option<Box<Loaded>>,
     ctx: VkContext,
+    pipelines: Arc<Mutex<Option<Arc<PassPipelines>>>>,
     initial_capacity: Option<u32>,
+}
+
+/// Every pipeline of the passes. None depends on the scene or the settings, so they are
+/// made once per context: on lavapipe a pipeline is compiled at its first trace or dispatch
+/// (seconds for the camera and photon passes), and Mesa's shader cache does not spare a
+/// second pipeline object in the same process that work.
+struct PassPipelines {
+    camera: Arc<RtPipeline>,
+    photon: Arc<RtPipeline>,
+    gather: Arc<RtPipeline>,
+    store: Arc<StorePipelines>,
+    accumulate: Arc<ComputePipeline>,
+}
+
+impl PassPipelines {
+    fn new(ctx: &VkContext) -> Result<Self, VkError> {
+        Ok(Self {
+            camera: Arc::new(camera_pipeline(ctx)?),
+            photon: Arc::new(photon_pipeline(ctx)?),
+            gather: Arc::new(gather_pipeline(ctx)?),
+            store: Arc::new(StorePipelines::new(ctx)?),
+            accumulate: Arc::new(accumulate_pipeline(ctx)?),
+        })
+    }
 }
 
 struct Loaded {
     /// Dropped before the buffers it refers to.
     accel: Option<MapAccel>,
+    pipelines: Arc<PassPipelines>,
     prepared: PreparedScene,
     settings: RenderSettings,
     camera: CameraPass,
@@ -111,14 +140,31 @@ struct Loaded {
 
 impl VkTracer {
     /// A tracer on the adapter `choice` selects ([`AdapterChoice::Auto`]: a GPU with
-    /// ray-tracing pipelines, else lavapipe), without validation layers.
+    /// ray-tracing pipelines, else lavapipe), without validation layers. Tracers made this
+    /// way in one process share one context per adapter choice, and with it the pipeline
+    /// cache: on lavapipe compiling the passes' pipelines costs seconds, which a second
+    /// tracer (the next render of a sweep, the next conformance case) then skips. The
+    /// context lives until the process ends.
     pub fn new(choice: &AdapterChoice) -> Result<Self, VkTracerError> {
-        Ok(Self::with_context(VkContext::new(choice, &ContextOptions::default())?))
+        let (ctx, pipelines) = shared_context(choice)?;
+        Ok(Self { state: None, ctx, pipelines, initial_capacity: None })
     }
 
-    /// A tracer on an open context (e.g. one with validation, for tests).
+    /// A tracer on an open context (e.g. one with validation, for tests); its pipelines are
+    /// made at the first [`Tracer::upload_scene`] and kept for the next renders.
     pub fn with_context(ctx: VkContext) -> Self {
-        Self { state: None, ctx, initial_capacity: None }
+        Self { state: None, ctx, pipelines: Arc::default(), initial_capacity: None }
+    }
+
+    /// The passes' pipelines, made on first use.
+    fn pass_pipelines(&self) -> Result<Arc<PassPipelines>, VkError> {
+        let mut slot = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(p) = slot.as_ref() {
+            return Ok(Arc::clone(p));
+        }
+        let p = Arc::new(PassPipelines::new(&self.ctx)?);
+        *slot = Some(Arc::clone(&p));
+        Ok(p)
     }
 
     /// Records each photon buffer holds after the next [`Tracer::upload_scene`] (`None`:
@@ -140,6 +186,22 @@ impl VkTracer {
     fn size_error(&self, message: String) -> VkTracerError {
         VkTracerError::Size { adapter: self.ctx.info().name.clone(), message }
     }
+}
+
+/// The pipelines of a context, once made.
+type PipelineSlot = Arc<Mutex<Option<Arc<PassPipelines>>>>;
+
+/// The process's context for `choice` and its pipeline slot (see [`VkTracer::new`]).
+fn shared_context(choice: &AdapterChoice) -> Result<(VkContext, PipelineSlot), VkError> {
+    static CONTEXTS: Mutex<Vec<(AdapterChoice, VkContext, PipelineSlot)>> = Mutex::new(Vec::new());
+    let mut contexts = CONTEXTS.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((_, ctx, slot)) = contexts.iter().find(|(c, _, _)| c == choice) {
+        return Ok((ctx.clone(), Arc::clone(slot)));
+    }
+    let ctx = VkContext::new(choice, &ContextOptions::default())?;
+    let slot = PipelineSlot::default();
+    contexts.push((choice.clone(), ctx.clone(), Arc::clone(&slot)));
+    Ok((ctx, slot))
 }
 
 /// `maxStorageBufferRange` of the context's adapter (bytes).
@@ -185,22 +247,24 @@ impl Tracer for VkTracer {
         let Some(pixels) = pixels else {
             return Err(self.size_error(format!("an image of {width}×{height} pixels exceeds one storage binding or one ray launch")));
         };
+        let pipelines = self.pass_pipelines()?;
         let vk_scene = VkScene::upload(ctx, &prepared)?;
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC;
         let queries = ctx.create_buffer("query records", (u64::from(pixels) * QUERY_RECORD_BYTES).max(QUERY_RECORD_BYTES), storage, MemoryLocation::GpuOnly)?;
         let image = ctx.create_buffer("iteration image", (u64::from(pixels) * 16).max(16), storage, MemoryLocation::GpuOnly)?;
-        let camera = CameraPass::new(ctx, &vk_scene, CameraParams::new(&scene.camera, settings, width)?, &queries)?;
-        let mut photon = PhotonPass::new(ctx, prepared.emitters().len(), settings)?;
+        let camera = CameraPass::new(ctx, &pipelines.camera, &vk_scene, CameraParams::new(&scene.camera, settings, width)?, &queries)?;
+        let mut photon = PhotonPass::new(ctx, &pipelines.photon, prepared.emitters().len(), settings)?;
         let n = settings.photons_per_iteration;
         let fp_cap = initial_capacity(n, self.initial_capacity, limits.raw_footprints);
         let ph_cap = initial_capacity(n, self.initial_capacity, limits.photons);
         let outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
         photon.bind(&vk_scene, &outputs)?;
-        let store = MapStore::new(ctx, outputs.footprint_capacity(), outputs.photon_capacity())?;
-        let gather = GatherPass::new(ctx, settings.kernel, pixels)?;
-        let accumulator = DeviceAccumulator::new(ctx, pixels)?;
+        let store = MapStore::new(ctx, &pipelines.store, outputs.footprint_capacity(), outputs.photon_capacity())?;
+        let gather = GatherPass::new(ctx, &pipelines.gather, settings.kernel, pixels)?;
+        let accumulator = DeviceAccumulator::new(ctx, &pipelines.accumulate, pixels)?;
         self.state = Some(Box::new(Loaded {
             accel: None,
+            pipelines,
             prepared,
             settings: *settings,
             camera,
@@ -266,10 +330,10 @@ impl Tracer for VkTracer {
             let ph_cap = grow(c.photon_appends, st.outputs.photon_capacity(), limits.photons);
             // Free the old buffers before allocating the larger ones.
             st.outputs = PhotonOutputs::new(ctx, 1, 1)?;
-            st.store = MapStore::new(ctx, 1, 1)?;
+            st.store = MapStore::new(ctx, &st.pipelines.store, 1, 1)?;
             st.outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
             st.photon.bind(&st.scene, &st.outputs)?;
-            st.store = MapStore::new(ctx, fp_cap, ph_cap)?;
+            st.store = MapStore::new(ctx, &st.pipelines.store, fp_cap, ph_cap)?;
         };
         let radii = setup.radii.map(|r| r as f32);
         let settings = StoreSettings {

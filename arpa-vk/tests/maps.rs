@@ -29,7 +29,9 @@ use arpa_core::kernel::Kernel;
 use arpa_core::progressive_photon::PackedPhoton;
 use arpa_core::rng::{Rng, StreamDomain};
 use arpa_vk::shaders::{GATHER_ANY_HIT, GATHER_INTERSECTION, GATHER_TEST_MISS, GATHER_TEST_RAYGEN, GlslStage};
+use arpa_vk::maps::StorePipelines;
 use arpa_vk::vk;
+use std::sync::Arc;
 use arpa_vk::{
     AdapterChoice, BindingKind, Buffer, ContextOptions, DeviceAccumulator, HitGroup, MapAccel, MapStore, MemoryLocation, Resource,
     RtPipeline, RtPipelineDesc, ShaderEntry, ValidationLog, VkContext, run_kernel,
@@ -363,8 +365,8 @@ fn store_sort_and_compaction_match_the_reference_in_any_append_order() {
     let Some(ctx) = context() else { return };
     let input = input(11);
     let t0 = std::time::Instant::now();
-    let store = MapStore::new(&ctx, 4000, 2000).expect("map store");
-    eprintln!("arpa-vk MapStore::new (8 compute pipelines): {:.2} s", t0.elapsed().as_secs_f64());
+    let store = MapStore::new(&ctx, &Arc::new(StorePipelines::new(&ctx).expect("store pipelines")), 4000, 2000).expect("map store");
+    eprintln!("arpa-vk StorePipelines + MapStore::new (8 compute pipelines): {:.2} s", t0.elapsed().as_secs_f64());
     let t0 = std::time::Instant::now();
     let out = store_and_sort(&ctx, &store, &input);
     eprintln!("arpa-vk store + sort + compaction: {:?} in {:.2} s", out.counts, t0.elapsed().as_secs_f64());
@@ -499,7 +501,7 @@ fn trace_counts(
 fn map_accel_from_device_boxes_finds_the_brute_force_records() {
     let Some(ctx) = context() else { return };
     let input = input(23);
-    let store = MapStore::new(&ctx, 3000, 1500).expect("map store");
+    let store = MapStore::new(&ctx, &Arc::new(StorePipelines::new(&ctx).expect("store pipelines")), 3000, 1500).expect("map store");
     let out = store_and_sort(&ctx, &store, &input);
     let accel = MapAccel::build(&ctx, store.footprint_boxes(), store.photon_boxes(), &out.counts).expect("map accel");
     assert_eq!(accel.instances().len(), 4, "both kinds in both maps: {:?}", accel.instances());
@@ -575,7 +577,7 @@ fn accumulator_mean_of_three_images() {
                 .collect()
         })
         .collect();
-    let acc = DeviceAccumulator::new(&ctx, pixels).expect("accumulator");
+    let acc = DeviceAccumulator::new(&ctx, &Arc::new(arpa_vk::accumulate::accumulate_pipeline(&ctx).expect("pipeline")), pixels).expect("accumulator");
     assert_eq!(acc.read_mean(&ctx, 0).expect("mean"), vec![[0.0; 3]; pixels as usize], "before any iteration");
     for (k, img) in images.iter().enumerate() {
         let buf = storage_upload(&ctx, &format!("image {k}"), bytemuck::cast_slice(img));
