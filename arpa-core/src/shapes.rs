@@ -127,7 +127,7 @@ pub fn icosphere(name: &str, centre: Vec3, radius: f32, subdivisions: u32, smoot
     }
 }
 
-/// The GPU backends' benchmark scene (`cargo bench -p arpa-wgpu`, `-p arpa-vk`): a closed
+/// The GPU backends' benchmark scene (`cargo bench -p arpa --bench backends`): a closed
 /// Cornell-like room (2 m cube, coloured side walls, 12 triangles), a smooth glass icosphere
 /// (IOR 1.5, 1280 triangles), a mirror block and a downward quad light (15 W/(m²·sr)) under
 /// the ceiling; the camera inside the room looks at the sphere, `width × height` pixels.

@@ -6,9 +6,12 @@
 //! except in CI (env `CI` set), where they fail.
 
 use arpa_vk::vk;
-use arpa_vk::{AdapterChoice, ContextOptions, MemoryLocation, ValidationLog, VkContext, VkError};
+use arpa_vk::{AdapterChoice, ContextOptions, MemoryLocation, VkContext, VkError};
 
 const VALIDATION: ContextOptions = ContextOptions { validation: true };
+
+mod support;
+use support::assert_clean;
 
 /// A validated context on `choice`, or `None` (with a loud message) where Vulkan, the driver
 /// or the validation layer is missing outside CI.
@@ -18,26 +21,7 @@ fn context(choice: &AdapterChoice) -> Option<VkContext> {
 
 /// [`context`] with any options.
 fn context_with(choice: &AdapterChoice, options: &ContextOptions) -> Option<VkContext> {
-    match VkContext::new(choice, options) {
-        Ok(ctx) => {
-            assert_eq!(ctx.validation_enabled(), options.validation);
-            Some(ctx)
-        }
-        Err(e) if std::env::var_os("CI").is_some() => panic!("CI needs Vulkan with lavapipe and the validation layer ({choice:?}): {e}"),
-        Err(e) => {
-            eprintln!(
-                "\n*** SKIPPING arpa-vk device test ({choice:?}): {e}\n*** (run `bash scripts/install-lavapipe.sh` and `bash scripts/install-vulkan-tools.sh`)\n"
-            );
-            None
-        }
-    }
-}
-
-/// Asserts that no validation message was recorded, printing them all otherwise.
-fn assert_clean(log: &ValidationLog, when: &str) {
-    let messages = log.messages();
-    let text: Vec<String> = messages.iter().map(|m| m.to_string()).collect();
-    assert!(messages.is_empty(), "{} validation message(s) {when}:\n{}", messages.len(), text.join("\n"));
+    support::context_with("device", choice, options)
 }
 
 /// Deterministic bytes (an LCG), so a copy that drops or reorders bytes is caught.

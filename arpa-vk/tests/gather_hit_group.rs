@@ -51,23 +51,16 @@ use arpa_core::progressive_photon::{PackedPhoton, ProgressivePhoton};
 use arpa_core::rng::{Rng, StreamDomain};
 use arpa_core::store::{StoredPhoton, store_footprint_resolved};
 use arpa_vk::accel::IDENTITY_TRANSFORM;
-use arpa_vk::shaders::{GATHER_ANY_HIT, GATHER_INTERSECTION, GATHER_TEST_MISS, GATHER_TEST_RAYGEN, GlslStage};
 use arpa_vk::vk;
 use arpa_vk::{
-    AccelerationStructure, AdapterChoice, BindingKind, ContextOptions, HitGroup, MemoryLocation, Resource, RtPipeline, RtPipelineDesc,
-    ShaderEntry, TlasInstance, VkContext,
+    AccelerationStructure, MemoryLocation, Resource, TlasInstance,
 };
 use glam::{DVec3, Vec3};
 use std::path::Path;
 use std::process::Command;
 
-fn in_ci() -> bool {
-    std::env::var_os("CI").is_some()
-}
-
-fn skip(why: &str) {
-    eprintln!("\n*** SKIPPING arpa-vk gather hit-group test: {why}\n");
-}
+mod support;
+use support::{context, gather_test_pipeline, in_ci, skip};
 
 /// Runs `scripts/build-vk-shaders.sh --check`; `false` (skip) where `glslc` or `spirv-val`
 /// is missing outside CI.
@@ -76,7 +69,7 @@ fn shaders_match_their_source() -> bool {
     for tool in ["glslc", "spirv-val"] {
         if Command::new(tool).arg("--version").output().is_err() {
             assert!(!in_ci(), "CI needs {tool} (Debian: glslc, spirv-tools) for scripts/build-vk-shaders.sh --check");
-            skip(&format!("{tool} not found (Debian: apt-get install glslc spirv-tools)"));
+            skip("gather hit-group", &format!("{tool} not found (Debian: apt-get install glslc spirv-tools)"));
             return false;
         }
     }
@@ -85,17 +78,6 @@ fn shaders_match_their_source() -> bool {
     eprintln!("{}", text.trim_end());
     assert!(out.status.success(), "scripts/build-vk-shaders.sh --check failed:\n{text}");
     true
-}
-
-fn context() -> Option<VkContext> {
-    match VkContext::new(&AdapterChoice::Auto, &ContextOptions { validation: true }) {
-        Ok(ctx) => Some(ctx),
-        Err(e) if in_ci() => panic!("CI needs Vulkan with lavapipe and the validation layer: {e}"),
-        Err(e) => {
-            skip(&format!("{e}\n*** (run `bash scripts/install-lavapipe.sh` and `bash scripts/install-vulkan-tools.sh`)"));
-            None
-        }
-    }
 }
 
 /// `ArpaGatherQuery` of gather_test.rgen (std430, 32 bytes).
@@ -275,7 +257,7 @@ fn gather_hit_group_matches_the_core() {
     if !shaders_match_their_source() {
         return;
     }
-    let Some(ctx) = context() else { return };
+    let Some(ctx) = context("gather hit-group") else { return };
     let mut rng = Rng::new(0x6a7e_0020, 0, 0, StreamDomain::User);
     let recs = records(&mut rng, 5000, 2500, 4000, 2000);
 
@@ -332,26 +314,7 @@ fn gather_hit_group_matches_the_core() {
         .collect();
     let tlas = ctx.build_tlas("gather boxes", &instances).expect("TLAS");
 
-    let module = |g: &GlslStage| ctx.create_shader_module(&g.module().expect("embedded SPIR-V")).expect(g.name);
-    let (rgen, rmiss, rint, rahit) =
-        (module(&GATHER_TEST_RAYGEN), module(&GATHER_TEST_MISS), module(&GATHER_INTERSECTION), module(&GATHER_ANY_HIT));
-    let entry = |module| ShaderEntry { module, entry: GlslStage::ENTRY };
-    use BindingKind::{AccelerationStructure as As, StorageBuffer as Sb};
-    let pipeline = RtPipeline::new(
-        &ctx,
-        &RtPipelineDesc {
-            label: "gather hit group",
-            raygen: entry(&rgen),
-            miss: &[entry(&rmiss)],
-            hit_groups: &[HitGroup::Procedural { intersection: entry(&rint), any_hit: Some(entry(&rahit)), closest_hit: None }],
-            // gather.wgsl's set 0: footprints, photons, queries (records), results (image),
-            // parameters, two slots the test does not use, the top level.
-            sets: &[&[Sb, Sb, Sb, Sb, Sb, Sb, Sb, As]],
-            push_constant_size: 0,
-        },
-    )
-    .expect("pipeline");
-    drop((rgen, rmiss, rint, rahit));
+    let pipeline = gather_test_pipeline(&ctx);
     let mut params_buf = ctx
         .create_buffer("gather params", 32, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::CpuToGpu)
         .expect("params buffer");

@@ -28,36 +28,19 @@ use arpa_core::heuristics::{HeuristicContext, Heuristics};
 use arpa_core::kernel::Kernel;
 use arpa_core::progressive_photon::PackedPhoton;
 use arpa_core::rng::{Rng, StreamDomain};
-use arpa_vk::shaders::{GATHER_ANY_HIT, GATHER_INTERSECTION, GATHER_TEST_MISS, GATHER_TEST_RAYGEN, GlslStage};
 use arpa_vk::maps::StorePipelines;
 use arpa_vk::vk;
 use std::sync::Arc;
 use arpa_vk::{
-    AdapterChoice, BindingKind, Buffer, ContextOptions, DeviceAccumulator, HitGroup, MapAccel, MapStore, MemoryLocation, Resource,
-    RtPipeline, RtPipelineDesc, ShaderEntry, ValidationLog, VkContext, run_kernel,
+    Buffer, DeviceAccumulator, MapAccel, MapStore, MemoryLocation, Resource,
+    RtPipeline, VkContext, run_kernel,
 };
 use glam::{DVec3, Vec3};
 
 const RADII: [f32; 2] = [0.02, 0.05];
 
-fn context() -> Option<VkContext> {
-    match VkContext::new(&AdapterChoice::Auto, &ContextOptions { validation: true }) {
-        Ok(ctx) => Some(ctx),
-        Err(e) if std::env::var_os("CI").is_some() => panic!("CI needs Vulkan with lavapipe and the validation layer: {e}"),
-        Err(e) => {
-            eprintln!(
-                "\n*** SKIPPING arpa-vk maps test: {e}\n*** (run `bash scripts/install-lavapipe.sh` and `bash scripts/install-vulkan-tools.sh`)\n"
-            );
-            None
-        }
-    }
-}
-
-fn assert_clean(log: &ValidationLog, when: &str) {
-    let messages = log.messages();
-    let text: Vec<String> = messages.iter().map(|m| m.to_string()).collect();
-    assert!(messages.is_empty(), "{} validation message(s) {when}:\n{}", messages.len(), text.join("\n"));
-}
+mod support;
+use support::{assert_clean, context, gather_test_pipeline};
 
 /// Drops `ctx` and checks the log stayed clean through its destruction.
 fn finish(ctx: VkContext) {
@@ -77,7 +60,7 @@ const KERNEL_IO: &str = "
 
 #[test]
 fn run_kernel_follows_the_contract() {
-    let Some(ctx) = context() else { return };
+    let Some(ctx) = context("maps") else { return };
     let source = format!(
         "{KERNEL_IO}
 const N: u32 = 1000u;
@@ -113,7 +96,7 @@ fn count_input(@builtin(global_invocation_id) gid: vec3<u32>) {{
 
 #[test]
 fn run_kernel_runs_the_core_rng_twin() {
-    let Some(ctx) = context() else { return };
+    let Some(ctx) = context("maps") else { return };
     let source = arpa_core::shaders::compose(&[&arpa_core::shaders::RNG])
         + KERNEL_IO
         + "
@@ -362,7 +345,7 @@ fn check_against_reference(input: &Input, out: &Sorted) {
 
 #[test]
 fn store_sort_and_compaction_match_the_reference_in_any_append_order() {
-    let Some(ctx) = context() else { return };
+    let Some(ctx) = context("maps") else { return };
     let input = input(11);
     let t0 = std::time::Instant::now();
     let store = MapStore::new(&ctx, &Arc::new(StorePipelines::new(&ctx).expect("store pipelines")), 4000, 2000).expect("map store");
@@ -432,29 +415,6 @@ fn near_boundary(q: &QueryPoint, footprints: &[PackedFootprint], photons: &[Pack
     })
 }
 
-/// The gather test pipeline (GLSL ray generation, miss, the AABB hit group).
-fn gather_pipeline(ctx: &VkContext) -> RtPipeline {
-    let module = |g: &GlslStage| ctx.create_shader_module(&g.module().expect("embedded SPIR-V")).expect(g.name);
-    let (rgen, rmiss, rint, rahit) =
-        (module(&GATHER_TEST_RAYGEN), module(&GATHER_TEST_MISS), module(&GATHER_INTERSECTION), module(&GATHER_ANY_HIT));
-    let entry = |module| ShaderEntry { module, entry: GlslStage::ENTRY };
-    use BindingKind::{AccelerationStructure as As, StorageBuffer as Sb};
-    RtPipeline::new(
-        ctx,
-        &RtPipelineDesc {
-            label: "map gather",
-            raygen: entry(&rgen),
-            miss: &[entry(&rmiss)],
-            hit_groups: &[HitGroup::Procedural { intersection: entry(&rint), any_hit: Some(entry(&rahit)), closest_hit: None }],
-            // gather.wgsl's set 0: footprints, photons, queries (records), results (image),
-            // parameters, two slots the test does not use, the top level.
-            sets: &[&[Sb, Sb, Sb, Sb, Sb, Sb, Sb, As]],
-            push_constant_size: 0,
-        },
-    )
-    .expect("gather pipeline")
-}
-
 /// Traces one query per point through `accel` over the sorted `footprints` and `photons`
 /// buffers and returns the per-map counts.
 fn trace_counts(
@@ -499,13 +459,13 @@ fn trace_counts(
 
 #[test]
 fn map_accel_from_device_boxes_finds_the_brute_force_records() {
-    let Some(ctx) = context() else { return };
+    let Some(ctx) = context("maps") else { return };
     let input = input(23);
     let store = MapStore::new(&ctx, &Arc::new(StorePipelines::new(&ctx).expect("store pipelines")), 3000, 1500).expect("map store");
     let out = store_and_sort(&ctx, &store, &input);
     let accel = MapAccel::build(&ctx, store.footprint_boxes(), store.photon_boxes(), &out.counts).expect("map accel");
     assert_eq!(accel.instances().len(), 4, "both kinds in both maps: {:?}", accel.instances());
-    let pipeline = gather_pipeline(&ctx);
+    let pipeline = gather_test_pipeline(&ctx);
 
     // Queries on both planes, seen from both sides, some at record centres.
     let mut rng = Rng::new(23, 11, 0, StreamDomain::User);
@@ -565,7 +525,7 @@ fn map_accel_from_device_boxes_finds_the_brute_force_records() {
 
 #[test]
 fn accumulator_mean_of_three_images() {
-    let Some(ctx) = context() else { return };
+    let Some(ctx) = context("maps") else { return };
     let pixels = 1000u32;
     let images: Vec<Vec<[f32; 4]>> = (0..3u32)
         .map(|k| {

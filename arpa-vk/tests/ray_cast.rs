@@ -29,31 +29,13 @@ use arpa_vk::accel::IDENTITY_TRANSFORM;
 use arpa_vk::shaders::{compile_wgsl, ray_cast_source};
 use arpa_vk::vk;
 use arpa_vk::{
-    AdapterChoice, BindingKind, Buffer, ContextOptions, HitGroup, MemoryLocation, Resource, RtPipeline, RtPipelineDesc, SceneAccel,
-    ShaderEntry, TlasInstance, ValidationLog, VkContext, VkError,
+    BindingKind, Buffer, HitGroup, MemoryLocation, Resource, RtPipeline, RtPipelineDesc, SceneAccel,
+    ShaderEntry, TlasInstance, VkContext, VkError,
 };
 use glam::{DVec3, Vec3};
 
-/// A validated context, or `None` (with a loud message) where Vulkan, the driver or the
-/// validation layer is missing outside CI.
-fn context() -> Option<VkContext> {
-    match VkContext::new(&AdapterChoice::Auto, &ContextOptions { validation: true }) {
-        Ok(ctx) => Some(ctx),
-        Err(e) if std::env::var_os("CI").is_some() => panic!("CI needs Vulkan with lavapipe and the validation layer: {e}"),
-        Err(e) => {
-            eprintln!(
-                "\n*** SKIPPING arpa-vk ray-cast test: {e}\n*** (run `bash scripts/install-lavapipe.sh` and `bash scripts/install-vulkan-tools.sh`)\n"
-            );
-            None
-        }
-    }
-}
-
-fn assert_clean(log: &ValidationLog, when: &str) {
-    let messages = log.messages();
-    let text: Vec<String> = messages.iter().map(|m| m.to_string()).collect();
-    assert!(messages.is_empty(), "{} validation message(s) {when}:\n{}", messages.len(), text.join("\n"));
-}
+mod support;
+use support::{assert_clean, context};
 
 fn scene() -> Scene {
     let s = 1.0;
@@ -132,7 +114,7 @@ fn storage(ctx: &VkContext, label: &str, bytes: &[u8], pad: usize, usage: vk::Bu
 
 #[test]
 fn closest_hits_match_brute_force() {
-    let Some(ctx) = context() else { return };
+    let Some(ctx) = context("ray-cast") else { return };
     let start = std::time::Instant::now();
     let scene = scene();
     let prepared = PreparedScene::new(scene.clone()).expect("valid test scene");
@@ -246,7 +228,7 @@ fn closest_hits_match_brute_force() {
 
 #[test]
 fn aabb_blas_and_top_levels_build_cleanly() {
-    let Some(ctx) = context() else { return };
+    let Some(ctx) = context("ray-cast") else { return };
     // Boxes along x, one inactive (NaN), as the gather will build them.
     let mut boxes: Vec<[f32; 6]> = (0..100).map(|i| [i as f32, 0.0, 0.0, i as f32 + 0.5, 0.5, 0.5]).collect();
     boxes[7] = [f32::NAN; 6];
@@ -296,7 +278,7 @@ static MARKED_HIT: arpa_core::shaders::WgslFile = arpa_core::shaders::WgslFile {
 
 #[test]
 fn instance_sbt_offsets_select_hit_groups() {
-    let Some(ctx) = context() else { return };
+    let Some(ctx) = context("ray-cast") else { return };
     let prepared = PreparedScene::new(scene()).expect("valid test scene");
     // Odd meshes use hit group 1 (the marking one), even meshes hit group 0.
     let accel = SceneAccel::build_with_sbt_offsets(&ctx, &prepared, |mesh| mesh as u32 % 2).expect("acceleration structures");

@@ -10,18 +10,14 @@ use arpa_core::emission::{Light, PointLight};
 use arpa_core::scene::{Camera, Material, Scene};
 use arpa_core::shapes::{icosphere, parallelogram};
 use arpa_core::tracer::{Image, IterationStats, Method, RenderSettings, Tracer};
-use arpa_vk::{AdapterChoice, ContextOptions, VkContext, VkTracer};
+use arpa_vk::VkTracer;
 use glam::{DVec3, Vec3};
 
+mod support;
+use support::assert_clean;
+
 fn tracer() -> Option<VkTracer> {
-    match VkContext::new(&AdapterChoice::Auto, &ContextOptions { validation: true }) {
-        Ok(ctx) => Some(VkTracer::with_context(ctx)),
-        Err(e) if std::env::var_os("CI").is_some() => panic!("CI needs Vulkan with lavapipe and the validation layer: {e}"),
-        Err(e) => {
-            eprintln!("\n*** SKIPPING arpa-vk tracer test: {e}\n*** (run `bash scripts/setup-debian.sh`)\n");
-            None
-        }
-    }
+    support::context("tracer").map(VkTracer::with_context)
 }
 
 fn scene() -> Scene {
@@ -95,11 +91,9 @@ fn renders_both_methods_cleanly_and_deterministically() {
         assert!(bits(&image) == bits(&again), "{method:?}: the same seed gave different images");
         eprintln!("arpa-vk {method:?}: mean radiance {mean:.5}, last iteration {:?}", stats.last().map(|s| s.times));
     }
-    let messages = log.messages();
-    assert!(messages.is_empty(), "validation: {messages:#?}");
+    assert_clean(&log, "while rendering");
     drop(t);
-    let messages = log.messages();
-    assert!(messages.is_empty(), "validation while destroying: {messages:#?}");
+    assert_clean(&log, "while destroying");
 }
 
 #[test]
@@ -113,5 +107,5 @@ fn overflow_grows_the_buffers_without_changing_the_image() {
     assert!(stats[0].overflowed > 0, "a 64-record buffer did not overflow: {:?}", stats[0]);
     assert_eq!(stats[1].overflowed, 0, "the buffers stay grown: {:?}", stats[1]);
     assert!(bits(&want) == bits(&got), "the grown buffers gave another image");
-    assert!(t.context().validation_log().messages().is_empty());
+    assert_clean(&t.context().validation_log(), "while rendering");
 }

@@ -15,7 +15,7 @@
 //!   input, and the core's WGSL twin against the Rust core ([`cases::twin`])).
 //! * [`KernelRunner`]: the capability the WGSL-twin cases need, offered per backend by the
 //!   registry; a backend without one (cpu) reports them [`Verdict::NotApplicable`].
-//! * [`suite`]: the runner. `ARPA_REQUIRE_BACKENDS=cpu,wgpu` makes a listed backend that
+//! * [`suite`]: the runner. `ARPA_REQUIRE_BACKENDS=cpu,wgpu,vk` makes a listed backend that
 //!   is unknown, not compiled in or unable to initialise a failure.
 //!
 //! Run it with `cargo run -p arpa-conformance --profile test [-- --out FILE]` (opt-level 2;

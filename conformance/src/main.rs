@@ -6,7 +6,7 @@
 //! ```
 //!
 //! `--out` defaults to `$CARGO_TARGET_DIR/conformance.md` (or the workspace's
-//! `target/conformance.md`). `ARPA_REQUIRE_BACKENDS=cpu,wgpu` names backends that must be
+//! `target/conformance.md`). `ARPA_REQUIRE_BACKENDS=cpu,wgpu,vk` names backends that must be
 //! compiled in and initialise; `ARPA_CONFORMANCE_CASES` (or `--case`) selects cases by id
 //! substring. Exit status 1 on any unexpected failure, 2 on a usage error.
 //!
@@ -55,7 +55,7 @@ fn main() -> ExitCode {
             }
             "-h" | "--help" => {
                 println!(
-                    "usage: conformance [--out FILE] [--case ID[,ID...]] [--list]\nenv: ARPA_REQUIRE_BACKENDS=cpu,wgpu  ARPA_CONFORMANCE_CASES=id,..."
+                    "usage: conformance [--out FILE] [--case ID[,ID...]] [--list]\nenv: ARPA_REQUIRE_BACKENDS=cpu,wgpu,vk  ARPA_CONFORMANCE_CASES=id,..."
                 );
                 return ExitCode::SUCCESS;
             }
