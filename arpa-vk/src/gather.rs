@@ -8,8 +8,8 @@
 //! query points.
 //!
 //! Descriptor set 0 as `gather.wgsl` declares it: 0 footprints, 1 photons, 2 query records,
-//! 3 image, 4 parameters ([`GatherImageParams`]), 5 the counts, 6 the per-pixel batch
-//! irradiance (unused: one batch per iteration), 7 the top level.
+//! 3 image, 4 parameters ([`GatherImageParams`]), 5 the counts, 6 the per-pixel irradiance
+//! summed over the photon batches gathered so far, 7 the top level.
 //!
 //! # Order of the sum
 //! The any-hit shader adds contributions in the order the traversal visits the boxes. That
@@ -101,16 +101,19 @@ impl GatherPass {
             pipeline,
             params: ctx.create_buffer("gather parameters", size_of::<GatherImageParams>() as u64, storage, MemoryLocation::CpuToGpu)?,
             counts: ctx.create_buffer("gather counts", 16, storage, MemoryLocation::GpuToCpu)?,
-            batch_irradiance: ctx.create_buffer("gather batch irradiance (unused)", 16, storage, MemoryLocation::GpuOnly)?,
+            batch_irradiance: ctx.create_buffer("gather batch irradiance", u64::from(pixels.max(1)) * 16, storage, MemoryLocation::GpuOnly)?,
             kernel,
             pixels,
         })
     }
 
-    /// Gathers every query record of `queries` from `maps` into `image` (one `vec4<f32>`
-    /// per pixel), waits, and returns the counts.
-    pub fn run(&mut self, ctx: &VkContext, queries: &Buffer, image: &Buffer, maps: &GatherInputs<'_>) -> Result<GatherCounts, VkError> {
-        let params = GatherImageParams::new(maps.radii, self.kernel, self.pixels, GatherBatch { first: true, last: true });
+    /// Gathers every query record of `queries` from the photon batch `maps`, waits, and
+    /// returns the counts (valid query points only for the iteration's first batch). The
+    /// first batch starts each pixel's irradiance sum, later ones add to it, the last writes
+    /// `radiance + weight · E` into `image` (one `vec4<f32>` per pixel); with one batch,
+    /// `batch` is both first and last.
+    pub fn run(&mut self, ctx: &VkContext, queries: &Buffer, image: &Buffer, maps: &GatherInputs<'_>, batch: GatherBatch) -> Result<GatherCounts, VkError> {
+        let params = GatherImageParams::new(maps.radii, self.kernel, self.pixels, batch);
         self.params.write(0, bytemuck::bytes_of(&params))?;
         self.counts.write(0, &[0u8; 16])?;
         if self.pixels == 0 {

@@ -122,12 +122,14 @@ impl PhotonPass {
         Ok(())
     }
 
-    /// Traces every photon of the iteration `setup` into `out` (bound with
-    /// [`PhotonPass::bind`]), waits, and returns the counters.
+    /// Traces the photons `batch` (global indices of the iteration `setup`: their random
+    /// streams, emitters and record keys are those of one pass over the whole iteration)
+    /// into `out` (bound with [`PhotonPass::bind`]), waits, and returns the counters.
     ///
     /// Errors: [`VkError::InvalidInput`] when `setup` is for another emitter count, when the
-    /// record keys `photons · max_depth` overflow `u32`, or when nothing is bound.
-    pub fn run(&mut self, ctx: &VkContext, setup: &PhotonPassSetup, out: &mut PhotonOutputs) -> Result<PhotonCounters, VkError> {
+    /// record keys `photons · max_depth` overflow `u32`, for a batch outside the iteration,
+    /// or when nothing is bound.
+    pub fn run(&mut self, ctx: &VkContext, setup: &PhotonPassSetup, batch: std::ops::Range<u32>, out: &mut PhotonOutputs) -> Result<PhotonCounters, VkError> {
         let invalid = |reason: String| VkError::InvalidInput { what: "photon pass".into(), reason };
         if setup.lights.len() != self.emitters || setup.allocation.len() != self.emitters || setup.first_index.len() != self.emitters {
             return Err(invalid(format!("{} emitters in the setup, the pass was made for {}", setup.lights.len(), self.emitters)));
@@ -139,8 +141,12 @@ impl PhotonPass {
         if self.bindings.is_none() {
             return Err(invalid("no output buffers bound".into()));
         }
+        if batch.start > batch.end || batch.end > photons {
+            return Err(invalid(format!("photons {batch:?} of an iteration of {photons}")));
+        }
         let (lights, ranges) = emitter_tables(setup);
-        let params = PhotonParams::new(&self.settings, setup.iteration, self.emitters as u32, 0..photons);
+        let params = PhotonParams::new(&self.settings, setup.iteration, self.emitters as u32, batch.clone());
+        let photons = batch.end - batch.start;
         self.params.write(0, bytemuck::bytes_of(&params))?;
         self.lights.write(0, bytemuck::cast_slice(&lights))?;
         self.ranges.write(0, bytemuck::cast_slice(&ranges))?;

@@ -14,8 +14,8 @@ use crate::maps::{MapStore, StorePipelines};
 use crate::photons::{PhotonOutputs, PhotonPass, photon_pipeline};
 use crate::scene::VkScene;
 use arpa_core::footprint::PackedFootprint;
-use arpa_core::gpu::batch::{RecordLimits, grow, initial_capacity};
-use arpa_core::gpu::layout::{CameraParams, StoreCounts, StoreSettings};
+use arpa_core::gpu::batch::{RecordLimits, batch_count, batch_range, grow, initial_capacity, shrink};
+use arpa_core::gpu::layout::{CameraParams, GatherBatch, StoreCounts, StoreSettings};
 use arpa_core::photon_path::PhotonPassSetup;
 use arpa_core::prepared_scene::PreparedScene;
 use arpa_core::progressive_photon::PackedPhoton;
@@ -26,6 +26,7 @@ use arpa_core::tracer::{
 };
 use ash::vk;
 use gpu_allocator::MemoryLocation;
+use std::ops::Range;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
@@ -59,9 +60,9 @@ pub enum VkTracerError {
 /// |---|---|---|
 /// | [`upload_scene`](Tracer::upload_scene) | validates scene and settings, builds the triangle structures, uploads the scene tables, compiles the pipelines | the builds |
 /// | [`camera_pass`](Tracer::camera_pass) | ray generation per pixel, closest-hit and miss over the triangles ([`CameraPass`]) | the trace |
-/// | [`photon_pass`](Tracer::photon_pass) | ray generation per photon appending keyed footprints and photons ([`PhotonPass`]); keyed store, sort and compaction into the sorted maps and their boxes ([`MapStore`]) | the photon counters (48 bytes: overflow and the store's sizes) and the store counts (48 bytes: the sort's schedule and the build's sizes) |
-/// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | AABB bottom levels per (kind, map) over the sorted boxes, one top level ([`MapAccel`]) | the build |
-/// | [`gather`](Tracer::gather) | ray generation per query record, one point query through the AABB hit group (GLSL intersection: exact test; any-hit: contribution, ignore) ([`GatherPass`]) | contribution and query-point counts (16 bytes) |
+/// | [`photon_pass`](Tracer::photon_pass) | per photon batch: ray generation per photon appending keyed footprints and photons ([`PhotonPass`]); keyed store, sort and compaction into the batch's sorted maps and boxes ([`MapStore`]) | per batch, the photon counters (48 bytes: overflow and the store's sizes) and the store counts (48 bytes: the sort's schedule and the build's sizes) |
+/// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | per batch, AABB bottom levels per (kind, map) over the sorted boxes and one top level ([`MapAccel`]) | the build |
+/// | [`gather`](Tracer::gather) | per batch, ray generation per query record, one point query through the AABB hit group (GLSL intersection: exact test; any-hit: contribution, ignore) ([`GatherPass`]) | per batch, contribution and query-point counts (16 bytes) |
 /// | [`accumulate`](Tracer::accumulate) | compensated running sum ([`DeviceAccumulator`]) | the dispatch |
 ///
 /// Each stage is one submission (or two, for the photon pass's store and sort) that the host
@@ -69,13 +70,19 @@ pub enum VkTracerError {
 /// photon pass stay because Vulkan's indirect build takes primitive counts from device
 /// memory but not the sizes of the structures, which must be allocated before the build.
 ///
-/// # Photon records
-/// One batch per iteration: the photon pass's buffers start at
-/// [`arpa_core::gpu::batch::INITIAL_RECORDS_PER_PHOTON`] records per photon and grow when a
-/// pass overflows them (the pass is then traced again with the same random streams, so the
-/// iteration is unbiased; the dropped appends are counted in [`IterationStats::overflowed`]).
-/// An iteration whose records exceed one storage binding of the adapter
-/// (`maxStorageBufferRange`) is a [`VkTracerError::Size`] error.
+/// # Photon records and batches
+/// The photon pass's buffers start at [`arpa_core::gpu::batch::INITIAL_RECORDS_PER_PHOTON`]
+/// records per photon and grow when a pass overflows them (the photons are then traced again
+/// with the same random streams, so the iteration is unbiased; the dropped appends are
+/// counted in [`IterationStats::overflowed`]). An iteration whose records exceed one storage
+/// binding of the adapter (`maxStorageBufferRange`; lavapipe: 128 MiB, ~1.4 M raw
+/// footprints) is traced in photon batches, with the core's policy
+/// ([`arpa_core::gpu::batch`]) as the wgpu backend: batch `k` is the global photons
+/// `[k·B, (k+1)·B)`, stored and sorted into maps of its own ([`MapStore`]) with a structure
+/// of its own; the gather adds each batch's irradiance per pixel in batch order. When a batch
+/// does not fit, B shrinks and the photon pass starts the iteration again; B then stays for
+/// the render. B is part of the determinism key (another B sums the same contributions in
+/// another `f32` order).
 ///
 /// # Determinism
 /// Each photon's and pixel's random stream depends only on `(seed, iteration, index)`; the
@@ -88,6 +95,7 @@ pub struct VkTracer {
     ctx: VkContext,
     pipelines: Arc<Mutex<Option<Arc<PassPipelines>>>>,
     initial_capacity: Option<u32>,
+    batch_photons: Option<u32>,
 }
 
 /// Every pipeline of the passes. None depends on the scene or the settings, so they are
@@ -114,17 +122,26 @@ impl PassPipelines {
     }
 }
 
-struct Loaded {
+/// One photon batch's maps: sorted records and boxes, their counts and structure.
+struct Batch {
     /// Dropped before the buffers it refers to.
     accel: Option<MapAccel>,
+    store: MapStore,
+    counts: StoreCounts,
+}
+
+struct Loaded {
+    /// The iteration's photon batches (the first `batch_count` are current).
+    batches: Vec<Batch>,
+    batch_count: usize,
+    /// Photons per batch (B).
+    batch_photons: u32,
     pipelines: Arc<PassPipelines>,
     prepared: PreparedScene,
     settings: RenderSettings,
     camera: CameraPass,
     photon: PhotonPass,
     outputs: PhotonOutputs,
-    store: MapStore,
-    counts: StoreCounts,
     radii: [f32; 2],
     gather: GatherPass,
     accumulator: DeviceAccumulator,
@@ -147,13 +164,13 @@ impl VkTracer {
     /// context lives until the process ends.
     pub fn new(choice: &AdapterChoice) -> Result<Self, VkTracerError> {
         let (ctx, pipelines) = shared_context(choice)?;
-        Ok(Self { state: None, ctx, pipelines, initial_capacity: None })
+        Ok(Self { state: None, ctx, pipelines, initial_capacity: None, batch_photons: None })
     }
 
     /// A tracer on an open context (e.g. one with validation, for tests); its pipelines are
     /// made at the first [`Tracer::upload_scene`] and kept for the next renders.
     pub fn with_context(ctx: VkContext) -> Self {
-        Self { state: None, ctx, pipelines: Arc::default(), initial_capacity: None }
+        Self { state: None, ctx, pipelines: Arc::default(), initial_capacity: None, batch_photons: None }
     }
 
     /// The passes' pipelines, made on first use.
@@ -172,6 +189,20 @@ impl VkTracer {
     /// when an iteration overflows them; a small value exercises that path.
     pub fn set_initial_capacity(&mut self, records: Option<u32>) {
         self.initial_capacity = records;
+    }
+
+    /// Forces the photons per batch (B, at least 1) of the renders uploaded after this call
+    /// (`None`: automatic, see [`VkTracer`]'s *Photon records and batches*). A test hook: a
+    /// small B splits an iteration into many batches. The image depends on B at `f32`
+    /// rounding level.
+    pub fn set_batch_photons(&mut self, photons: Option<u32>) {
+        self.batch_photons = photons.map(|b| b.max(1));
+    }
+
+    /// Photons per batch (B) the next iteration starts with (`None` before
+    /// [`Tracer::upload_scene`]).
+    pub fn batch_photons(&self) -> Option<u32> {
+        self.state.as_ref().map(|s| s.batch_photons)
     }
 
     /// The context.
@@ -209,6 +240,91 @@ fn binding_bytes(ctx: &VkContext) -> u64 {
     // SAFETY: a physical device of this instance.
     let props = unsafe { ctx.instance().get_physical_device_properties(ctx.physical_device()) };
     u64::from(props.limits.max_storage_buffer_range)
+}
+
+/// Zeroes the per-iteration counts the batches sum into (not `overflowed`, which keeps every
+/// dropped append of the iteration, nor the times).
+fn reset_counts(stats: &mut IterationStats) {
+    stats.photons_emitted = 0;
+    stats.photon_segments = 0;
+    stats.footprints = [0; 2];
+    stats.progressive = [0; 2];
+    stats.degenerate = 0;
+    stats.culled = 0;
+    stats.unrepresentable = 0;
+    stats.differential_lost = 0;
+}
+
+/// Traces the photons `range` of the iteration `setup` (growing the photon buffers and
+/// tracing again on overflow), stores, sorts and compacts them into batch `k`'s maps, and
+/// adds the batch's counts to the stats. `Some(B)`: the batch needs more than one storage
+/// binding holds; the caller traces the iteration again with B photons per batch.
+fn trace_batch(ctx: &VkContext, adapter: &str, st: &mut Loaded, setup: &PhotonPassSetup, range: Range<u32>, k: usize) -> Result<Option<u32>, VkTracerError> {
+    let photons = range.end - range.start;
+    let limits = st.limits;
+    let size = |message: String| VkTracerError::Size { adapter: adapter.to_string(), message };
+    let counters = loop {
+        let c = st.photon.run(ctx, setup, range.clone(), &mut st.outputs)?;
+        if c.overflowed() == 0 {
+            break c;
+        }
+        st.clock.stats_mut().overflowed += c.overflowed();
+        if c.footprint_appends > limits.raw_footprints || c.photon_appends > limits.photons {
+            if photons <= 1 {
+                return Err(size(format!(
+                    "one photon stores {} raw footprints and {} progressive photons; one binding holds {} and {}",
+                    c.footprint_appends, c.photon_appends, limits.raw_footprints, limits.photons
+                )));
+            }
+            return Ok(Some(shrink(photons, limits.fits(c.footprint_appends, c.photon_appends))));
+        }
+        let fp_cap = grow(c.footprint_appends, st.outputs.footprint_capacity(), limits.raw_footprints);
+        let ph_cap = grow(c.photon_appends, st.outputs.photon_capacity(), limits.photons);
+        // Free the old buffers before allocating the larger ones.
+        st.outputs = PhotonOutputs::new(ctx, 1, 1)?;
+        st.outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
+        st.photon.bind(&st.scene, &st.outputs)?;
+    };
+    let caps = (st.outputs.footprint_capacity(), st.outputs.photon_capacity());
+    if st.batches.get(k).is_none_or(|b| b.store.capacities() != caps) {
+        // Free this batch's old buffers first.
+        st.batches.truncate(k);
+        let store = MapStore::new(ctx, &st.pipelines.store, caps.0, caps.1)?;
+        st.batches.push(Batch { accel: None, store, counts: StoreCounts::default() });
+    }
+    let settings = StoreSettings {
+        heuristics: setup.heuristics.pack(),
+        radii: setup.radii.map(|r| r as f32),
+        bounds: st.prepared.bounds().to_f32_conservative(),
+        raw_count: counters.footprints_written(),
+        photon_count: counters.photons_written(),
+    };
+    let outputs = &st.outputs;
+    let batch = &mut st.batches[k];
+    let counts = batch.store.store(ctx, outputs.footprints(), outputs.photons(), &settings)?;
+    // The sorted progressive photons (the pass's plus the footprints' fallbacks) must fit one
+    // binding too.
+    if u64::from(counts.photon_items) > u64::from(batch.store.photons_out_capacity()) {
+        st.clock.stats_mut().overflowed += u64::from(counts.photon_items) - u64::from(batch.store.photons_out_capacity());
+        if photons <= 1 {
+            return Err(size(format!("one photon stores {} progressive photons; one binding holds {}", counts.photon_items, batch.store.photons_out_capacity())));
+        }
+        return Ok(Some(shrink(photons, f64::from(batch.store.photons_out_capacity()) / f64::from(counts.photon_items))));
+    }
+    let counts = batch.store.sort(ctx, outputs.footprints(), outputs.photons(), &counts, &settings)?;
+    batch.counts = counts;
+    let stats = st.clock.stats_mut();
+    stats.photons_emitted += u64::from(counters.emitted);
+    stats.photon_segments += u64::from(counters.segments);
+    for m in 0..2 {
+        stats.footprints[m] += u64::from(counts.footprints[m]);
+        stats.progressive[m] += u64::from(counts.photons[m]);
+    }
+    stats.degenerate += u64::from(counts.degenerate);
+    stats.culled += u64::from(counts.culled);
+    stats.unrepresentable += u64::from(counts.unrepresentable);
+    stats.differential_lost += u64::from(counters.differential_lost);
+    Ok(None)
 }
 
 impl Tracer for VkTracer {
@@ -254,24 +370,23 @@ impl Tracer for VkTracer {
         let image = ctx.create_buffer("iteration image", (u64::from(pixels) * 16).max(16), storage, MemoryLocation::GpuOnly)?;
         let camera = CameraPass::new(ctx, &pipelines.camera, &vk_scene, CameraParams::new(&scene.camera, settings, width)?, &queries)?;
         let mut photon = PhotonPass::new(ctx, &pipelines.photon, prepared.emitters().len(), settings)?;
-        let n = settings.photons_per_iteration;
-        let fp_cap = initial_capacity(n, self.initial_capacity, limits.raw_footprints);
-        let ph_cap = initial_capacity(n, self.initial_capacity, limits.photons);
+        let batch_photons = self.batch_photons.unwrap_or(settings.photons_per_iteration).min(settings.photons_per_iteration);
+        let fp_cap = initial_capacity(batch_photons, self.initial_capacity, limits.raw_footprints);
+        let ph_cap = initial_capacity(batch_photons, self.initial_capacity, limits.photons);
         let outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
         photon.bind(&vk_scene, &outputs)?;
-        let store = MapStore::new(ctx, &pipelines.store, outputs.footprint_capacity(), outputs.photon_capacity())?;
         let gather = GatherPass::new(ctx, &pipelines.gather, settings.kernel, pixels)?;
         let accumulator = DeviceAccumulator::new(ctx, &pipelines.accumulate, pixels)?;
         self.state = Some(Box::new(Loaded {
-            accel: None,
+            batches: Vec::new(),
+            batch_count: 0,
+            batch_photons,
             pipelines,
             prepared,
             settings: *settings,
             camera,
             photon,
             outputs,
-            store,
-            counts: StoreCounts::default(),
             radii: [0.0; 2],
             gather,
             accumulator,
@@ -303,65 +418,31 @@ impl Tracer for VkTracer {
         let st = uploaded(self.state.as_deref_mut(), Stage::PhotonPass)?;
         st.clock.begin(Stage::PhotonPass)?;
         let start = Instant::now();
-        // The previous iteration's structure refers to the buffers the store rewrites.
-        st.accel = None;
+        // The previous iteration's structures refer to the buffers the store rewrites.
+        for b in &mut st.batches {
+            b.accel = None;
+        }
         let setup = PhotonPassSetup::new(&st.prepared, &st.settings, st.clock.completed());
-        let size = |message: String| VkTracerError::Size { adapter: adapter.clone(), message };
-        let mut overflowed = 0u64;
-        // Trace; on overflow grow the buffers and trace the same photons again.
-        let counters = loop {
-            let c = st.photon.run(ctx, &setup, &mut st.outputs)?;
-            if c.overflowed() == 0 {
-                break c;
+        let n = setup.photon_count();
+        st.clock.stats_mut().overflowed = 0;
+        // Every batch; a batch too large for one binding shrinks B and starts the
+        // iteration again.
+        'iteration: loop {
+            reset_counts(st.clock.stats_mut());
+            let batches = batch_count(n, st.batch_photons);
+            st.batch_count = 0;
+            for k in 0..batches {
+                let range = batch_range(n, st.batch_photons, k);
+                if let Some(smaller) = trace_batch(ctx, &adapter, st, &setup, range, k as usize)? {
+                    st.batch_photons = smaller;
+                    continue 'iteration;
+                }
+                st.batch_count = k as usize + 1;
             }
-            overflowed += c.overflowed();
-            let limits = st.limits;
-            if c.footprint_appends > limits.raw_footprints || c.photon_appends > limits.photons {
-                return Err(size(format!(
-                    "{} photons store {} raw footprints and {} progressive photons; one binding holds {} and {}",
-                    setup.photon_count(),
-                    c.footprint_appends,
-                    c.photon_appends,
-                    limits.raw_footprints,
-                    limits.photons
-                )));
-            }
-            let fp_cap = grow(c.footprint_appends, st.outputs.footprint_capacity(), limits.raw_footprints);
-            let ph_cap = grow(c.photon_appends, st.outputs.photon_capacity(), limits.photons);
-            // Free the old buffers before allocating the larger ones.
-            st.outputs = PhotonOutputs::new(ctx, 1, 1)?;
-            st.store = MapStore::new(ctx, &st.pipelines.store, 1, 1)?;
-            st.outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
-            st.photon.bind(&st.scene, &st.outputs)?;
-            st.store = MapStore::new(ctx, &st.pipelines.store, fp_cap, ph_cap)?;
-        };
-        let radii = setup.radii.map(|r| r as f32);
-        let settings = StoreSettings {
-            heuristics: setup.heuristics.pack(),
-            radii,
-            bounds: st.prepared.bounds().to_f32_conservative(),
-            raw_count: counters.footprints_written(),
-            photon_count: counters.photons_written(),
-        };
-        let counts = st.store.store(ctx, st.outputs.footprints(), st.outputs.photons(), &settings)?;
-        let counts = st.store.sort(ctx, st.outputs.footprints(), st.outputs.photons(), &counts, &settings)?;
-        if counts.overflowed > 0 {
-            return Err(size(format!("{} progressive photons (with the footprints' fallbacks) exceed the sorted buffer", counts.photon_items)));
+            break;
         }
-        st.counts = counts;
-        st.radii = radii;
+        st.radii = setup.radii.map(|r| r as f32);
         let stats = st.clock.stats_mut();
-        stats.overflowed = overflowed;
-        stats.photons_emitted = u64::from(counters.emitted);
-        stats.photon_segments = u64::from(counters.segments);
-        for m in 0..2 {
-            stats.footprints[m] = u64::from(counts.footprints[m]);
-            stats.progressive[m] = u64::from(counts.photons[m]);
-        }
-        stats.degenerate = u64::from(counts.degenerate);
-        stats.culled = u64::from(counts.culled);
-        stats.unrepresentable = u64::from(counts.unrepresentable);
-        stats.differential_lost = u64::from(counters.differential_lost);
         stats.radii = setup.radii;
         stats.times.photon = start.elapsed().as_secs_f64();
         st.clock.finish(Stage::PhotonPass);
@@ -372,8 +453,10 @@ impl Tracer for VkTracer {
         let st = uploaded(self.state.as_deref_mut(), Stage::BuildAccelerationStructure)?;
         st.clock.begin(Stage::BuildAccelerationStructure)?;
         let start = Instant::now();
-        st.accel = None;
-        st.accel = Some(MapAccel::build(&self.ctx, st.store.footprint_boxes(), st.store.photon_boxes(), &st.counts)?);
+        for b in &mut st.batches[..st.batch_count] {
+            b.accel = None;
+            b.accel = Some(MapAccel::build(&self.ctx, b.store.footprint_boxes(), b.store.photon_boxes(), &b.counts)?);
+        }
         st.clock.stats_mut().times.build = start.elapsed().as_secs_f64();
         st.clock.finish(Stage::BuildAccelerationStructure);
         Ok(())
@@ -383,12 +466,19 @@ impl Tracer for VkTracer {
         let st = uploaded(self.state.as_deref_mut(), Stage::Gather)?;
         st.clock.begin(Stage::Gather)?;
         let start = Instant::now();
-        let accel = st.accel.as_ref().ok_or_else(|| StageError::order(Stage::Gather, Stage::BuildAccelerationStructure))?;
-        let inputs = GatherInputs { footprints: st.store.footprints(), photons: st.store.photons(), tlas: accel.tlas(), radii: st.radii };
-        let counts = st.gather.run(&self.ctx, &st.queries, &st.image, &inputs)?;
+        let batches = st.batch_count;
+        let (mut contributions, mut query_points) = (0u64, 0u64);
+        for (k, b) in st.batches[..batches].iter().enumerate() {
+            let accel = b.accel.as_ref().ok_or_else(|| StageError::order(Stage::Gather, Stage::BuildAccelerationStructure))?;
+            let inputs = GatherInputs { footprints: b.store.footprints(), photons: b.store.photons(), tlas: accel.tlas(), radii: st.radii };
+            let batch = GatherBatch { first: k == 0, last: k + 1 == batches };
+            let counts = st.gather.run(&self.ctx, &st.queries, &st.image, &inputs, batch)?;
+            contributions += counts.contributions;
+            query_points += counts.query_points;
+        }
         let stats = st.clock.stats_mut();
-        stats.gathered = counts.contributions;
-        stats.query_points = counts.query_points;
+        stats.gathered = contributions;
+        stats.query_points = query_points;
         stats.times.gather = start.elapsed().as_secs_f64();
         st.clock.finish(Stage::Gather);
         Ok(())
@@ -420,19 +510,28 @@ impl Tracer for VkTracer {
         Ok(crate::buffer::pod_vec(&self.ctx.read_back(&st.queries, 0, u64::from(st.pixels) * QUERY_RECORD_BYTES)?))
     }
 
-    /// The last photon pass's footprints, sorted by map (caustic first), then by Morton code
-    /// and key.
+    /// The last photon pass's footprints, batch after batch, each batch sorted by map
+    /// (caustic first), then by Morton code and key.
     fn read_footprints(&self) -> Result<Vec<PackedFootprint>, VkTracerError> {
         let st = self.loaded(Call::ReadFootprints)?;
         st.clock.require_output(Call::ReadFootprints, Stage::PhotonPass)?;
-        Ok(st.store.read_footprints(&self.ctx, &st.counts)?)
+        let mut all = Vec::new();
+        for b in &st.batches[..st.batch_count] {
+            all.extend(b.store.read_footprints(&self.ctx, &b.counts)?);
+        }
+        Ok(all)
     }
 
-    /// The last photon pass's progressive photons, sorted as the footprints.
+    /// The last photon pass's progressive photons, batch after batch, sorted as the
+    /// footprints.
     fn read_photons(&self) -> Result<Vec<PackedPhoton>, VkTracerError> {
         let st = self.loaded(Call::ReadPhotons)?;
         st.clock.require_output(Call::ReadPhotons, Stage::PhotonPass)?;
-        Ok(st.store.read_photons(&self.ctx, &st.counts)?)
+        let mut all = Vec::new();
+        for b in &st.batches[..st.batch_count] {
+            all.extend(b.store.read_photons(&self.ctx, &b.counts)?);
+        }
+        Ok(all)
     }
 
     fn read_stats(&self) -> Result<IterationStats, VkTracerError> {

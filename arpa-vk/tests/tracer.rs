@@ -109,3 +109,28 @@ fn overflow_grows_the_buffers_without_changing_the_image() {
     assert!(bits(&want) == bits(&got), "the grown buffers gave another image");
     assert_clean(&t.context().validation_log(), "while rendering");
 }
+
+#[test]
+fn photon_batches_sum_to_the_single_pass_image() {
+    let Some(mut t) = tracer() else { return };
+    let scene = scene();
+    let s = settings(Method::Arpa);
+    let (want, one) = render(&mut t, &scene, &s, 2);
+    let records = t.read_footprints().expect("footprints").len() + t.read_photons().expect("photons").len();
+    t.set_batch_photons(Some(7_000));
+    let (got, three) = render(&mut t, &scene, &s, 2);
+    assert_eq!(t.batch_photons(), Some(7_000));
+    // The same photons, records and contributions, in three batches.
+    for (a, b) in one.iter().zip(&three) {
+        assert_eq!((a.photons_emitted, a.footprints, a.progressive, a.gathered, a.query_points), (b.photons_emitted, b.footprints, b.progressive, b.gathered, b.query_points));
+    }
+    assert_eq!(t.read_footprints().expect("footprints").len() + t.read_photons().expect("photons").len(), records);
+    // Summed in another f32 order: equal to rounding.
+    let mut worst = 0.0f32;
+    for (a, b) in want.pixels.iter().zip(&got.pixels) {
+        let d = (*a - *b).abs().max_element() / a.max_element().max(1e-3);
+        worst = worst.max(d);
+    }
+    assert!(worst < 1e-4, "batched image differs from the single-pass one by {worst:e} (relative)");
+    assert_clean(&t.context().validation_log(), "while rendering in batches");
+}
