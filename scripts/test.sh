@@ -10,9 +10,12 @@ bash scripts/setup-debian.sh
 
 # arpa-vk's GLSL stages: recompile, compare with the checked-in SPIR-V, spirv-val.
 bash scripts/build-vk-shaders.sh --check
-# arpa-core must build without std and without alloc.
-cargo build -p arpa-core --no-default-features
-cargo build -p arpa-core --no-default-features --features alloc
+# arpa-core must build without std and without alloc, without a warning.
+RUSTFLAGS="-D warnings" cargo build -p arpa-core --no-default-features
+RUSTFLAGS="-D warnings" cargo build -p arpa-core --no-default-features --features alloc
+# Lints and docs of the whole workspace, warnings denied.
+cargo clippy --workspace --all-targets -- -D warnings
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps
 # Unit, integration and benchmark targets (benchmarks run once each, as smoke tests).
 cargo test --workspace --all-targets
 cargo test --workspace --doc

@@ -5,7 +5,7 @@
 //! registry ([`backends`]: one cargo feature per backend, `cpu` and `wgpu`), the render
 //! loop ([`session`]), the scene-file loader ([`scene_file`]), the embedded default scene
 //! ([`default_scene`]), image input/output ([`image_io`]), the image metrics ([`metrics`]),
-//! the run-time-against-error harness ([`bench`]) and the `arpa` command-line tool ([`cli`]).
+//! the run-time-against-error harness ([`bench`](mod@bench)) and the `arpa` command-line tool ([`cli`]).
 #![warn(missing_docs)]
 
 pub use arpa_core as core;

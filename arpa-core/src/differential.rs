@@ -258,7 +258,8 @@ impl RayDifferential {
     /// [`RayDifferential::transfer_unit_normal`] to a surface whose `n` is known to be unit
     /// and finite (a [`crate::prepared_scene::SurfacePoint`]'s geometric normal, which
     /// [`crate::prepared_scene::PreparedScene`] keeps unit, `+y` on a degenerate triangle):
-    /// skips the check of `n`. The photon path's transfer.
+    /// skips the check of `n`. The photon path's transfer (alloc only, as the photon path).
+    #[cfg(feature = "alloc")]
     #[inline(always)]
     pub(crate) fn transfer_finite_unit_normal(&self, t: f64, n: DVec3) -> Result<Self, DifferentialError> {
         debug_assert!(n.is_finite() && n != DVec3::ZERO, "{n:?}");

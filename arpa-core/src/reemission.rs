@@ -68,7 +68,8 @@ pub fn diffuse_direction(normal: DVec3, u: DVec2) -> DVec3 {
 /// [`diffuse_direction`] about a `normal` that is unit and finite already (a prepared
 /// triangle's face normal): the frame is built without renormalising it. The photon
 /// path's form; [`diffuse_direction`] takes any normal (a zero or non-finite one gives the
-/// hemisphere of +z).
+/// hemisphere of +z). Alloc only, as the photon path.
+#[cfg(feature = "alloc")]
 #[inline(always)]
 pub(crate) fn diffuse_direction_unit(normal: DVec3, u: DVec2) -> DVec3 {
     diffuse_direction_in(&Frame::from_unit_normal(normal), u)

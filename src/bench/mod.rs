@@ -257,10 +257,10 @@ pub fn run_bench(cfg: &LoadedConfig, options: &BenchOptions) -> anyhow::Result<V
     }
     let threads = c.threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
     // Pin the CPU backend's thread pool for the whole sweep (the peers get the same count).
-    if let Err(e) = rayon::ThreadPoolBuilder::new().num_threads(threads).build_global() {
-        if rayon::current_num_threads() != threads {
-            bail!("cannot pin the thread pool to {threads} threads: {e}");
-        }
+    if let Err(e) = rayon::ThreadPoolBuilder::new().num_threads(threads).build_global()
+        && rayon::current_num_threads() != threads
+    {
+        bail!("cannot pin the thread pool to {threads} threads: {e}");
     }
     std::fs::create_dir_all(&options.out).with_context(|| format!("cannot create output directory '{}'", options.out.display()))?;
 

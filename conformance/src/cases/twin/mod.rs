@@ -14,7 +14,7 @@
 //! with a fixed name (the case's id, e.g. `twin-rng`; for a case with several random
 //! checks the id and the check, e.g. `twin-footprint-pack` and `twin-footprint-gather`,
 //! `twin-fresnel-reflectance`, `twin-math-acos`), its bytes zero-padded to
-//! 32 for ChaCha ([`proptest_batches`]): the same inputs on every run and every backend, so
+//! 32 for ChaCha (`proptest_batches`): the same inputs on every run and every backend, so
 //! a failure reproduces. `PROPTEST_*` environment variables change neither the seed nor the
 //! number of batches. A batch (thousands of
 //! items) is one dispatch; there is no shrinking: the failure message names the failing
