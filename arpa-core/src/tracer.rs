@@ -587,6 +587,34 @@ impl IterationStats {
         }
     }
 
+    /// Zeroes the photon pass's counts before a GPU backend sums its photon batches into
+    /// them (not [`IterationStats::overflowed`], which keeps every dropped append of the
+    /// iteration, nor the times).
+    pub fn reset_photon_counts(&mut self) {
+        self.photons_emitted = 0;
+        self.photon_segments = 0;
+        self.footprints = [0; 2];
+        self.progressive = [0; 2];
+        self.degenerate = 0;
+        self.culled = 0;
+        self.unrepresentable = 0;
+        self.differential_lost = 0;
+    }
+
+    /// Adds one GPU photon batch: what its photon pass counted and what its store kept.
+    pub fn add_photon_batch(&mut self, counters: &crate::gpu::layout::PhotonCounters, counts: &crate::gpu::layout::StoreCounts) {
+        self.photons_emitted += u64::from(counters.emitted);
+        self.photon_segments += u64::from(counters.segments);
+        for m in 0..2 {
+            self.footprints[m] += u64::from(counts.footprints[m]);
+            self.progressive[m] += u64::from(counts.photons[m]);
+        }
+        self.degenerate += u64::from(counts.degenerate);
+        self.culled += u64::from(counts.culled);
+        self.unrepresentable += u64::from(counts.unrepresentable);
+        self.differential_lost += u64::from(counters.differential_lost);
+    }
+
     /// Adds the counts and stage times of `other` (to total several iterations, or to
     /// merge the partial counts of a parallel pass); `iteration` and `radii` become
     /// `other`'s.

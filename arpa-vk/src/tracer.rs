@@ -14,7 +14,7 @@ use crate::maps::{MapStore, StorePipelines};
 use crate::photons::{PhotonOutputs, PhotonPass, photon_pipeline};
 use crate::scene::VkScene;
 use arpa_core::footprint::PackedFootprint;
-use arpa_core::gpu::batch::{RecordLimits, batch_count, batch_range, grow, initial_capacity, shrink};
+use arpa_core::gpu::batch::{Overflow, RecordLimits, after_overflow, for_each_batch, initial_capacity, shrink};
 use arpa_core::gpu::layout::{CameraParams, GatherBatch, StoreCounts, StoreSettings};
 use arpa_core::photon_path::PhotonPassSetup;
 use arpa_core::prepared_scene::PreparedScene;
@@ -242,19 +242,6 @@ fn binding_bytes(ctx: &VkContext) -> u64 {
     u64::from(props.limits.max_storage_buffer_range)
 }
 
-/// Zeroes the per-iteration counts the batches sum into (not `overflowed`, which keeps every
-/// dropped append of the iteration, nor the times).
-fn reset_counts(stats: &mut IterationStats) {
-    stats.photons_emitted = 0;
-    stats.photon_segments = 0;
-    stats.footprints = [0; 2];
-    stats.progressive = [0; 2];
-    stats.degenerate = 0;
-    stats.culled = 0;
-    stats.unrepresentable = 0;
-    stats.differential_lost = 0;
-}
-
 /// Traces the photons `range` of the iteration `setup` (growing the photon buffers and
 /// tracing again on overflow), stores, sorts and compacts them into batch `k`'s maps, and
 /// adds the batch's counts to the stats. `Some(B)`: the batch needs more than one storage
@@ -269,17 +256,17 @@ fn trace_batch(ctx: &VkContext, adapter: &str, st: &mut Loaded, setup: &PhotonPa
             break c;
         }
         st.clock.stats_mut().overflowed += c.overflowed();
-        if c.footprint_appends > limits.raw_footprints || c.photon_appends > limits.photons {
-            if photons <= 1 {
+        let caps = (st.outputs.footprint_capacity(), st.outputs.photon_capacity());
+        let (fp_cap, ph_cap) = match after_overflow(&limits, photons, c.footprint_appends, c.photon_appends, caps) {
+            Overflow::Grow(f, p) => (f, p),
+            Overflow::Shrink(b) => return Ok(Some(b)),
+            Overflow::TooLarge => {
                 return Err(size(format!(
                     "one photon stores {} raw footprints and {} progressive photons; one binding holds {} and {}",
                     c.footprint_appends, c.photon_appends, limits.raw_footprints, limits.photons
                 )));
             }
-            return Ok(Some(shrink(photons, limits.fits(c.footprint_appends, c.photon_appends))));
-        }
-        let fp_cap = grow(c.footprint_appends, st.outputs.footprint_capacity(), limits.raw_footprints);
-        let ph_cap = grow(c.photon_appends, st.outputs.photon_capacity(), limits.photons);
+        };
         // Free the old buffers before allocating the larger ones.
         st.outputs = PhotonOutputs::new(ctx, 1, 1)?;
         st.outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
@@ -313,17 +300,7 @@ fn trace_batch(ctx: &VkContext, adapter: &str, st: &mut Loaded, setup: &PhotonPa
     }
     let counts = batch.store.sort(ctx, outputs.footprints(), outputs.photons(), &counts, &settings)?;
     batch.counts = counts;
-    let stats = st.clock.stats_mut();
-    stats.photons_emitted += u64::from(counters.emitted);
-    stats.photon_segments += u64::from(counters.segments);
-    for m in 0..2 {
-        stats.footprints[m] += u64::from(counts.footprints[m]);
-        stats.progressive[m] += u64::from(counts.photons[m]);
-    }
-    stats.degenerate += u64::from(counts.degenerate);
-    stats.culled += u64::from(counts.culled);
-    stats.unrepresentable += u64::from(counts.unrepresentable);
-    stats.differential_lost += u64::from(counters.differential_lost);
+    st.clock.stats_mut().add_photon_batch(&counters, &counts);
     Ok(None)
 }
 
@@ -427,20 +404,14 @@ impl Tracer for VkTracer {
         st.clock.stats_mut().overflowed = 0;
         // Every batch; a batch too large for one binding shrinks B and starts the
         // iteration again.
-        'iteration: loop {
-            reset_counts(st.clock.stats_mut());
-            let batches = batch_count(n, st.batch_photons);
-            st.batch_count = 0;
-            for k in 0..batches {
-                let range = batch_range(n, st.batch_photons, k);
-                if let Some(smaller) = trace_batch(ctx, &adapter, st, &setup, range, k as usize)? {
-                    st.batch_photons = smaller;
-                    continue 'iteration;
-                }
-                st.batch_count = k as usize + 1;
+        let mut batch_photons = st.batch_photons;
+        st.batch_count = for_each_batch(n, &mut batch_photons, |range, k, _| {
+            if k == 0 {
+                st.clock.stats_mut().reset_photon_counts();
             }
-            break;
-        }
+            trace_batch(ctx, &adapter, st, &setup, range, k as usize)
+        })? as usize;
+        st.batch_photons = batch_photons;
         st.radii = setup.radii.map(|r| r as f32);
         let stats = st.clock.stats_mut();
         stats.radii = setup.radii;

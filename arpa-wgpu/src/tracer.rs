@@ -7,7 +7,7 @@ use crate::maps::{PhotonMaps, read_buffer, scoped};
 use crate::photon::{PhotonOutputs, PhotonPass};
 use crate::scene::GpuScene;
 use arpa_core::footprint::PackedFootprint;
-use arpa_core::gpu::batch::{RecordLimits, batch_count, batch_range, grow, initial_capacity, shrink};
+use arpa_core::gpu::batch::{Overflow, RecordLimits, after_overflow, for_each_batch, initial_capacity, shrink};
 use arpa_core::gpu::layout::{PhotonCounters, StoreSettings};
 use arpa_core::gpu::sort::{MAX_SORT_ITEMS, sorted_len};
 use arpa_core::photon_path::PhotonPassSetup;
@@ -223,19 +223,6 @@ fn binding_bytes(ctx: &GpuContext, binding_limit: Option<u64>) -> u64 {
     limits.max_storage_buffer_binding_size.min(limits.max_buffer_size).min(binding_limit.unwrap_or(u64::MAX))
 }
 
-/// Zeroes the per-iteration counts the batches sum into (not `overflowed`, which keeps
-/// every dropped append of the iteration, nor the times).
-fn reset_counts(stats: &mut IterationStats) {
-    stats.photons_emitted = 0;
-    stats.photon_segments = 0;
-    stats.footprints = [0; 2];
-    stats.progressive = [0; 2];
-    stats.degenerate = 0;
-    stats.culled = 0;
-    stats.unrepresentable = 0;
-    stats.differential_lost = 0;
-}
-
 /// Traces the photons `range` of the iteration `setup` into the photon buffers, stores,
 /// sorts and compacts them into the next batch of `maps` (growing the buffers and tracing
 /// again on overflow) and adds the batch's counts to the stats. `Some(B)`: the batch needs
@@ -258,17 +245,17 @@ fn trace_batch(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, setup: 
             break c;
         }
         st.clock.stats_mut().overflowed += c.overflowed();
-        if c.footprint_appends > limits.raw_footprints || c.photon_appends > limits.photons {
-            if photons <= 1 {
+        let caps = (st.outputs.footprint_capacity(), st.outputs.photon_capacity());
+        let (fp_cap, ph_cap) = match after_overflow(&limits, photons, c.footprint_appends, c.photon_appends, caps) {
+            Overflow::Grow(f, p) => (f, p),
+            Overflow::Shrink(b) => return Ok(Some(b)),
+            Overflow::TooLarge => {
                 return Err(WgpuError::Size(format!(
                     "one photon stores {} raw footprints and {} progressive photons; adapter {:?} binds at most {} and {}",
                     c.footprint_appends, c.photon_appends, ctx.info.name, limits.raw_footprints, limits.photons
                 )));
             }
-            return Ok(Some(shrink(photons, limits.fits(c.footprint_appends, c.photon_appends))));
-        }
-        let fp_cap = grow(c.footprint_appends, st.outputs.footprint_capacity(), limits.raw_footprints);
-        let ph_cap = grow(c.photon_appends, st.outputs.photon_capacity(), limits.photons);
+        };
         if sorted_len(fp_cap.saturating_add(ph_cap)) > MAX_SORT_ITEMS || fp_cap.saturating_add(ph_cap) < fp_cap {
             return Err(WgpuError::Size(format!("{} footprints and {} photons in one batch exceed the device sort's {MAX_SORT_ITEMS} records", c.footprint_appends, c.photon_appends)));
         }
@@ -298,17 +285,7 @@ fn trace_batch(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, setup: 
     maps.sort(ctx, stored, last)?;
     // The sort's device time belongs to the photon stage.
     wait(ctx, "photon_pass")?;
-    let stats = st.clock.stats_mut();
-    stats.photons_emitted += counters.emitted as u64;
-    stats.photon_segments += counters.segments as u64;
-    for m in 0..2 {
-        stats.footprints[m] += counts.footprints[m] as u64;
-        stats.progressive[m] += counts.photons[m] as u64;
-    }
-    stats.degenerate += counts.degenerate as u64;
-    stats.culled += counts.culled as u64;
-    stats.unrepresentable += counts.unrepresentable as u64;
-    stats.differential_lost += counters.differential_lost as u64;
+    st.clock.stats_mut().add_photon_batch(&counters, &counts);
     Ok(None)
 }
 
@@ -414,19 +391,16 @@ impl Tracer for WgpuTracer {
         st.clock.stats_mut().overflowed = 0;
         // Every batch; a batch too large for one binding shrinks B and starts the
         // iteration again.
-        'iteration: loop {
-            reset_counts(st.clock.stats_mut());
-            self.maps.clear_batches();
-            let batches = batch_count(n, st.batch_photons);
-            for k in 0..batches {
-                let range = batch_range(n, st.batch_photons, k);
-                if let Some(smaller) = trace_batch(&self.ctx, &mut self.maps, st, &setup, range, k + 1 == batches)? {
-                    st.batch_photons = smaller;
-                    continue 'iteration;
-                }
+        let mut batch_photons = st.batch_photons;
+        let (ctx, maps) = (&self.ctx, &mut self.maps);
+        for_each_batch(n, &mut batch_photons, |range, k, batches| {
+            if k == 0 {
+                st.clock.stats_mut().reset_photon_counts();
+                maps.clear_batches();
             }
-            break;
-        }
+            trace_batch(ctx, maps, st, &setup, range, k + 1 == batches)
+        })?;
+        st.batch_photons = batch_photons;
         let stats = st.clock.stats_mut();
         stats.radii = setup.radii;
         stats.times.photon = start.elapsed().as_secs_f64();

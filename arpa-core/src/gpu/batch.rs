@@ -93,6 +93,50 @@ impl RecordLimits {
     }
 }
 
+/// What a backend does after a batch's photon pass overflowed its append buffers
+/// ([`after_overflow`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Overflow {
+    /// Grow the buffers to these capacities (raw footprints, progressive photons) and trace
+    /// the batch again.
+    Grow(u32, u32),
+    /// The batch needs more than one binding holds: trace the iteration again with this `B`.
+    Shrink(u32),
+    /// A single photon needs more than one binding holds: nothing can trace it.
+    TooLarge,
+}
+
+/// The policy after a batch of `photons` photons attempted `footprint_appends` raw
+/// footprints and `photon_appends` progressive photons into buffers of `capacities` (raw
+/// footprints, progressive photons) and overflowed them.
+pub fn after_overflow(limits: &RecordLimits, photons: u32, footprint_appends: u32, photon_appends: u32, capacities: (u32, u32)) -> Overflow {
+    if footprint_appends > limits.raw_footprints || photon_appends > limits.photons {
+        if photons <= 1 {
+            return Overflow::TooLarge;
+        }
+        return Overflow::Shrink(shrink(photons, limits.fits(footprint_appends, photon_appends)));
+    }
+    Overflow::Grow(grow(footprint_appends, capacities.0, limits.raw_footprints), grow(photon_appends, capacities.1, limits.photons))
+}
+
+/// Runs an iteration of `photons` photons in batches of `*batch_photons`: `trace(range, k,
+/// batches)` traces batch `k` of `batches` (global photons `range`) and returns `Some(B)`
+/// when the batch does not fit one binding; the iteration then starts again from batch 0
+/// with `*batch_photons = B` (`trace` sees `k == 0` again: the place to drop what the
+/// earlier attempt kept). Returns the number of batches of the iteration that completed.
+pub fn for_each_batch<E>(photons: u32, batch_photons: &mut u32, mut trace: impl FnMut(Range<u32>, u32, u32) -> Result<Option<u32>, E>) -> Result<u32, E> {
+    'iteration: loop {
+        let batches = batch_count(photons, *batch_photons);
+        for k in 0..batches {
+            if let Some(smaller) = trace(batch_range(photons, *batch_photons, k), k, batches)? {
+                *batch_photons = smaller;
+                continue 'iteration;
+            }
+        }
+        return Ok(batches);
+    }
+}
+
 /// Records each append buffer starts with for batches of `batch` photons (`forced`: a
 /// caller's choice), at least 1 and at most `max`.
 pub fn initial_capacity(batch: u32, forced: Option<u32>, max: u32) -> u32 {
@@ -122,6 +166,27 @@ mod tests {
         assert_eq!(grow(101, 100, 1000), 200);
         assert_eq!(grow(400, 100, 1000), 500);
         assert_eq!(grow(4000, 100, 1000), 1000);
+    }
+
+    #[test]
+    fn overflow_grows_then_shrinks() {
+        let l = RecordLimits::new(96 * 1000);
+        assert_eq!(after_overflow(&l, 100, 300, 10, (200, 200)), Overflow::Grow(400, 200));
+        assert_eq!(after_overflow(&l, 100, 2000, 10, (200, 200)), Overflow::Shrink(45));
+        assert_eq!(after_overflow(&l, 1, 2000, 10, (200, 200)), Overflow::TooLarge);
+    }
+
+    #[test]
+    fn batches_restart_when_one_does_not_fit() {
+        let mut b = 1000;
+        let mut seen = alloc::vec::Vec::new();
+        let n = for_each_batch::<()>(1000, &mut b, |r, k, of| {
+            seen.push((r.clone(), k, of));
+            Ok((of == 1).then_some(400))
+        })
+        .unwrap();
+        assert_eq!((n, b), (3, 400));
+        assert_eq!(seen, [(0..1000, 0, 1), (0..400, 0, 3), (400..800, 1, 3), (800..1000, 2, 3)]);
     }
 
     #[test]
