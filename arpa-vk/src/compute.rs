@@ -149,9 +149,7 @@ impl ComputePipeline {
         drop(module);
         // SAFETY: a physical device of this instance.
         let limits = unsafe { ctx.instance().get_physical_device_properties(ctx.physical_device()) }.limits;
-        let Partial { pipeline, layout, ref mut set_layouts, .. } = partial;
-        let set_layouts = std::mem::take(set_layouts);
-        std::mem::forget(partial);
+        let (pipeline, layout, set_layouts) = partial.finish();
         Ok(Self {
             pipeline,
             layout,

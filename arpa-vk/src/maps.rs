@@ -78,7 +78,7 @@ impl StorePipelines {
         // sort.wgsl's shared-memory kernels copy all SORT_BLOCK items into workgroup memory
         // before the first barrier and read nothing else, so WGSL's zero initialisation of
         // workgroup memory is dead work; naga's polyfill of it makes lavapipe's first
-        // compilation of sort_merge take over 10 minutes (see `compile_wgsl_with`).
+        // compilation of sort_merge take minutes (see `compile_wgsl_with`).
         let sort_spirv =
             crate::shaders::compile_wgsl_with("arpa sort", &arpa_core::shaders::compose(&[&arpa_core::shaders::SORT]), false)?;
         let store_set = [BindingKind::StorageBuffer; 13];

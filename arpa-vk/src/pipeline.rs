@@ -206,6 +206,17 @@ pub(crate) struct Partial<'a> {
     pub(crate) pipeline: vk::Pipeline,
 }
 
+impl Partial<'_> {
+    /// The finished objects `(pipeline, layout, set layouts)`, which the caller now owns
+    /// (nothing is destroyed).
+    pub(crate) fn finish(mut self) -> (vk::Pipeline, vk::PipelineLayout, Vec<vk::DescriptorSetLayout>) {
+        let set_layouts = std::mem::take(&mut self.set_layouts);
+        let (pipeline, layout) = (self.pipeline, self.layout);
+        std::mem::forget(self);
+        (pipeline, layout, set_layouts)
+    }
+}
+
 impl Drop for Partial<'_> {
     fn drop(&mut self) {
         // SAFETY: none of these is in use; null handles are ignored by Vulkan.
@@ -328,9 +339,7 @@ impl RtPipeline {
         }
         sbt.write(pad, &bytes)?;
 
-        let Partial { pipeline, layout, ref mut set_layouts, .. } = partial;
-        let set_layouts = std::mem::take(set_layouts);
-        std::mem::forget(partial);
+        let (pipeline, layout, set_layouts) = partial.finish();
         Ok(Self {
             pipeline,
             layout,

@@ -333,10 +333,11 @@ impl Tracer for VkTracer {
         }
         let ctx = &self.ctx;
         let (width, height) = (scene.camera.width, scene.camera.height);
-        let limits = RecordLimits::new(binding_bytes(ctx));
+        let binding = binding_bytes(ctx);
+        let limits = RecordLimits::new(binding);
         let pixels = u32::try_from(u64::from(width) * u64::from(height))
             .ok()
-            .filter(|&p| u64::from(p) * QUERY_RECORD_BYTES <= binding_bytes(ctx) && p <= ctx.ray_tracing().max_ray_dispatch_invocation_count);
+            .filter(|&p| u64::from(p) * QUERY_RECORD_BYTES <= binding && p <= ctx.ray_tracing().max_ray_dispatch_invocation_count);
         let Some(pixels) = pixels else {
             return Err(self.size_error(format!("an image of {width}×{height} pixels exceeds one storage binding or one ray launch")));
         };
