@@ -458,6 +458,22 @@ impl StageClock {
     pub fn stats_mut(&mut self) -> &mut IterationStats {
         &mut self.stats
     }
+
+    /// Runs `stage` as one call of [`Tracer`]: [`begin`](Self::begin), then `body` with
+    /// this clock (for the iteration index and the counts), then the stage's wall-clock
+    /// time into [`StageTimes`] (seconds) and [`finish`](Self::finish). When `body` fails
+    /// the stage stays unfinished, so the stages that read its output refuse to run.
+    #[cfg(feature = "std")]
+    pub fn run<E: From<StageError>>(&mut self, stage: Stage, body: impl FnOnce(&mut StageClock) -> Result<(), E>) -> Result<(), E> {
+        self.begin(stage)?;
+        let start = std::time::Instant::now();
+        body(self)?;
+        if let Some(t) = self.stats.times.of_mut(stage) {
+            *t = start.elapsed().as_secs_f64();
+        }
+        self.finish(stage);
+        Ok(())
+    }
 }
 
 /// What a backend supports.
@@ -473,6 +489,15 @@ pub struct Capabilities {
     pub max_photons_per_iteration: Option<u32>,
     /// Whether images are bit-identical for the same seed regardless of thread count.
     pub deterministic: bool,
+}
+
+impl Capabilities {
+    /// A backend that implements both methods, takes any photon count per iteration its
+    /// memory holds, and is deterministic (what `cpu`, `wgpu` and `vk` are); `device`
+    /// describes the CPU or adapter.
+    pub fn new(backend: BackendKind, device: String) -> Self {
+        Self { backend, device, methods: alloc::vec![Method::Arpa, Method::Rtpm], max_photons_per_iteration: None, deterministic: true }
+    }
 }
 
 /// A diffuse query point found by the camera pass, with what the gather needs.
@@ -551,6 +576,19 @@ pub struct IterationStats {
 }
 
 impl StageTimes {
+    /// The time of `stage` (seconds); `None` for [`Stage::UploadScene`], which is not
+    /// part of an iteration.
+    pub fn of_mut(&mut self, stage: Stage) -> Option<&mut f64> {
+        match stage {
+            Stage::UploadScene => None,
+            Stage::CameraPass => Some(&mut self.camera),
+            Stage::PhotonPass => Some(&mut self.photon),
+            Stage::BuildAccelerationStructure => Some(&mut self.build),
+            Stage::Gather => Some(&mut self.gather),
+            Stage::Accumulate => Some(&mut self.accumulate),
+        }
+    }
+
     /// Adds `other`'s times (non-finite ones are skipped).
     pub fn accumulate(&mut self, other: &StageTimes) {
         for (acc, v) in [
@@ -784,6 +822,27 @@ mod tests {
         c.begin(CameraPass).unwrap();
         assert_eq!(c.stats().gathered, 0, "a new iteration starts new counts");
         assert_eq!(c.stats().iteration, 1);
+    }
+
+    #[cfg(feature = "std")]
+    #[test]
+    fn run_times_a_finished_stage_and_leaves_a_failed_one_unfinished() {
+        let mut c = StageClock::new();
+        let failed: Result<(), StageError> = c.run(Stage::CameraPass, |_| Err(StageError::IterationLimit(0)));
+        assert!(failed.is_err());
+        assert!(!c.is_current(Stage::CameraPass), "a failed body does not finish the stage");
+        let refused: Result<(), StageError> = c.run(Stage::Gather, |_| unreachable!("the order check runs first"));
+        assert_eq!(refused, Err(StageError::order(Stage::Gather, Stage::CameraPass)));
+        c.run::<StageError>(Stage::CameraPass, |clock| {
+            clock.stats_mut().query_points = 3;
+            std::thread::sleep(std::time::Duration::from_millis(2));
+            Ok(())
+        })
+        .unwrap();
+        assert!(c.is_current(Stage::CameraPass));
+        assert_eq!(c.stats().query_points, 3);
+        assert!(c.stats().times.camera >= 0.002, "the stage's time is its body's: {}", c.stats().times.camera);
+        assert_eq!(c.stats().times.photon, 0.0, "no other stage's time is touched");
     }
 
     #[test]

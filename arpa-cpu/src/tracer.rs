@@ -6,7 +6,6 @@
 //! the accumulation is the core's [`ImageAccumulator`].
 
 use core::sync::atomic::{AtomicU64, Ordering};
-use std::time::Instant;
 
 use arpa_core::accumulate::ImageAccumulator;
 use arpa_core::footprint::PackedFootprint;
@@ -15,7 +14,7 @@ use arpa_core::prepared_scene::PreparedScene;
 use arpa_core::progressive_photon::PackedPhoton;
 use arpa_core::scene::Scene;
 use arpa_core::tracer::{
-    BackendKind, Call, Capabilities, Image, IterationStats, Method, QueryRecord, RenderSettings,
+    BackendKind, Call, Capabilities, Image, IterationStats, QueryRecord, RenderSettings,
     Stage, StageClock, StageError, Tracer, prepare_upload, uploaded,
 };
 
@@ -176,13 +175,7 @@ impl Tracer for CpuTracer {
     type Error = CpuError;
 
     fn capabilities(&self) -> Capabilities {
-        Capabilities {
-            backend: BackendKind::Cpu,
-            device: cpu_description(),
-            methods: vec![Method::Arpa, Method::Rtpm],
-            max_photons_per_iteration: None,
-            deterministic: true,
-        }
+        Capabilities::new(BackendKind::Cpu, cpu_description())
     }
 
     fn upload_scene(&mut self, scene: &Scene, settings: &RenderSettings) -> Result<(), CpuError> {
@@ -221,42 +214,24 @@ impl Tracer for CpuTracer {
 
     fn camera_pass(&mut self) -> Result<(), CpuError> {
         let st = self.loaded_mut(Stage::CameraPass)?;
-        st.clock.begin(Stage::CameraPass)?;
-        let start = Instant::now();
-        let valid = crate::camera::camera_pass(
-            &st.prepared,
-            &st.caster,
-            &st.settings,
-            st.clock.completed(),
-            st.width * st.height,
-            &mut st.queries,
-        );
-        let stats = st.clock.stats_mut();
-        stats.query_points = valid;
-        stats.times.camera = start.elapsed().as_secs_f64();
-        st.clock.finish(Stage::CameraPass);
-        Ok(())
+        st.clock.run(Stage::CameraPass, |clock| {
+            let pixels = st.width * st.height;
+            clock.stats_mut().query_points =
+                crate::camera::camera_pass(&st.prepared, &st.caster, &st.settings, clock.completed(), pixels, &mut st.queries);
+            Ok(())
+        })
     }
 
     fn photon_pass(&mut self) -> Result<(), CpuError> {
         let st = self.loaded_mut(Stage::PhotonPass)?;
-        st.clock.begin(Stage::PhotonPass)?;
-        let start = Instant::now();
-        // The box BVH is rebuilt after this pass anyway: free it (and the previous
-        // iteration's buffers it refers to) before the new buffers fill.
-        st.accel = Accel::Empty;
-        let iteration = st.clock.completed();
-        crate::photons::photon_pass(
-            &mut st.photons,
-            &st.prepared,
-            &st.caster,
-            &st.settings,
-            iteration,
-            st.clock.stats_mut(),
-        );
-        st.clock.stats_mut().times.photon = start.elapsed().as_secs_f64();
-        st.clock.finish(Stage::PhotonPass);
-        Ok(())
+        st.clock.run(Stage::PhotonPass, |clock| {
+            // The box BVH is rebuilt after this pass anyway: free it (and the previous
+            // iteration's buffers it refers to) before the new buffers fill.
+            st.accel = Accel::Empty;
+            let iteration = clock.completed();
+            crate::photons::photon_pass(&mut st.photons, &st.prepared, &st.caster, &st.settings, iteration, clock.stats_mut());
+            Ok(())
+        })
     }
 
     fn build_acceleration_structure(&mut self) -> Result<(), CpuError> {
@@ -265,49 +240,40 @@ impl Tracer for CpuTracer {
         // Built from the same buffers in this iteration: the BVH is current (and the boxes
         // it was built from are gone, see `Accel::build`).
         let current = st.clock.is_current(Stage::BuildAccelerationStructure);
-        st.clock.begin(Stage::BuildAccelerationStructure)?;
-        let start = Instant::now();
-        if !current {
-            // Drop the previous BVH first: only one lives at a time.
-            st.accel = Accel::Empty;
-            st.accel = Accel::build(&device, &mut st.photons.store, st.photons.radii)?;
-        }
-        st.clock.stats_mut().times.build = start.elapsed().as_secs_f64();
-        st.clock.finish(Stage::BuildAccelerationStructure);
-        Ok(())
+        st.clock.run(Stage::BuildAccelerationStructure, |_| {
+            if !current {
+                // Drop the previous BVH first: only one lives at a time.
+                st.accel = Accel::Empty;
+                st.accel = Accel::build(&device, &mut st.photons.store, st.photons.radii)?;
+            }
+            Ok(())
+        })
     }
 
     fn gather(&mut self) -> Result<(), CpuError> {
         let st = self.loaded_mut(Stage::Gather)?;
-        st.clock.begin(Stage::Gather)?;
-        let start = Instant::now();
-        let input = GatherInput {
-            accel: &st.accel,
-            store: &st.photons.store,
-            kernel: st.settings.kernel,
-            radii: st.photons.radii,
-            errors: &st.gather_errors,
-        };
-        let gathered = crate::gather::gather(&st.queries, &input, &mut st.image);
-        let stats = st.clock.stats_mut();
-        stats.gathered = gathered;
-        stats.times.gather = start.elapsed().as_secs_f64();
-        st.clock.finish(Stage::Gather);
-        Ok(())
+        st.clock.run(Stage::Gather, |clock| {
+            let input = GatherInput {
+                accel: &st.accel,
+                store: &st.photons.store,
+                kernel: st.settings.kernel,
+                radii: st.photons.radii,
+                errors: &st.gather_errors,
+            };
+            clock.stats_mut().gathered = crate::gather::gather(&st.queries, &input, &mut st.image);
+            Ok(())
+        })
     }
 
     fn accumulate(&mut self) -> Result<(), CpuError> {
         let st = self.loaded_mut(Stage::Accumulate)?;
-        st.clock.begin(Stage::Accumulate)?;
-        let start = Instant::now();
-        // The gather writes one pixel per query record, so the sizes agree; a mismatch
-        // would mean the image is not the gather's output.
-        st.accumulator
-            .add_iteration(&st.image)
-            .map_err(|_| StageError::order(Stage::Accumulate, Stage::Gather))?;
-        st.clock.stats_mut().times.accumulate = start.elapsed().as_secs_f64();
-        st.clock.finish(Stage::Accumulate);
-        Ok(())
+        st.clock.run(Stage::Accumulate, |_| {
+            // The gather writes one pixel per query record, so the sizes agree; a
+            // mismatch would mean the image is not the gather's output.
+            st.accumulator
+                .add_iteration(&st.image)
+                .map_err(|_| CpuError::from(StageError::order(Stage::Accumulate, Stage::Gather)))
+        })
     }
 
     fn iterations(&self) -> u32 {

@@ -15,20 +15,19 @@ use crate::photons::{PhotonOutputs, PhotonPass, photon_pipeline};
 use crate::scene::VkScene;
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::gpu::batch::{Overflow, RecordLimits, after_overflow, for_each_batch, initial_capacity, shrink};
-use arpa_core::gpu::layout::{CameraParams, GatherBatch, StoreCounts, StoreSettings};
+use arpa_core::gpu::layout::{CameraParams, GatherBatch, StoreCounts, StoreSettings, check_record_keys};
 use arpa_core::photon_path::PhotonPassSetup;
 use arpa_core::prepared_scene::PreparedScene;
 use arpa_core::progressive_photon::PackedPhoton;
 use arpa_core::scene::{Scene, SceneError};
 use arpa_core::tracer::{
-    BackendKind, Call, Capabilities, Image, InvalidSettings, IterationStats, Method, QueryRecord, RenderSettings, Stage, StageClock, StageError, Tracer,
+    BackendKind, Call, Capabilities, Image, IterationStats, QueryRecord, RenderSettings, Stage, StageClock, StageError, Tracer,
     prepare_upload, uploaded,
 };
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 use std::ops::Range;
 use std::sync::{Arc, Mutex};
-use std::time::Instant;
 
 /// Errors of the Vulkan backend.
 #[derive(Debug, thiserror::Error)]
@@ -246,7 +245,7 @@ fn binding_bytes(ctx: &VkContext) -> u64 {
 /// tracing again on overflow), stores, sorts and compacts them into batch `k`'s maps, and
 /// adds the batch's counts to the stats. `Some(B)`: the batch needs more than one storage
 /// binding holds; the caller traces the iteration again with B photons per batch.
-fn trace_batch(ctx: &VkContext, adapter: &str, st: &mut Loaded, setup: &PhotonPassSetup, range: Range<u32>, k: usize) -> Result<Option<u32>, VkTracerError> {
+fn trace_batch(ctx: &VkContext, adapter: &str, st: &mut Loaded, clock: &mut StageClock, setup: &PhotonPassSetup, range: Range<u32>, k: usize) -> Result<Option<u32>, VkTracerError> {
     let photons = range.end - range.start;
     let limits = st.limits;
     let size = |message: String| VkTracerError::Size { adapter: adapter.to_string(), message };
@@ -255,7 +254,7 @@ fn trace_batch(ctx: &VkContext, adapter: &str, st: &mut Loaded, setup: &PhotonPa
         if c.overflowed() == 0 {
             break c;
         }
-        st.clock.stats_mut().overflowed += c.overflowed();
+        clock.stats_mut().overflowed += c.overflowed();
         let caps = (st.outputs.footprint_capacity(), st.outputs.photon_capacity());
         let (fp_cap, ph_cap) = match after_overflow(&limits, photons, c.footprint_appends, c.photon_appends, caps) {
             Overflow::Grow(f, p) => (f, p),
@@ -292,7 +291,7 @@ fn trace_batch(ctx: &VkContext, adapter: &str, st: &mut Loaded, setup: &PhotonPa
     // The sorted progressive photons (the pass's plus the footprints' fallbacks) must fit one
     // binding too.
     if u64::from(counts.photon_items) > u64::from(batch.store.photons_out_capacity()) {
-        st.clock.stats_mut().overflowed += u64::from(counts.photon_items) - u64::from(batch.store.photons_out_capacity());
+        clock.stats_mut().overflowed += u64::from(counts.photon_items) - u64::from(batch.store.photons_out_capacity());
         if photons <= 1 {
             return Err(size(format!("one photon stores {} progressive photons; one binding holds {}", counts.photon_items, batch.store.photons_out_capacity())));
         }
@@ -300,7 +299,7 @@ fn trace_batch(ctx: &VkContext, adapter: &str, st: &mut Loaded, setup: &PhotonPa
     }
     let counts = batch.store.sort(ctx, outputs.footprints(), outputs.photons(), &counts, &settings)?;
     batch.counts = counts;
-    st.clock.stats_mut().add_photon_batch(&counters, &counts);
+    clock.stats_mut().add_photon_batch(&counters, &counts);
     Ok(None)
 }
 
@@ -309,28 +308,15 @@ impl Tracer for VkTracer {
 
     fn capabilities(&self) -> Capabilities {
         let i = self.ctx.info();
-        Capabilities {
-            backend: BackendKind::Vk,
-            device: format!("{} ({}, {} {})", i.name, i.device_type, i.driver_name, i.driver_info),
-            methods: vec![Method::Arpa, Method::Rtpm],
-            // Bounded by one storage binding's records, which depends on the scene.
-            max_photons_per_iteration: None,
-            deterministic: true,
-        }
+        // Batches lift the buffer limits; the record keys bound photons · max_depth, which
+        // upload_scene checks with the settings.
+        Capabilities::new(BackendKind::Vk, format!("{} ({}, {} {})", i.name, i.device_type, i.driver_name, i.driver_info))
     }
 
     fn upload_scene(&mut self, scene: &Scene, settings: &RenderSettings) -> Result<(), VkTracerError> {
         self.state = None;
         let prepared = prepare_upload(scene, settings)?;
-        if u64::from(settings.photons_per_iteration) * u64::from(settings.max_depth) > u64::from(u32::MAX) {
-            return Err(StageError::Settings(InvalidSettings(format!(
-                "photons_per_iteration {} × max_depth {} exceeds the u32 record keys of the vk backend (at most {} photons at this depth)",
-                settings.photons_per_iteration,
-                settings.max_depth,
-                u32::MAX / settings.max_depth
-            )))
-            .into());
-        }
+        check_record_keys(settings, BackendKind::Vk)?;
         let ctx = &self.ctx;
         let (width, height) = (scene.camera.width, scene.camera.height);
         let binding = binding_bytes(ctx);
@@ -382,88 +368,75 @@ impl Tracer for VkTracer {
 
     fn camera_pass(&mut self) -> Result<(), VkTracerError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::CameraPass)?;
-        st.clock.begin(Stage::CameraPass)?;
-        let start = Instant::now();
-        st.camera.run(&self.ctx, st.clock.completed())?;
-        st.clock.stats_mut().times.camera = start.elapsed().as_secs_f64();
-        st.clock.finish(Stage::CameraPass);
-        Ok(())
+        st.clock.run(Stage::CameraPass, |clock| Ok(st.camera.run(&self.ctx, clock.completed())?))
     }
 
     fn photon_pass(&mut self) -> Result<(), VkTracerError> {
         let adapter = self.ctx.info().name.clone();
         let ctx = &self.ctx;
         let st = uploaded(self.state.as_deref_mut(), Stage::PhotonPass)?;
-        st.clock.begin(Stage::PhotonPass)?;
-        let start = Instant::now();
-        // The previous iteration's structures refer to the buffers the store rewrites.
-        for b in &mut st.batches {
-            b.accel = None;
-        }
-        let setup = PhotonPassSetup::new(&st.prepared, &st.settings, st.clock.completed());
-        let n = setup.photon_count();
-        st.clock.stats_mut().overflowed = 0;
-        // Every batch; a batch too large for one binding shrinks B and starts the
-        // iteration again.
-        let mut batch_photons = st.batch_photons;
-        st.batch_count = for_each_batch(n, &mut batch_photons, |range, k, _| {
-            if k == 0 {
-                st.clock.stats_mut().reset_photon_counts();
+        // The batches read and write the whole state; the clock steps out of it meanwhile.
+        let mut clock = std::mem::take(&mut st.clock);
+        let result = clock.run(Stage::PhotonPass, |clock| {
+            // The previous iteration's structures refer to the buffers the store rewrites.
+            for b in &mut st.batches {
+                b.accel = None;
             }
-            trace_batch(ctx, &adapter, st, &setup, range, k as usize)
-        })? as usize;
-        st.batch_photons = batch_photons;
-        st.radii = setup.radii.map(|r| r as f32);
-        let stats = st.clock.stats_mut();
-        stats.radii = setup.radii;
-        stats.times.photon = start.elapsed().as_secs_f64();
-        st.clock.finish(Stage::PhotonPass);
-        Ok(())
+            let setup = PhotonPassSetup::new(&st.prepared, &st.settings, clock.completed());
+            let n = setup.photon_count();
+            clock.stats_mut().overflowed = 0;
+            // Every batch; a batch too large for one binding shrinks B and starts the
+            // iteration again.
+            let mut batch_photons = st.batch_photons;
+            st.batch_count = for_each_batch(n, &mut batch_photons, |range, k, _| {
+                if k == 0 {
+                    clock.stats_mut().reset_photon_counts();
+                }
+                trace_batch(ctx, &adapter, st, clock, &setup, range, k as usize)
+            })? as usize;
+            st.batch_photons = batch_photons;
+            st.radii = setup.radii.map(|r| r as f32);
+            clock.stats_mut().radii = setup.radii;
+            Ok(())
+        });
+        st.clock = clock;
+        result
     }
 
     fn build_acceleration_structure(&mut self) -> Result<(), VkTracerError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::BuildAccelerationStructure)?;
-        st.clock.begin(Stage::BuildAccelerationStructure)?;
-        let start = Instant::now();
-        for b in &mut st.batches[..st.batch_count] {
-            b.accel = None;
-            b.accel = Some(MapAccel::build(&self.ctx, b.store.footprint_boxes(), b.store.photon_boxes(), &b.counts)?);
-        }
-        st.clock.stats_mut().times.build = start.elapsed().as_secs_f64();
-        st.clock.finish(Stage::BuildAccelerationStructure);
-        Ok(())
+        st.clock.run(Stage::BuildAccelerationStructure, |_| {
+            for b in &mut st.batches[..st.batch_count] {
+                b.accel = None;
+                b.accel = Some(MapAccel::build(&self.ctx, b.store.footprint_boxes(), b.store.photon_boxes(), &b.counts)?);
+            }
+            Ok(())
+        })
     }
 
     fn gather(&mut self) -> Result<(), VkTracerError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::Gather)?;
-        st.clock.begin(Stage::Gather)?;
-        let start = Instant::now();
-        let batches = st.batch_count;
-        let (mut contributions, mut query_points) = (0u64, 0u64);
-        for (k, b) in st.batches[..batches].iter().enumerate() {
-            let accel = b.accel.as_ref().ok_or_else(|| StageError::order(Stage::Gather, Stage::BuildAccelerationStructure))?;
-            let inputs = GatherInputs { footprints: b.store.footprints(), photons: b.store.photons(), tlas: accel.tlas(), radii: st.radii };
-            let batch = GatherBatch { first: k == 0, last: k + 1 == batches };
-            let counts = st.gather.run(&self.ctx, &st.queries, &st.image, &inputs, batch)?;
-            contributions += counts.contributions;
-            query_points += counts.query_points;
-        }
-        let stats = st.clock.stats_mut();
-        stats.gathered = contributions;
-        stats.query_points = query_points;
-        stats.times.gather = start.elapsed().as_secs_f64();
-        st.clock.finish(Stage::Gather);
-        Ok(())
+        st.clock.run(Stage::Gather, |clock| {
+            let batches = st.batch_count;
+            let (mut contributions, mut query_points) = (0u64, 0u64);
+            for (k, b) in st.batches[..batches].iter().enumerate() {
+                let accel = b.accel.as_ref().ok_or_else(|| StageError::order(Stage::Gather, Stage::BuildAccelerationStructure))?;
+                let inputs = GatherInputs { footprints: b.store.footprints(), photons: b.store.photons(), tlas: accel.tlas(), radii: st.radii };
+                let batch = GatherBatch { first: k == 0, last: k + 1 == batches };
+                let counts = st.gather.run(&self.ctx, &st.queries, &st.image, &inputs, batch)?;
+                contributions += counts.contributions;
+                query_points += counts.query_points;
+            }
+            let stats = clock.stats_mut();
+            stats.gathered = contributions;
+            stats.query_points = query_points;
+            Ok(())
+        })
     }
 
     fn accumulate(&mut self) -> Result<(), VkTracerError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::Accumulate)?;
-        st.clock.begin(Stage::Accumulate)?;
-        let start = Instant::now();
-        st.accumulator.accumulate_and_wait(&self.ctx, &st.image)?;
-        st.clock.stats_mut().times.accumulate = start.elapsed().as_secs_f64();
-        st.clock.finish(Stage::Accumulate);
-        Ok(())
+        st.clock.run(Stage::Accumulate, |_| Ok(st.accumulator.accumulate_and_wait(&self.ctx, &st.image)?))
     }
 
     fn iterations(&self) -> u32 {

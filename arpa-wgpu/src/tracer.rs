@@ -8,17 +8,16 @@ use crate::photon::{PhotonOutputs, PhotonPass};
 use crate::scene::GpuScene;
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::gpu::batch::{Overflow, RecordLimits, after_overflow, for_each_batch, initial_capacity, shrink};
-use arpa_core::gpu::layout::{PhotonCounters, StoreSettings};
+use arpa_core::gpu::layout::{PhotonCounters, StoreSettings, check_record_keys};
 use arpa_core::gpu::sort::{MAX_SORT_ITEMS, sorted_len};
 use arpa_core::photon_path::PhotonPassSetup;
 use arpa_core::prepared_scene::PreparedScene;
 use arpa_core::progressive_photon::PackedPhoton;
 use arpa_core::scene::Scene;
 use arpa_core::tracer::{
-    BackendKind, Call, Capabilities, Image, InvalidSettings, IterationStats, Method, QueryRecord, RenderSettings, Stage, StageClock, StageError, Tracer,
+    BackendKind, Call, Capabilities, Image, IterationStats, QueryRecord, RenderSettings, Stage, StageClock, StageError, Tracer,
     prepare_upload, uploaded,
 };
-use std::time::Instant;
 
 /// Errors of the wgpu backend.
 #[derive(Debug, thiserror::Error)]
@@ -228,7 +227,7 @@ fn binding_bytes(ctx: &GpuContext, binding_limit: Option<u64>) -> u64 {
 /// again on overflow) and adds the batch's counts to the stats. `Some(B)`: the batch needs
 /// more than one storage binding of this adapter holds; nothing was kept and the caller
 /// traces the iteration again with B photons per batch.
-fn trace_batch(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, setup: &PhotonPassSetup, range: std::ops::Range<u32>, last: bool) -> Result<Option<u32>, WgpuError> {
+fn trace_batch(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, clock: &mut StageClock, setup: &PhotonPassSetup, range: std::ops::Range<u32>, last: bool) -> Result<Option<u32>, WgpuError> {
     let photons = range.end - range.start;
     let limits = st.limits;
     // Trace; on overflow discard the batch's records, grow the buffers and trace the same
@@ -244,7 +243,7 @@ fn trace_batch(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, setup: 
         if c.overflowed() == 0 {
             break c;
         }
-        st.clock.stats_mut().overflowed += c.overflowed();
+        clock.stats_mut().overflowed += c.overflowed();
         let caps = (st.outputs.footprint_capacity(), st.outputs.photon_capacity());
         let (fp_cap, ph_cap) = match after_overflow(&limits, photons, c.footprint_appends, c.photon_appends, caps) {
             Overflow::Grow(f, p) => (f, p),
@@ -276,7 +275,7 @@ fn trace_batch(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, setup: 
     // The sorted progressive photons (the pass's plus the footprints' fallbacks) must fit
     // one binding too.
     if counts.photon_items as u64 > limits.sorted_photons {
-        st.clock.stats_mut().overflowed += counts.photon_items as u64 - limits.sorted_photons;
+        clock.stats_mut().overflowed += counts.photon_items as u64 - limits.sorted_photons;
         if photons <= 1 {
             return Err(WgpuError::Size(format!("one photon stores {} progressive photons; adapter {:?} binds at most {}", counts.photon_items, ctx.info.name, limits.sorted_photons)));
         }
@@ -285,7 +284,7 @@ fn trace_batch(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, setup: 
     maps.sort(ctx, stored, last)?;
     // The sort's device time belongs to the photon stage.
     wait(ctx, "photon_pass")?;
-    st.clock.stats_mut().add_photon_batch(&counters, &counts);
+    clock.stats_mut().add_photon_batch(&counters, &counts);
     Ok(None)
 }
 
@@ -294,29 +293,15 @@ impl Tracer for WgpuTracer {
 
     fn capabilities(&self) -> Capabilities {
         let i = &self.ctx.info;
-        Capabilities {
-            backend: BackendKind::Wgpu,
-            device: format!("{} ({:?}, {} {})", i.name, i.device_type, i.driver, i.driver_info),
-            methods: vec![Method::Arpa, Method::Rtpm],
-            // Batches lift the buffer limits; the record keys bound photons · max_depth
-            // (checked by upload_scene with the settings).
-            max_photons_per_iteration: None,
-            deterministic: true,
-        }
+        // Batches lift the buffer limits; the record keys bound photons · max_depth, which
+        // upload_scene checks with the settings.
+        Capabilities::new(BackendKind::Wgpu, format!("{} ({:?}, {} {})", i.name, i.device_type, i.driver, i.driver_info))
     }
 
     fn upload_scene(&mut self, scene: &Scene, settings: &RenderSettings) -> Result<(), WgpuError> {
         self.state = None;
         let prepared = prepare_upload(scene, settings)?;
-        if settings.photons_per_iteration as u64 * settings.max_depth as u64 > u32::MAX as u64 {
-            return Err(StageError::Settings(InvalidSettings(format!(
-                "photons_per_iteration {} × max_depth {} exceeds the u32 record keys of the wgpu backend (at most {} photons at this depth)",
-                settings.photons_per_iteration,
-                settings.max_depth,
-                u32::MAX / settings.max_depth
-            )))
-            .into());
-        }
+        check_record_keys(settings, BackendKind::Wgpu)?;
         let (width, height) = (scene.camera.width, scene.camera.height);
         let pixels = (width as u64 * height as u64).try_into().ok().filter(|&p: &u32| (p as u64) * QUERY_BYTES <= self.ctx.device.limits().max_storage_buffer_binding_size);
         let Some(pixels) = pixels else {
@@ -367,97 +352,87 @@ impl Tracer for WgpuTracer {
 
     fn camera_pass(&mut self) -> Result<(), WgpuError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::CameraPass)?;
-        st.clock.begin(Stage::CameraPass)?;
-        let start = Instant::now();
         let ctx = &self.ctx;
-        scoped(ctx, "camera_pass", || {
-            let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa camera pass") });
-            st.camera.encode(&mut encoder, st.clock.completed(), &st.queries);
-            ctx.queue.submit([encoder.finish()]);
-            Ok(())
-        })?;
-        wait(ctx, "camera_pass")?;
-        st.clock.stats_mut().times.camera = start.elapsed().as_secs_f64();
-        st.clock.finish(Stage::CameraPass);
-        Ok(())
+        st.clock.run(Stage::CameraPass, |clock| {
+            scoped(ctx, "camera_pass", || {
+                let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa camera pass") });
+                st.camera.encode(&mut encoder, clock.completed(), &st.queries);
+                ctx.queue.submit([encoder.finish()]);
+                Ok(())
+            })?;
+            wait(ctx, "camera_pass")
+        })
     }
 
     fn photon_pass(&mut self) -> Result<(), WgpuError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::PhotonPass)?;
-        st.clock.begin(Stage::PhotonPass)?;
-        let start = Instant::now();
-        let setup = PhotonPassSetup::new(&st.prepared, &st.settings, st.clock.completed());
-        let n = setup.photon_count();
-        st.clock.stats_mut().overflowed = 0;
-        // Every batch; a batch too large for one binding shrinks B and starts the
-        // iteration again.
-        let mut batch_photons = st.batch_photons;
         let (ctx, maps) = (&self.ctx, &mut self.maps);
-        for_each_batch(n, &mut batch_photons, |range, k, batches| {
-            if k == 0 {
-                st.clock.stats_mut().reset_photon_counts();
-                maps.clear_batches();
-            }
-            trace_batch(ctx, maps, st, &setup, range, k + 1 == batches)
-        })?;
-        st.batch_photons = batch_photons;
-        let stats = st.clock.stats_mut();
-        stats.radii = setup.radii;
-        stats.times.photon = start.elapsed().as_secs_f64();
-        st.clock.finish(Stage::PhotonPass);
-        Ok(())
+        // The batches read and write the whole state; the clock steps out of it meanwhile.
+        let mut clock = std::mem::take(&mut st.clock);
+        let result = clock.run(Stage::PhotonPass, |clock| {
+            let setup = PhotonPassSetup::new(&st.prepared, &st.settings, clock.completed());
+            let n = setup.photon_count();
+            clock.stats_mut().overflowed = 0;
+            // Every batch; a batch too large for one binding shrinks B and starts the
+            // iteration again.
+            let mut batch_photons = st.batch_photons;
+            for_each_batch(n, &mut batch_photons, |range, k, batches| {
+                if k == 0 {
+                    clock.stats_mut().reset_photon_counts();
+                    maps.clear_batches();
+                }
+                trace_batch(ctx, maps, st, clock, &setup, range, k + 1 == batches)
+            })?;
+            st.batch_photons = batch_photons;
+            clock.stats_mut().radii = setup.radii;
+            Ok(())
+        });
+        st.clock = clock;
+        result
     }
 
     fn build_acceleration_structure(&mut self) -> Result<(), WgpuError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::BuildAccelerationStructure)?;
-        st.clock.begin(Stage::BuildAccelerationStructure)?;
-        let start = Instant::now();
-        self.maps.build(&self.ctx)?;
-        wait(&self.ctx, "build_acceleration_structure")?;
-        st.clock.stats_mut().times.build = start.elapsed().as_secs_f64();
-        st.clock.finish(Stage::BuildAccelerationStructure);
-        Ok(())
+        st.clock.run(Stage::BuildAccelerationStructure, |_| {
+            self.maps.build(&self.ctx)?;
+            wait(&self.ctx, "build_acceleration_structure")
+        })
     }
 
     fn gather(&mut self) -> Result<(), WgpuError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::Gather)?;
-        st.clock.begin(Stage::Gather)?;
-        let start = Instant::now();
         let ctx = &self.ctx;
         let maps = &self.maps;
-        // One submission per batch: each writes its gather parameters through the queue.
-        for k in 0..maps.batch_count() {
-            scoped(ctx, "gather", || {
-                let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa gather") });
-                maps.encode_gather(ctx, &mut encoder, k, &st.queries, &st.image, &st.irradiance, st.settings.kernel, st.pixels)?;
-                ctx.queue.submit([encoder.finish()]);
-                Ok(())
-            })?;
-        }
-        let total: [u32; 4] = bytemuck::pod_read_unaligned(&read_buffer(ctx, "gather counts", maps.gathered_buffer(), 16)?);
-        let stats = st.clock.stats_mut();
-        stats.gathered = total[0] as u64 | (total[1] as u64) << 32;
-        stats.query_points = total[2] as u64;
-        stats.times.gather = start.elapsed().as_secs_f64();
-        st.clock.finish(Stage::Gather);
-        Ok(())
+        st.clock.run(Stage::Gather, |clock| {
+            // One submission per batch: each writes its gather parameters through the queue.
+            for k in 0..maps.batch_count() {
+                scoped(ctx, "gather", || {
+                    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa gather") });
+                    maps.encode_gather(ctx, &mut encoder, k, &st.queries, &st.image, &st.irradiance, st.settings.kernel, st.pixels)?;
+                    ctx.queue.submit([encoder.finish()]);
+                    Ok(())
+                })?;
+            }
+            let total: [u32; 4] = bytemuck::pod_read_unaligned(&read_buffer(ctx, "gather counts", maps.gathered_buffer(), 16)?);
+            let stats = clock.stats_mut();
+            stats.gathered = total[0] as u64 | (total[1] as u64) << 32;
+            stats.query_points = total[2] as u64;
+            Ok(())
+        })
     }
 
     fn accumulate(&mut self) -> Result<(), WgpuError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::Accumulate)?;
-        st.clock.begin(Stage::Accumulate)?;
-        let start = Instant::now();
         let ctx = &self.ctx;
-        scoped(ctx, "accumulate", || {
-            let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa accumulate") });
-            st.accumulator.encode(&ctx.device, &mut encoder, &st.image);
-            ctx.queue.submit([encoder.finish()]);
-            Ok(())
-        })?;
-        wait(ctx, "accumulate")?;
-        st.clock.stats_mut().times.accumulate = start.elapsed().as_secs_f64();
-        st.clock.finish(Stage::Accumulate);
-        Ok(())
+        st.clock.run(Stage::Accumulate, |_| {
+            scoped(ctx, "accumulate", || {
+                let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa accumulate") });
+                st.accumulator.encode(&ctx.device, &mut encoder, &st.image);
+                ctx.queue.submit([encoder.finish()]);
+                Ok(())
+            })?;
+            wait(ctx, "accumulate")
+        })
     }
 
     fn iterations(&self) -> u32 {

@@ -82,6 +82,24 @@ pub struct KeyedPhoton {
     pub pad: [u32; 3],
 }
 layout!(KeyedPhoton, 64, { photon: 0, key: 48 });
+
+/// Refuses settings whose record keys (`photon_index · max_depth + depth`, as
+/// [`KeyedFootprint::key`] and [`KeyedPhoton::key`]) would not all fit a `u32`: the check a
+/// GPU backend's `upload_scene` adds to [`crate::tracer::prepare_upload`] (which has
+/// already refused `max_depth = 0`). The message names `backend` and the largest photon
+/// count per iteration at this depth.
+#[cfg(feature = "alloc")]
+pub fn check_record_keys(settings: &crate::tracer::RenderSettings, backend: crate::tracer::BackendKind) -> Result<(), crate::tracer::StageError> {
+    if u64::from(settings.photons_per_iteration) * u64::from(settings.max_depth) <= u64::from(u32::MAX) {
+        return Ok(());
+    }
+    Err(crate::tracer::StageError::Settings(crate::tracer::InvalidSettings(alloc::format!(
+        "photons_per_iteration {} × max_depth {} exceeds the u32 record keys of the {backend} backend (at most {} photons at this depth)",
+        settings.photons_per_iteration,
+        settings.max_depth,
+        u32::MAX / settings.max_depth.max(1)
+    ))))
+}
 layout!(PackedPhoton, 48, { position: 0, map: 12, normal: 16, flux: 32 });
 
 /// What the photon pass counted (`PhotonCounters` of `photon_pass.wgsl`, 48 bytes).
