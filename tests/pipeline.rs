@@ -25,7 +25,7 @@ const INTENSITY: f64 = 2.0;
 struct Iteration {
     footprints: Vec<PackedFootprint>,
     photons: Vec<PackedPhoton>,
-    radii: [f32; 2],
+    radii: [f64; 2],
     stored_flux: f64,
     floor_flux: f64,
 }
@@ -40,7 +40,7 @@ fn run_iteration(light: &Light, scene: &Aabb, iteration: u32, n: u32) -> Iterati
     // kinds of stored photon meet at the query rings.
     let heuristics = Heuristics { degenerate: Some(DegenerateRemoval { fraction: 0.75 }), ..Heuristics::default() };
     let smoothing = Smoothing::default();
-    let mut out = Iteration { footprints: vec![], photons: vec![], radii: radii.map(|r| r as f32), stored_flux: 0.0, floor_flux: 0.0 };
+    let mut out = Iteration { footprints: vec![], photons: vec![], radii, stored_flux: 0.0, floor_flux: 0.0 };
     for i in 0..n {
         let mut rng = Rng::new(3, iteration, i, StreamDomain::Photon);
         let photon = light.emit(i, &params, &mut rng).expect("valid light");
@@ -59,7 +59,7 @@ fn run_iteration(light: &Light, scene: &Aabb, iteration: u32, n: u32) -> Iterati
         let hit = ray.transfer(t, DVec3::Y).expect("not grazing inside the floor");
         let fp = Footprint::from_hit(&hit, DVec3::Y, photon.flux, map).unwrap();
         let ctx = HeuristicContext { radius: radii[map.index()], scene_bounds: *scene };
-        match store_footprint(fp, &smoothing, &heuristics, &ctx) {
+        match store_footprint(fp, &smoothing, &heuristics.resolve(&ctx.scene_bounds), ctx.radius) {
             StoredPhoton::Footprint { packed, .. } => {
                 out.stored_flux += packed.flux_density().x as f64 * fp_parallelogram(&packed) / 4.0;
                 out.footprints.push(packed);

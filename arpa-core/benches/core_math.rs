@@ -38,7 +38,7 @@ use arpa_core::reemission::reemit;
 use arpa_core::rng::{Rng, StreamDomain};
 use arpa_core::sampling::{cosine_hemisphere, uniform_sphere};
 use arpa_core::heuristics::ResolvedHeuristics;
-use arpa_core::store::{ProgressiveReason, StoredPhoton, store_footprint, store_footprint_resolved};
+use arpa_core::store::{ProgressiveReason, StoredPhoton, store_footprint};
 use criterion::{Criterion, Throughput};
 use glam::{DVec2, DVec3, Vec3};
 
@@ -243,7 +243,7 @@ fn build_pools() -> Pools {
         stores.iter().map(|s| Footprint::from_hit(&s.ray, s.n_geo, s.flux, s.map).expect("valid normal")).collect();
     let (mut n_fp, mut n_deg, mut n_cull, mut n_unrep, mut n_other) = (0, 0, 0, 0, 0);
     for fp in &footprints {
-        match store_footprint(*fp, &smoothing, &heuristics, &ctx[fp.map.index()]) {
+        match store_footprint(*fp, &smoothing, &heuristics.resolve(&ctx[fp.map.index()].scene_bounds), ctx[fp.map.index()].radius) {
             StoredPhoton::Footprint { .. } => n_fp += 1,
             StoredPhoton::Progressive { reason: ProgressiveReason::Degenerate, .. } => n_deg += 1,
             StoredPhoton::Progressive { reason: ProgressiveReason::Culled, .. } => n_cull += 1,
@@ -414,7 +414,7 @@ fn footprint_heuristics(p: &mut Pools) -> usize {
     for x in black_box(&p.stores).iter() {
         let x = black_box(x);
         if let Ok(fp) = Footprint::from_hit(&x.ray, x.n_geo, x.flux, x.map) {
-            black_box(store_footprint_resolved(fp, s, h, ctx[fp.map.index()].radius));
+            black_box(store_footprint(fp, s, h, ctx[fp.map.index()].radius));
         }
     }
     p.stores.len()
@@ -435,19 +435,20 @@ fn footprint_no_heuristics(p: &mut Pools) -> usize {
     for x in black_box(&p.stores).iter() {
         let x = black_box(x);
         if let Ok(fp) = Footprint::from_hit(&x.ray, x.n_geo, x.flux, x.map) {
-            black_box(store_footprint_resolved(fp, s, h, ctx[fp.map.index()].radius));
+            black_box(store_footprint(fp, s, h, ctx[fp.map.index()].radius));
         }
     }
     p.stores.len()
 }
 
-/// `store_footprint`, which resolves the heuristics for the scene on every call.
+/// `store_footprint` with the heuristics resolved for the scene on every call: the cost of
+/// not resolving them once per pass.
 fn footprint_heuristics_unresolved(p: &mut Pools) -> usize {
     let (s, h, ctx) = black_box((&p.smoothing, &p.heuristics, &p.ctx));
     for x in black_box(&p.stores).iter() {
         let x = black_box(x);
         if let Ok(fp) = Footprint::from_hit(&x.ray, x.n_geo, x.flux, x.map) {
-            black_box(store_footprint(fp, s, h, &ctx[fp.map.index()]));
+            black_box(store_footprint(fp, s, &h.resolve(&ctx[fp.map.index()].scene_bounds), ctx[fp.map.index()].radius));
         }
     }
     p.stores.len()

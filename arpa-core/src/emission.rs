@@ -145,17 +145,96 @@ pub enum LightError {
 }
 
 /// Parameters shared by all photons of one light in one iteration.
+///
+/// Make them with [`EmissionParams::new`] and, for a progressive render, give each
+/// iteration its own lattice shift with [`EmissionParams::for_iteration`]: the `N` photons
+/// of a light are the points of a Fibonacci lattice shifted by [`lattice_shift`](Self::lattice_shift),
+/// and point and spot lights draw nothing else at emission, so **with the same shift every
+/// iteration they emit the same photons every iteration and the render does not converge**
+/// (area lights still vary through their direction draws). Only directional lights read
+/// [`scene_sphere`](Self::scene_sphere) ([`EmissionParams::with_scene_sphere`]).
+///
+/// ```
+/// use arpa_core::emission::{EmissionParams, Light, PointLight};
+/// use arpa_core::glam::DVec3;
+/// use arpa_core::rng::{Rng, StreamDomain};
+///
+/// let light = Light::Point(PointLight { position: DVec3::new(0.0, 0.0, 1.0), intensity: DVec3::splat(10.0) });
+/// let (seed, iteration, n) = (7, 0, 1000);
+/// let params = EmissionParams::new(n).for_iteration(seed, iteration, 0);
+/// let prepared = light.prepare(&params).unwrap();
+/// let mut total = DVec3::ZERO;
+/// for i in 0..n {
+///     // A point light draws nothing from the stream; an area light draws its direction.
+///     let mut rng = Rng::new(seed, iteration, i, StreamDomain::Photon);
+///     total += prepared.emit(i, &mut rng).unwrap().flux;
+/// }
+/// // The photons carry the light's power, 4π I (W).
+/// assert!((total - DVec3::splat(40.0 * core::f64::consts::PI)).abs().max_element() < 1e-9);
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct EmissionParams {
-    /// Photons this light emits this iteration, `N`.
+    /// Photons this light emits this iteration, `N` (at least 1).
     pub photon_count: u32,
-    /// Emission scale `s` of the differential lengths (1 = exact tiling).
+    /// Emission scale `s` of the differential lengths (1 = exact tiling; finite, > 0).
     pub scale: f64,
     /// Bounding sphere of the scene (centre, radius in metres): the aperture of
-    /// directional lights.
+    /// directional lights, which need a finite centre and a finite radius > 0. Other
+    /// lights ignore it.
     pub scene_sphere: (DVec3, f64),
-    /// Cranley–Patterson shift of the Fibonacci lattice for this iteration (unit square).
+    /// Cranley–Patterson shift of the Fibonacci lattice for this iteration (unit square,
+    /// finite; [`EmissionParams::for_iteration`] draws it).
     pub lattice_shift: DVec2,
+}
+
+impl EmissionParams {
+    /// `photon_count` photons with the exact tiling (`scale` 1), no lattice shift and no
+    /// scene sphere (enough for point, spot and area lights in one iteration).
+    pub const fn new(photon_count: u32) -> Self {
+        Self { photon_count, scale: 1.0, scene_sphere: (DVec3::ZERO, 0.0), lattice_shift: DVec2::ZERO }
+    }
+
+    /// The same parameters with the lattice shift of iteration `iteration` (0-based) of a
+    /// render with `seed`, for light `light` (its index among the scene's emitters): the
+    /// first 2-D draw of the stream `(seed, iteration, light)` in
+    /// [`StreamDomain::Iteration`](crate::rng::StreamDomain::Iteration). This is the
+    /// convention of every backend's photon pass
+    /// ([`crate::photon_path::PhotonPassSetup`], the WGSL twin), so a renderer that
+    /// follows it emits the photons the backends emit.
+    pub fn for_iteration(self, seed: u32, iteration: u32, light: u32) -> Self {
+        let mut rng = crate::rng::Rng::new(seed, iteration, light, crate::rng::StreamDomain::Iteration);
+        Self { lattice_shift: rng.next_2d(), ..self }
+    }
+
+    /// The same parameters with the scene's bounding sphere (centre, radius in metres),
+    /// the aperture of a directional light.
+    pub const fn with_scene_sphere(self, centre: DVec3, radius: f64) -> Self {
+        Self { scene_sphere: (centre, radius), ..self }
+    }
+
+    /// The same parameters with emission scale `scale` (the differential lengths are
+    /// `scale` times those of the exact tiling).
+    pub const fn with_scale(self, scale: f64) -> Self {
+        Self { scale, ..self }
+    }
+
+    /// Checks the fields a light reads: photon count, scale and shift for every light;
+    /// the scene sphere for directional lights ([`Light::validate`]).
+    fn validate(&self, light: &Light) -> Result<(), EmissionError> {
+        if self.photon_count == 0 {
+            return Err(LightError::NoPhotons.into());
+        }
+        if !(self.scale > 0.0) || !self.scale.is_finite() {
+            return Err(EmissionError::Params("scale must be finite and > 0"));
+        }
+        if !self.lattice_shift.is_finite() {
+            return Err(EmissionError::Params("lattice_shift must be finite"));
+        }
+        if matches!(light, Light::Directional(_)) && !self.scene_sphere.0.is_finite() {
+            return Err(LightError::NoSceneBounds.into());
+        }
+        Ok(())
+    }
 }
 
 /// Differential lengths of one light for `N` photons.
@@ -371,8 +450,12 @@ impl Light {
 
     /// Emits photon `index` of `params.photon_count`. The primary two dimensions (direction
     /// for point/spot, position for area/directional lights) come from the shifted
-    /// Fibonacci lattice; the others from `rng`. Validates the light first; a photon pass
-    /// should [`Light::prepare`] once per iteration and call [`PreparedLight::emit`].
+    /// Fibonacci lattice; only area lights draw from `rng` (their direction, two draws),
+    /// so point, spot and directional lights leave it untouched. The backends pass the
+    /// photon's own stream, `Rng::new(seed, iteration, global photon index,
+    /// StreamDomain::Photon)`, which the photon's path then continues. Validates the light
+    /// and `params` first; a photon pass should [`Light::prepare`] once per iteration and
+    /// call [`PreparedLight::emit`].
     pub fn emit(&self, index: u32, params: &EmissionParams, rng: &mut Rng) -> Result<EmittedPhoton, EmissionError> {
         self.prepare(params)?.emit(index, rng)
     }
@@ -382,9 +465,7 @@ impl Light {
     pub fn prepare(&self, params: &EmissionParams) -> Result<PreparedLight, EmissionError> {
         let radius = params.scene_sphere.1;
         self.validate(radius)?;
-        if params.photon_count == 0 {
-            return Err(LightError::NoPhotons.into());
-        }
+        params.validate(self)?;
         let n = params.photon_count;
         let per_photon = 1.0 / n as f64;
         let (flux, frame) = match self {
@@ -503,6 +584,9 @@ pub enum EmissionError {
     /// The initial differential is not finite.
     #[error(transparent)]
     Differential(#[from] DifferentialError),
+    /// An [`EmissionParams`] field is out of range (the message names it).
+    #[error("emission parameters: {0}")]
+    Params(&'static str),
 }
 
 /// The 160-byte `f32` record of a [`PreparedLight`] for GPU storage buffers: the WGSL

@@ -6,9 +6,9 @@
 //! Contributions from footprints and photons whose lit side faces away from the query's
 //! normal are skipped (no light through thin two-sided walls).
 
-use crate::footprint::{PackedFootprint, PhotonMap};
+use crate::footprint::{Footprint, PackedFootprint, PhotonMap};
 use crate::kernel::Kernel;
-use crate::progressive_photon::PackedPhoton;
+use crate::progressive_photon::{PackedPhoton, ProgressivePhoton};
 use core::f64::consts::FRAC_1_PI;
 use glam::{DVec3, Vec3};
 
@@ -84,15 +84,43 @@ impl IrradianceEstimate {
     }
 }
 
-/// Brute-force gather over all `footprints` and `photons`: the reference the backends'
-/// acceleration structures must reproduce.
-pub fn gather_brute_force(q: &QueryPoint, footprints: &[PackedFootprint], photons: &[PackedPhoton], radii: [f32; 2], kernel: Kernel) -> IrradianceEstimate {
+/// Brute-force gather over all `footprints` and `photons` (the packed `f32` records a
+/// gather reads) with the progressive radii `radii` (metres, `[caustic, global]`, as
+/// [`crate::radius::ProgressiveConfig::radii`] gives them; the records use them in `f32`):
+/// the reference the backends' acceleration structures must reproduce.
+pub fn gather_brute_force(q: &QueryPoint, footprints: &[PackedFootprint], photons: &[PackedPhoton], radii: [f64; 2], kernel: Kernel) -> IrradianceEstimate {
+    let radii = radii.map(|r| r as f32);
     let mut e = IrradianceEstimate::default();
     for fp in footprints {
         e.add_footprint(fp, q, kernel);
     }
     for ph in photons {
         e.add_photon(ph, q, radii);
+    }
+    e
+}
+
+/// The same estimate in `f64` over unpacked records: footprints as the heuristics leave
+/// them ([`crate::heuristics::Heuristics::apply`]; their slab limited by their map's
+/// radius) and progressive photons, at query point `q` (metres) with unit normal
+/// `query_normal`, for progressive radii `radii` (metres, `[caustic, global]`). For
+/// renderer authors checking their own pipeline against analytic irradiance without the
+/// `f32` storage; per map, as [`IrradianceEstimate`].
+pub fn estimate_f64(q: DVec3, query_normal: DVec3, footprints: &[Footprint], photons: &[ProgressivePhoton], radii: [f64; 2], kernel: Kernel) -> IrradianceEstimate {
+    let mut e = IrradianceEstimate::default();
+    for fp in footprints {
+        let c = fp.irradiance(q, query_normal, radii[fp.map.index()], kernel);
+        if c != DVec3::ZERO {
+            e.per_map[fp.map.index()] += c;
+            e.footprints += 1;
+        }
+    }
+    for ph in photons {
+        let c = ph.irradiance(q, query_normal, radii[ph.map.index()]);
+        if c != DVec3::ZERO {
+            e.per_map[ph.map.index()] += c;
+            e.photons += 1;
+        }
     }
     e
 }

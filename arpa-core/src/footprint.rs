@@ -185,42 +185,60 @@ impl Footprint {
     }
 
     /// Half-thickness of the footprint along its normal: half the minor differential,
-    /// clamped to the current progressive `radius` (ARPA §4.2, fig. 3), but never thinner
-    /// than `f32` can resolve at the footprint's position ([`half_thickness`]), in metres.
+    /// clamped to `slab_limit` (metres; a photon pass passes the map's current progressive
+    /// radius, ARPA §4.2, fig. 3), but never thinner than `f32` can resolve at the
+    /// footprint's position ([`half_thickness`]), in metres. `slab_limit` only bounds
+    /// this thickness: the ellipse, its density and the in-plane extent do not depend
+    /// on it.
     #[inline]
-    pub fn half_thickness(&self, radius: f64) -> f64 {
+    pub fn half_thickness(&self, slab_limit: f64) -> f64 {
         let (major, minor) = self.major_minor();
-        half_thickness(self.center, major, minor, radius)
+        half_thickness(self.center, major, minor, slab_limit)
     }
 
     /// `true` if `q` lies inside the ellipse (`|M_p⁻¹(q − x_p)| ≤ 1`) and within the
-    /// slab `|n·(q − x_p)| ≤ h` of [`Footprint::half_thickness`].
-    pub fn contains(&self, q: DVec3, radius: f64) -> bool {
+    /// slab `|n·(q − x_p)| ≤ h` of [`Footprint::half_thickness`]`(slab_limit)` (metres).
+    pub fn contains(&self, q: DVec3, slab_limit: f64) -> bool {
         let Ok(m) = self.filter_transform() else { return false };
         let delta = q - self.center;
-        m.apply(delta).length_squared() <= 1.0 && self.normal.dot(delta).abs() <= self.half_thickness(radius)
+        m.apply(delta).length_squared() <= 1.0 && self.normal.dot(delta).abs() <= self.half_thickness(slab_limit)
     }
 
     /// The footprint's density at `q`: `W_p(q) = 4/|D_u × D_v| · K(|M_p⁻¹(q − x_p)|²)`
-    /// (1/m²), zero outside. Irradiance contributed is `Φ_p W_p(q)`.
-    pub fn weight(&self, q: DVec3, radius: f64, kernel: Kernel) -> f64 {
+    /// (1/m²), zero outside the ellipse or the slab of
+    /// [`Footprint::half_thickness`]`(slab_limit)` (metres). Irradiance contributed is
+    /// `Φ_p W_p(q)` ([`Footprint::irradiance`] adds the facing test).
+    pub fn weight(&self, q: DVec3, slab_limit: f64, kernel: Kernel) -> f64 {
         let Ok(m) = self.filter_transform() else { return 0.0 };
         let delta = q - self.center;
-        if self.normal.dot(delta).abs() > self.half_thickness(radius) {
+        if self.normal.dot(delta).abs() > self.half_thickness(slab_limit) {
             return 0.0;
         }
         m.determinant() * kernel.eval_f64(m.apply(delta).length_squared())
     }
 
+    /// Irradiance (W/m², RGB) this footprint contributes at `q` (metres) with unit normal
+    /// `query_normal`, in `f64`: `Φ_p W_p(q)` ([`Footprint::weight`] with `slab_limit`)
+    /// when the query sees the lit side (`n · query_normal > 0`), else 0. The `f64` twin
+    /// of [`PackedFootprint::irradiance`], for estimates before packing.
+    pub fn irradiance(&self, q: DVec3, query_normal: DVec3, slab_limit: f64, kernel: Kernel) -> DVec3 {
+        if !(self.normal.dot(query_normal) > 0.0) {
+            return DVec3::ZERO;
+        }
+        let e = self.flux * self.weight(q, slab_limit, kernel);
+        if e.is_finite() { e } else { DVec3::ZERO }
+    }
+
     /// Bounding box for the acceleration structure: `x_p ± e` with
     /// `e_k = √(a_k² + b_k²) + |h n_k|`, the exact box of the elliptic slab the
     /// point-in-footprint test accepts (ellipse with conjugate semi-diameters
-    /// `a = D_u/2`, `b = D_v/2`, extruded by `±h n`, `h` = [`Footprint::half_thickness`]).
+    /// `a = D_u/2`, `b = D_v/2`, extruded by `±h n`, `h` =
+    /// [`Footprint::half_thickness`]`(slab_limit)`), in metres.
     #[inline]
-    pub fn aabb(&self, radius: f64) -> Aabb {
+    pub fn aabb(&self, slab_limit: f64) -> Aabb {
         let a = 0.5 * self.du;
         let b = 0.5 * self.dv;
-        let h = self.normal * self.half_thickness(radius);
+        let h = self.normal * self.half_thickness(slab_limit);
         let e = (a * a + b * b).map(libm::sqrt) + h.abs();
         Aabb::from_centre_half_extent(self.center, e)
     }
@@ -238,11 +256,12 @@ impl Footprint {
     }
 
     /// The `f32` record the gather reads (see [`PackedFootprint`]), with the slab
-    /// half-thickness of the current progressive `radius`. Fails when `M_p⁻¹` does not
+    /// half-thickness of [`Footprint::half_thickness`]`(slab_limit)` (metres; the map's
+    /// current progressive radius in a photon pass). Fails when `M_p⁻¹` does not
     /// exist, or when `f32` cannot resolve the ellipse: [`Footprint::minor_semi_axis_bound`]
     /// below [`MIN_RELATIVE_SEMI_AXIS`] times the largest centre coordinate, or a stored
     /// value overflows.
-    pub fn pack(&self, radius: f64) -> Result<PackedFootprint, FootprintError> {
+    pub fn pack(&self, slab_limit: f64) -> Result<PackedFootprint, FootprintError> {
         let la2 = self.du.length_squared();
         let lb2 = self.dv.length_squared();
         let cross = self.du.cross(self.dv);
@@ -250,7 +269,7 @@ impl Footprint {
         if degenerate_denominator(den, la2, lb2) {
             return Err(FootprintError::Degenerate);
         }
-        let h = half_thickness(self.center, libm::sqrt(la2.max(lb2)), libm::sqrt(la2.min(lb2)), radius);
+        let h = half_thickness(self.center, libm::sqrt(la2.max(lb2)), libm::sqrt(la2.min(lb2)), slab_limit);
         pack_parts(self, la2, lb2, cross, den, h)
     }
 }
@@ -264,13 +283,14 @@ pub(crate) fn degenerate_denominator(den: f64, la2: f64, lb2: f64) -> bool {
     !(den * den > K2 * la2 * lb2) || !den.is_finite()
 }
 
-/// Slab half-thickness (metres): `min(minor/2, radius)`, but at least
+/// Slab half-thickness (metres) of a footprint centred at `center` with differential
+/// lengths `major`, `minor` (metres): `min(minor/2, slab_limit)`, but at least
 /// `8 ε₃₂ (|x_p|_∞ + major)` so that the `f32` record still accepts points in its own
 /// plane.
 #[inline]
-pub fn half_thickness(center: DVec3, major: f64, minor: f64, radius: f64) -> f64 {
+pub fn half_thickness(center: DVec3, major: f64, minor: f64, slab_limit: f64) -> f64 {
     let floor = 8.0 * f32::EPSILON as f64 * (center.abs().max_element() + major);
-    (0.5 * minor).min(radius).max(floor)
+    (0.5 * minor).min(slab_limit).max(floor)
 }
 
 /// [`Footprint::pack`] with the squared differential lengths, `D_u × D_v`, the

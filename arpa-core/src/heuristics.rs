@@ -37,6 +37,7 @@
 
 use crate::aabb::Aabb;
 use crate::footprint::{degenerate_denominator, half_thickness, pack_parts, Footprint, PackedFootprint};
+use crate::store::ProgressiveReason;
 use glam::DVec3;
 
 /// A length given in scene units or relative to the scene's bounding-box diagonal.
@@ -168,15 +169,6 @@ pub struct HeuristicContext {
     pub scene_bounds: Aabb,
 }
 
-/// Why a footprint was replaced by a progressive photon.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Rejection {
-    /// Degenerate removal (or `D_u`, `D_v` parallel/zero/non-finite).
-    Degenerate,
-    /// Bounding-box culling.
-    Culled,
-}
-
 impl Heuristics {
     /// All heuristics off.
     pub const NONE: Self = Self { dampening: None, h_max: None, degenerate: None, culling: None };
@@ -240,15 +232,15 @@ impl Heuristics {
     /// Applies the heuristics in the documented order. Returns the final footprint and
     /// its AABB, or the reason it must become a progressive photon. A footprint whose
     /// `M_p⁻¹` does not exist is rejected as degenerate even with degenerate removal off.
-    pub fn apply(&self, fp: Footprint, ctx: &HeuristicContext) -> Result<(Footprint, Aabb), Rejection> {
+    pub fn apply(&self, fp: Footprint, ctx: &HeuristicContext) -> Result<(Footprint, Aabb), ProgressiveReason> {
         let fp = self.dampen(fp, ctx);
         let fp = self.clamp_h_max(fp, ctx);
         if self.is_degenerate(&fp) || fp.filter_transform().is_err() {
-            return Err(Rejection::Degenerate);
+            return Err(ProgressiveReason::Degenerate);
         }
         let bounds = fp.aabb(ctx.radius);
         if self.is_culled(&bounds, ctx) {
-            return Err(Rejection::Culled);
+            return Err(ProgressiveReason::Culled);
         }
         Ok((fp, bounds))
     }
@@ -268,15 +260,6 @@ pub struct ResolvedHeuristics {
     /// Per map: a progressive radius and `ℓ_ref^(3/4)` for it, the footprint-independent
     /// factor of γ = 1/4 dampening ([`ResolvedHeuristics::at_radii`]).
     reference_pow: [Option<(f64, f64)>; 2],
-}
-
-/// Why [`ResolvedHeuristics::store`] did not produce a footprint record.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum StoreRejection {
-    /// Rejected by a heuristic.
-    Heuristic(Rejection),
-    /// The ellipse cannot be resolved in `f32` storage.
-    Unrepresentable,
 }
 
 /// `ℓ_ref^(3/4)`, the factor of γ = 1/4 dampening that does not depend on the footprint.
@@ -416,7 +399,7 @@ impl ResolvedHeuristics {
     /// differentials, as [`Footprint::pack`] does). Only an H-max clamp of one
     /// differential (which breaks the homogeneity) takes the sequential path.
     #[inline(always)]
-    pub fn store(&self, fp: Footprint, radius: f64) -> Result<(Footprint, PackedFootprint, Aabb), StoreRejection> {
+    pub fn store(&self, fp: Footprint, radius: f64) -> Result<(Footprint, PackedFootprint, Aabb), ProgressiveReason> {
         // Scale-free parts, independent of the dampening factor.
         let la2_0 = fp.du.length_squared();
         let lb2_0 = fp.dv.length_squared();
@@ -452,7 +435,7 @@ impl ResolvedHeuristics {
             return self.store_clamped(fp.scaled(s), la2, lb2, h, mode, radius);
         }
         if degenerate {
-            return Err(StoreRejection::Heuristic(Rejection::Degenerate));
+            return Err(ProgressiveReason::Degenerate);
         }
         let fp = fp.scaled(s);
         // From the scaled differentials, like the record's rows (`pack_parts`): the
@@ -460,7 +443,7 @@ impl ResolvedHeuristics {
         let cross = fp.du.cross(fp.dv);
         let den = cross.dot(fp.normal);
         if degenerate_denominator(den, la2, lb2) {
-            return Err(StoreRejection::Heuristic(Rejection::Degenerate));
+            return Err(ProgressiveReason::Degenerate);
         }
         let h = half_thickness(fp.center, s * major_0, s * minor_0, radius);
         self.finish(fp, la2, lb2, cross, den, h, e_0 * s)
@@ -470,7 +453,7 @@ impl ResolvedHeuristics {
     /// `la2`, `lb2` its squared differential lengths.
     #[cold]
     #[inline(never)]
-    fn store_clamped(&self, mut fp: Footprint, mut la2: f64, mut lb2: f64, h: f64, mode: HMaxMode, radius: f64) -> Result<(Footprint, PackedFootprint, Aabb), StoreRejection> {
+    fn store_clamped(&self, mut fp: Footprint, mut la2: f64, mut lb2: f64, h: f64, mode: HMaxMode, radius: f64) -> Result<(Footprint, PackedFootprint, Aabb), ProgressiveReason> {
         let h2 = h * h;
         match mode {
             HMaxMode::EachDifferential => {
@@ -496,11 +479,11 @@ impl ResolvedHeuristics {
         if let Some(f) = self.degenerate
             && (!(major2 > 0.0) || !(cross.length_squared() >= f * f * major2 * major2))
         {
-            return Err(StoreRejection::Heuristic(Rejection::Degenerate));
+            return Err(ProgressiveReason::Degenerate);
         }
         let den = cross.dot(fp.normal);
         if degenerate_denominator(den, la2, lb2) {
-            return Err(StoreRejection::Heuristic(Rejection::Degenerate));
+            return Err(ProgressiveReason::Degenerate);
         }
         let h = half_thickness(fp.center, libm::sqrt(major2), libm::sqrt(la2.min(lb2)), radius);
         let e2 = 0.25 * (fp.du * fp.du + fp.dv * fp.dv);
@@ -513,7 +496,7 @@ impl ResolvedHeuristics {
     /// ellipse's box half-extent `e_ellipse` = `√(a_k² + b_k²)`).
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn finish(&self, fp: Footprint, la2: f64, lb2: f64, cross: DVec3, den: f64, h: f64, e_ellipse: DVec3) -> Result<(Footprint, PackedFootprint, Aabb), StoreRejection> {
+    fn finish(&self, fp: Footprint, la2: f64, lb2: f64, cross: DVec3, den: f64, h: f64, e_ellipse: DVec3) -> Result<(Footprint, PackedFootprint, Aabb), ProgressiveReason> {
         // The box of the elliptic slab (see `Footprint::aabb`).
         let e = e_ellipse + (fp.normal * h).abs();
         if let Some((metric, threshold)) = self.cull {
@@ -523,14 +506,14 @@ impl ResolvedHeuristics {
                 CullMetric::SurfaceArea => 8.0 * (e.x * e.y + e.y * e.z + e.z * e.x),
             };
             if !(mine <= threshold) {
-                return Err(StoreRejection::Heuristic(Rejection::Culled));
+                return Err(ProgressiveReason::Culled);
             }
         }
         let bounds = Aabb::from_centre_half_extent(fp.center, e);
         match pack_parts(&fp, la2, lb2, cross, den, h) {
             Ok(packed) => Ok((fp, packed, bounds)),
-            Err(crate::footprint::FootprintError::Degenerate) => Err(StoreRejection::Heuristic(Rejection::Degenerate)),
-            Err(_) => Err(StoreRejection::Unrepresentable),
+            Err(crate::footprint::FootprintError::Degenerate) => Err(ProgressiveReason::Degenerate),
+            Err(_) => Err(ProgressiveReason::Unrepresentable),
         }
     }
 }

@@ -21,7 +21,7 @@ use crate::ray_cast::{RayCaster, RayHit};
 use crate::reemission::{diffuse_direction_unit, reemit_unit};
 use crate::rng::{Rng, StreamDomain};
 use crate::scene::Scattering;
-use crate::store::{store_footprint_resolved, store_progressive, ProgressiveReason, StoredPhoton};
+use crate::store::{store_footprint, store_progressive, ProgressiveReason, StoredPhoton};
 use crate::tracer::{Method, RenderSettings};
 use alloc::vec::Vec;
 use glam::{DVec3, Vec3};
@@ -59,8 +59,8 @@ impl PhotonPassSetup {
             .zip(scene.emitters())
             .enumerate()
             .map(|(i, (&n, light))| {
-                let mut r = Rng::new(settings.seed, iteration, i as u32, StreamDomain::Iteration);
-                let params = EmissionParams { photon_count: n.max(1), scale: 1.0, scene_sphere: scene.bounding_sphere(), lattice_shift: r.next_2d() };
+                let (centre, radius) = scene.bounding_sphere();
+                let params = EmissionParams::new(n.max(1)).with_scene_sphere(centre, radius).for_iteration(settings.seed, iteration, i as u32);
                 light.prepare(&params).ok()
             })
             .collect();
@@ -387,7 +387,7 @@ fn store(
         Some(reason) => store_progressive(ray.p, *normal, ray.d, flux, map, reason),
         // A valid differential here was just transferred onto this surface
         // (`PhotonWalk::interact`): in its plane, with a unit normal.
-        None => store_footprint_resolved(Footprint::from_transferred(ray, *normal, flux, map), &settings.smoothing, &setup.heuristics, setup.radii[map.index()]),
+        None => store_footprint(Footprint::from_transferred(ray, *normal, flux, map), &settings.smoothing, &setup.heuristics, setup.radii[map.index()]),
     };
     if below_shading_plane { orient_to_shading_side(stored) } else { stored }
 }

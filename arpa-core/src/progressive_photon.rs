@@ -20,6 +20,19 @@ pub struct ProgressivePhoton {
 }
 
 impl ProgressivePhoton {
+    /// Irradiance (W/m², RGB) at `q` (metres) with unit normal `query_normal` for
+    /// progressive radius `radius` (metres), in `f64`: `Φ/(π r²)` inside the sphere
+    /// `|q − x_p|² < r²` and on the lit side, else 0 (also 0 when not finite). The `f64`
+    /// twin of [`PackedPhoton::irradiance`].
+    pub fn irradiance(&self, q: DVec3, query_normal: DVec3, radius: f64) -> DVec3 {
+        let inside = (q - self.position).length_squared() < radius * radius;
+        if !inside || !(self.normal.dot(query_normal) > 0.0) {
+            return DVec3::ZERO;
+        }
+        let e = self.flux * (core::f64::consts::FRAC_1_PI / (radius * radius));
+        if e.is_finite() { e } else { DVec3::ZERO }
+    }
+
     /// The 48-byte `f32` record (see [`PackedPhoton`]).
     pub fn pack(&self) -> PackedPhoton {
         PackedPhoton {

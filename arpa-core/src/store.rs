@@ -5,11 +5,14 @@
 use crate::aabb::Aabb;
 use crate::classify::Smoothing;
 use crate::footprint::{Footprint, PackedFootprint, PhotonMap};
-use crate::heuristics::{HeuristicContext, Heuristics, Rejection, ResolvedHeuristics, StoreRejection};
+use crate::heuristics::ResolvedHeuristics;
 use crate::progressive_photon::{PackedPhoton, ProgressivePhoton};
 use glam::DVec3;
 
-/// Why a photon was stored as a progressive photon instead of a footprint.
+/// Why a photon was stored as a progressive photon instead of a footprint: the one
+/// rejection type of the core. The heuristics ([`crate::heuristics`]) give
+/// `Degenerate`, `Culled` and `Unrepresentable`; the photon path gives
+/// `DifferentialLost` and `ProgressiveMethod`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ProgressiveReason {
     /// Degenerate removal, or `D_u`, `D_v` parallel/zero.
@@ -23,15 +26,6 @@ pub enum ProgressiveReason {
     DifferentialLost,
     /// The method stores only progressive photons (the RTPM baseline).
     ProgressiveMethod,
-}
-
-impl From<Rejection> for ProgressiveReason {
-    fn from(r: Rejection) -> Self {
-        match r {
-            Rejection::Degenerate => ProgressiveReason::Degenerate,
-            Rejection::Culled => ProgressiveReason::Culled,
-        }
-    }
 }
 
 /// What a diffuse hit stores.
@@ -70,24 +64,22 @@ fn fallback(fp: &Footprint, reason: ProgressiveReason) -> StoredPhoton {
 }
 
 /// Stores footprint `fp` (unsmoothed, as built by [`Footprint::from_hit`]): applies the
-/// map's smoothing factor, then the heuristics, then packs it. Anything rejected becomes a
-/// progressive photon carrying the same flux, so energy is never lost or created.
+/// map's smoothing factor, then the heuristics resolved for the scene (`heuristics`,
+/// [`crate::heuristics::Heuristics::resolve`]) with the map's progressive `radius`
+/// (metres: the dampening reference and the slab limit), then packs it. Anything rejected
+/// becomes a progressive photon carrying the same flux, so energy is never lost or created.
 ///
-/// Resolves the heuristics for `ctx.scene_bounds` on every call; a photon pass should
-/// resolve once ([`Heuristics::resolve`]) and call [`store_footprint_resolved`].
-pub fn store_footprint(fp: Footprint, smoothing: &Smoothing, heuristics: &Heuristics, ctx: &HeuristicContext) -> StoredPhoton {
-    store_footprint_resolved(fp, smoothing, &heuristics.resolve(&ctx.scene_bounds), ctx.radius)
-}
-
-/// [`store_footprint`] with heuristics resolved for the scene and the footprint map's
-/// progressive `radius` (metres): the per-photon hot path.
+/// This is the one function every photon pass stores with (the WGSL twin's `store.wgsl`
+/// makes the same decisions). [`ResolvedHeuristics::store`] is its heuristics step (the
+/// final footprint, record and box, or the [`ProgressiveReason`]), and
+/// [`crate::heuristics::Heuristics::apply`] the same chain step by step, the reference
+/// the fused step is tested against.
 #[inline(always)]
-pub fn store_footprint_resolved(fp: Footprint, smoothing: &Smoothing, heuristics: &ResolvedHeuristics, radius: f64) -> StoredPhoton {
+pub fn store_footprint(fp: Footprint, smoothing: &Smoothing, heuristics: &ResolvedHeuristics, radius: f64) -> StoredPhoton {
     let fp = smoothing.apply(fp);
     match heuristics.store(fp, radius) {
         Ok((_, packed, aabb)) => StoredPhoton::Footprint { packed, aabb },
-        Err(StoreRejection::Heuristic(r)) => fallback(&fp, r.into()),
-        Err(StoreRejection::Unrepresentable) => fallback(&fp, ProgressiveReason::Unrepresentable),
+        Err(reason) => fallback(&fp, reason),
     }
 }
 

@@ -73,8 +73,8 @@ fn degenerate_removal_at_its_threshold() {
     }
     // Zero and parallel differentials are degenerate, even with the heuristic off.
     assert!(h.is_degenerate(&fp(DVec3::ZERO, DVec3::ZERO)));
-    assert_eq!(Heuristics::NONE.apply(fp(DVec3::X, DVec3::X * 2.0), &ctx(0.01)), Err(Rejection::Degenerate));
-    assert_eq!(Heuristics::NONE.apply(fp(DVec3::ZERO, DVec3::Z), &ctx(0.01)), Err(Rejection::Degenerate));
+    assert_eq!(Heuristics::NONE.apply(fp(DVec3::X, DVec3::X * 2.0), &ctx(0.01)), Err(ProgressiveReason::Degenerate));
+    assert_eq!(Heuristics::NONE.apply(fp(DVec3::ZERO, DVec3::Z), &ctx(0.01)), Err(ProgressiveReason::Degenerate));
 }
 
 #[test]
@@ -85,7 +85,7 @@ fn culling_at_five_percent() {
         // Box side along x is |Du_x| (half-extent |Du|/2 on each side) for Du ∥ x.
         let f = fp(DVec3::X * len, DVec3::Z * 0.1);
         assert_eq!(h.is_culled(&f.aabb(0.01), &ctx(0.01)), culled, "len {len}");
-        assert_eq!(h.apply(f, &ctx(0.01)).err(), culled.then_some(Rejection::Culled));
+        assert_eq!(h.apply(f, &ctx(0.01)).err(), culled.then_some(ProgressiveReason::Culled));
     }
     let by_area = Heuristics { culling: Some(BoundingBoxCulling { fraction: 0.05, metric: CullMetric::SurfaceArea }), ..Heuristics::NONE };
     let scene_area = scene().surface_area(); // 2(40 + 8 + 20) = 136 → threshold 6.8
@@ -114,7 +114,7 @@ fn order_dampen_then_clamp_then_degenerate_then_cull() {
     // Without the clamp the dampened footprint (0.4 wide) survives culling (≤ 0.5) too, but a
     // larger one is culled only because the clamp is off.
     let no_clamp = Heuristics { h_max: None, ..h };
-    assert_eq!(no_clamp.apply(fp(DVec3::X * 0.2, DVec3::Z * 0.2), &ctx(0.01)).err(), Some(Rejection::Culled)); // 0.2^(1/4) = 0.67
+    assert_eq!(no_clamp.apply(fp(DVec3::X * 0.2, DVec3::Z * 0.2), &ctx(0.01)).err(), Some(ProgressiveReason::Culled)); // 0.2^(1/4) = 0.67
     assert!(h.apply(fp(DVec3::X * 0.2, DVec3::Z * 0.2), &ctx(0.01)).is_ok());
 }
 
@@ -125,7 +125,7 @@ fn storing_conserves_flux_and_map() {
     let c = ctx(0.01);
     // Accepted: flux density × ellipse area = flux.
     let f = fp(DVec3::X * 0.03, DVec3::Z * 0.02);
-    match store_footprint(f, &smoothing, &h, &c) {
+    match store_footprint(f, &smoothing, &h.resolve(&c.scene_bounds), c.radius) {
         StoredPhoton::Footprint { packed, aabb } => {
             assert_eq!(packed.photon_map(), PhotonMap::Caustic);
             let (expected, expected_box) = h.apply(smoothing.apply(f), &c).unwrap();
@@ -138,7 +138,7 @@ fn storing_conserves_flux_and_map() {
     }
     // Rejected: a progressive photon with the same flux, normal and map.
     let thin = fp(DVec3::X * 0.03, DVec3::new(0.03, 0.0, 0.0001));
-    match store_footprint(thin, &smoothing, &h, &c) {
+    match store_footprint(thin, &smoothing, &h.resolve(&c.scene_bounds), c.radius) {
         StoredPhoton::Progressive { photon, reason } => {
             assert_eq!(reason, ProgressiveReason::Degenerate);
             assert_eq!(photon.flux, [2.0, 1.0, 0.5]);
@@ -156,7 +156,6 @@ fn storing_conserves_flux_and_map() {
 mod fused_path {
     use super::*;
     use arpa_core::footprint::FootprintError;
-    use arpa_core::heuristics::StoreRejection;
     use proptest::prelude::*;
 
     fn heuristics() -> impl Strategy<Value = Heuristics> {
@@ -182,10 +181,10 @@ mod fused_path {
         #[test]
         fn fused_store_decides_like_apply_then_pack(h in heuristics(), fp in footprint(), radius in 1e-4f64..0.1) {
             let c = ctx(radius);
-            let reference = h.apply(fp, &c).map_err(StoreRejection::Heuristic).and_then(|(f, b)| match f.pack(radius) {
+            let reference = h.apply(fp, &c).and_then(|(f, b)| match f.pack(radius) {
                 Ok(p) => Ok((f, p, b)),
-                Err(FootprintError::Degenerate) => Err(StoreRejection::Heuristic(Rejection::Degenerate)),
-                Err(_) => Err(StoreRejection::Unrepresentable),
+                Err(FootprintError::Degenerate) => Err(ProgressiveReason::Degenerate),
+                Err(_) => Err(ProgressiveReason::Unrepresentable),
             });
             let fused = h.resolve(&scene()).store(fp, radius);
             match (reference, fused) {

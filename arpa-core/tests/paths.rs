@@ -67,7 +67,7 @@ fn render(scene: &PreparedScene, settings: &RenderSettings, iterations: u32) -> 
     for it in 0..iterations {
         records = (0..pixels).map(|p| trace_camera_path(scene, &caster, settings, it, p)).collect();
         let (setup, fps, phs) = photon_pass(scene, &caster, settings, it);
-        let radii = setup.radii.map(|r| r as f32);
+        let radii = setup.radii;
         for (r, acc) in records.iter().zip(&mut sum) {
             let mut l = r.radiance[0] as f64;
             if r.valid == 1 {
@@ -191,7 +191,7 @@ fn glass_slab_caustic_matches_optics() {
         for iteration in 0..iterations {
             let (setup, fps, phs) = photon_pass(&scene, &caster, &settings, iteration);
             caustic_footprints += fps.iter().filter(|f| f.photon_map() == arpa_core::footprint::PhotonMap::Caustic).count();
-            let r = setup.radii.map(|r| r as f32);
+            let r = setup.radii;
             for (ring, sum) in rings.iter().zip(&mut sums) {
                 for q in ring {
                     *sum += gather_brute_force(q, &fps, &phs, r, Kernel::Silverman).map(arpa_core::footprint::PhotonMap::Caustic).x;
@@ -359,7 +359,7 @@ fn tilted_vertex_normals_reflect_photons_by_the_adjoint() {
     let mut estimate = 0.0;
     for iteration in 0..iterations {
         let (setup, fps, phs) = photon_pass(&scene, &caster, &settings, iteration);
-        let r = setup.radii.map(|r| r as f32);
+        let r = setup.radii;
         estimate += points.iter().map(|q| gather_brute_force(q, &fps, &phs, r, Kernel::Silverman).irradiance().x).sum::<f64>();
     }
     let estimate = estimate / iterations as f64;

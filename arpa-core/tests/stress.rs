@@ -47,7 +47,7 @@ use arpa_core::frame::Frame;
 use arpa_core::fresnel::dielectric_reflectance;
 use arpa_core::heuristics::{
     BoundingBoxCulling, CullMetric, DampenReference, Dampening, DegenerateRemoval, HMax, HMaxMode, HeuristicContext, Heuristics, LengthSpec,
-    Rejection, StoreRejection,
+
 };
 use arpa_core::kernel::Kernel;
 use arpa_core::progressive_photon::{PackedPhoton, ProgressivePhoton};
@@ -1351,7 +1351,7 @@ fn check_heuristics_apply((((fp, kind), ctx), (name, h)): HeurIn) -> Outcome {
     if kind == Pair::Parallel {
         prop_assert_eq!(
             res.map(|_| ()),
-            Err(Rejection::Degenerate),
+            Err(ProgressiveReason::Degenerate),
             "[{}] exactly parallel/zero differentials not rejected as degenerate: du {}, dv {}",
             name,
             fp.du,
@@ -1378,17 +1378,18 @@ fn check_heuristics_apply((((fp, kind), ctx), (name, h)): HeurIn) -> Outcome {
             }
             Ok("ok")
         }
-        Err(Rejection::Degenerate) => {
+        Err(ProgressiveReason::Degenerate) => {
             if h.degenerate.is_none() {
                 let processed = h.clamp_h_max(h.dampen(fp, &ctx), &ctx);
                 prop_assert!(processed.filter_transform().is_err(), "[{}] rejected as degenerate with degenerate removal off", name);
             }
             Ok("degenerate")
         }
-        Err(Rejection::Culled) => {
+        Err(ProgressiveReason::Culled) => {
             prop_assert!(h.culling.is_some(), "[{}] culled with culling off", name);
             Ok("culled")
         }
+        Err(other) => Err(fail(format!("[{name}] Heuristics::apply gave {other:?}, a reason only packing or the photon path gives"))),
     }
 }
 
@@ -1475,7 +1476,7 @@ stress!(
 type StoreIn = (((Footprint, Pair), HeuristicContext), (&'static str, Heuristics), Smoothing);
 
 fn check_store_footprint((((fp, kind), ctx), (name, h), smoothing): StoreIn) -> Outcome {
-    let stored = store_footprint(fp, &smoothing, &h, &ctx);
+    let stored = store_footprint(fp, &smoothing, &h.resolve(&ctx.scene_bounds), ctx.radius);
     prop_assert_eq!(stored.map(), fp.map);
     // The resolved (per-scene) hot path is what store_footprint runs; it also returns the
     // final footprint, against which the record is checked.
@@ -1502,7 +1503,7 @@ fn check_store_footprint((((fp, kind), ctx), (name, h), smoothing): StoreIn) -> 
             let rejection = resolved.map(|_| ()).err();
             match reason {
                 ProgressiveReason::Degenerate => {
-                    prop_assert_eq!(rejection, Some(StoreRejection::Heuristic(Rejection::Degenerate)));
+                    prop_assert_eq!(rejection, Some(ProgressiveReason::Degenerate));
                     if h.degenerate.is_none() {
                         // Without degenerate removal only differentials that are (nearly) parallel
                         // or zero in the tangent plane may be rejected as degenerate.
@@ -1519,11 +1520,11 @@ fn check_store_footprint((((fp, kind), ctx), (name, h), smoothing): StoreIn) -> 
                 }
                 ProgressiveReason::Culled => {
                     prop_assert!(h.culling.is_some(), "[{}] culled with culling off", name);
-                    prop_assert_eq!(rejection, Some(StoreRejection::Heuristic(Rejection::Culled)));
+                    prop_assert_eq!(rejection, Some(ProgressiveReason::Culled));
                     Ok("culled")
                 }
                 ProgressiveReason::Unrepresentable => {
-                    prop_assert_eq!(rejection, Some(StoreRejection::Unrepresentable));
+                    prop_assert_eq!(rejection, Some(ProgressiveReason::Unrepresentable));
                     Ok("unrepresentable")
                 }
                 other => Err(fail(format!("store_footprint returned reason {other:?}"))),
@@ -1604,7 +1605,7 @@ fn check_pipeline(((p, n_unit, n_scale, cos, phi, (g, kind), t), flux, map, (nam
         }
         Ok(hit) => match Footprint::from_hit(&hit, n, flux, map) {
             Err(e) => return Err(fail(format!("from_hit after a successful transfer: {e:?}"))),
-            Ok(fp) => store_footprint(fp, &smoothing, &h, &ctx),
+            Ok(fp) => store_footprint(fp, &smoothing, &h.resolve(&ctx.scene_bounds), ctx.radius),
         },
     };
     match stored {
@@ -1696,12 +1697,17 @@ fn light() -> BoxedStrategy<Light> {
     .boxed()
 }
 
+/// NaN and the infinities.
+fn non_finite() -> BoxedStrategy<f64> {
+    prop::sample::select(vec![f64::NAN, f64::INFINITY, f64::NEG_INFINITY]).boxed()
+}
+
 fn emission_params() -> BoxedStrategy<EmissionParams> {
     (
         prop_oneof![1 => Just(0u32), 1 => Just(1u32), 4 => 1u32..100_000, 1 => Just(u32::MAX), 1 => any::<u32>()],
-        prop_oneof![4 => Just(1.0), 2 => pos_mag(), 1 => signed_mag()],
+        prop_oneof![8 => Just(1.0), 4 => pos_mag(), 2 => signed_mag(), 1 => non_finite()],
         (any_vec(), prop_oneof![6 => pos_mag(), 1 => Just(0.0), 1 => pos_mag().prop_map(|x| -x)]),
-        (prop_oneof![3 => 0.0f64..1.0, 1 => signed_mag()], prop_oneof![3 => 0.0f64..1.0, 1 => signed_mag()]),
+        (prop_oneof![6 => 0.0f64..1.0, 2 => signed_mag(), 1 => non_finite()], prop_oneof![3 => 0.0f64..1.0, 1 => signed_mag()]),
     )
         .prop_map(|(photon_count, scale, scene_sphere, (sx, sy))| EmissionParams {
             photon_count,
@@ -1762,6 +1768,14 @@ fn check_emit((light, params, index, seed): EmitIn) -> Outcome {
         prop_assert_eq!(res, Err(EmissionError::Light(LightError::NoPhotons)));
         return Ok("no_photons");
     }
+    if !(params.scale > 0.0) || !params.scale.is_finite() || !params.lattice_shift.is_finite() {
+        prop_assert!(matches!(res, Err(EmissionError::Params(_))), "invalid scale {} or shift {} gave {:?}", params.scale, params.lattice_shift, res);
+        return Ok("invalid_params");
+    }
+    if matches!(light, Light::Directional(_)) && !params.scene_sphere.0.is_finite() {
+        prop_assert_eq!(res, Err(EmissionError::Light(LightError::NoSceneBounds)));
+        return Ok("invalid_params");
+    }
     let ph = res.map_err(|e| fail(format!("valid light failed to emit: {e:?}")))?;
     prop_assert!(all_finite(&ray_fields(&ph.ray)) && ph.flux.is_finite() && ph.reemission_length.is_finite(), "{:?}", ph);
     prop_assert!(ph.flux.min_element() >= 0.0);
@@ -1807,7 +1821,7 @@ stress!(
     light_emit_cases_reach_every_outcome,
     (light(), emission_params(), any::<u32>(), any::<u32>()),
     check_emit,
-    ["point_ok", "spot_ok", "directional_ok", "triangle_ok", "quad_ok", "invalid_light", "no_photons"]
+    ["point_ok", "spot_ok", "directional_ok", "triangle_ok", "quad_ok", "invalid_light", "no_photons", "invalid_params"]
 );
 
 fn check_light_power((light, n, s, r, theta): (Light, u32, f64, f64, f64)) -> Outcome {
@@ -2209,7 +2223,7 @@ fn check_gather((fps, photons, radius, abc, qn, kernel, (rc, rg)): GatherIn) -> 
         .collect();
     let q = fps.first().map(|(fp, _)| near_query(fp, radius, abc)).unwrap_or(DVec3::ZERO);
     let query = QueryPoint { position: q.as_vec3(), normal: qn.as_vec3() };
-    let est = gather_brute_force(&query, &packed, &phot, [rc, rg], kernel);
+    let est = gather_brute_force(&query, &packed, &phot, [rc, rg].map(f64::from), kernel);
     prop_assert!(est.per_map[0].is_finite() && est.per_map[1].is_finite(), "{:?}", est);
     prop_assert!(est.lambertian_radiance(DVec3::splat(0.9)).is_finite());
     prop_assert!(est.footprints as usize <= packed.len() && est.photons as usize <= phot.len());
@@ -2292,8 +2306,8 @@ fn regression_identical_differentials_are_degenerate() {
     };
     assert_eq!(fp.filter_transform().map(|m| m.determinant()), Err(FootprintError::Degenerate));
     let ctx = HeuristicContext { radius: 1.0, scene_bounds: Aabb { min: DVec3::splat(-10.0), max: DVec3::splat(10.0) } };
-    assert_eq!(Heuristics::NONE.apply(fp, &ctx).map(|_| ()), Err(Rejection::Degenerate));
-    match store_footprint(fp, &Smoothing::default(), &Heuristics::NONE, &ctx) {
+    assert_eq!(Heuristics::NONE.apply(fp, &ctx).map(|_| ()), Err(ProgressiveReason::Degenerate));
+    match store_footprint(fp, &Smoothing::default(), &Heuristics::NONE.resolve(&ctx.scene_bounds), ctx.radius) {
         StoredPhoton::Progressive { reason, .. } => assert_eq!(reason, ProgressiveReason::Degenerate),
         StoredPhoton::Footprint { .. } => panic!("identical differentials stored as a footprint"),
     }
@@ -2335,7 +2349,7 @@ fn regression_store_footprint_with_default_heuristics_keeps_flux_of_huge_footpri
         map: PhotonMap::Global,
     };
     let ctx = HeuristicContext { radius: 1e25, scene_bounds: Aabb { min: DVec3::splat(-1e30), max: DVec3::splat(1e30) } };
-    match store_footprint(fp, &Smoothing::default(), &Heuristics::default(), &ctx) {
+    match store_footprint(fp, &Smoothing::default(), &Heuristics::default().resolve(&ctx.scene_bounds), ctx.radius) {
         StoredPhoton::Footprint { packed, .. } => {
             let (final_fp, _, _) = Heuristics::default().resolve(&ctx.scene_bounds).store(fp, ctx.radius).unwrap();
             check_flux_kept(&final_fp, &packed, "default").unwrap();

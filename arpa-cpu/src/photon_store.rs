@@ -136,7 +136,7 @@ mod tests {
         use arpa_core::classify::Smoothing;
         use arpa_core::footprint::{Footprint, PhotonMap};
         use arpa_core::heuristics::Heuristics;
-        use arpa_core::store::store_footprint_resolved;
+        use arpa_core::store::store_footprint;
         let heuristics = Heuristics::NONE.resolve(&Aabb {
             min: DVec3::splat(-1e3),
             max: DVec3::splat(1e3),
@@ -163,7 +163,7 @@ mod tests {
             };
             let radius = 0.02;
             let StoredPhoton::Footprint { packed, aabb } =
-                store_footprint_resolved(fp, &Smoothing::default(), &heuristics, radius)
+                store_footprint(fp, &Smoothing::default(), &heuristics, radius)
             else {
                 continue;
             };

@@ -241,7 +241,7 @@ fn stages_agree_with_the_core_reference() {
                     position: Vec3::from_array(q.position),
                     normal: Vec3::from_array(q.normal),
                 };
-                let e = gather_brute_force(&qp, &footprints, &photons, radii, settings.kernel);
+                let e = gather_brute_force(&qp, &footprints, &photons, radii.map(f64::from), settings.kernel);
                 contributions += (e.footprints + e.photons) as u64;
                 expected += Vec3::from_array(q.weight).as_dvec3() * e.irradiance();
             }
@@ -659,7 +659,7 @@ fn gather_matches_brute_force_on_a_facetted_sphere() {
                     position: Vec3::from_array(q.position),
                     normal: Vec3::from_array(q.normal),
                 };
-                let e = gather_brute_force(&qp, &footprints, &photons, radii, kernel);
+                let e = gather_brute_force(&qp, &footprints, &photons, radii.map(f64::from), kernel);
                 contributions += (e.footprints + e.photons) as u64;
                 let expected = Vec3::from_array(q.radiance).as_dvec3()
                     + Vec3::from_array(q.weight).as_dvec3() * e.irradiance();

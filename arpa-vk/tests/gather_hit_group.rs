@@ -5,7 +5,7 @@
 //!
 //! First `scripts/build-vk-shaders.sh --check` (the checked-in SPIR-V is what the GLSL
 //! compiles to, and `spirv-val` accepts it). Then random footprints (stored through
-//! `arpa_core::store::store_footprint_resolved`, as the photon pass does) and progressive
+//! `arpa_core::store::store_footprint`, as the photon pass does) and progressive
 //! photons on three planes, both maps, some seen from the back; an AABB BLAS per
 //! (kind, map) over the padded boxes (`Aabb::padded_f32`), instance custom index = kind bit |
 //! first record, mask `1 << map` (gather.wgsl's convention). One short ray per query point,
@@ -49,7 +49,7 @@ use arpa_core::heuristics::Heuristics;
 use arpa_core::kernel::Kernel;
 use arpa_core::progressive_photon::{PackedPhoton, ProgressivePhoton};
 use arpa_core::rng::{Rng, StreamDomain};
-use arpa_core::store::{StoredPhoton, store_footprint_resolved};
+use arpa_core::store::{StoredPhoton, store_footprint};
 use arpa_vk::accel::IDENTITY_TRANSFORM;
 use arpa_vk::vk;
 use arpa_vk::{
@@ -157,7 +157,7 @@ fn records(rng: &mut Rng, footprints: usize, photons: usize, queries: usize, rim
             flux: DVec3::new(0.1 + f(rng), 0.1 + f(rng), 0.1 + f(rng)) * 1e-3,
             map: if rng.next_u32().is_multiple_of(3) { PhotonMap::Caustic } else { PhotonMap::Global },
         };
-        if let StoredPhoton::Footprint { packed, aabb } = store_footprint_resolved(fp, &Smoothing::default(), &heuristics, FOOTPRINT_RADIUS)
+        if let StoredPhoton::Footprint { packed, aabb } = store_footprint(fp, &Smoothing::default(), &heuristics, FOOTPRINT_RADIUS)
         {
             fps.push((packed, aabb, fp));
         }
@@ -352,7 +352,7 @@ fn gather_hit_group_matches_the_core() {
         let (mut single, mut single_exact) = (0u32, 0u32);
         let (mut total, mut max_count, mut empty, mut mismatched, mut worst_rel, mut worst_vs_bound) = (0u64, 0u32, 0, 0, 0.0f64, 0.0f64);
         for (i, (q, g)) in recs.queries.iter().zip(&got).enumerate() {
-            let want = gather_brute_force(q, &recs.footprints, &recs.photons, RADII, kernel);
+            let want = gather_brute_force(q, &recs.footprints, &recs.photons, RADII.map(f64::from), kernel);
             let (c, abs) = counts(q, &recs, kernel);
             assert_eq!(c[0] + c[1], want.footprints + want.photons);
             let have = [g.count(0), g.count(1)];

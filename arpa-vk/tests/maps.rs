@@ -491,7 +491,7 @@ fn map_accel_from_device_boxes_finds_the_brute_force_records() {
     let (mut total, mut mismatched, mut empty) = (0u64, 0usize, 0usize);
     for (i, (q, g)) in queries.iter().zip(&got).enumerate() {
         let want = counts_at(q, &out.footprints, &out.photons, kernel);
-        let brute = gather_brute_force(q, &out.footprints, &out.photons, RADII, kernel);
+        let brute = gather_brute_force(q, &out.footprints, &out.photons, RADII.map(f64::from), kernel);
         assert_eq!(want[0] + want[1], brute.footprints + brute.photons);
         if *g != want {
             assert!(near_boundary(q, &out.footprints, &out.photons), "query {i} {q:?}: device counts {g:?}, core {want:?}, no record on a boundary");

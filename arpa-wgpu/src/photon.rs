@@ -13,7 +13,7 @@
 //!   already scaled by the map's smoothing factor (`S_c`, `S_g`). The store stage
 //!   ([`crate::store`], `heuristics.wgsl`'s `arpa_store`) applies only the heuristics, and a
 //!   footprint it rejects becomes a progressive photon at its centre with the same flux,
-//!   normal and map (as [`arpa_core::store::store_footprint_resolved`] does);
+//!   normal and map (as [`arpa_core::store::store_footprint`] does);
 //! * [`KeyedPhoton`]s: progressive photons (method RTPM, or a lost differential);
 //! * [`PhotonCounters`].
 //!

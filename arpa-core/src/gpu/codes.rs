@@ -3,6 +3,8 @@
 //! curves have theirs beside their types ([`crate::emission::Light::kind_code`],
 //! [`crate::emission::SpotFalloff::code`]).
 
+use crate::store::ProgressiveReason;
+
 use crate::kernel::Kernel;
 
 /// Workgroup size (invocations along x) of every path-level kernel but the sort's.
@@ -53,6 +55,19 @@ pub const STORE_DEGENERATE: u32 = 1;
 pub const STORE_CULLED: u32 = 2;
 /// `ARPA_STORE_UNREPRESENTABLE`: `f32` cannot resolve it.
 pub const STORE_UNREPRESENTABLE: u32 = 3;
+
+/// The `ARPA_STORE_*` code of a store decision: [`STORE_OK`] for a stored footprint
+/// (`None`), else the reason's. `None` for the reasons the store itself never gives
+/// ([`ProgressiveReason::DifferentialLost`], [`ProgressiveReason::ProgressiveMethod`]).
+pub const fn store_code(rejection: Option<ProgressiveReason>) -> Option<u32> {
+    match rejection {
+        None => Some(STORE_OK),
+        Some(ProgressiveReason::Degenerate) => Some(STORE_DEGENERATE),
+        Some(ProgressiveReason::Culled) => Some(STORE_CULLED),
+        Some(ProgressiveReason::Unrepresentable) => Some(STORE_UNREPRESENTABLE),
+        Some(ProgressiveReason::DifferentialLost | ProgressiveReason::ProgressiveMethod) => None,
+    }
+}
 
 /// `ARPA_INSTANCE_PHOTON_BIT` of `gather.wgsl`: bit of an acceleration-structure
 /// instance's custom index set for progressive photons (clear for footprints). Custom

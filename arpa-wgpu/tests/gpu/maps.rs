@@ -2,7 +2,7 @@
 //! build → image gather → running mean, run by `support::run_from_host`) on raw footprints
 //! and photons uploaded as a photon pass would append them, against the core:
 //! * every raw footprint's outcome (footprint or progressive fallback, per map) is
-//!   `store_footprint_resolved`'s after the map's smoothing (applied by the photon pass, so
+//!   `store_footprint`'s after the map's smoothing (applied by the photon pass, so
 //!   here by the test in f32), except within 1e-3 of a heuristic threshold (as in `store`);
 //!   a footprint handed over with its normal flipped (below the shading plane) comes out
 //!   as the core's record or photon of the unflipped one with the orientation flipped
@@ -24,7 +24,7 @@ use arpa_core::heuristics::Heuristics;
 use arpa_core::kernel::Kernel;
 use arpa_core::progressive_photon::PackedPhoton;
 use arpa_core::rng::{Rng, StreamDomain};
-use arpa_core::store::{StoredPhoton, store_footprint_resolved};
+use arpa_core::store::{StoredPhoton, store_footprint};
 use arpa_core::tracer::QueryRecord;
 use crate::support::{HostRun, run_from_host};
 use arpa_core::gpu::layout::{KeyedFootprint, KeyedPhoton, RawFootprint, StoreSettings};
@@ -138,7 +138,7 @@ fn chain_matches_core() {
         }
         let sign = if flip { -1.0 } else { 1.0 };
         let key = r.center.map(f32::to_bits);
-        match store_footprint_resolved(fp, &smoothing, &resolved, radius) {
+        match store_footprint(fp, &smoothing, &resolved, radius) {
             StoredPhoton::Footprint { packed, .. } => {
                 let got = fp_by_center.get(&key).unwrap_or_else(|| panic!("footprint {r:?} missing"));
                 assert_eq!(got.map, packed.map);
@@ -184,7 +184,7 @@ fn chain_matches_core() {
             continue;
         }
         let q = QueryPoint { position: Vec3::from_array(rec.position), normal: Vec3::from_array(rec.normal) };
-        let e = gather_brute_force(&q, &out.footprints, &out.photons, RADII, kernel);
+        let e = gather_brute_force(&q, &out.footprints, &out.photons, RADII.map(f64::from), kernel);
         gathered += (e.footprints + e.photons) as u64;
         let (mut abs, mut slack) = (0.0f64, 0.0f64);
         for fp in &out.footprints {

@@ -18,7 +18,7 @@
 //! * the counters (photons, segments, records per map) within 1 % of the core's totals.
 //!
 //! Footprints leave the device before the heuristics (with the smoothing applied); the
-//! test runs them through the core's `store_footprint_resolved` (smoothing 1) and compares
+//! test runs them through the core's `store_footprint` (smoothing 1) and compares
 //! the result with what `trace_photon` stored, `D_u`, `D_v` recovered from the records'
 //! filter-space rows.
 
@@ -35,7 +35,7 @@ use arpa_core::ray_cast::BruteForceCaster;
 use arpa_core::rng::{Rng, StreamDomain};
 use arpa_core::scene::{Camera, Material, Scene, TriangleMesh};
 use arpa_core::shapes::{icosphere, parallelogram};
-use arpa_core::store::{ProgressiveReason, StoredPhoton, store_footprint_resolved};
+use arpa_core::store::{ProgressiveReason, StoredPhoton, store_footprint};
 use arpa_core::tracer::{Method, RenderSettings};
 use arpa_wgpu::GpuContext;
 use arpa_wgpu::photon::{PhotonOutputs, PhotonPass};
@@ -223,7 +223,7 @@ fn device_records(read: &PhotonReadback, prepared: &PreparedScene, s: &RenderSet
         let raw = &f.footprint;
         let map = PhotonMap::from_index(raw.map);
         let fp = Footprint { center: d(raw.center), normal: d(raw.normal), du: d(raw.du), dv: d(raw.dv), flux: d(raw.flux), map };
-        let stored = store_footprint_resolved(fp, &unit, &heuristics, setup.radii[map.index()]);
+        let stored = store_footprint(fp, &unit, &heuristics, setup.radii[map.index()]);
         per[(f.key / s.max_depth) as usize].push((f.key, stored));
     }
     for p in &read.photons {

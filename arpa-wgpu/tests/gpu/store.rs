@@ -11,7 +11,8 @@ use crate::common::*;
 use crate::gather::{check, queries};
 use arpa_core::aabb::Aabb;
 use arpa_core::footprint::{Footprint, PackedFootprint, PhotonMap};
-use arpa_core::heuristics::{HeuristicContext, Heuristics, Rejection, StoreRejection};
+use arpa_core::heuristics::{HeuristicContext, Heuristics};
+use arpa_core::gpu::codes::store_code;
 use arpa_core::kernel::Kernel;
 use arpa_core::rng::{Rng, StreamDomain};
 use arpa_core::gpu::layout::RawFootprint;
@@ -84,12 +85,7 @@ proptest! {
                 continue;
             }
             let want = resolved.store(fp, radius);
-            let code = match &want {
-                Ok(_) => 0,
-                Err(StoreRejection::Heuristic(Rejection::Degenerate)) => 1,
-                Err(StoreRejection::Heuristic(Rejection::Culled)) => 2,
-                Err(StoreRejection::Unrepresentable) => 3,
-            };
+            let code = store_code(want.as_ref().err().copied()).expect("the store gives only its own reasons");
             prop_assert_eq!(out.status[i], code, "footprint {}: {:?}", i, r);
             counts[code as usize] += 1;
             match want {

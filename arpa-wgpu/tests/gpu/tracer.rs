@@ -57,7 +57,7 @@ fn core_iteration(scene: &Scene, s: &RenderSettings) -> (Vec<DVec3>, [usize; 2],
             StoredPhoton::Progressive { photon, .. } => phs.push(photon),
         });
     }
-    let radii = setup.radii.map(|r| r as f32);
+    let radii = setup.radii;
     let cam = scene.camera;
     let image = (0..cam.width * cam.height)
         .map(|pixel| {
@@ -95,7 +95,7 @@ fn compare_with_core(method: Method) {
     }
     // The gather over the device's own records and query points.
     let (qs, fps, phs) = (t.read_query_points().unwrap(), t.read_footprints().unwrap(), t.read_photons().unwrap());
-    let radii = stats.radii.map(|r| r as f32);
+    let radii = stats.radii;
     let own: Vec<DVec3> = qs
         .iter()
         .map(|rec| {

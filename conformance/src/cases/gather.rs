@@ -118,7 +118,7 @@ fn check(
                     position: Vec3::from_array(rec.position),
                     normal: Vec3::from_array(rec.normal),
                 };
-                let e = gather_brute_force(&q, &fps, &phs, radii, kernel);
+                let e = gather_brute_force(&q, &fps, &phs, stats.radii, kernel);
                 found += (e.footprints + e.photons) as u64;
                 cov.contributing += e.footprints as u64;
                 for (fp, b) in fps.iter().zip(&boxes) {

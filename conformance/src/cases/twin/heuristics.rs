@@ -20,8 +20,9 @@ use arpa_core::footprint::{Footprint, PackedFootprint, PhotonMap};
 use arpa_core::glam::{DVec3, Vec3};
 use arpa_core::heuristics::{
     BoundingBoxCulling, CullMetric, DampenReference, Dampening, DegenerateRemoval, HMax, HMaxMode,
-    HeuristicContext, Heuristics, LengthSpec, PackedHeuristics, Rejection, StoreRejection,
+    HeuristicContext, Heuristics, LengthSpec, PackedHeuristics,
 };
+use arpa_core::store::ProgressiveReason;
 use proptest::prelude::*;
 
 use super::{f, fb, proptest_batches, push3, run_prop, v3};
@@ -119,13 +120,8 @@ const BODY: &str = "
     out_v3(ob + 18u, s.record.row_n); out_f(ob + 21u, s.record.flux_density_b);
     out_v3(ob + 22u, s.box_min); out_v3(ob + 25u, s.box_max); out_u(ob + 28u, s.status);";
 
-fn status(r: &Result<(Footprint, PackedFootprint, Aabb), StoreRejection>) -> u32 {
-    match r {
-        Ok(_) => 0,
-        Err(StoreRejection::Heuristic(Rejection::Degenerate)) => 1,
-        Err(StoreRejection::Heuristic(Rejection::Culled)) => 2,
-        Err(StoreRejection::Unrepresentable) => 3,
-    }
+fn status(r: &Result<(Footprint, PackedFootprint, Aabb), ProgressiveReason>) -> u32 {
+    arpa_core::gpu::codes::store_code(r.as_ref().err().copied()).expect("the store gives only its own reasons")
 }
 
 /// `true` when one of the store's decisions lies within 1e-3 relative of its threshold.
