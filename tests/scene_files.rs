@@ -502,7 +502,7 @@ fn scene_without_light_or_camera_is_an_error() {
 }
 
 #[test]
-#[cfg(feature = "cpu")]
+#[cfg(all(feature = "cpu", feature = "cli"))] // the `arpa` binary needs `cli`
 fn cli_renders_a_scene_file() {
     let dir = tempfile::tempdir().unwrap();
     let body = "    <shape type=\"rectangle\"><transform name=\"to_world\"><rotate x=\"1\" angle=\"-90\"/><scale value=\"3\"/></transform></shape>\n    <shape type=\"sphere\"><float name=\"radius\" value=\"0.5\"/><bsdf type=\"dielectric\"/></shape>";

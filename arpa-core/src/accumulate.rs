@@ -66,6 +66,7 @@ impl RunningMean {
 
 /// Running mean of whole images.
 #[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 #[derive(Clone, Debug, PartialEq)]
 pub struct ImageAccumulator {
     width: u32,
@@ -85,6 +86,7 @@ pub struct SizeMismatch {
 }
 
 #[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 impl ImageAccumulator {
     /// An accumulator for `width × height` pixels, row-major.
     pub fn new(width: u32, height: u32) -> Self {

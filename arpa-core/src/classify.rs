@@ -64,6 +64,19 @@ impl PathClassifier {
 
 /// Smoothing factors `S_c` (caustic) and `S_g` (global): dimensionless scales of the
 /// footprint differentials applied on absorption, before the heuristics.
+///
+/// # Noise and bias against `S`
+/// Emission tiles each light's domain once: `N` photons, each footprint `1/N` of it
+/// ([`crate::emission`]). Carried to a surface, the footprints still tile it about once,
+/// so with `S = 1` a point is covered by about one footprint per iteration: the
+/// per-iteration estimate is close to a one-nearest-neighbour estimate, whose relative
+/// standard deviation is of order one **whatever `N`** (more photons only make the
+/// footprints smaller). `S` scales both differentials, so a point is covered by about `S²`
+/// footprints and the per-iteration standard deviation falls roughly like `1/S`, while the
+/// bias grows with the footprint area (`∝ S²/N` times the irradiance's curvature). The
+/// progressive average over `K` iterations divides the variance by `K`; the bias stays
+/// unless the footprints shrink with the iterations (dampening against the shrinking
+/// progressive radius, [`crate::heuristics::Dampening`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Smoothing {
     /// `S_c`.

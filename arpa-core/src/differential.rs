@@ -50,6 +50,30 @@ pub const MIN_ABS_COS: f64 = 1e-12;
 pub const MIN_REFRACTION_K: f64 = 1e-12;
 
 /// A ray with differentials with respect to two parameters `u` and `v` (see module docs).
+///
+/// # Example: transfer, reflect, refract
+/// ```
+/// use arpa_core::differential::{NormalDifferential, RayDifferential, RefractionEvent};
+/// use arpa_core::glam::DVec3;
+///
+/// // Straight down from 1 m, the directions fanning out by 0.01 rad per unit u and v.
+/// let ray = RayDifferential::new(DVec3::Z, -DVec3::Z, DVec3::ZERO, DVec3::ZERO, DVec3::X * 0.01, DVec3::Y * 0.01).unwrap();
+/// // Transfer 1 m to the floor z = 0: the positional spread grows by t ∂D.
+/// let floor = ray.transfer(1.0, DVec3::Z).unwrap();
+/// assert!(floor.p.length() < 1e-15 && (floor.dp_du - DVec3::X * 0.01).length() < 1e-15);
+/// // A flat mirror there sends it back up; the fan keeps opening: 2 cm after one more metre.
+/// let up = floor.reflect(&NormalDifferential::flat(DVec3::Z)).unwrap();
+/// assert!((up.d - DVec3::Z).length() < 1e-15);
+/// let ceiling = up.transfer(1.0, -DVec3::Z).unwrap();
+/// assert!((ceiling.dp_du - DVec3::X * 0.02).length() < 1e-15);
+///
+/// // Into glass (ior 1.5, outward normal +z) at 45°: Snell's law, sin θₜ = sin 45° / 1.5.
+/// let slanted = RayDifferential::new(DVec3::Z, DVec3::new(1.0, 0.0, -1.0), DVec3::ZERO, DVec3::ZERO, DVec3::ZERO, DVec3::ZERO).unwrap();
+/// let hit = slanted.transfer(1.0, DVec3::Z).unwrap();
+/// let (inside, event) = hit.refract(&NormalDifferential::flat(DVec3::Z), 1.5).unwrap();
+/// assert_eq!(event, RefractionEvent::Transmitted);
+/// assert!((inside.d.x - core::f64::consts::FRAC_1_SQRT_2 / 1.5).abs() < 1e-15);
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RayDifferential {
     /// Origin or current position (metres, world space).

@@ -106,6 +106,52 @@ pub fn gather_brute_force(q: &QueryPoint, footprints: &[PackedFootprint], photon
 /// `query_normal`, for progressive radii `radii` (metres, `[caustic, global]`). For
 /// renderer authors checking their own pipeline against analytic irradiance without the
 /// `f32` storage; per map, as [`IrradianceEstimate`].
+///
+/// # Example: a point light over a plane
+/// Irradiance under a point light of intensity `I` at height `h` is `E(ρ) = I h /
+/// (h² + ρ²)^{3/2}` at distance `ρ` from the foot point, so the mean over the disc
+/// `ρ < a` is the flux through it over its area, `I 2π (1 − h/√(h² + a²)) / (π a²)`.
+/// The photons' footprints reproduce it, iteration after iteration (each iteration's
+/// lattice shifted by [`EmissionParams::for_iteration`](crate::emission::EmissionParams::for_iteration)):
+///
+/// ```
+/// use arpa_core::emission::{EmissionParams, Light, PointLight};
+/// use arpa_core::estimate::estimate_f64;
+/// use arpa_core::footprint::{Footprint, PhotonMap};
+/// use arpa_core::glam::DVec3;
+/// use arpa_core::kernel::Kernel;
+/// use arpa_core::rng::{Rng, StreamDomain};
+///
+/// let (h, intensity, a) = (1.0, 10.0, 0.1);
+/// let light = Light::Point(PointLight { position: DVec3::new(0.0, 0.0, h), intensity: DVec3::splat(intensity) });
+/// let (n, iterations, seed) = (4000, 8, 1);
+/// // Query points on a polar grid of the disc, each standing for an equal area.
+/// let points: Vec<DVec3> = (0..8)
+///     .flat_map(|i| (0..16).map(move |j| {
+///         let (rho, phi) = (a * ((i as f64 + 0.5) / 8.0).sqrt(), core::f64::consts::TAU * j as f64 / 16.0);
+///         DVec3::new(rho * phi.cos(), rho * phi.sin(), 0.0)
+///     }))
+///     .collect();
+/// let mut mean = 0.0;
+/// for iteration in 0..iterations {
+///     let light = light.prepare(&EmissionParams::new(n).for_iteration(seed, iteration, 0)).unwrap();
+///     let mut footprints = Vec::new();
+///     for i in 0..n {
+///         let photon = light.emit(i, &mut Rng::new(seed, iteration, i, StreamDomain::Photon)).unwrap();
+///         if photon.ray.d.z >= 0.0 {
+///             continue; // leaves upwards: the plane is the only surface
+///         }
+///         let hit = photon.ray.transfer(-photon.ray.p.z / photon.ray.d.z, DVec3::Z).unwrap();
+///         footprints.push(Footprint::from_hit(&hit, DVec3::Z, photon.flux, PhotonMap::Global).unwrap());
+///     }
+///     for &q in &points {
+///         let e = estimate_f64(q, DVec3::Z, &footprints, &[], [1.0; 2], Kernel::Silverman);
+///         mean += e.irradiance().x / (points.len() * iterations as usize) as f64;
+///     }
+/// }
+/// let exact = intensity * 2.0 * (1.0 - h / (h * h + a * a).sqrt()) / (a * a);
+/// assert!((mean / exact - 1.0).abs() < 0.03, "{mean} W/m² against {exact} W/m²");
+/// ```
 pub fn estimate_f64(q: DVec3, query_normal: DVec3, footprints: &[Footprint], photons: &[ProgressivePhoton], radii: [f64; 2], kernel: Kernel) -> IrradianceEstimate {
     let mut e = IrradianceEstimate::default();
     for fp in footprints {

@@ -61,6 +61,36 @@ pub enum FootprintError {
 pub const MIN_RELATIVE_SEMI_AXIS: f64 = 64.0 * f32::EPSILON as f64;
 
 /// A photon footprint in double precision: what the heuristics operate on.
+///
+/// # Example: filter transform and density
+/// An ellipse with conjugate semi-diameters `D_u/2`, `D_v/2` on the floor: `M_p⁻¹` maps
+/// them to the unit vectors, and the density `W_p` integrates to 1 over the plane, so a
+/// footprint spreads exactly its flux.
+/// ```
+/// use arpa_core::footprint::{Footprint, PhotonMap};
+/// use arpa_core::glam::{DVec2, DVec3};
+/// use arpa_core::kernel::Kernel;
+///
+/// let fp = Footprint {
+///     center: DVec3::ZERO,
+///     normal: DVec3::Z,
+///     du: DVec3::new(0.2, 0.0, 0.0),
+///     dv: DVec3::new(0.05, 0.1, 0.0), // sheared: not perpendicular to D_u
+///     flux: DVec3::ONE,
+///     map: PhotonMap::Caustic,
+/// };
+/// let m = fp.filter_transform().unwrap();
+/// assert!((m.apply(fp.du * 0.5) - DVec2::X).length() < 1e-12);
+/// assert!((m.apply(fp.dv * 0.5) - DVec2::Y).length() < 1e-12);
+/// // ∫ W_p dA over a grid covering the ellipse (1 mm cells); the slab limit 0.01 m only
+/// // bounds the thickness along the normal.
+/// let cell = 1e-3;
+/// let integral: f64 = (-150..150)
+///     .flat_map(|i| (-100..100).map(move |j| DVec3::new((i as f64 + 0.5) * cell, (j as f64 + 0.5) * cell, 0.0)))
+///     .map(|q| fp.weight(q, 0.01, Kernel::Silverman) * cell * cell)
+///     .sum();
+/// assert!((integral - 1.0).abs() < 0.01, "{integral}");
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Footprint {
     /// Centre `x_p` (metres, world space).

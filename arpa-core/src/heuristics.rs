@@ -81,7 +81,29 @@ impl DampenReference {
     }
 }
 
-/// Dampened adaptation parameters.
+/// Dampened adaptation parameters: `ℓ' = ℓ_ref (ℓ/ℓ_ref)^γ` for the major differential
+/// length `ℓ`, both differentials scaled by `ℓ'/ℓ = (ℓ/ℓ_ref)^{γ−1}`.
+///
+/// With `γ < 1` this pulls every footprint towards `ℓ_ref`: footprints **larger** than the
+/// reference shrink, and footprints **smaller** than it grow (with `γ = 1/4`, a footprint
+/// a quarter of `ℓ_ref` grows `4^{3/4} ≈ 2.8`-fold, one a hundredth of it `100^{3/4} ≈
+/// 32`-fold). With the default reference, twice the map's progressive radius, small
+/// footprints (many photons, or a focused caustic) are therefore blurred towards the PPM
+/// photon size, which lowers their noise and raises their bias; as the radius shrinks over
+/// the iterations the reference shrinks with it, so the footprints do too.
+///
+/// ```
+/// use arpa_core::aabb::Aabb;
+/// use arpa_core::footprint::{Footprint, PhotonMap};
+/// use arpa_core::glam::DVec3;
+/// use arpa_core::heuristics::{DampenReference, Dampening, HeuristicContext, Heuristics};
+///
+/// let h = Heuristics { dampening: Some(Dampening { exponent: 0.25, reference: DampenReference::Absolute(0.04) }), ..Heuristics::NONE };
+/// let ctx = HeuristicContext { radius: 0.02, scene_bounds: Aabb { min: DVec3::splat(-1.0), max: DVec3::splat(1.0) } };
+/// let small = Footprint { center: DVec3::ZERO, normal: DVec3::Z, du: DVec3::X * 0.01, dv: DVec3::Y * 0.01, flux: DVec3::ONE, map: PhotonMap::Global };
+/// let grown = h.dampen(small, &ctx);
+/// assert!((grown.du.length() / 0.01 - 4f64.powf(0.75)).abs() < 1e-12);
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Dampening {
     /// Exponent `γ` (ARPA: 1/4).

@@ -42,11 +42,54 @@
 //!   error/degenerate label.
 //!
 //! ## Features
-//! * `std` (default): implies `alloc`; uses the standard library.
-//! * `alloc`: heap-backed helpers such as [`accumulate::ImageAccumulator`].
-//! * neither: pure `no_std`, maths through `libm`.
+//! * neither (`default-features = false`): pure `no_std` without a heap, maths through
+//!   [`libm`] (re-exported, as is [`glam`]): everything a renderer needs per photon and
+//!   per query point, from emission to the estimate.
+//! * `alloc`: adds the renderer-facing layer that needs a heap: the scene model
+//!   ([`scene`], [`shapes`], [`prepared_scene`]), the backend trait ([`tracer`]), the
+//!   reference paths ([`photon_path`], [`camera_path`], [`ray_cast`]), the image
+//!   accumulator ([`accumulate::ImageAccumulator`]), [`shaders::compose`] and the GPU
+//!   layer's scene tables ([`gpu::scene`]). Items that need it are marked in the docs.
+//! * `std` (default): implies `alloc`; adds what needs the standard library (stage
+//!   timing in [`tracer::StageClock::run`]).
+//!
+//! ## A first photon
+//! One photon of a point light one metre above the floor `z = 0`, its footprint where it
+//! lands, and the irradiance the footprint gives at its centre (every stage has a longer
+//! example in its module):
+//!
+//! ```
+//! use arpa_core::differential::NormalDifferential;
+//! use arpa_core::emission::{EmissionParams, Light, PointLight};
+//! use arpa_core::footprint::{Footprint, PhotonMap};
+//! use arpa_core::glam::DVec3;
+//! use arpa_core::kernel::Kernel;
+//! use arpa_core::rng::{Rng, StreamDomain};
+//!
+//! let light = Light::Point(PointLight { position: DVec3::new(0.0, 0.0, 1.0), intensity: DVec3::ONE });
+//! let n = 10_000;
+//! let prepared = light.prepare(&EmissionParams::new(n).for_iteration(1, 0, 0)).unwrap();
+//! // Photon 0 heads somewhere on the sphere of directions; take the first one going down.
+//! let (index, photon) = (0..n)
+//!     .map(|i| (i, prepared.emit(i, &mut Rng::new(1, 0, i, StreamDomain::Photon)).unwrap()))
+//!     .find(|(_, p)| p.ray.d.z < -0.5)
+//!     .unwrap();
+//! // Propagate to the floor: distance along the ray, then the differentials' transfer.
+//! let t = -photon.ray.p.z / photon.ray.d.z;
+//! let hit = photon.ray.transfer(t, DVec3::Z).unwrap();
+//! let fp = Footprint::from_hit(&hit, DVec3::Z, photon.flux, PhotonMap::Global).unwrap();
+//! // Inside its own ellipse, on the lit side, the footprint contributes Φ·W(x_p) > 0.
+//! let e = fp.irradiance(fp.center, DVec3::Z, 0.01, Kernel::Silverman);
+//! assert!(e.x > 0.0 && e.is_finite());
+//! # let _ = (index, NormalDifferential::flat(DVec3::Z));
+//! ```
 #![no_std]
-#![warn(missing_docs)]
+#![deny(missing_docs)]
+#![cfg_attr(docsrs, feature(doc_cfg))]
+// The docs link to the `alloc` and `std` items wherever they are the next step; in a build
+// without them those items do not exist and the links render as plain text (the default
+// `std` build checks every link).
+#![cfg_attr(not(feature = "std"), allow(rustdoc::broken_intra_doc_links))]
 // `!(x > 0.0)` is used on purpose throughout: it is true for NaN, which must be rejected.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
@@ -58,6 +101,7 @@ extern crate std;
 pub mod aabb;
 pub mod accumulate;
 #[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 pub mod camera_path;
 pub mod classify;
 pub mod differential;
@@ -71,25 +115,32 @@ pub mod heuristics;
 pub mod kernel;
 pub mod lambertian;
 #[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 pub mod prepared_scene;
 #[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 pub mod photon_path;
 pub mod prefetch;
 pub mod progressive_photon;
 pub mod radius;
 #[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 pub mod ray_cast;
 pub mod reemission;
 pub mod rng;
 pub mod sampling;
 #[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 pub mod scene;
 pub mod shading_normal;
 pub mod shaders;
 #[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 pub mod shapes;
 pub mod store;
 #[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 pub mod tracer;
 
 pub use glam;
+pub use libm;

@@ -30,6 +30,24 @@ impl RadiusSpec {
 }
 
 /// The radius schedule of one map.
+///
+/// # Example
+/// ```
+/// use arpa_core::radius::RadiusSchedule;
+///
+/// let s = RadiusSchedule { initial: 0.1, alpha: 2.0 / 3.0 };
+/// assert_eq!(s.radius(1), 0.1);
+/// // The closed form and the recurrence agree; the radius shrinks every iteration.
+/// let mut r = s.radius(1);
+/// for i in 1..100 {
+///     let next = s.next(r, i);
+///     assert!(next < r && (next / s.radius(i + 1) - 1.0).abs() < 1e-12);
+///     r = next;
+/// }
+/// // r_i² ∝ i^{α−1} for large i: quadrupling i shrinks r² by 4^{α−1}.
+/// let ratio = (s.radius(4000) / s.radius(1000)).powi(2);
+/// assert!((ratio - 4f64.powf(2.0 / 3.0 - 1.0)).abs() < 1e-3);
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RadiusSchedule {
     /// Radius of the first iteration, `r_1` (metres).

@@ -220,6 +220,7 @@ pub struct WgslFile {
 /// declaration). Each file starts with a `// arpa: <name>` line, so that a compiler's line
 /// numbers can be traced back.
 #[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 pub fn compose(files: &[&'static WgslFile]) -> alloc::string::String {
     use alloc::string::String;
     use alloc::vec::Vec;

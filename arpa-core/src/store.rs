@@ -69,6 +69,32 @@ fn fallback(fp: &Footprint, reason: ProgressiveReason) -> StoredPhoton {
 /// (metres: the dampening reference and the slab limit), then packs it. Anything rejected
 /// becomes a progressive photon carrying the same flux, so energy is never lost or created.
 ///
+/// ```
+/// use arpa_core::aabb::Aabb;
+/// use arpa_core::classify::Smoothing;
+/// use arpa_core::footprint::{Footprint, PhotonMap};
+/// use arpa_core::glam::DVec3;
+/// use arpa_core::heuristics::Heuristics;
+/// use arpa_core::store::{store_footprint, ProgressiveReason, StoredPhoton};
+///
+/// let scene = Aabb { min: DVec3::splat(-1.0), max: DVec3::splat(1.0) };
+/// // Resolved once per scene and iteration, then used for every photon.
+/// let heuristics = Heuristics::default().resolve(&scene).at_radii([0.01, 0.02]);
+/// let smoothing = Smoothing::default();
+/// let fp = |du: DVec3, dv: DVec3| Footprint { center: DVec3::ZERO, normal: DVec3::Z, du, dv, flux: DVec3::ONE, map: PhotonMap::Global };
+/// // A round footprint is stored as one.
+/// let round = store_footprint(fp(DVec3::X * 0.02, DVec3::Y * 0.02), &smoothing, &heuristics, 0.02);
+/// assert!(matches!(round, StoredPhoton::Footprint { .. }));
+/// // A sliver (height below 5 % of its base) becomes a progressive photon with the same flux.
+/// match store_footprint(fp(DVec3::X * 0.02, DVec3::Y * 0.0005), &smoothing, &heuristics, 0.02) {
+///     StoredPhoton::Progressive { photon, reason } => {
+///         assert_eq!(reason, ProgressiveReason::Degenerate);
+///         assert_eq!(photon.flux, [1.0; 3]);
+///     }
+///     other => panic!("{other:?}"),
+/// }
+/// ```
+///
 /// This is the one function every photon pass stores with (the WGSL twin's `store.wgsl`
 /// makes the same decisions). [`ResolvedHeuristics::store`] is its heuristics step (the
 /// final footprint, record and box, or the [`ProgressiveReason`]), and

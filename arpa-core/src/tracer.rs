@@ -464,6 +464,7 @@ impl StageClock {
     /// time into [`StageTimes`] (seconds) and [`finish`](Self::finish). When `body` fails
     /// the stage stays unfinished, so the stages that read its output refuse to run.
     #[cfg(feature = "std")]
+    #[cfg_attr(docsrs, doc(cfg(feature = "std")))]
     pub fn run<E: From<StageError>>(&mut self, stage: Stage, body: impl FnOnce(&mut StageClock) -> Result<(), E>) -> Result<(), E> {
         self.begin(stage)?;
         let start = std::time::Instant::now();

@@ -1,8 +1,11 @@
 //! The backends compiled into the suite (the facade's registry, `arpa::backends`; one
 //! cargo feature of this crate per backend forwards to the facade's), with the cases each
-//! is expected to fail (every expectation carries its reason).
+//! is expected to fail (every expectation carries its reason); and backends from outside
+//! the registry ([`Backend::external`]): a renderer author's own tracer.
 
-use arpa::backends::{BackendEntry, CreateTracer, REGISTRY};
+use arpa::backends::{BackendEntry, REGISTRY};
+/// What [`Backend::external`] takes: how to create a backend's tracer, and its options.
+pub use arpa::backends::{BackendOptions, CreateTracer};
 use arpa::core::tracer::BackendKind;
 
 use crate::kernel_runner::MakeKernelRunner;
@@ -19,9 +22,11 @@ pub struct ExpectedFailure {
 /// A backend the suite runs on.
 #[derive(Clone, Copy)]
 pub struct Backend {
-    /// Name as in [`BackendKind::name`] and `ARPA_REQUIRE_BACKENDS`.
+    /// Name as in [`BackendKind::name`] and `ARPA_REQUIRE_BACKENDS` (the report's column);
+    /// for an external backend, the name its author chose.
     pub name: &'static str,
-    /// Cargo feature of `arpa-conformance` that compiles it in.
+    /// Cargo feature of `arpa-conformance` that compiles it in; empty for an external
+    /// backend ([`Backend::external`]), which no feature of this crate controls.
     pub feature: &'static str,
     /// Creates a fresh tracer (device, context); an error means the backend cannot run
     /// here (no adapter, no driver).
@@ -46,6 +51,35 @@ impl core::fmt::Debug for Backend {
 }
 
 impl Backend {
+    /// A backend from outside the facade's registry: the tracer of a renderer that is not
+    /// part of arpa, made by `create`, under the report column `name`. It is expected to
+    /// fail nothing ([`Backend::with_expected_failures`] declares what it is) and runs no
+    /// WGSL (the core's WGSL-twin cases are then [`crate::Verdict::NotApplicable`]).
+    ///
+    /// `create` is a plain function or a closure that captures nothing, e.g.
+    /// `|_| Ok(Box::new(MyTracer::new()?))`: any `T: Tracer + Send` boxes into a
+    /// [`crate::DynTracer`]. It is called once per backend, and again after a case panics.
+    /// Put `name` in [`crate::SuiteOptions::required`] so that a tracer that cannot start
+    /// fails the run instead of being reported as unavailable.
+    pub const fn external(name: &'static str, create: CreateTracer) -> Self {
+        Backend {
+            name,
+            feature: "",
+            create,
+            expected_failures: &[],
+            kernel_runner: None,
+        }
+    }
+
+    /// The same backend, expected to fail `failures` (each with its reason, shown in the
+    /// report). A listed case that passes is a failure, so the list cannot go stale.
+    pub const fn with_expected_failures(self, failures: &'static [ExpectedFailure]) -> Self {
+        Backend {
+            expected_failures: failures,
+            ..self
+        }
+    }
+
     /// The reason this backend is expected to fail `case`, if it is.
     pub fn expected_failure(&self, case: &str) -> Option<&'static str> {
         self.expected_failures
@@ -78,4 +112,33 @@ fn expected_failures(kind: BackendKind) -> &'static [ExpectedFailure] {
 /// The backends compiled in, in report-column order.
 pub fn compiled() -> Vec<Backend> {
     REGISTRY.iter().map(Backend::from_entry).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::BoxError;
+    use crate::dyn_tracer::DynTracer;
+    use arpa::backends::BackendOptions;
+
+    fn no_tracer(_: &BackendOptions) -> Result<Box<dyn DynTracer>, BoxError> {
+        Err("not here".into())
+    }
+
+    #[test]
+    fn external_backends_expect_nothing_unless_told() {
+        let b = Backend::external("mine", no_tracer);
+        assert_eq!((b.name, b.feature), ("mine", ""));
+        assert!(b.kernel_runner.is_none() && b.expected_failure("determinism").is_none());
+        let b = b.with_expected_failures(&[ExpectedFailure {
+            case: "determinism",
+            reason: "atomics in the gather",
+        }]);
+        assert_eq!(
+            b.expected_failure("determinism"),
+            Some("atomics in the gather")
+        );
+        assert_eq!(b.expected_failure("bad-input"), None);
+        assert!((b.create)(&BackendOptions::default()).is_err());
+    }
 }

@@ -34,6 +34,64 @@
 //! a loud warning ([`Verdict::Skipped`]), or fail when env `CI` is set
 //! ([`suite::ci_is_set`]).
 //! `ARPA_CONFORMANCE_IMAGES=DIR` writes the renders and references for inspection.
+//!
+//! ## Your own tracer
+//!
+//! A renderer that implements [`arpa_core::tracer::Tracer`] but is not one of arpa's
+//! backends runs the same suite: wrap its constructor in [`Backend::external`] and hand it
+//! to [`run_suite_with`] with the cases of [`cases::all`]. Without its default features
+//! this crate builds no backend of its own and none of the `arpa` command line's crates
+//! (the facade's `cli` feature stays off), so it is a light dev-dependency:
+//!
+//! ```toml
+//! [dev-dependencies]
+//! arpa-conformance = { path = "../arpa/conformance", default-features = false }
+//!
+//! # The suite prints its own table and sets the exit status: no libtest harness.
+//! [[test]]
+//! name = "conformance"
+//! harness = false
+//! ```
+//!
+//! and `tests/conformance.rs`:
+//!
+//! ```no_run
+//! use std::process::ExitCode;
+//!
+//! use arpa_conformance::{Backend, ExpectedFailure, SuiteOptions, cases, run_suite_with};
+//! # mod my_renderer {
+//! #     pub struct MyTracer;
+//! #     impl MyTracer {
+//! #         pub fn new() -> Result<Box<dyn arpa_conformance::DynTracer>, arpa_conformance::BoxError> {
+//! #             Err("a stand-in".into())
+//! #         }
+//! #     }
+//! # }
+//! use my_renderer::MyTracer; // your `Tracer + Send`
+//!
+//! fn main() -> ExitCode {
+//!     let mine = Backend::external("mine", |_options| Ok(Box::new(MyTracer::new()?)))
+//!         // Optional: cases it cannot pass yet, each with its reason.
+//!         .with_expected_failures(&[ExpectedFailure {
+//!             case: "determinism-threads",
+//!             reason: "the gather sums with float atomics",
+//!         }]);
+//!     // `ARPA_CONFORMANCE_CASES=id,...` still selects cases; requiring "mine" makes a
+//!     // tracer that cannot start a failure rather than "unavailable".
+//!     let mut options = SuiteOptions::from_env();
+//!     options.required.push("mine".into());
+//!     let run = run_suite_with(&[mine], &cases::all(), &options);
+//!     println!("{}", run.to_markdown());
+//!     if run.report.all_ok() { ExitCode::SUCCESS } else { ExitCode::FAILURE }
+//! }
+//! ```
+//!
+//! Run it with `cargo test --test conformance` (under an optimising test profile: the
+//! reference cases render whole images). A case that fails is a `**FAIL**` cell and exit
+//! status 1; [`Report::get`] reads single cells where a `#[test]` wants to assert on them.
+//! The reference cases find `shared/scenes` beside this crate's repository, or at
+//! `ARPA_SHARED_SCENES`; the WGSL-twin cases are not applicable (they need a
+//! [`KernelRunner`], which only arpa's own GPU backends offer).
 #![warn(missing_docs)]
 
 use std::fmt::Write as _;
@@ -45,6 +103,7 @@ pub mod kernel_runner;
 pub mod scenes;
 pub mod suite;
 
+pub use backends::{Backend, BackendOptions, CreateTracer, ExpectedFailure};
 pub use dyn_tracer::{BoxError, DynTracer};
 pub use kernel_runner::{KernelJob, KernelRunner};
 pub use suite::{Case, CaseBody, CaseResult, SuiteOptions, SuiteRun, run_suite, run_suite_with};
@@ -138,6 +197,14 @@ impl Report {
         self.rows[row].1[col] = Some(verdict);
     }
 
+    /// The verdict of the row `case` (a [`Case::title`], or [`suite::AVAILABILITY_ROW`])
+    /// on `backend`; `None` when that cell did not run.
+    pub fn get(&self, case: &str, backend: &str) -> Option<&Verdict> {
+        let col = self.backends.iter().position(|b| b == backend)?;
+        let (_, cells) = self.rows.iter().find(|(c, _)| c == case)?;
+        cells.get(col)?.as_ref()
+    }
+
     /// `true` when no verdict is an unexpected failure.
     pub fn all_ok(&self) -> bool {
         self.rows
@@ -219,6 +286,12 @@ mod tests {
         let md = r.to_markdown();
         assert_eq!(md.lines().count(), 4);
         assert!(md.contains("| gather exactness | pass (max rel 3e-7) | – |"));
+        assert!(matches!(
+            r.get("gather exactness", "cpu"),
+            Some(Verdict::Pass { .. })
+        ));
+        assert_eq!(r.get("gather exactness", "wgpu"), None);
+        assert_eq!(r.get("no such case", "cpu"), None);
         r.record(
             "determinism",
             "cpu",

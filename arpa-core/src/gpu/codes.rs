@@ -26,6 +26,7 @@ pub const METHOD_RTPM: u32 = 1;
 
 /// [`METHOD_ARPA`] or [`METHOD_RTPM`].
 #[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 pub const fn method_code(method: crate::tracer::Method) -> u32 {
     match method {
         crate::tracer::Method::Arpa => METHOD_ARPA,

@@ -89,6 +89,7 @@ layout!(KeyedPhoton, 64, { photon: 0, key: 48 });
 /// already refused `max_depth = 0`). The message names `backend` and the largest photon
 /// count per iteration at this depth.
 #[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 pub fn check_record_keys(settings: &crate::tracer::RenderSettings, backend: crate::tracer::BackendKind) -> Result<(), crate::tracer::StageError> {
     if u64::from(settings.photons_per_iteration) * u64::from(settings.max_depth) <= u64::from(u32::MAX) {
         return Ok(());
@@ -180,6 +181,7 @@ pub struct PhotonParams {
 layout!(PhotonParams, 48, { photon_count: 0, iteration: 4, seed: 8, max_depth: 12, method: 16, direct_lighting: 20, emitter_count: 24, first_photon: 28, smoothing: 32 });
 
 #[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 impl PhotonParams {
     /// The parameters of the photons `batch` (global indices) of iteration `iteration`
     /// under `settings`, with `emitters` emitters.
@@ -219,6 +221,7 @@ layout!(EmitterRange, 16, { first_index: 0, count: 4, valid: 8 });
 /// [`crate::emission::PackedLight`] and one [`EmitterRange`] per emitter (one zeroed
 /// element each for a scene without emitters: storage bindings must not be empty).
 #[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 pub fn emitter_tables(setup: &crate::photon_path::PhotonPassSetup) -> (alloc::vec::Vec<crate::emission::PackedLight>, alloc::vec::Vec<EmitterRange>) {
     let n = setup.lights.len().max(1);
     let mut lights = alloc::vec![crate::emission::PackedLight::default(); n];
@@ -511,6 +514,7 @@ pub struct CameraParams {
 layout!(CameraParams, 96, { position: 0, width: 12, forward: 16, height: 28, right: 32, tan_half_fov: 44, up: 48, aspect: 60, seed: 64, iteration: 68, max_depth: 72, direct_lighting: 76, pixel_count: 80, row_invocations: 84 });
 
 #[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 impl CameraParams {
     /// The parameters of iteration 0 for `camera` under `settings`, dispatched on a grid of
     /// `row_invocations` invocations per row (the caller checks that `width · height`

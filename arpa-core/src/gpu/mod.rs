@@ -20,5 +20,6 @@ pub mod codes;
 pub mod layout;
 pub mod morton;
 #[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 pub mod scene;
 pub mod sort;

@@ -33,6 +33,7 @@ pub fn sorted_len(n: u32) -> u32 {
 /// unused), then, for each merge size `k > SORT_BLOCK`, `sort_global` for every compare
 /// distance `j ≥ SORT_BLOCK` and `sort_merge` (`j = 0`: the shared-memory tail).
 #[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 pub fn sort_steps(n: u32) -> alloc::vec::Vec<SortStep> {
     let mut steps = alloc::vec![SortStep::new(0, 0)];
     let mut k = 2 * SORT_BLOCK;
