@@ -5,6 +5,7 @@
 //! here; [`BackendKind`] (in the core) is the one list of backend names. Adding a backend
 //! is its crate, one cargo feature of this crate, and one entry in [`REGISTRY`].
 
+use arpa_core::accumulate::Accumulation;
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::progressive_photon::PackedPhoton;
 use arpa_core::scene::Scene;
@@ -206,6 +207,10 @@ pub trait DynTracer: Send {
     fn read_photons(&self) -> Result<Vec<PackedPhoton>, BoxError>;
     /// [`Tracer::read_stats`].
     fn read_stats(&self) -> Result<IterationStats, BoxError>;
+    /// [`Tracer::read_accumulation`].
+    fn read_accumulation(&self) -> Result<Accumulation, BoxError>;
+    /// [`Tracer::restore_accumulation`].
+    fn restore_accumulation(&mut self, state: &Accumulation) -> Result<(), BoxError>;
 }
 
 fn boxed<E: std::error::Error + Send + Sync + 'static>(e: E) -> BoxError {
@@ -254,6 +259,12 @@ impl<T: Tracer + Send> DynTracer for T {
     }
     fn read_stats(&self) -> Result<IterationStats, BoxError> {
         Tracer::read_stats(self).map_err(boxed)
+    }
+    fn read_accumulation(&self) -> Result<Accumulation, BoxError> {
+        Tracer::read_accumulation(self).map_err(boxed)
+    }
+    fn restore_accumulation(&mut self, state: &Accumulation) -> Result<(), BoxError> {
+        Tracer::restore_accumulation(self, state).map_err(boxed)
     }
 }
 
@@ -320,6 +331,12 @@ impl Tracer for Box<dyn DynTracer> {
     }
     fn read_stats(&self) -> Result<IterationStats, DynError> {
         (**self).read_stats().map_err(DynError)
+    }
+    fn read_accumulation(&self) -> Result<Accumulation, DynError> {
+        (**self).read_accumulation().map_err(DynError)
+    }
+    fn restore_accumulation(&mut self, state: &Accumulation) -> Result<(), DynError> {
+        (**self).restore_accumulation(state).map_err(DynError)
     }
 }
 

@@ -2,14 +2,25 @@
 //!
 //! ```text
 //! arpa render [SCENE.xml [-D name=value ...]] [--backend cpu|wgpu [--adapter NAME]] [--method arpa|rtpm] [--photons N]
-//!             [--iterations N | --time SECONDS] [--resolution WxH] [--seed S]
+//!             [--iterations N | --iterations A..B | --time SECONDS] [--resolution WxH] [--seed S]
 //!             [--out PATH] [--no-direct] [--smoothing-caustic S_c] [--smoothing-global S_g]
 //!             [--max-depth D] [--exposure E]
-//!             [--reference REF.exr [--checkpoint-every N] [--metrics-csv FILE]]
+//!             [--reference REF.exr [--metrics-every N] [--metrics-csv FILE]]
+//!             [--checkpoint STATE [--checkpoint-every N|Ns]] [--resume STATE]
+//! arpa merge PART.arpastate... -o OUT [--exposure E]
 //! ```
 //!
+//! **State files** ([`crate::state_file`]): `--checkpoint` saves the render's accumulation
+//! atomically every `--checkpoint-every` iterations (`N`) or seconds (`Ns`) and at the end;
+//! `--resume` continues a saved state (same scene, settings and seed; refused otherwise)
+//! up to `--iterations` of the whole render, bit for bit as if it had not stopped.
+//! `--iterations A..B` renders iterations `A` to `B − 1` of a render only (the same random
+//! streams and radius schedule as a single run) and leaves `OUT.arpastate` beside the
+//! image; `arpa merge` adds such parts (any order, no gaps or overlaps) into the image of
+//! the whole range.
+//!
 //! With `--reference`, relMSE, SSIM and ꟻLIP ([`crate::metrics`]) of the accumulated image
-//! against the reference are printed at checkpoints (every `--checkpoint-every` iterations,
+//! against the reference are printed at checkpoints (every `--metrics-every` iterations,
 //! by default at powers of two) and at the end, and `--metrics-csv` writes them as
 //! `iteration,seconds,relmse,ssim,flip` rows; `seconds` is the render time up to that
 //! iteration, excluding the time spent reading back images and computing metrics.
@@ -24,7 +35,9 @@ use anyhow::{Context, bail};
 use arpa_core::classify::Smoothing;
 use arpa_core::radius::{ProgressiveConfig, RadiusSpec};
 use crate::backends::{self, BackendOptions};
-use crate::session::{Budget, CheckpointRow, Checkpoints, Hooks, Reference, Rendered, SessionOptions, StatTotals, render_with};
+use crate::session::{Budget, CheckpointRow, Checkpoints, Hooks, Reference, Rendered, SaveEvery, SaveState, SessionOptions, StatTotals, render_with};
+use crate::state_file::{RenderIdentity, StateFile};
+use arpa_core::accumulate::Accumulation;
 use arpa_core::tracer::{BackendKind, Image, Method, RenderSettings};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
@@ -55,7 +68,10 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Render a scene (the embedded Cornell box by default) to OpenEXR and PNG.
-    Render(RenderArgs),
+    Render(Box<RenderArgs>),
+    /// Merge the state files of partial renders (`render --iterations A..B`) into the
+    /// image of the whole range (OpenEXR and PNG) and its state file.
+    Merge(MergeArgs),
     /// Run time against error over a sweep of scenes, methods, photon budgets and backends
     /// (with Mitsuba 3 peers at equal time): CSV, Table 2, plots and images in one directory.
     Bench(BenchArgs),
@@ -175,6 +191,61 @@ fn parse_exposure(s: &str) -> Result<f32, String> {
     }
 }
 
+/// Arguments of `arpa merge`.
+#[derive(Debug, Args)]
+pub struct MergeArgs {
+    /// State files of the parts (`OUT.arpastate` of `arpa render --iterations A..B`).
+    #[arg(value_name = "PART", required = true)]
+    pub parts: Vec<PathBuf>,
+
+    /// Output path: OUT.exr, OUT.png and OUT.arpastate are written (a .exr or .png
+    /// extension given here is replaced).
+    #[arg(short = 'o', long = "out", value_name = "OUT")]
+    pub out: PathBuf,
+
+    /// Multiplier applied to the radiance before the PNG's sRGB encoding.
+    #[arg(long, allow_negative_numbers = true, value_name = "E", default_value_t = 1.0, value_parser = parse_exposure)]
+    pub exposure: f32,
+}
+
+/// `--iterations`: a count `N` (iterations `0..N`) or a range `A..B` of a render's
+/// iterations (0-based, `B` exclusive).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct IterationRange {
+    /// First iteration.
+    pub first: u32,
+    /// One past the last iteration.
+    pub end: u32,
+    /// Whether it was given as a range (`A..B`): a partial render, which leaves a state
+    /// file beside its image.
+    pub partial: bool,
+}
+
+fn parse_iterations(s: &str) -> Result<IterationRange, String> {
+    match s.split_once("..") {
+        None => parse_positive_u32(s).map(|n| IterationRange { first: 0, end: n, partial: false }),
+        Some((a, b)) => {
+            let first = a.trim().parse::<u32>().map_err(|_| format!("'{a}' in '{s}' is not a whole number"))?;
+            let end = b.trim().parse::<u32>().map_err(|_| format!("'{b}' in '{s}' is not a whole number"))?;
+            if end <= first {
+                return Err(format!("'{s}' is empty: A..B renders iterations A to B-1 and needs A < B"));
+            }
+            if end >= u32::MAX - 1 {
+                return Err(format!("'{s}' goes beyond the iteration limit"));
+            }
+            Ok(IterationRange { first, end, partial: true })
+        }
+    }
+}
+
+/// `--checkpoint-every`: `N` iterations or `Ns` seconds.
+fn parse_save_every(s: &str) -> Result<SaveEvery, String> {
+    match s.trim().strip_suffix('s') {
+        Some(secs) => parse_seconds(secs).map(|t| SaveEvery::Time(Duration::from_secs_f64(t))),
+        None => parse_positive_u32(s).map(SaveEvery::Iterations).map_err(|e| format!("{e} (or seconds with an 's' suffix, e.g. '60s')")),
+    }
+}
+
 /// Arguments of `arpa render`.
 #[derive(Debug, Args)]
 pub struct RenderArgs {
@@ -206,9 +277,11 @@ pub struct RenderArgs {
     #[arg(long, allow_negative_numbers = true, value_name = "N", default_value_t = 250_000, value_parser = parse_positive_u32)]
     pub photons: u32,
 
-    /// Number of iterations [default: 64].
-    #[arg(long, allow_negative_numbers = true, value_name = "N", conflicts_with = "time", value_parser = parse_positive_u32)]
-    pub iterations: Option<u32>,
+    /// Number of iterations N, or the range A..B of a render's iterations to render (a
+    /// part for `arpa merge`: iterations A to B-1, with the random streams and radii of a
+    /// single run; OUT.arpastate is written beside the image) [default: 64].
+    #[arg(long, allow_negative_numbers = true, value_name = "N|A..B", conflicts_with = "time", value_parser = parse_iterations)]
+    pub iterations: Option<IterationRange>,
 
     /// Time budget in seconds instead of an iteration count: iterations run until it is
     /// spent (at least one; the last may overrun it).
@@ -273,11 +346,27 @@ pub struct RenderArgs {
 
     /// Evaluate the metrics every N iterations [default: at powers of two].
     #[arg(long, allow_negative_numbers = true, value_name = "N", requires = "reference", value_parser = parse_positive_u32)]
-    pub checkpoint_every: Option<u32>,
+    pub metrics_every: Option<u32>,
 
     /// Write the metrics as CSV rows `iteration,seconds,relmse,ssim,flip`.
     #[arg(long, value_name = "FILE", requires = "reference")]
     pub metrics_csv: Option<PathBuf>,
+
+    /// Save the render's state to STATE (atomically replaced) every --checkpoint-every and
+    /// at the end, so that --resume STATE can continue it after a crash.
+    #[arg(long, value_name = "STATE")]
+    pub checkpoint: Option<PathBuf>,
+
+    /// How often --checkpoint saves: every N iterations, or every N seconds with an 's'
+    /// suffix (e.g. 60s) [default: 60s].
+    #[arg(long, value_name = "N|Ns", requires = "checkpoint", value_parser = parse_save_every)]
+    pub checkpoint_every: Option<SaveEvery>,
+
+    /// Continue the render saved in STATE (by --checkpoint, or a part's OUT.arpastate):
+    /// same scene, settings and seed, refused otherwise; --iterations is then the end of
+    /// the whole render.
+    #[arg(long, value_name = "STATE")]
+    pub resume: Option<PathBuf>,
 }
 
 impl RenderArgs {
@@ -313,11 +402,11 @@ impl RenderArgs {
         s
     }
 
-    /// The iteration or time budget.
+    /// The iteration or time budget ([`Budget::Iterations`] is the end of the range).
     pub fn budget(&self) -> Budget {
         match (self.iterations, self.time) {
             (_, Some(t)) => Budget::Time(Duration::from_secs_f64(t)),
-            (Some(n), None) => Budget::Iterations(n),
+            (Some(r), None) => Budget::Iterations(r.end),
             (None, None) => Budget::Iterations(DEFAULT_ITERATIONS),
         }
     }
@@ -445,6 +534,7 @@ pub fn summary(r: &Rendered, settings: &RenderSettings) -> String {
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Render(args) => run_render(&args),
+        Command::Merge(args) => run_merge(&args),
         Command::Bench(args) => run_bench(&args),
     }
 }
@@ -515,17 +605,54 @@ pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
         (Some(_), Some(path)) => Some(MetricsCsv::create(path)?),
         _ => None,
     };
-    let checkpoints = match (&reference, args.checkpoint_every) {
+    let checkpoints = match (&reference, args.metrics_every) {
         (None, _) => Checkpoints::Never,
         (Some(_), Some(n)) => Checkpoints::Every(n),
         (Some(_), None) => Checkpoints::PowersOfTwo,
     };
 
+    // Where the accumulation starts: a resumed state, the first iteration of a part, or 0.
+    let identity = RenderIdentity::new(&scene, &settings, args.backend.name());
+    let range = args.iterations.filter(|r| r.partial);
+    let start = match (&args.resume, range) {
+        (Some(path), _) => {
+            let state = StateFile::read(path)?;
+            identity.check(path, &state.identity)?;
+            let a = state.accumulation;
+            if let Some(r) = range
+                && a.first_iteration != r.first
+            {
+                bail!("state file '{}' covers iterations {}..{}, not a continuation of the part {}..{}", path.display(), a.first_iteration, a.end(), r.first, r.end);
+            }
+            if let Budget::Iterations(end) = budget
+                && a.end() > u64::from(end)
+            {
+                bail!("state file '{}' already covers iterations {}..{}, beyond --iterations {end}", path.display(), a.first_iteration, a.end());
+            }
+            eprintln!("resuming {}: iterations {}..{} accumulated", path.display(), a.first_iteration, a.end());
+            Some(a)
+        }
+        (None, Some(r)) => Some(Accumulation::empty(scene.camera.width, scene.camera.height, r.first)),
+        (None, None) => None,
+    };
+    let part_state = range.map(|_| exr_path.with_extension("arpastate"));
+    let save_path = args.checkpoint.clone().or(part_state.clone());
+    let save = save_path.as_deref().map(|path| SaveState {
+        path,
+        every: args.checkpoint_every.unwrap_or(SaveEvery::Time(Duration::from_secs(60))),
+        identity: &identity,
+    });
+
     let options = BackendOptions { adapter: args.adapter.clone() };
     let mut tracer = backends::create(args.backend, &options)?;
-    let progress = Progress::new(budget, std::io::stderr().is_terminal());
-    let mut hooks = CliHooks { budget, progress: &progress, csv };
-    let session = SessionOptions { budget, checkpoints, reference: reference.as_ref() };
+    let done = start.as_ref().map_or(0, |a| a.end() as u32);
+    let shown = match budget {
+        Budget::Iterations(end) => Budget::Iterations(end.saturating_sub(done)),
+        b => b,
+    };
+    let progress = Progress::new(shown, std::io::stderr().is_terminal());
+    let mut hooks = CliHooks { budget: shown, progress: &progress, csv };
+    let session = SessionOptions { budget, checkpoints, reference: reference.as_ref(), resume: start.as_ref(), save };
     let rendered = render_with(&mut tracer, &scene, &settings, &session, &mut hooks)?;
     progress.finish();
     if let Some(csv) = &mut hooks.csv {
@@ -539,6 +666,45 @@ pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
         eprintln!("warning: {} non-finite channel values were written as 0", exr.non_finite_replaced.max(png.non_finite_replaced));
     }
     eprintln!("wrote {} and {}", exr_path.display(), png_path.display());
+    if let Some(path) = &save_path {
+        eprintln!("wrote state {}", path.display());
+    }
+    Ok(())
+}
+
+/// `arpa merge`.
+pub fn run_merge(args: &MergeArgs) -> anyhow::Result<()> {
+    let (exr_path, png_path) = output_paths(&args.out)?;
+    let mut parts = Vec::with_capacity(args.parts.len());
+    for path in &args.parts {
+        parts.push((path, StateFile::read(path)?));
+    }
+    let (first_path, first) = &parts[0];
+    for (path, part) in &parts[1..] {
+        first.identity.check(path, &part.identity).with_context(|| format!("'{}' and '{}' are parts of different renders", first_path.display(), path.display()))?;
+        if part.identity.backend != first.identity.backend {
+            eprintln!(
+                "warning: '{}' was rendered on backend '{}', '{}' on '{}': the merge is a valid estimate, but no single run reproduces it bit for bit",
+                first_path.display(),
+                first.identity.backend,
+                path.display(),
+                part.identity.backend
+            );
+        }
+    }
+    let accumulations: Vec<Accumulation> = parts.iter().map(|(_, p)| p.accumulation.clone()).collect();
+    let merged = Accumulation::merge(&accumulations).context("cannot merge the parts")?;
+    let image = Image { width: merged.width, height: merged.height, pixels: merged.mean() };
+    if let Some(dir) = exr_path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create output directory '{}'", dir.display()))?;
+    }
+    image_io::write_exr(&exr_path, &image)?;
+    image_io::write_png(&png_path, &image, args.exposure)?;
+    let state_path = exr_path.with_extension("arpastate");
+    let (first_iteration, end) = (merged.first_iteration, merged.end());
+    StateFile { identity: first.identity.clone(), accumulation: merged }.write_atomic(&state_path)?;
+    eprintln!("merged {} parts: iterations {first_iteration}..{end}", parts.len());
+    eprintln!("wrote {}, {} and {}", exr_path.display(), png_path.display(), state_path.display());
     Ok(())
 }
 

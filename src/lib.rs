@@ -30,3 +30,4 @@ pub mod image_io;
 pub mod metrics;
 pub mod scene_file;
 pub mod session;
+pub mod state_file;

@@ -11,7 +11,9 @@
 
 use crate::image_io;
 use crate::metrics::{Metrics, compare_images};
+use crate::state_file::{RenderIdentity, StateFile};
 use anyhow::{Context, bail};
+use arpa_core::accumulate::Accumulation;
 use arpa_core::scene::Scene;
 use arpa_core::tracer::{Capabilities, Image, IterationStats, RenderSettings, StageTimes, Tracer};
 use std::path::{Path, PathBuf};
@@ -129,7 +131,7 @@ pub struct CheckpointRow {
 pub struct Rendered {
     /// The accumulated image.
     pub image: Image,
-    /// Iterations run.
+    /// Iterations run by this call (those of a resumed accumulation are not counted).
     pub iterations: u32,
     /// Summed statistics.
     pub totals: StatTotals,
@@ -150,18 +152,55 @@ pub struct Rendered {
 /// What a render looks at besides the scene and settings.
 #[derive(Clone, Copy, Debug)]
 pub struct SessionOptions<'a> {
-    /// How long to render.
+    /// How long to render. [`Budget::Iterations`] counts iteration indices: with
+    /// [`SessionOptions::resume`], the render stops at iteration `n` of the whole render.
     pub budget: Budget,
     /// When to read the image back and make a [`CheckpointRow`].
     pub checkpoints: Checkpoints,
     /// What to compare the checkpoints with.
     pub reference: Option<&'a Reference>,
+    /// An accumulation to continue, restored after the upload: a resumed state file, or an
+    /// empty accumulation starting at the first iteration of a partial render.
+    pub resume: Option<&'a Accumulation>,
+    /// Where and how often to write the render's state ([`StateFile`]); it is also written
+    /// once at the end.
+    pub save: Option<SaveState<'a>>,
 }
 
 impl SessionOptions<'_> {
-    /// `budget`, no intermediate checkpoints, no reference.
+    /// `budget`, no intermediate checkpoints, no reference, a fresh accumulation, no state
+    /// file.
     pub fn budget(budget: Budget) -> Self {
-        SessionOptions { budget, checkpoints: Checkpoints::Never, reference: None }
+        SessionOptions { budget, checkpoints: Checkpoints::Never, reference: None, resume: None, save: None }
+    }
+}
+
+/// How often the state is saved.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SaveEvery {
+    /// After every `n` iterations.
+    Iterations(u32),
+    /// After the first iteration that ends at least this long after the last save.
+    Time(Duration),
+}
+
+/// Where a render saves its state, and how often.
+#[derive(Clone, Copy, Debug)]
+pub struct SaveState<'a> {
+    /// The state file, replaced atomically at each save.
+    pub path: &'a Path,
+    /// How often.
+    pub every: SaveEvery,
+    /// The render the state belongs to (written into the file).
+    pub identity: &'a RenderIdentity,
+}
+
+impl SaveState<'_> {
+    /// Reads the accumulation from `tracer` and writes it atomically.
+    fn write<T: Tracer>(&self, tracer: &T) -> anyhow::Result<()> {
+        let accumulation = tracer.read_accumulation().context("cannot read the accumulation back")?;
+        StateFile { identity: self.identity.clone(), accumulation }.write_atomic(self.path)?;
+        Ok(())
     }
 }
 
@@ -218,6 +257,11 @@ pub fn render_with<T: Tracer, H: Hooks + ?Sized>(
         bail!("backend '{}' accepts at most {max} photons per iteration, {} requested", capabilities.backend, settings.photons_per_iteration);
     }
     tracer.upload_scene(scene, settings).with_context(|| format!("backend '{}' could not load the scene", capabilities.backend))?;
+    if let Some(state) = options.resume {
+        tracer
+            .restore_accumulation(state)
+            .with_context(|| format!("backend '{}' cannot continue the accumulation of iterations {}..{}", capabilities.backend, state.first_iteration, state.end()))?;
+    }
 
     let render_start = Instant::now();
     let mut totals = StatTotals::default();
@@ -235,19 +279,21 @@ pub fn render_with<T: Tracer, H: Hooks + ?Sized>(
         rows.push(row);
         Ok(image)
     };
+    let mut last_save = (tracer.iterations(), Instant::now());
     loop {
         let more = match options.budget {
-            Budget::Iterations(n) => iterations < n,
+            Budget::Iterations(n) => tracer.iterations() < n,
             Budget::Time(t) => iterations == 0 || rendering(checkpoint_time) < t,
         };
         if !more {
             break;
         }
-        let i = iterations + 1;
+        // The iteration's 1-based index in the whole render.
+        let i = tracer.iterations() + 1;
         tracer.iterate().with_context(|| format!("iteration {i} failed"))?;
         last = tracer.read_stats().with_context(|| format!("cannot read the statistics of iteration {i}"))?;
         totals.add(&last);
-        iterations = i;
+        iterations += 1;
         let last_iteration = matches!(options.budget, Budget::Iterations(n) if i >= n);
         if options.checkpoints.contains(i) && !last_iteration {
             let at = rendering(checkpoint_time);
@@ -255,17 +301,35 @@ pub fn render_with<T: Tracer, H: Hooks + ?Sized>(
             checkpoint(tracer, hooks, i, at, &totals, &mut rows)?;
             checkpoint_time += t0.elapsed();
         }
+        if let Some(save) = &options.save {
+            let due = match save.every {
+                SaveEvery::Iterations(n) => i - last_save.0 >= n.max(1),
+                SaveEvery::Time(t) => last_save.1.elapsed() >= t,
+            };
+            if due && !last_iteration {
+                let t0 = Instant::now();
+                save.write(tracer)?;
+                last_save = (i, Instant::now());
+                checkpoint_time += t0.elapsed();
+            }
+        }
         hooks.iteration(iterations, rendering(checkpoint_time), &totals);
     }
     let render_time = rendering(checkpoint_time);
-    let image = if rows.last().is_some_and(|r| r.iteration == iterations) {
+    let end = tracer.iterations();
+    let image = if rows.last().is_some_and(|r| r.iteration == end) {
         read_checked(tracer, &capabilities)?
     } else {
         let t0 = Instant::now();
-        let image = checkpoint(tracer, hooks, iterations, render_time, &totals, &mut rows)?;
+        let image = checkpoint(tracer, hooks, end, render_time, &totals, &mut rows)?;
         checkpoint_time += t0.elapsed();
         image
     };
+    if let Some(save) = &options.save {
+        let t0 = Instant::now();
+        save.write(tracer)?;
+        checkpoint_time += t0.elapsed();
+    }
     Ok(Rendered { image, iterations, totals, last, capabilities, rows, render_time, checkpoint_time, total_time: start.elapsed() })
 }
 
@@ -273,6 +337,7 @@ pub fn render_with<T: Tracer, H: Hooks + ?Sized>(
 mod tests {
     use super::*;
     use crate::default_scene::default_scene;
+    use arpa_core::accumulate::Accumulation;
     use arpa_core::footprint::PackedFootprint;
     use arpa_core::glam::Vec3;
     use arpa_core::progressive_photon::PackedPhoton;
@@ -290,6 +355,7 @@ mod tests {
         pub iterations: u32,
         pub fail_at: Option<u32>,
         pub sleep: Duration,
+        pub first: u32,
     }
 
     impl Tracer for Mock {
@@ -300,7 +366,7 @@ mod tests {
         fn upload_scene(&mut self, scene: &Scene, settings: &RenderSettings) -> Result<(), MockError> {
             self.size = (scene.camera.width, scene.camera.height);
             self.photons = settings.photons_per_iteration;
-            self.iterations = 0;
+            (self.iterations, self.first) = (0, 0);
             Ok(())
         }
         fn camera_pass(&mut self) -> Result<(), MockError> {
@@ -334,6 +400,18 @@ mod tests {
         }
         fn read_photons(&self) -> Result<Vec<PackedPhoton>, MockError> {
             Ok(vec![])
+        }
+        fn read_accumulation(&self) -> Result<Accumulation, MockError> {
+            let n = self.iterations - self.first;
+            let mut a = Accumulation::empty(self.size.0, self.size.1, self.first);
+            a.iterations = n;
+            a.pixels.iter_mut().for_each(|p| p.sum = [0.5 * n as f64; 3]);
+            Ok(a)
+        }
+        fn restore_accumulation(&mut self, state: &Accumulation) -> Result<(), MockError> {
+            self.first = state.first_iteration;
+            self.iterations = state.end() as u32;
+            Ok(())
         }
         fn read_stats(&self) -> Result<IterationStats, MockError> {
             let mut s = IterationStats { iteration: self.iterations, photons_emitted: self.photons as u64, footprints: [10, 20], progressive: [1, 2], degenerate: 3, ..Default::default() };

@@ -74,7 +74,7 @@ fn help_lists_the_render_options() {
     let o = arpa(&["render", "--help"]);
     assert!(o.status.success());
     let text = String::from_utf8_lossy(&o.stdout);
-    for opt in ["--backend", "--method", "--photons", "--iterations", "--time", "--resolution", "--seed", "--out", "--no-direct", "--smoothing-caustic", "--smoothing-global", "--max-depth", "--exposure", "--reference", "--checkpoint-every", "--metrics-csv"] {
+    for opt in ["--backend", "--method", "--photons", "--iterations", "--time", "--resolution", "--seed", "--out", "--no-direct", "--smoothing-caustic", "--smoothing-global", "--max-depth", "--exposure", "--reference", "--metrics-every", "--metrics-csv", "--checkpoint", "--checkpoint-every", "--resume"] {
         assert!(text.contains(opt), "help lacks {opt}: {text}");
     }
 }

@@ -20,10 +20,81 @@ fn neumaier(sum: f64, c: f64, x: f64) -> (f64, f64) {
     (t, c)
 }
 
+/// `(a + b, e)` with `a + b = (a ⊕ b) + e` exactly (Knuth's TwoSum, any magnitudes).
+#[inline]
+fn two_sum(a: f64, b: f64) -> (f64, f64) {
+    let s = a + b;
+    let bb = s - a;
+    (s, (a - (s - bb)) + (b - bb))
+}
+
+/// The mean of a pixel whose samples sum to `total` (`sum + compensation`, W/(m²·sr))
+/// over `iterations` iterations, as an output pixel: divided in `f64`, rounded to `f32`,
+/// 0 before any iteration and wherever it is not finite in `f32` (so no NaN or Inf
+/// reaches an output pixel). Every backend's image and [`Accumulation::mean`] use it.
+#[inline]
+pub fn output_mean(total: DVec3, iterations: u64) -> glam::Vec3 {
+    if iterations == 0 {
+        return glam::Vec3::ZERO;
+    }
+    let m = (total / iterations as f64).as_vec3();
+    glam::Vec3::select(m.is_finite_mask(), m, glam::Vec3::ZERO)
+}
+
+/// The sums of one pixel as a checkpoint or a partial render keeps them: the compensated
+/// sum of the finite samples and the count of rejected ones (`f64`, W/(m²·sr), RGB; 64
+/// bytes). [`RunningMean::to_sum`] and the GPU backends' accumulators give it exactly.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct PixelSum {
+    /// Sum of the finite samples.
+    pub sum: [f64; 3],
+    /// Neumaier compensation of `sum`: the exact sum is `sum + compensation` as long as
+    /// the compensation's own additions are exact (see [`Accumulation::merge`]).
+    pub compensation: [f64; 3],
+    /// Non-finite samples rejected (each counted as an iteration that contributed 0).
+    pub rejected: u64,
+    /// Padding (zero).
+    pub pad: u64,
+}
+
+impl PixelSum {
+    /// `sum + compensation` in `f64`: the exact sum rounded once.
+    #[inline]
+    pub fn total(&self) -> DVec3 {
+        DVec3::from_array(self.sum) + DVec3::from_array(self.compensation)
+    }
+
+    /// The sums of two disjoint sets of iterations together: the sums added with their
+    /// rounding error moved into the compensation, so `total()` is the same rounded exact
+    /// sum a single sequential accumulation of both sets gives.
+    #[inline]
+    pub fn merged(&self, other: &PixelSum) -> PixelSum {
+        let mut out = PixelSum { rejected: self.rejected + other.rejected, ..PixelSum::default() };
+        for c in 0..3 {
+            let (s, e) = two_sum(self.sum[c], other.sum[c]);
+            out.sum[c] = s;
+            out.compensation[c] = (self.compensation[c] + other.compensation[c]) + e;
+        }
+        out
+    }
+}
+
 impl RunningMean {
     /// Empty mean.
     pub const fn new() -> Self {
         Self { sum: DVec3::ZERO, compensation: DVec3::ZERO, count: 0, rejected: 0 }
+    }
+
+    /// The running mean whose sums are `sum` after `count` iterations (as
+    /// [`RunningMean::to_sum`] gave them): resuming an accumulation.
+    pub fn from_sum(sum: &PixelSum, count: u64) -> Self {
+        Self { sum: DVec3::from_array(sum.sum), compensation: DVec3::from_array(sum.compensation), count, rejected: sum.rejected }
+    }
+
+    /// The sums, exactly (for a checkpoint).
+    pub fn to_sum(&self) -> PixelSum {
+        PixelSum { sum: self.sum.to_array(), compensation: self.compensation.to_array(), rejected: self.rejected, pad: 0 }
     }
 
     /// Adds one iteration's value. A non-finite value counts as an iteration that
@@ -115,14 +186,168 @@ impl ImageAccumulator {
         Ok(())
     }
 
-    /// The current estimate, always finite.
+    /// The current estimate, always finite ([`output_mean`]).
     pub fn mean(&self) -> alloc::vec::Vec<glam::Vec3> {
-        self.pixels.iter().map(|p| p.mean().as_vec3()).collect()
+        self.pixels.iter().map(|p| output_mean(p.sum + p.compensation, p.count)).collect()
+    }
+
+    /// The sums of every pixel, exactly, as iterations `first_iteration ..
+    /// first_iteration + iterations()` of a render (a checkpoint).
+    pub fn to_accumulation(&self, first_iteration: u32) -> Accumulation {
+        Accumulation {
+            width: self.width,
+            height: self.height,
+            first_iteration,
+            iterations: self.iterations as u32,
+            pixels: self.pixels.iter().map(RunningMean::to_sum).collect(),
+        }
+    }
+
+    /// The accumulator that continues `state` (its sums and iteration count).
+    pub fn from_accumulation(state: &Accumulation) -> Self {
+        let count = u64::from(state.iterations);
+        Self { width: state.width, height: state.height, pixels: state.pixels.iter().map(|p| RunningMean::from_sum(p, count)).collect(), iterations: count }
     }
 
     /// Total non-finite samples rejected.
     pub fn rejected(&self) -> u64 {
         self.pixels.iter().map(|p| p.rejected()).sum()
+    }
+}
+
+/// The accumulated sums of a render over the iterations `first_iteration ..
+/// first_iteration + iterations` (0-based iteration indices): what a checkpoint stores,
+/// what a partial render (`--iterations A..B`) produces and what [`Accumulation::merge`]
+/// combines. [`Tracer::read_accumulation`](crate::tracer::Tracer::read_accumulation)
+/// gives it and [`Tracer::restore_accumulation`](crate::tracer::Tracer::restore_accumulation)
+/// continues from it; since every random stream and the radius schedule depend only on
+/// the seed and the iteration index, a render continued from it is the render that was
+/// never interrupted.
+#[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
+#[derive(Clone, Debug, PartialEq)]
+pub struct Accumulation {
+    /// Image width (pixels).
+    pub width: u32,
+    /// Image height (pixels).
+    pub height: u32,
+    /// Index of the first iteration the sums cover.
+    pub first_iteration: u32,
+    /// Iterations the sums cover.
+    pub iterations: u32,
+    /// Per-pixel sums, row-major.
+    pub pixels: alloc::vec::Vec<PixelSum>,
+}
+
+/// Why accumulations cannot be merged, or an accumulation cannot be used.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum AccumulationError {
+    /// No parts to merge.
+    #[error("nothing to merge")]
+    Empty,
+    /// The pixel array does not match `width × height`, or parts differ in size.
+    #[error("image size mismatch: {0}")]
+    Size(alloc::string::String),
+    /// Parts cover the same iterations.
+    #[error("iterations {first}..{end} are covered twice")]
+    Overlap {
+        /// First iteration covered twice.
+        first: u32,
+        /// End (exclusive) of the overlap.
+        end: u32,
+    },
+    /// No part covers these iterations.
+    #[error("iterations {first}..{end} are missing")]
+    Gap {
+        /// First missing iteration.
+        first: u32,
+        /// End (exclusive) of the gap.
+        end: u32,
+    },
+    /// The iteration range does not fit `u32`.
+    #[error("iteration range {first} + {iterations} overflows")]
+    Range {
+        /// First iteration.
+        first: u32,
+        /// Iterations.
+        iterations: u32,
+    },
+    /// A sum is NaN or infinite (a corrupt state: the accumulators keep only finite sums).
+    #[error("pixel {0} has a non-finite sum")]
+    NonFinite(usize),
+}
+
+#[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
+impl Accumulation {
+    /// No iterations yet, starting at iteration `first_iteration` (the start of a partial
+    /// render).
+    pub fn empty(width: u32, height: u32, first_iteration: u32) -> Self {
+        Self { width, height, first_iteration, iterations: 0, pixels: alloc::vec![PixelSum::default(); width as usize * height as usize] }
+    }
+
+    /// The iteration after the last one covered (`first_iteration + iterations`).
+    pub fn end(&self) -> u64 {
+        u64::from(self.first_iteration) + u64::from(self.iterations)
+    }
+
+    /// Checks that the pixels match the size, the range fits `u32` and every sum is
+    /// finite.
+    pub fn validate(&self) -> Result<(), AccumulationError> {
+        let expected = self.width as u64 * self.height as u64;
+        if self.pixels.len() as u64 != expected {
+            return Err(AccumulationError::Size(alloc::format!("{} pixel sums for {}x{} pixels", self.pixels.len(), self.width, self.height)));
+        }
+        if self.end() > u64::from(u32::MAX) {
+            return Err(AccumulationError::Range { first: self.first_iteration, iterations: self.iterations });
+        }
+        match self.pixels.iter().position(|p| !(p.total().is_finite() && DVec3::from_array(p.sum).is_finite())) {
+            Some(i) => Err(AccumulationError::NonFinite(i)),
+            None => Ok(()),
+        }
+    }
+
+    /// The image: every pixel's mean over the covered iterations ([`output_mean`]), the
+    /// same values the backend that accumulated it reads back.
+    pub fn mean(&self) -> alloc::vec::Vec<glam::Vec3> {
+        self.pixels.iter().map(|p| output_mean(p.total(), u64::from(self.iterations))).collect()
+    }
+
+    /// The accumulation of all `parts` together. They may come in any order but must be
+    /// the same size and cover one contiguous range of iterations exactly once; a gap or an
+    /// overlap is refused. The sums are added pairwise with their rounding errors kept
+    /// ([`PixelSum::merged`]), so the merged image is bit for bit the one a single render
+    /// of the whole range gives, as long as each pixel's compensation stays exact (its
+    /// terms are rounding errors of the samples, exactly representable; their sum is exact
+    /// while the binades of one pixel's samples and the iteration count stay within the
+    /// 53-bit significand, which any real render does).
+    pub fn merge(parts: &[Accumulation]) -> Result<Accumulation, AccumulationError> {
+        let mut order: alloc::vec::Vec<&Accumulation> = parts.iter().collect();
+        order.sort_by_key(|p| (p.first_iteration, p.iterations));
+        let Some(&first) = order.first() else { return Err(AccumulationError::Empty) };
+        first.validate()?;
+        let mut out = first.clone();
+        for p in &order[1..] {
+            p.validate()?;
+            if (p.width, p.height) != (out.width, out.height) {
+                return Err(AccumulationError::Size(alloc::format!("a part of {}x{} pixels and one of {}x{}", out.width, out.height, p.width, p.height)));
+            }
+            let end = out.end() as u32;
+            if p.first_iteration < end {
+                return Err(AccumulationError::Overlap { first: p.first_iteration, end: end.min(p.end() as u32) });
+            }
+            if p.first_iteration > end {
+                return Err(AccumulationError::Gap { first: end, end: p.first_iteration });
+            }
+            if out.end() + u64::from(p.iterations) > u64::from(u32::MAX) {
+                return Err(AccumulationError::Range { first: out.first_iteration, iterations: u32::MAX });
+            }
+            for (a, b) in out.pixels.iter_mut().zip(&p.pixels) {
+                *a = a.merged(b);
+            }
+            out.iterations += p.iterations;
+        }
+        Ok(out)
     }
 }
 

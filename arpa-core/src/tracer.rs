@@ -10,6 +10,7 @@
 //! upload_scene -> camera_pass -> photon_pass -> build_acceleration_structure -> gather -> accumulate
 //! ```
 
+use crate::accumulate::Accumulation;
 use crate::classify::Smoothing;
 use crate::footprint::PackedFootprint;
 use crate::heuristics::{DampenReference, Heuristics};
@@ -298,6 +299,10 @@ pub enum Call {
     ReadPhotons,
     /// [`Tracer::read_stats`].
     ReadStats,
+    /// [`Tracer::read_accumulation`].
+    ReadAccumulation,
+    /// [`Tracer::restore_accumulation`].
+    RestoreAccumulation,
 }
 
 impl From<Stage> for Call {
@@ -315,6 +320,8 @@ impl core::fmt::Display for Call {
             Call::ReadFootprints => "read_footprints",
             Call::ReadPhotons => "read_photons",
             Call::ReadStats => "read_stats",
+            Call::ReadAccumulation => "read_accumulation",
+            Call::RestoreAccumulation => "restore_accumulation",
         })
     }
 }
@@ -342,6 +349,23 @@ pub enum StageError {
     /// The scene failed validation.
     #[error("invalid scene: {0}")]
     Scene(#[from] SceneError),
+    /// An accumulation to continue from does not fit this render or this backend.
+    #[error("cannot continue the accumulation: {0}")]
+    Accumulation(String),
+}
+
+impl StageClock {
+    /// The guard and clock of [`Tracer::restore_accumulation`]: `state` validated and sized
+    /// `width × height`, and the clock that continues it.
+    pub fn for_restore(state: &Accumulation, width: u32, height: u32) -> Result<StageClock, StageError> {
+        state.validate().map_err(|e| StageError::Accumulation(format!("{e}")))?;
+        if (state.width, state.height) != (width, height) {
+            return Err(StageError::Accumulation(format!("it is {}x{} pixels, the image {width}x{height}", state.width, state.height)));
+        }
+        StageClock::restart_at(state.first_iteration, state.iterations)
+            .filter(|c| c.completed() < u32::MAX - 1)
+            .ok_or(StageError::IterationLimit(u32::MAX - 1))
+    }
 }
 
 impl StageError {
@@ -375,6 +399,8 @@ pub fn prepare_upload(scene: &Scene, settings: &RenderSettings) -> Result<Prepar
 /// outputs of the stages after it stale.
 #[derive(Clone, Debug, PartialEq)]
 pub struct StageClock {
+    /// Iteration index the accumulation starts at ([`StageClock::restart_at`]).
+    first: u32,
     completed: u32,
     /// Iteration each stage's output was made in (camera, photon, build, gather).
     outputs: [Option<u32>; 4],
@@ -392,12 +418,34 @@ impl Default for StageClock {
 impl StageClock {
     /// The clock of a scene just uploaded: no iteration done, no stage output.
     pub fn new() -> Self {
-        Self { completed: 0, outputs: [None; 4], stats: IterationStats::default(), stats_for: Some(0) }
+        Self { first: 0, completed: 0, outputs: [None; 4], stats: IterationStats::default(), stats_for: Some(0) }
     }
 
-    /// Iterations accumulated; also the 0-based index of the iteration in progress.
+    /// Index of the iteration in progress (0-based): the iterations of the render so far,
+    /// including those of an accumulation it continues ([`StageClock::restart_at`]). The
+    /// random streams and the radius schedule use it.
     pub fn completed(&self) -> u32 {
         self.completed
+    }
+
+    /// Iterations in the backend's accumulation: [`completed`](Self::completed) minus the
+    /// iteration the accumulation started at.
+    pub fn accumulated(&self) -> u32 {
+        self.completed - self.first
+    }
+
+    /// Index of the first iteration of the backend's accumulation.
+    pub fn first_iteration(&self) -> u32 {
+        self.first
+    }
+
+    /// The clock of a scene whose accumulation covers `accumulated` iterations from
+    /// `first` on (a checkpoint resumed, or the start of a partial render): the next
+    /// iteration is `first + accumulated`, and no stage output of this iteration exists.
+    /// `None` when the index would not fit `u32`.
+    pub fn restart_at(first: u32, accumulated: u32) -> Option<Self> {
+        let completed = first.checked_add(accumulated)?;
+        Some(Self { first, completed, stats: IterationStats { iteration: completed, ..IterationStats::default() }, stats_for: Some(completed), ..Self::new() })
     }
 
     /// Whether `stage`'s output was made in the iteration in progress.
@@ -726,8 +774,21 @@ pub trait Tracer {
         self.accumulate()
     }
 
-    /// Iterations accumulated so far.
+    /// Index of the next iteration: iterations of the render so far, including those of a
+    /// restored accumulation ([`Tracer::restore_accumulation`]).
     fn iterations(&self) -> u32;
+
+    /// The accumulation so far, exactly (a checkpoint): the per-pixel sums and the range of
+    /// iterations they cover. Needs [`Tracer::upload_scene`].
+    fn read_accumulation(&self) -> Result<Accumulation, Self::Error>;
+
+    /// Continues from `state` after [`Tracer::upload_scene`] with the same scene and
+    /// settings: the accumulation becomes `state`'s and the next iteration is
+    /// `state.first_iteration + state.iterations`, so the render goes on as if it had
+    /// never stopped (and an empty `state` starting at iteration `A` renders the part
+    /// `A..` of a render). Refused when `state` does not fit the image or the backend
+    /// cannot continue its sums exactly.
+    fn restore_accumulation(&mut self, state: &Accumulation) -> Result<(), Self::Error>;
 
     /// The running estimate (mean over iterations).
     fn read_image(&self) -> Result<Image, Self::Error>;

@@ -7,7 +7,7 @@
 
 use core::sync::atomic::{AtomicU64, Ordering};
 
-use arpa_core::accumulate::ImageAccumulator;
+use arpa_core::accumulate::{Accumulation, ImageAccumulator};
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::glam::Vec3;
 use arpa_core::prepared_scene::PreparedScene;
@@ -278,6 +278,18 @@ impl Tracer for CpuTracer {
 
     fn iterations(&self) -> u32 {
         self.state.as_ref().map_or(0, |s| s.clock.completed())
+    }
+
+    fn read_accumulation(&self) -> Result<Accumulation, CpuError> {
+        let st = self.loaded(Call::ReadAccumulation)?;
+        Ok(st.accumulator.to_accumulation(st.clock.first_iteration()))
+    }
+
+    fn restore_accumulation(&mut self, state: &Accumulation) -> Result<(), CpuError> {
+        let st = self.loaded_mut(Call::RestoreAccumulation)?;
+        st.clock = StageClock::for_restore(state, st.width, st.height)?;
+        st.accumulator = ImageAccumulator::from_accumulation(state);
+        Ok(())
     }
 
     fn read_image(&self) -> Result<Image, CpuError> {

@@ -104,6 +104,18 @@ impl DeviceAccumulator {
         Ok(())
     }
 
+    /// Replaces the per-pixel sums with `pixels` (one per pixel; a checkpoint resumed).
+    ///
+    /// Errors: [`VkError::InvalidInput`] for a wrong pixel count; device errors.
+    pub fn write_pixels(&mut self, ctx: &VkContext, pixels: &[AccumPixel]) -> Result<(), VkError> {
+        if pixels.len() != self.count as usize {
+            return Err(VkError::InvalidInput { what: "accumulator".into(), reason: format!("{} pixels for an accumulator of {}", pixels.len(), self.count) });
+        }
+        use vk::BufferUsageFlags as U;
+        let buffer = ctx.upload("arpa accumulator", bytemuck::cast_slice(pixels), U::STORAGE_BUFFER | U::TRANSFER_SRC)?;
+        std::mem::replace(&mut self.pixels, buffer).destroy()
+    }
+
     /// The per-pixel accumulators, read back.
     pub fn read_pixels(&self, ctx: &VkContext) -> Result<Vec<AccumPixel>, VkError> {
         Ok(crate::buffer::pod_vec(&ctx.read_back(&self.pixels, 0, self.pixels.size())?))

@@ -1,7 +1,7 @@
 //! [`VkTracer`]: the Vulkan backend of [`arpa_core::tracer::Tracer`] on ray-tracing
 //! pipelines.
 
-use crate::accumulate::{DeviceAccumulator, accumulate_pipeline};
+use crate::accumulate::{AccumPixel, DeviceAccumulator, accumulate_pipeline};
 use crate::buffer::Buffer;
 use crate::camera::{CameraPass, QUERY_RECORD_BYTES, camera_pipeline};
 use crate::compute::ComputePipeline;
@@ -13,6 +13,7 @@ use crate::map_accel::MapAccel;
 use crate::maps::{MapStore, StorePipelines};
 use crate::photons::{PhotonOutputs, PhotonPass, photon_pipeline};
 use crate::scene::VkScene;
+use arpa_core::accumulate::Accumulation;
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::gpu::batch::{Overflow, RecordLimits, after_overflow, for_each_batch, initial_capacity, shrink};
 use arpa_core::gpu::layout::{CameraParams, GatherBatch, StoreCounts, StoreSettings, check_record_keys};
@@ -443,9 +444,24 @@ impl Tracer for VkTracer {
         self.state.as_ref().map_or(0, |s| s.clock.completed())
     }
 
+    fn read_accumulation(&self) -> Result<Accumulation, VkTracerError> {
+        let st = self.loaded(Call::ReadAccumulation)?;
+        let pixels = st.accumulator.read_pixels(&self.ctx)?.iter().map(AccumPixel::to_sum).collect();
+        Ok(Accumulation { width: st.width, height: st.height, first_iteration: st.clock.first_iteration(), iterations: st.clock.accumulated(), pixels })
+    }
+
+    fn restore_accumulation(&mut self, state: &Accumulation) -> Result<(), VkTracerError> {
+        let st = uploaded(self.state.as_deref_mut(), Call::RestoreAccumulation)?;
+        let clock = StageClock::for_restore(state, st.width, st.height)?;
+        let pixels = AccumPixel::from_accumulation(state)?;
+        st.accumulator.write_pixels(&self.ctx, &pixels)?;
+        st.clock = clock;
+        Ok(())
+    }
+
     fn read_image(&self) -> Result<Image, VkTracerError> {
         let st = self.loaded(Call::ReadImage)?;
-        let pixels = st.accumulator.read_mean(&self.ctx, st.clock.completed())?;
+        let pixels = st.accumulator.read_mean(&self.ctx, st.clock.accumulated())?;
         Ok(Image { width: st.width, height: st.height, pixels: pixels.into_iter().map(arpa_core::glam::Vec3::from_array).collect() })
     }
 

@@ -36,6 +36,12 @@ impl DeviceAccumulator {
         Self { pipeline, pixels: pixels_buf, count: pixels }
     }
 
+    /// Replaces the per-pixel sums with `pixels` (one per pixel; a checkpoint resumed),
+    /// through the queue; `None` for a wrong pixel count.
+    pub fn write_pixels(&self, queue: &wgpu::Queue, pixels: &[AccumPixel]) -> Option<()> {
+        (pixels.len() == self.count as usize).then(|| queue.write_buffer(&self.pixels, 0, bytemuck::cast_slice(pixels)))
+    }
+
     /// Records the addition of `image` (`vec4<f32>` per pixel, RGB used) to the sums.
     pub fn encode(&self, device: &wgpu::Device, encoder: &mut wgpu::CommandEncoder, image: &wgpu::Buffer) {
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {

@@ -6,6 +6,7 @@ use crate::device::{AdapterChoice, DeviceError, GpuContext};
 use crate::maps::{PhotonMaps, read_buffer, scoped};
 use crate::photon::{PhotonOutputs, PhotonPass};
 use crate::scene::GpuScene;
+use arpa_core::accumulate::Accumulation;
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::gpu::batch::{Overflow, RecordLimits, after_overflow, for_each_batch, initial_capacity, shrink};
 use arpa_core::gpu::layout::{PhotonCounters, StoreSettings, check_record_keys};
@@ -204,6 +205,12 @@ impl WgpuTracer {
     /// The device.
     pub fn context(&self) -> &GpuContext {
         &self.ctx
+    }
+
+    /// The device's per-pixel sums, read back.
+    fn read_sums(&self, st: &Loaded) -> Result<Vec<AccumPixel>, WgpuError> {
+        let bytes = read_buffer(&self.ctx, "the accumulation", &st.accumulator.pixels, st.pixels as u64 * std::mem::size_of::<AccumPixel>() as u64)?;
+        Ok(bytemuck::pod_collect_to_vec(&bytes))
     }
 
     fn loaded(&self, call: impl Into<Call>) -> Result<&Loaded, StageError> {
@@ -441,10 +448,24 @@ impl Tracer for WgpuTracer {
 
     fn read_image(&self) -> Result<Image, WgpuError> {
         let st = self.loaded(Call::ReadImage)?;
-        let bytes = read_buffer(&self.ctx, "read_image", &st.accumulator.pixels, st.pixels as u64 * std::mem::size_of::<AccumPixel>() as u64)?;
-        let acc: Vec<AccumPixel> = bytemuck::pod_collect_to_vec(&bytes);
-        let n = st.clock.completed();
-        Ok(Image { width: st.width, height: st.height, pixels: acc.iter().map(|p| p.mean(n)).collect() })
+        let n = st.clock.accumulated();
+        Ok(Image { width: st.width, height: st.height, pixels: self.read_sums(st)?.iter().map(|p| p.mean(n)).collect() })
+    }
+
+    fn read_accumulation(&self) -> Result<Accumulation, WgpuError> {
+        let st = self.loaded(Call::ReadAccumulation)?;
+        let pixels = self.read_sums(st)?.iter().map(AccumPixel::to_sum).collect();
+        Ok(Accumulation { width: st.width, height: st.height, first_iteration: st.clock.first_iteration(), iterations: st.clock.accumulated(), pixels })
+    }
+
+    fn restore_accumulation(&mut self, state: &Accumulation) -> Result<(), WgpuError> {
+        let st = uploaded(self.state.as_deref_mut(), Call::RestoreAccumulation)?;
+        let clock = StageClock::for_restore(state, st.width, st.height)?;
+        let pixels = AccumPixel::from_accumulation(state)?;
+        st.accumulator.write_pixels(&self.ctx.queue, &pixels).ok_or_else(|| StageError::Accumulation("pixel count".into()))?;
+        wait(&self.ctx, "restore_accumulation")?;
+        st.clock = clock;
+        Ok(())
     }
 
     fn read_query_points(&self) -> Result<Vec<QueryRecord>, WgpuError> {

@@ -7,6 +7,7 @@
 
 use arpa_conformance::suite::AVAILABILITY_ROW;
 use arpa_conformance::{Backend, Case, SuiteOptions, Verdict, cases, run_suite_with};
+use arpa_core::accumulate::Accumulation;
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::progressive_photon::PackedPhoton;
 use arpa_core::scene::Scene;
@@ -64,6 +65,12 @@ impl<const SCALE: u32> Tracer for Outside<SCALE> {
     }
     fn read_stats(&self) -> Result<IterationStats, CpuError> {
         self.0.read_stats()
+    }
+    fn read_accumulation(&self) -> Result<Accumulation, CpuError> {
+        self.0.read_accumulation()
+    }
+    fn restore_accumulation(&mut self, state: &Accumulation) -> Result<(), CpuError> {
+        self.0.restore_accumulation(state)
     }
 }
 

@@ -4,6 +4,7 @@
 
 use arpa_conformance::suite::ci_is_set;
 use arpa_conformance::{BoxError, Case, CaseBody, DynTracer, backends, cases};
+use arpa_core::accumulate::Accumulation;
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::progressive_photon::PackedPhoton;
 use arpa_core::scene::Scene;
@@ -32,6 +33,11 @@ enum Fault {
     QueryShift,
     /// Query-point weights 2% high.
     QueryWeight,
+    /// `restore_accumulation` keeps the sums but continues one iteration index too far (the
+    /// resumed iterations use other random streams and radii).
+    ResumeRestartsStreams,
+    /// `read_accumulation` keeps the sums in `f32` (a lossy state format).
+    StateInF32,
 }
 
 struct Sabotaged {
@@ -130,6 +136,24 @@ impl DynTracer for Sabotaged {
     fn read_stats(&self) -> Result<IterationStats, BoxError> {
         self.inner.read_stats()
     }
+    fn read_accumulation(&self) -> Result<Accumulation, BoxError> {
+        let mut a = self.inner.read_accumulation()?;
+        if self.fault == Fault::StateInF32 {
+            for p in &mut a.pixels {
+                p.sum = p.sum.map(|x| x as f32 as f64);
+                p.compensation = p.compensation.map(|x| x as f32 as f64);
+            }
+        }
+        Ok(a)
+    }
+    fn restore_accumulation(&mut self, state: &Accumulation) -> Result<(), BoxError> {
+        if self.fault == Fault::ResumeRestartsStreams && state.iterations > 0 {
+            // The sums of `state`, continued from one iteration index too far.
+            let shifted = Accumulation { first_iteration: state.first_iteration + 1, ..state.clone() };
+            return self.inner.restore_accumulation(&shifted);
+        }
+        self.inner.restore_accumulation(state)
+    }
 }
 
 fn run(fault: Fault, case: &str) -> Result<String, String> {
@@ -164,6 +188,7 @@ fn faithful_wrapper_passes() {
         "analytic-mirror-caustic-arpa",
         "determinism",
         "determinism-threads",
+        "resume-merge",
         "bad-input",
     ] {
         run(Fault::None, case).unwrap_or_else(|e| panic!("{case}: {e}"));
@@ -190,6 +215,8 @@ fn each_fault_is_caught() {
         (Fault::Bright, "analytic-glass-slab-rtpm"),
         (Fault::Bright, "analytic-mirror-caustic-arpa"),
         (Fault::Bright, "analytic-mirror-caustic-rtpm"),
+        (Fault::ResumeRestartsStreams, "resume-merge"),
+        (Fault::StateInF32, "resume-merge"),
     ] {
         match run(fault, case) {
             Ok(m) => panic!("{fault:?} not caught by {case}: {m}"),

@@ -302,7 +302,7 @@ pub fn run_bench(cfg: &LoadedConfig, options: &BenchOptions) -> anyhow::Result<V
                     let kind = RunKind::Arpa { backend: kind_backend.name().to_string(), method, photons };
                     let settings = settings_for(&scene, method, photons, c.seed);
                     let mut hooks = RowHooks { reference_mean, scene: &entry.name, kind: &kind, rows: Vec::new() };
-                    let session = SessionOptions { budget: Budget::Time(Duration::from_secs_f64(seconds)), checkpoints: Checkpoints::PowersOfTwo, reference: Some(&scene.reference) };
+                    let session = SessionOptions { budget: Budget::Time(Duration::from_secs_f64(seconds)), checkpoints: Checkpoints::PowersOfTwo, reference: Some(&scene.reference), resume: None, save: None };
                     let rendered = render_with(tracer, &scene.scene, &settings, &session, &mut hooks).with_context(|| format!("{} {}", entry.name, kind.label()))?;
                     report::write_run_images(&options.out, &entry.name, &kind, &rendered.image, &scene.reference.image)?;
                     let last = hooks.rows.last().map_or(String::new(), |r| format!("NI {} relMSE {:.4e} SSIM {:.3}", r.iteration, r.rel_mse, r.ssim));

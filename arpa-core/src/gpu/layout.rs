@@ -467,12 +467,36 @@ impl AccumPixel {
     /// The mean over `iterations` iterations: `(sum + compensation) / iterations` in
     /// `f64`; 0 before any iteration and where not finite (so no NaN or Inf reaches a pixel).
     pub fn mean(&self, iterations: u32) -> glam::Vec3 {
-        if iterations == 0 {
-            return glam::Vec3::ZERO;
-        }
-        let s = glam::Vec3::from_array(self.sum).as_dvec3() + glam::Vec3::from_array(self.compensation).as_dvec3();
-        let m = (s / iterations as f64).as_vec3();
-        glam::Vec3::select(m.is_finite_mask(), m, glam::Vec3::ZERO)
+        crate::accumulate::output_mean(self.to_sum().total(), u64::from(iterations))
+    }
+
+    /// The sums in `f64`, exactly (for a checkpoint).
+    pub fn to_sum(&self) -> crate::accumulate::PixelSum {
+        let f = |v: [f32; 3]| v.map(f64::from);
+        crate::accumulate::PixelSum { sum: f(self.sum), compensation: f(self.compensation), rejected: u64::from(self.rejected), pad: 0 }
+    }
+
+    /// The device records of `state`'s sums, for a GPU backend's
+    /// [`Tracer::restore_accumulation`](crate::tracer::Tracer::restore_accumulation):
+    /// refused when a sum is not exactly `f32` ([`AccumPixel::from_sum`]).
+    #[cfg(feature = "alloc")]
+    pub fn from_accumulation(state: &crate::accumulate::Accumulation) -> Result<alloc::vec::Vec<Self>, crate::tracer::StageError> {
+        state.pixels.iter().map(Self::from_sum).collect::<Option<alloc::vec::Vec<_>>>().ok_or_else(|| {
+            crate::tracer::StageError::Accumulation(
+                "its sums are not f32 values (merged parts or an f64 accumulator); a GPU backend continues only its own f32 sums exactly".into(),
+            )
+        })
+    }
+
+    /// The device record of `sum`, when its values are exactly `f32` (as a device
+    /// accumulator's are) and its rejected count fits; `None` otherwise (sums merged or
+    /// accumulated in `f64`, which this accumulator cannot continue exactly).
+    pub fn from_sum(sum: &crate::accumulate::PixelSum) -> Option<Self> {
+        let f = |v: [f64; 3]| {
+            let g = v.map(|x| x as f32);
+            (g.map(f64::from) == v).then_some(g)
+        };
+        Some(Self { sum: f(sum.sum)?, rejected: u32::try_from(sum.rejected).ok()?, compensation: f(sum.compensation)?, pad: 0 })
     }
 }
 

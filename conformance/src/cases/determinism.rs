@@ -1,5 +1,6 @@
 //! Determinism: the same scene, settings and seed give a bit-identical image.
 
+use arpa_core::accumulate::Accumulation;
 use arpa_core::tracer::{Image, Method, RenderSettings};
 
 use crate::dyn_tracer::DynTracer;
@@ -74,4 +75,53 @@ pub fn thread_count_invariant(t: &mut dyn DynTracer) -> CaseResult {
     }
     let lit = identical(&images[0], &images[1], "1 and 2 host threads")?;
     Ok(format!("{} px ({lit} lit) bit-identical with 1 and 2 host threads", images[0].pixels.len()))
+}
+
+/// Checkpoint, resume and merge: the glass-and-mirror room rendered for 4 iterations in one
+/// go; again for 2 iterations, its accumulation read back and continued on a fresh upload
+/// for 2 more; and as two parts (iterations 0..2 and 2..4 from empty accumulations)
+/// merged on the host. All three images must be bit-identical (the same random streams and
+/// radii for each iteration index, sums kept exactly), and an accumulation of another
+/// image size must be refused.
+pub fn resume_and_merge(t: &mut dyn DynTracer) -> CaseResult {
+    let settings = settings(3000);
+    let scene = scenes::glass_mirror_room(24);
+    let run = |t: &mut dyn DynTracer, from: Option<&Accumulation>, iterations: u32| -> Result<Accumulation, String> {
+        t.upload_scene(&scene, &settings).ctx("upload_scene")?;
+        if let Some(a) = from {
+            t.restore_accumulation(a).ctx("restore_accumulation")?;
+        }
+        for _ in 0..iterations {
+            t.iterate().ctx("iterate")?;
+        }
+        t.read_accumulation().ctx("read_accumulation")
+    };
+    let full = run(t, None, 4)?;
+    let whole = t.read_image().ctx("read_image")?;
+    if (full.first_iteration, full.iterations, t.iterations()) != (0, 4, 4) {
+        return Err(format!("accumulation covers {}..{} after 4 iterations", full.first_iteration, full.end()));
+    }
+    let as_image = |a: &Accumulation| Image { width: a.width, height: a.height, pixels: a.mean() };
+    identical(&whole, &as_image(&full), "read_image and the mean of read_accumulation")?;
+
+    let half = run(t, None, 2)?;
+    let resumed = run(t, Some(&half), 2)?;
+    if (resumed.first_iteration, resumed.iterations, t.iterations()) != (0, 4, 4) {
+        return Err(format!("after resuming 2 iterations and rendering 2 more: {}..{}, iterations() = {}", resumed.first_iteration, resumed.end(), t.iterations()));
+    }
+    identical(&whole, &t.read_image().ctx("read_image")?, "an uninterrupted run and a resumed one")?;
+
+    let first = run(t, Some(&Accumulation::empty(scene.camera.width, scene.camera.height, 0)), 2)?;
+    let second = run(t, Some(&Accumulation::empty(scene.camera.width, scene.camera.height, 2)), 2)?;
+    let merged = Accumulation::merge(&[second, first]).map_err(|e| format!("merge: {e}"))?;
+    if (merged.first_iteration, merged.iterations) != (0, 4) {
+        return Err(format!("merged parts cover {}..{}", merged.first_iteration, merged.end()));
+    }
+    let lit = identical(&whole, &as_image(&merged), "an uninterrupted run and two merged parts")?;
+
+    t.upload_scene(&scene, &settings).ctx("upload_scene")?;
+    if t.restore_accumulation(&Accumulation::empty(scene.camera.width + 1, scene.camera.height, 0)).is_ok() {
+        return Err("an accumulation of another image size was accepted".into());
+    }
+    Ok(format!("{} px ({lit} lit) bit-identical: 4 iterations, 2 + resumed 2, parts 0..2 + 2..4 merged", whole.pixels.len()))
 }

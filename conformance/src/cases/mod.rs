@@ -138,6 +138,12 @@ pub fn all() -> Vec<Case> {
             run: CaseBody::Tracer(determinism::same_seed_twice),
         },
         Case {
+            id: "resume-merge",
+            title: "checkpoint resumed, parts merged: bit-identical image",
+            needs: None,
+            run: CaseBody::Tracer(determinism::resume_and_merge),
+        },
+        Case {
             id: "determinism-threads",
             title: "1 vs 2 host threads: bit-identical image",
             needs: None,
