@@ -104,7 +104,9 @@ pub(crate) fn photon_pass(
     let next_chunk = AtomicU32::new(0);
     let workers = rayon::current_num_threads().clamp(1, chunks.max(1) as usize);
     (0..workers).into_par_iter().for_each(|_| {
-        let mut part: Option<PhotonStore> = None;
+        // Start from a recycled part: a fresh one here would join the pool at the end and
+        // grow it by one part per worker and iteration.
+        let mut part: Option<PhotonStore> = lock().free.pop();
         loop {
             let chunk = next_chunk.fetch_add(1, Ordering::Relaxed);
             if chunk >= chunks {
