@@ -240,6 +240,8 @@ pub struct Accumulation {
 }
 
 /// Why accumulations cannot be merged, or an accumulation cannot be used.
+#[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum AccumulationError {
     /// No parts to merge.

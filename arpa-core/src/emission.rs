@@ -200,7 +200,9 @@ impl EmissionParams {
     /// [`StreamDomain::Iteration`](crate::rng::StreamDomain::Iteration). This is the
     /// convention of every backend's photon pass
     /// ([`crate::photon_path::PhotonPassSetup`], the WGSL twin), so a renderer that
-    /// follows it emits the photons the backends emit.
+    /// follows it emits the photons the backends emit. Iterations count from 0 here, as
+    /// in the random streams; the radius schedule counts them from 1
+    /// ([`crate::radius::ProgressiveConfig::radii`] takes `iteration + 1`).
     pub fn for_iteration(self, seed: u32, iteration: u32, light: u32) -> Self {
         let mut rng = crate::rng::Rng::new(seed, iteration, light, crate::rng::StreamDomain::Iteration);
         Self { lattice_shift: rng.next_2d(), ..self }

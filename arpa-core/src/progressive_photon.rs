@@ -20,6 +20,12 @@ pub struct ProgressivePhoton {
 }
 
 impl ProgressivePhoton {
+    /// The progressive photon a rejected footprint becomes: at its centre, with its
+    /// normal, flux and map (what [`crate::store::store_footprint`] stores for it).
+    pub fn from_footprint(fp: &crate::footprint::Footprint) -> Self {
+        Self { position: fp.center, normal: fp.normal, flux: fp.flux, map: fp.map }
+    }
+
     /// Irradiance (W/m², RGB) at `q` (metres) with unit normal `query_normal` for
     /// progressive radius `radius` (metres), in `f64`: `Φ/(π r²)` inside the sphere
     /// `|q − x_p|² < r²` and on the lit side, else 0 (also 0 when not finite). The `f64`

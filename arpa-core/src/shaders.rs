@@ -222,6 +222,15 @@ pub struct WgslFile {
 #[cfg(feature = "alloc")]
 #[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 pub fn compose(files: &[&'static WgslFile]) -> alloc::string::String {
+    compose_with(files, "")
+}
+
+/// [`compose`] with a source of one's own after the files: a renderer's kernel that calls
+/// the twin's functions, made at run time (its `enable` directives are hoisted with the
+/// files'; it follows a `// arpa: user` line).
+#[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
+pub fn compose_with(files: &[&'static WgslFile], user: &str) -> alloc::string::String {
     use alloc::string::String;
     use alloc::vec::Vec;
     fn visit(file: &'static WgslFile, order: &mut Vec<&'static WgslFile>) {
@@ -242,8 +251,8 @@ pub fn compose(files: &[&'static WgslFile]) -> alloc::string::String {
         t.starts_with("enable ") && t.ends_with(';')
     };
     let mut directives: Vec<&str> = Vec::new();
-    for file in &order {
-        for line in file.source.lines().filter(|l| is_directive(l)) {
+    for source in order.iter().map(|f| f.source).chain([user]) {
+        for line in source.lines().filter(|l| is_directive(l)) {
             if !directives.contains(&line.trim()) {
                 directives.push(line.trim());
             }
@@ -259,6 +268,13 @@ pub fn compose(files: &[&'static WgslFile]) -> alloc::string::String {
         out.push_str(file.name);
         out.push('\n');
         for line in file.source.lines().filter(|l| !is_directive(l)) {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    if !user.is_empty() {
+        out.push_str("// arpa: user\n");
+        for line in user.lines().filter(|l| !is_directive(l)) {
             out.push_str(line);
             out.push('\n');
         }

@@ -59,7 +59,7 @@ impl StoredPhoton {
 
 /// Progressive photon at the footprint's centre with the same flux, normal and map.
 fn fallback(fp: &Footprint, reason: ProgressiveReason) -> StoredPhoton {
-    let photon = ProgressivePhoton { position: fp.center, normal: fp.normal, flux: fp.flux, map: fp.map }.pack();
+    let photon = ProgressivePhoton::from_footprint(fp).pack();
     StoredPhoton::Progressive { photon, reason }
 }
 
