@@ -237,6 +237,10 @@ pub enum SceneError {
     /// The camera cannot form an image.
     #[error("degenerate camera: {0}")]
     DegenerateCamera(&'static str),
+    /// [`Scene::roughness_cutoff`] is NaN, infinite or negative (a NaN cut-off would
+    /// silently make every rough material specular).
+    #[error("roughness cut-off {0} is not a finite non-negative GGX alpha")]
+    BadRoughnessCutoff(f32),
 }
 
 /// A complete scene.
@@ -265,14 +269,17 @@ impl Scene {
         if self.meshes.iter().all(|m| m.indices.is_empty()) {
             return Err(SceneError::Empty);
         }
+        if !(self.roughness_cutoff.is_finite() && self.roughness_cutoff >= 0.0) {
+            return Err(SceneError::BadRoughnessCutoff(self.roughness_cutoff));
+        }
         for (index, m) in self.materials.iter().enumerate() {
             let why = match *m {
                 Material::Diffuse { albedo } if !finite_rgb_in(albedo, 0.0, 1.0) => Some("diffuse albedo outside [0, 1]"),
-                Material::Conductor { reflectance, roughness } if !finite_rgb_in(reflectance, 0.0, 1.0) || !(roughness >= 0.0) => {
-                    Some("conductor reflectance outside [0, 1] or negative roughness")
+                Material::Conductor { reflectance, roughness } if !(finite_rgb_in(reflectance, 0.0, 1.0) && roughness >= 0.0 && roughness.is_finite()) => {
+                    Some("conductor reflectance outside [0, 1] or roughness negative or not finite")
                 }
-                Material::Dielectric { ior, transmittance, roughness } if !(ior > 0.0 && ior.is_finite() && finite_rgb_in(transmittance, 0.0, 1.0) && roughness >= 0.0) => {
-                    Some("dielectric IOR not positive, transmittance outside [0, 1] or negative roughness")
+                Material::Dielectric { ior, transmittance, roughness } if !(ior > 0.0 && ior.is_finite() && finite_rgb_in(transmittance, 0.0, 1.0) && roughness >= 0.0 && roughness.is_finite()) => {
+                    Some("dielectric IOR not finite and positive, transmittance outside [0, 1] or roughness negative or not finite")
                 }
                 _ => None,
             };

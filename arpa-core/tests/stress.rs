@@ -4,6 +4,9 @@
 //! `1e-30` to `1e30` (mixed within one vector): no NaN, no Inf, no panic, and every
 //! degenerate case comes back *labelled* (`Err(..)`, or a `StoredPhoton::Progressive` with
 //! its reason) — with the right label wherever the label is determined by the input.
+//! Scene-level inputs also get NaN and ±∞ (emission parameters, every light field, every
+//! numeric field of a scene: vertices, normals, emission, materials, camera, roughness
+//! cut-off): they must be rejected with the labelled error, never accepted.
 //!
 //! Layout: each property is a checker `fn check_*(input) -> Result<&'static str, _>` that
 //! asserts and returns the *outcome label* of the case ("ok", "grazing", "degenerate", …).
@@ -2516,3 +2519,212 @@ fn regression_tiny_quad_tiling_check_does_not_underflow() {
         Err(e) => panic!("{e}"),
     }
 }
+
+// ---------------------------------------------------------------------------------------
+// NaN and infinities in scene-level inputs: Light::validate/emit, Scene::validate,
+// PreparedScene::new
+// ---------------------------------------------------------------------------------------
+
+/// A light from [`light`] with one field component replaced by NaN or ±∞, and whether
+/// `Light::validate` must name it exactly (`LightError::NonFinite`): geometry is checked
+/// first, so only the emission of a spot or directional light may meet another check
+/// (zero direction, angles, bounds) before its own.
+fn non_finite_light() -> BoxedStrategy<(Light, bool)> {
+    (light(), 0usize..4, 0usize..3, non_finite())
+        .prop_map(|(l, field, i, x)| {
+            let mut l = l;
+            let exact = match &mut l {
+                Light::Point(p) => {
+                    if field % 2 == 0 { p.position[i] = x } else { p.intensity[i] = x }
+                    true
+                }
+                Light::Spot(s) => match field {
+                    0 => { s.position[i] = x; true }
+                    1 => { s.direction[i] = x; true }
+                    2 => { if i == 0 { s.cutoff = x } else { s.beam_width = x }; true }
+                    _ => { s.intensity[i] = x; false }
+                },
+                Light::Directional(d) => {
+                    if field % 2 == 0 { d.direction[i] = x; true } else { d.irradiance[i] = x; false }
+                }
+                Light::Triangle(t) => {
+                    if field < 3 { t.p[field][i] = x } else { t.radiance[i] = x }
+                    true
+                }
+                Light::Quad(q) => {
+                    match field {
+                        0 => q.origin[i] = x,
+                        1 => q.edge_u[i] = x,
+                        2 => q.edge_v[i] = x,
+                        _ => q.radiance[i] = x,
+                    }
+                    true
+                }
+            };
+            (l, exact)
+        })
+        .boxed()
+}
+
+fn check_non_finite_light(((light, exact), params, index): ((Light, bool), EmissionParams, u32)) -> Outcome {
+    let valid = light.validate(params.scene_sphere.1);
+    prop_assert!(valid.is_err(), "a light with a NaN/Inf field validates: {:?}", light);
+    if exact {
+        prop_assert_eq!(valid, Err(LightError::NonFinite), "{:?}", light);
+    }
+    let mut rng = Rng::new(7, 1, index, StreamDomain::Photon);
+    let res = light.emit(index, &params, &mut rng);
+    prop_assert_eq!(res, Err(EmissionError::Light(valid.unwrap_err())));
+    prop_assert!(light.prepare(&params).is_err(), "a light with a NaN/Inf field prepares: {:?}", light);
+    Ok(["point_rejected", "spot_rejected", "directional_rejected", "triangle_rejected", "quad_rejected"][light_kind(&light)])
+}
+
+stress!(
+    lights_with_nan_or_inf_fields_are_rejected_with_the_labelled_error,
+    non_finite_light_cases_reach_every_outcome,
+    (non_finite_light(), emission_params(), any::<u32>()),
+    check_non_finite_light,
+    ["point_rejected", "spot_rejected", "directional_rejected", "triangle_rejected", "quad_rejected"]
+);
+
+/// Which scene field a [`scene_input`] poisons, and with what.
+#[derive(Clone, Debug)]
+enum Poison {
+    None,
+    Position(usize, usize, f32),
+    Normal(usize, usize, f32),
+    Emission(usize, f32),
+    Material(usize, f32),
+    Light(Light),
+    Camera(usize, usize, f32),
+    ZeroImage(bool),
+    RoughnessCutoff(f32),
+}
+
+fn non_finite_f32() -> BoxedStrategy<f32> {
+    prop::sample::select(vec![f32::NAN, f32::INFINITY, f32::NEG_INFINITY]).boxed()
+}
+
+/// A valid one-triangle scene (material chosen by `material`) with at most one numeric
+/// field made NaN, infinite (or, for the image size, zero).
+fn scene_input() -> BoxedStrategy<(usize, Poison)> {
+    let poison = prop_oneof![
+        2 => Just(Poison::None),
+        1 => (0usize..3, 0usize..3, non_finite_f32()).prop_map(|(v, i, x)| Poison::Position(v, i, x)),
+        1 => (0usize..3, 0usize..3, non_finite_f32()).prop_map(|(v, i, x)| Poison::Normal(v, i, x)),
+        1 => (0usize..3, non_finite_f32()).prop_map(|(i, x)| Poison::Emission(i, x)),
+        1 => (0usize..5, non_finite_f32()).prop_map(|(f, x)| Poison::Material(f, x)),
+        1 => non_finite_light().prop_map(|(l, _)| Poison::Light(l)),
+        1 => (0usize..4, 0usize..3, non_finite_f32()).prop_map(|(f, i, x)| Poison::Camera(f, i, x)),
+        1 => any::<bool>().prop_map(Poison::ZeroImage),
+        1 => prop_oneof![non_finite_f32(), Just(-0.5f32)].prop_map(Poison::RoughnessCutoff),
+    ];
+    (0usize..3, poison).boxed()
+}
+
+fn check_scene_input((material, poison): (usize, Poison)) -> Outcome {
+    use arpa_core::prepared_scene::PreparedScene;
+    use arpa_core::scene::{Camera, Material, Scene, SceneError, TriangleMesh};
+    let materials = [
+        Material::Diffuse { albedo: Vec3::splat(0.5) },
+        Material::Conductor { reflectance: Vec3::splat(0.9), roughness: 0.1 },
+        Material::Dielectric { ior: 1.5, transmittance: Vec3::ONE, roughness: 0.0 },
+    ];
+    let mut scene = Scene {
+        meshes: vec![TriangleMesh {
+            name: "tri".into(),
+            positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
+            normals: Some(vec![Vec3::Z; 3]),
+            indices: vec![[0, 1, 2]],
+            material: 0,
+            emission: Some(Vec3::splat(0.1)),
+        }],
+        materials: vec![materials[material]],
+        lights: vec![Light::Point(PointLight { position: DVec3::new(0.0, 0.0, 1.0), intensity: DVec3::ONE })],
+        camera: Camera { position: Vec3::new(0.0, 0.0, 5.0), target: Vec3::ZERO, up: Vec3::Y, vertical_fov: 0.8, width: 8, height: 6 },
+        roughness_cutoff: 0.25,
+    };
+    let mesh = &mut scene.meshes[0];
+    let expected: Option<fn(&SceneError) -> bool> = match poison.clone() {
+        Poison::None => None,
+        Poison::Position(v, i, x) => {
+            mesh.positions[v][i] = x;
+            Some(|e| matches!(e, SceneError::NonFiniteVertex { what: "position", .. }))
+        }
+        Poison::Normal(v, i, x) => {
+            mesh.normals.as_mut().unwrap()[v][i] = x;
+            Some(|e| matches!(e, SceneError::NonFiniteVertex { what: "normal", .. }))
+        }
+        Poison::Emission(i, x) => {
+            mesh.emission.as_mut().unwrap()[i] = x;
+            Some(|e| matches!(e, SceneError::BadEmitter { .. }))
+        }
+        Poison::Material(f, x) => {
+            match &mut scene.materials[0] {
+                Material::Diffuse { albedo } => albedo[f % 3] = x,
+                Material::Conductor { reflectance, roughness } => if f < 3 { reflectance[f] = x } else { *roughness = x },
+                Material::Dielectric { ior, transmittance, roughness } => match f {
+                    0..=2 => transmittance[f] = x,
+                    3 => *ior = x,
+                    _ => *roughness = x,
+                },
+            }
+            Some(|e| matches!(e, SceneError::BadMaterial { .. }))
+        }
+        Poison::Light(l) => {
+            scene.lights[0] = l;
+            Some(|e| matches!(e, SceneError::BadLight { .. }))
+        }
+        Poison::Camera(f, i, x) => {
+            let c = &mut scene.camera;
+            match f {
+                0 => c.position[i] = x,
+                1 => c.target[i] = x,
+                2 => c.up[i] = x,
+                _ => c.vertical_fov = x,
+            }
+            Some(|e| matches!(e, SceneError::DegenerateCamera(_)))
+        }
+        Poison::ZeroImage(w) => {
+            if w { scene.camera.width = 0 } else { scene.camera.height = 0 }
+            Some(|e| matches!(e, SceneError::DegenerateCamera(_)))
+        }
+        Poison::RoughnessCutoff(x) => {
+            scene.roughness_cutoff = x;
+            Some(|e| matches!(e, SceneError::BadRoughnessCutoff(_)))
+        }
+    };
+    let valid = scene.validate();
+    let prepared = PreparedScene::new(scene.clone());
+    match expected {
+        Some(is_expected) => {
+            let e = valid.clone().err().ok_or_else(|| fail(format!("{poison:?} validates")))?;
+            prop_assert!(is_expected(&e), "{:?} gave {:?}", poison, e);
+            // Compared as text: the errors may carry NaN, which is unequal to itself.
+            prop_assert_eq!(prepared.err().map(|p| p.to_string()), Some(e.to_string()));
+            Ok(match poison {
+                Poison::Position(..) | Poison::Normal(..) => "vertex_rejected",
+                Poison::Emission(..) => "emitter_rejected",
+                Poison::Material(..) => "material_rejected",
+                Poison::Light(..) => "light_rejected",
+                Poison::Camera(..) | Poison::ZeroImage(_) => "camera_rejected",
+                _ => "cutoff_rejected",
+            })
+        }
+        None => {
+            prop_assert_eq!(valid, Ok(()), "{:?}", poison);
+            let p = prepared.map_err(|e| fail(format!("{poison:?}: a valid scene does not prepare: {e}")))?;
+            let f = p.camera();
+            prop_assert!(f.forward.is_finite() && f.right.is_finite() && f.up.is_finite() && f.tan_half_fov.is_finite() && f.aspect.is_finite());
+            Ok("valid")
+        }
+    }
+}
+
+stress!(
+    scenes_with_a_nan_inf_or_zero_field_fail_validation_with_the_labelled_error,
+    scene_input_cases_reach_every_outcome,
+    scene_input(),
+    check_scene_input,
+    ["valid", "vertex_rejected", "emitter_rejected", "material_rejected", "light_rejected", "camera_rejected", "cutoff_rejected"]
+);

@@ -4,7 +4,7 @@
 use super::error::{SceneFileError, Warning};
 use super::transform::{self, numbers, parse_transform};
 use super::xml::{self, Node};
-use super::{FovAxis, LoadedScene, RawMesh, obj, ply, shapes, vertical_fov};
+use super::{FovAxis, LoadedScene, MeshReader, RawMesh, obj, ply, shapes, vertical_fov};
 use arpa_core::fresnel::conductor_albedo;
 use arpa_core::emission::{DirectionalLight, Light, PointLight, SpotFalloff, SpotLight};
 use arpa_core::scene::{Camera, Material, MaterialId, Scene, TriangleMesh};
@@ -24,6 +24,12 @@ use std::path::{Path, PathBuf};
 /// reference agrees with the diffuse reading (ceiling and lamp region means within 1 %,
 /// against +7 % and −24 % for the mirror reading; see the README's accuracy section).
 pub const ROUGHNESS_CUTOFF: f32 = 0.25;
+
+/// `v` for messages: plain for ordinary magnitudes, scientific for absurd ones (so that
+/// `1e-300` does not print 300 digits).
+fn num(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() || (1e-4..1e6).contains(&v.abs()) { format!("{v}") } else { format!("{v:e}") }
+}
 
 /// Tags that carry a named property value.
 const PROPERTY_TAGS: &[&str] = &["float", "integer", "boolean", "string", "rgb", "spectrum", "point", "vector", "transform", "texture"];
@@ -87,6 +93,7 @@ struct Props<'n> {
 
 pub(crate) struct Loader<'a> {
     path: &'a Path,
+    read_mesh: MeshReader<'a>,
     base: PathBuf,
     warnings: Vec<Warning>,
     bsdfs: HashMap<String, (Bsdf, Option<MaterialId>)>,
@@ -147,7 +154,7 @@ impl<'a> Loader<'a> {
         }
         let v = transform::number(self.value(n)?).map_err(|e| self.invalid(n.line, format!("'{name}': {e}")))?;
         if !v.is_finite() {
-            return Err(self.invalid(n.line, format!("'{name}' is not finite")));
+            return Err(self.invalid(n.line, format!("'{name}' is {v}: not a finite number")));
         }
         Ok(Some(v))
     }
@@ -197,7 +204,7 @@ impl<'a> Loader<'a> {
             t => return Err(self.invalid(n.line, format!("'{name}' must be an <rgb>, <float> or <spectrum>, found <{t}>"))),
         };
         if !v.is_finite() {
-            return Err(self.invalid(n.line, format!("'{name}' is not finite")));
+            return Err(self.invalid(n.line, format!("'{name}' ({}, {}, {}) is not finite", v.x, v.y, v.z)));
         }
         Ok(Some(v))
     }
@@ -207,9 +214,9 @@ impl<'a> Loader<'a> {
         if !matches!(n.tag.as_str(), "point" | "vector") {
             return Err(self.invalid(n.line, format!("'{name}' must be a <point> or <vector>, found <{}>", n.tag)));
         }
-        let v = transform::vector3(n, 0.0, false).map_err(|e| self.invalid(n.line, e))?;
+        let v = transform::vector3(n, 0.0, false).map_err(|e| self.invalid(n.line, format!("'{name}': {e}")))?;
         if !v.is_finite() {
-            return Err(self.invalid(n.line, format!("'{name}' is not finite")));
+            return Err(self.invalid(n.line, format!("'{name}' ({}, {}, {}) is not finite", v.x, v.y, v.z)));
         }
         Ok(Some(v))
     }
@@ -219,7 +226,36 @@ impl<'a> Loader<'a> {
         if n.tag != "transform" {
             return Err(self.invalid(n.line, format!("'{name}' must be a <transform>, found <{}>", n.tag)));
         }
-        parse_transform(n).map(Some).map_err(|(line, m)| self.invalid(line, m))
+        parse_transform(n).map(Some).map_err(|(line, m)| self.invalid(line, format!("<transform name=\"{name}\">: {m}")))
+    }
+
+    /// A non-negative emission colour (`radiance`, `intensity`, `irradiance`) that is
+    /// finite in single precision (the renderer's), or `default`.
+    fn emission(&self, p: &Props<'_>, name: &str, default: Option<DVec3>) -> R<Option<DVec3>> {
+        let line = self.line_of(p, name);
+        let Some(v) = self.rgb(p, name)?.or(default) else { return Ok(None) };
+        if v.min_element() < 0.0 {
+            return Err(self.invalid(line, format!("'{name}' ({}, {}, {}) is negative", v.x, v.y, v.z)));
+        }
+        if !v.as_vec3().is_finite() {
+            return Err(self.invalid(line, format!("'{name}' ({:e}, {:e}, {:e}) is too large (not finite in single precision)", v.x, v.y, v.z)));
+        }
+        Ok(Some(v))
+    }
+
+    /// A reflectance or transmittance colour in `[0, 1]` (energy is conserved), or `default`.
+    fn fraction(&self, p: &Props<'_>, name: &str, default: DVec3) -> R<DVec3> {
+        let line = self.line_of(p, name);
+        let v = self.rgb(p, name)?.unwrap_or(default);
+        if !(v.min_element() >= 0.0 && v.max_element() <= 1.0) {
+            return Err(self.invalid(line, format!("'{name}' ({}, {}, {}) is outside [0, 1]", v.x, v.y, v.z)));
+        }
+        Ok(v)
+    }
+
+    /// Line of the property `name` of `p`, or of `p`'s element if it is absent.
+    fn line_of(&self, p: &Props<'_>, name: &str) -> usize {
+        p.node.children.iter().find(|c| PROPERTY_TAGS.contains(&c.tag.as_str()) && c.attr("name") == Some(name)).map_or(p.node.line, |c| c.line)
     }
 
     /// Child objects (non-property elements) of `p` with tag `tag`, marked as read.
@@ -311,7 +347,7 @@ impl<'a> Loader<'a> {
             other => return Err(self.invalid(axis_line, format!("fov_axis '{other}' is not one of x, y, diagonal, smaller, larger"))),
         };
         if !(fov > 0.0 && fov < 180.0) {
-            return Err(self.invalid(n.line, format!("fov {fov} is outside (0, 180) degrees")));
+            return Err(self.invalid(n.line, format!("fov {} is outside (0, 180) degrees", num(fov))));
         }
         let to_world = self.transform(&p, "to_world")?.unwrap_or(DMat4::IDENTITY);
         // Clipping planes do not change a photon mapper's image of the scene.
@@ -370,6 +406,9 @@ impl<'a> Loader<'a> {
             self.warn(n.line, "the sensor's to_world is not orthogonal; arpa uses its forward (+z) and up (+y) axes only");
         }
         let vfov = vertical_fov(fov, axis, width, height);
+        if !(vfov > 0.0 && vfov < std::f32::consts::PI) {
+            return Err(self.invalid(n.line, format!("fov {} along fov_axis {axis:?} on a {width}x{height} film gives a vertical field of view of {vfov} radians, outside (0, 180) degrees", num(fov))));
+        }
         let camera = Camera {
             position: origin.as_vec3(),
             target: (origin + forward).as_vec3(),
@@ -409,14 +448,14 @@ impl<'a> Loader<'a> {
                 return self.bsdf_inner(inner[0]);
             }
             "diffuse" => {
-                let albedo = self.rgb(&p, "reflectance")?.unwrap_or(DVec3::splat(0.5));
+                let albedo = self.fraction(&p, "reflectance", DVec3::splat(0.5))?;
                 one_sided(self, albedo);
                 Material::Diffuse { albedo: albedo.as_vec3() }
             }
             "dielectric" | "roughdielectric" => {
                 let int = self.ior(&p, "int_ior", 1.5046)?;
                 let ext = self.ior(&p, "ext_ior", 1.000277)?;
-                let transmittance = self.rgb(&p, "specular_transmittance")?.unwrap_or(DVec3::ONE);
+                let transmittance = self.fraction(&p, "specular_transmittance", DVec3::ONE)?;
                 if let Some(r) = self.rgb(&p, "specular_reflectance")?
                     && r != DVec3::ONE
                 {
@@ -428,10 +467,14 @@ impl<'a> Loader<'a> {
                     let _ = self.string(&p, "distribution")?;
                     self.warn(n.line, format!("roughdielectric: {}", rough_note(roughness)));
                 }
-                Material::Dielectric { ior: (int / ext) as f32, transmittance: transmittance.as_vec3(), roughness: roughness as f32 }
+                let ior = (int / ext) as f32;
+                if !(ior.is_finite() && ior > 0.0) {
+                    return Err(self.invalid(n.line, format!("int_ior / ext_ior = {} / {} is not a usable relative index of refraction (not a positive single-precision number)", num(int), num(ext))));
+                }
+                Material::Dielectric { ior, transmittance: transmittance.as_vec3(), roughness: roughness as f32 }
             }
             "conductor" | "roughconductor" => {
-                let specular = self.rgb(&p, "specular_reflectance")?.unwrap_or(DVec3::ONE);
+                let specular = self.fraction(&p, "specular_reflectance", DVec3::ONE)?;
                 let eta = self.rgb(&p, "eta")?;
                 let k = self.rgb(&p, "k")?;
                 let name = self.string(&p, "material")?;
@@ -473,7 +516,7 @@ impl<'a> Loader<'a> {
                 Material::Conductor { reflectance: reflectance.as_vec3(), roughness: roughness as f32 }
             }
             "plastic" | "roughplastic" => {
-                let albedo = self.rgb(&p, "diffuse_reflectance")?.unwrap_or(DVec3::splat(0.5));
+                let albedo = self.fraction(&p, "diffuse_reflectance", DVec3::splat(0.5))?;
                 for key in ["int_ior", "ext_ior", "specular_reflectance", "nonlinear", "alpha", "distribution"] {
                     let _ = self.find(&p, key);
                 }
@@ -507,11 +550,11 @@ impl<'a> Loader<'a> {
         let Some(n) = self.find(p, name) else { return Ok(default) };
         let s = self.value(n)?;
         let v = match n.tag.as_str() {
-            "string" => IORS.iter().find(|(k, _)| k.eq_ignore_ascii_case(s.trim())).map(|(_, v)| *v).ok_or_else(|| self.invalid(n.line, format!("unknown named IOR '{s}'")))?,
+            "string" => IORS.iter().find(|(k, _)| k.eq_ignore_ascii_case(s.trim())).map(|(_, v)| *v).ok_or_else(|| self.invalid(n.line, format!("'{name}': unknown named IOR '{s}'")))?,
             _ => transform::number(s).map_err(|e| self.invalid(n.line, format!("'{name}': {e}")))?,
         };
         if !(v.is_finite() && v > 0.0) {
-            return Err(self.invalid(n.line, format!("'{name}' must be positive")));
+            return Err(self.invalid(n.line, format!("'{name}' is {}; an index of refraction must be finite and positive", num(v))));
         }
         Ok(v)
     }
@@ -526,7 +569,7 @@ impl<'a> Loader<'a> {
             (None, None, None) => 0.1,
         };
         if a < 0.0 {
-            return Err(self.invalid(p.node.line, "alpha must not be negative"));
+            return Err(self.invalid(p.node.line, format!("roughness alpha {a} is negative")));
         }
         Ok(a)
     }
@@ -563,7 +606,8 @@ impl<'a> Loader<'a> {
             "ply" | "obj" => {
                 let file = self.string(&p, "filename")?.ok_or_else(|| self.invalid(n.line, format!("{} lacks <string name=\"filename\">", n.describe())))?;
                 let path = self.base.join(&file);
-                let raw = if ty == "ply" { ply::load(&path)? } else { obj::load(&path)? };
+                let bytes = (self.read_mesh)(&path).map_err(|source| SceneFileError::Io { path: path.clone(), source })?;
+                let raw = if ty == "ply" { ply::parse(&bytes, &path)? } else { obj::parse(&bytes, &path)? };
                 (raw, file, to_world)
             }
             "rectangle" => (shapes::rectangle(), "rectangle".to_string(), to_world),
@@ -571,8 +615,8 @@ impl<'a> Loader<'a> {
             "sphere" => {
                 let center = self.point(&p, "center")?.unwrap_or(DVec3::ZERO);
                 let radius = self.float(&p, "radius")?.unwrap_or(1.0);
-                if radius.is_nan() || radius <= 0.0 {
-                    return Err(self.invalid(n.line, "sphere radius must be positive"));
+                if !(radius > 0.0 && (radius as f32).is_normal()) {
+                    return Err(self.invalid(self.line_of(&p, "radius"), format!("sphere radius {} must be positive and finite in single precision", num(radius))));
                 }
                 let m = to_world * DMat4::from_translation(center) * DMat4::from_scale(DVec3::splat(radius));
                 (shapes::sphere(), "sphere".to_string(), m)
@@ -612,10 +656,7 @@ impl<'a> Loader<'a> {
                 return Err(self.unsupported(e, "only 'area' emitters can be attached to shapes"));
             }
             let ep = self.props(e);
-            let radiance = self.rgb(&ep, "radiance")?.ok_or_else(|| self.invalid(e.line, "area emitter lacks 'radiance'"))?;
-            if radiance.min_element() < 0.0 {
-                return Err(self.invalid(e.line, "area emitter radiance is negative"));
-            }
+            let radiance = self.emission(&ep, "radiance", None)?.ok_or_else(|| self.invalid(e.line, "area emitter lacks 'radiance'"))?;
             self.finish(&ep);
             emission = Some(radiance);
         }
@@ -731,26 +772,40 @@ impl<'a> Loader<'a> {
 
     // ---- analytic emitters ----------------------------------------------------------
 
+    /// The emission colour `name` of an analytic light (default 1): non-negative, finite
+    /// in single precision and not zero (a light must emit).
+    fn emitted(&self, p: &Props<'_>, name: &str) -> R<DVec3> {
+        let v = self.emission(p, name, Some(DVec3::ONE))?.unwrap_or(DVec3::ONE);
+        if v.max_element() <= 0.0 {
+            return Err(self.invalid(self.line_of(p, name), format!("'{name}' is zero: the light emits no power")));
+        }
+        Ok(v)
+    }
+
     fn emitter(&mut self, n: &Node) -> R<()> {
         let ty = n.attr("type").unwrap_or("");
         let p = self.props(n);
         let light = match ty {
             "point" => {
-                let intensity = self.rgb(&p, "intensity")?.unwrap_or(DVec3::ONE);
+                let intensity = self.emitted(&p, "intensity")?;
                 let pos = self.point(&p, "position")?;
                 let m = self.transform(&p, "to_world")?.unwrap_or(DMat4::IDENTITY);
-                Light::Point(PointLight { position: m.transform_point3(pos.unwrap_or(DVec3::ZERO)), intensity })
+                let position = m.transform_point3(pos.unwrap_or(DVec3::ZERO));
+                if !position.as_vec3().is_finite() {
+                    return Err(self.invalid(self.line_of(&p, "position"), "the point light's 'position' is not finite (in single precision) after its to_world"));
+                }
+                Light::Point(PointLight { position, intensity })
             }
             "spot" => {
-                let intensity = self.rgb(&p, "intensity")?.unwrap_or(DVec3::ONE);
+                let intensity = self.emitted(&p, "intensity")?;
                 let m = self.transform(&p, "to_world")?.unwrap_or(DMat4::IDENTITY);
                 let cutoff = self.float(&p, "cutoff_angle")?.unwrap_or(20.0);
                 let beam = self.float(&p, "beam_width")?.unwrap_or(cutoff * 0.75);
-                if !(cutoff > 0.0 && cutoff <= 180.0) {
-                    return Err(self.invalid(n.line, format!("spot cutoff_angle {cutoff} is outside (0, 180] degrees")));
+                if !(cutoff > 0.0 && cutoff <= 90.0) {
+                    return Err(self.invalid(n.line, format!("spot cutoff_angle {} is outside (0, 90] degrees", num(cutoff))));
                 }
                 if !(beam >= 0.0 && beam <= cutoff) {
-                    return Err(self.invalid(n.line, format!("spot beam_width {beam} is outside [0, cutoff_angle = {cutoff}] degrees")));
+                    return Err(self.invalid(n.line, format!("spot beam_width {} is outside [0, cutoff_angle = {}] degrees", num(beam), num(cutoff))));
                 }
                 let direction = m.transform_vector3(DVec3::Z).normalize_or_zero();
                 if direction == DVec3::ZERO {
@@ -767,7 +822,7 @@ impl<'a> Loader<'a> {
                 })
             }
             "directional" => {
-                let irradiance = self.rgb(&p, "irradiance")?.unwrap_or(DVec3::ONE);
+                let irradiance = self.emitted(&p, "irradiance")?;
                 let d = self.point(&p, "direction")?;
                 let m = self.transform(&p, "to_world")?;
                 let direction = match (d, m) {
@@ -784,6 +839,9 @@ impl<'a> Loader<'a> {
             "area" => return Err(self.unsupported(n, "an area emitter must be nested in a <shape>")),
             _ => return Err(self.unsupported(n, "supported emitters: point, spot, directional, and area inside a shape")),
         };
+        // What the per-field checks above cannot see (a position that overflows under
+        // to_world, ...); the scene radius matters only to directional lights' bounds.
+        light.validate(1.0).map_err(|e| self.invalid(n.line, format!("{}: {e}", n.describe())))?;
         self.finish(&p);
         self.lights.push(light);
         Ok(())
@@ -820,8 +878,8 @@ pub(crate) fn tilted_normal_area_fraction(positions: &[DVec3], normals: &[DVec3]
 }
 
 /// Loads a scene from its XML text; `path` names it in messages and its directory
-/// resolves mesh file names.
-pub(crate) fn load_str(text: &str, path: &Path, defines: &[(String, String)]) -> R<LoadedScene> {
+/// resolves mesh file names, which `read_mesh` reads.
+pub(crate) fn load_str(text: &str, path: &Path, defines: &[(String, String)], read_mesh: MeshReader<'_>) -> R<LoadedScene> {
     let mut root = xml::parse(text, path)?;
     let mut params: HashMap<String, String> = HashMap::new();
     for c in root.children.iter().filter(|c| c.tag == "default") {
@@ -837,6 +895,7 @@ pub(crate) fn load_str(text: &str, path: &Path, defines: &[(String, String)]) ->
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut l = Loader {
         path,
+        read_mesh,
         base,
         warnings: Vec::new(),
         bsdfs: HashMap::new(),

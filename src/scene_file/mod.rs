@@ -27,7 +27,7 @@
 //! | `<ref id>` / `id` | top-level bsdfs by id; a shape without a bsdf is diffuse 0.5 (Mitsuba's default) |
 //! | `<emitter type="area">` in a shape | [`TriangleMesh::emission`] = `radiance`, one-sided on the geometric-normal side `cross(p1−p0, p2−p0)` (the shared scenes' convention); zero total area is an error; a warning if the stored normals point the other way |
 //! | `point` | [`PointLight`](arpa_core::emission::PointLight): `intensity` (W/sr), `position` or `to_world` |
-//! | `spot` | [`SpotLight`](arpa_core::emission::SpotLight): `to_world` (+z is the axis), `intensity`, `cutoff_angle` (default 20°) and `beam_width` (default ¾ cutoff) in degrees → radians, [`SpotFalloff::LinearAngle`](arpa_core::emission::SpotFalloff) (Mitsuba's curve) |
+//! | `spot` | [`SpotLight`](arpa_core::emission::SpotLight): `to_world` (+z is the axis), `intensity`, `cutoff_angle` (default 20°, in (0°, 90°]) and `beam_width` (default ¾ cutoff, in [0, cutoff]) in degrees → radians, [`SpotFalloff::LinearAngle`](arpa_core::emission::SpotFalloff) (Mitsuba's curve) |
 //! | `directional` | [`DirectionalLight`](arpa_core::emission::DirectionalLight): `direction` or `to_world` +z, `irradiance` |
 //! | `<sensor type="perspective">` | [`Camera`](arpa_core::scene::Camera) from `to_world` in Mitsuba's convention (camera +z forward, +y up, +x *left*; a mirrored frame is an error); `fov` with `fov_axis` x (Mitsuba's default), y, diagonal, smaller, larger, converted to the vertical FOV; film `width`/`height` (default 768×576) |
 //! | colours | `<rgb value="r, g, b">`, `<rgb value="v">`, `<float>`, constant `<spectrum value="v">` |
@@ -42,8 +42,30 @@
 //! ([`LoadedScene::warnings`]). Malformed XML, PLY or OBJ, missing files, non-finite
 //! vertices and zero-area emitters are [`SceneFileError`]s naming the file and the
 //! problem. The loaded scene is checked with [`Scene::validate`] before it is returned.
+//!
+//! ## Numeric fields
+//!
+//! Every number is checked where it is read, and a bad one is an error naming the line and
+//! the field: NaN and ±∞ anywhere; `fov` outside (0, 180) (or a vertical field of view
+//! that rounds to 0); film `width`/`height` outside 1..=16384; a transform operation that
+//! is not finite, a composed transform that overflows or is singular (determinant 0 or
+//! subnormal: it flattens space, so normals and camera frames are undefined); `int_ior`,
+//! `ext_ior` not positive (and their ratio not a positive single-precision number);
+//! reflectances and `specular_transmittance` outside [0, 1]; negative `alpha`;
+//! `intensity`, `irradiance` and `radiance` negative or beyond single precision, and zero
+//! for point, spot and directional lights (they must emit); spot angles as above; a sphere
+//! `radius` not positive or beyond single precision; a point light whose `position`
+//! overflows under its `to_world`; and vertex positions or normals that are not finite in
+//! a PLY or OBJ file or after the shape's `to_world`.
+//!
+//! ## Fuzzing
+//!
+//! The parsers of all three formats are fuzzed (`scripts/fuzz.sh`, cargo-fuzz on nightly)
+//! through [`fuzzing`], which loads from memory: [`load_scene_bytes`], [`parse_ply`] and
+//! [`parse_obj`] are the file-system-free entry points.
 
 mod error;
+pub mod fuzzing;
 mod mitsuba;
 mod obj;
 mod ply;
@@ -60,12 +82,37 @@ use arpa_core::scene::{Material, TriangleMesh};
 use glam::DVec3;
 use std::path::{Path, PathBuf};
 
-/// A mesh as read from a file or generated, before `to_world`.
-pub(crate) struct RawMesh {
+/// A mesh as read from a PLY or OBJ file (or generated for a built-in shape), in object
+/// space before the shape's `to_world`: what [`parse_ply`] and [`parse_obj`] return. Not yet
+/// checked for non-finite vertices (the scene loader does that when it places the mesh).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RawMesh {
+    /// Vertex positions as stored.
     pub positions: Vec<DVec3>,
+    /// Per-vertex normals as stored, if every vertex has one.
     pub normals: Option<Vec<DVec3>>,
+    /// Triangles (polygons fan-triangulated); every index is below `positions.len()`.
     pub indices: Vec<[u32; 3]>,
 }
+
+/// Parses a PLY mesh (ASCII or binary, either byte order) from memory; `path` names the
+/// file in errors. The scene loader reads mesh files through this, so it is also the entry
+/// point of the `ply` fuzz target and its regression tests.
+pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<RawMesh, SceneFileError> {
+    ply::parse(bytes, path)
+}
+
+/// Parses a Wavefront OBJ mesh from memory (`.mtl` libraries ignored); `path` names the
+/// file in errors. The scene loader reads mesh files through this, so it is also the entry
+/// point of the `obj` fuzz target and its regression tests.
+pub fn parse_obj(bytes: &[u8], path: &Path) -> Result<RawMesh, SceneFileError> {
+    obj::parse(bytes, path)
+}
+
+/// Reads a mesh file named by a scene (`<string name="filename">`, resolved against the
+/// scene file's directory). [`load_scene`] reads the file system; [`load_scene_bytes`] takes
+/// any reader, e.g. in-memory files for fuzzing and tests.
+pub type MeshReader<'a> = &'a dyn Fn(&Path) -> std::io::Result<Vec<u8>>;
 
 /// Which image axis a Mitsuba `fov` spans.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -136,18 +183,26 @@ impl LoadedScene {
 /// `<default>`s. Mesh file names are relative to the scene file's directory.
 pub fn load_scene(path: &Path, defines: &[(String, String)]) -> Result<LoadedScene, SceneFileError> {
     let bytes = std::fs::read(path).map_err(|source| SceneFileError::Io { path: path.to_path_buf(), source })?;
-    let text = String::from_utf8(bytes).map_err(|e| {
-        let before = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+    load_scene_bytes(&bytes, path, defines, &|p| std::fs::read(p))
+}
+
+/// Loads a scene from the bytes of its XML file; `path` names it in messages and its
+/// directory resolves mesh file names, which `read_mesh` reads. This is [`load_scene`]
+/// without the file system: the `scene_xml` fuzz target and its regression tests load
+/// through it with in-memory meshes.
+pub fn load_scene_bytes(bytes: &[u8], path: &Path, defines: &[(String, String)], read_mesh: MeshReader<'_>) -> Result<LoadedScene, SceneFileError> {
+    let text = std::str::from_utf8(bytes).map_err(|e| {
+        let before = &bytes[..e.valid_up_to()];
         let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
         SceneFileError::Xml { path: path.to_path_buf(), line, message: "the file is not UTF-8 text".into() }
     })?;
-    load_scene_str(&text, path, defines)
+    mitsuba::load_str(text, path, defines, read_mesh)
 }
 
 /// Loads a scene from XML text; `path` names it in messages and its directory resolves
-/// mesh file names.
+/// mesh file names (read from the file system).
 pub fn load_scene_str(text: &str, path: &Path, defines: &[(String, String)]) -> Result<LoadedScene, SceneFileError> {
-    mitsuba::load_str(text, path, defines)
+    mitsuba::load_str(text, path, defines, &|p| std::fs::read(p))
 }
 
 /// Parses a `-D` argument `name=value`.

@@ -7,13 +7,18 @@ use super::error::SceneFileError;
 use glam::DVec3;
 use std::path::Path;
 
-/// Loads `path`.
-pub(crate) fn load(path: &Path) -> Result<RawMesh, SceneFileError> {
-    // Distinguish a missing/unreadable file (I/O error) from a malformed one.
-    std::fs::metadata(path).map_err(|source| SceneFileError::Io { path: path.to_path_buf(), source })?;
+/// Parses the OBJ file `bytes`; `path` names it in errors. `mtllib` lines are ignored
+/// (the loader never opens material libraries).
+pub(crate) fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh, SceneFileError> {
     let err = |message: String| SceneFileError::Obj { path: path.to_path_buf(), message };
+    let text = std::str::from_utf8(bytes).map_err(|e| {
+        let line = bytes[..e.valid_up_to()].iter().filter(|&&b| b == b'\n').count() + 1;
+        err(format!("line {line}: not UTF-8 text"))
+    })?;
+    check_references(text).map_err(err)?;
     let options = tobj::LoadOptions { single_index: true, triangulate: true, ignore_points: true, ignore_lines: true };
-    let loaded = std::panic::catch_unwind(|| tobj::load_obj(path, &options)).map_err(|_| err("the OBJ parser failed on this file".into()))?;
+    let no_materials = |_: &Path| -> tobj::MTLLoadResult { Err(tobj::LoadError::OpenFileFailed) };
+    let loaded = std::panic::catch_unwind(|| tobj::load_obj_buf(&mut &bytes[..], &options, no_materials)).map_err(|_| err("the OBJ parser failed on this file".into()))?;
     let (models, _materials) = loaded.map_err(|e| err(format!("cannot parse: {e}")))?;
     let mut out = RawMesh { positions: Vec::new(), normals: Some(Vec::new()), indices: Vec::new() };
     for m in &models {
@@ -40,4 +45,50 @@ pub(crate) fn load(path: &Path) -> Result<RawMesh, SceneFileError> {
         return Err(err("no faces".into()));
     }
     Ok(out)
+}
+
+/// Checks that every vertex reference of every face (`f`) and line (`l`) element names an
+/// existing position, texture coordinate or normal before `tobj` resolves it: `tobj`
+/// computes with out-of-range references unchecked (an index overflow, found by fuzzing).
+/// A relative (negative) index counts back from the elements defined so far; an absolute
+/// one must not exceed the file's count (`tobj` resolves them after reading the file).
+/// `Err` names the line, the reference and the problem.
+fn check_references(text: &str) -> Result<(), String> {
+    const KINDS: [(&str, &str); 3] = [("v", "vertex position"), ("vt", "texture coordinate"), ("vn", "normal")];
+    let kind = |word: Option<&str>| KINDS.iter().position(|(k, _)| Some(*k) == word);
+    let mut total = [0usize; 3];
+    for line in text.lines() {
+        if let Some(k) = kind(line.split_whitespace().next()) {
+            total[k] += 1;
+        }
+    }
+    let mut seen = [0usize; 3];
+    for (number, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        let first = words.next();
+        if let Some(k) = kind(first) {
+            seen[k] += 1;
+            continue;
+        }
+        if !matches!(first, Some("f" | "l")) {
+            continue;
+        }
+        for word in words {
+            for (k, field) in word.split('/').enumerate().take(3) {
+                // Malformed numbers are tobj's to report.
+                let Ok(x) = field.parse::<i64>() else { continue };
+                let (name, line) = (KINDS[k].1, number + 1);
+                if x == 0 {
+                    return Err(format!("line {line}: '{word}' has {name} index 0 (OBJ indices start at 1, or count back from -1)"));
+                }
+                if x < 0 && x.unsigned_abs() > seen[k] as u64 {
+                    return Err(format!("line {line}: '{word}' has relative {name} index {x}, but only {} precede it", seen[k]));
+                }
+                if x > 0 && x as u64 > total[k] as u64 {
+                    return Err(format!("line {line}: '{word}' has {name} index {x}, but the file has {}", total[k]));
+                }
+            }
+        }
+    }
+    Ok(())
 }

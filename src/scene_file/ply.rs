@@ -8,8 +8,8 @@ use super::RawMesh;
 use super::error::SceneFileError;
 use glam::DVec3;
 use ply_rs::parser::Parser;
-use ply_rs::ply::{DefaultElement, ElementDef, Property, PropertyAccess, PropertyType, ScalarType};
-use std::io::{BufReader, ErrorKind};
+use ply_rs::ply::{DefaultElement, ElementDef, Encoding, Property, PropertyAccess, PropertyType, ScalarType};
+use std::io::ErrorKind;
 use std::path::Path;
 
 #[derive(Default)]
@@ -84,23 +84,80 @@ fn has_scalar(def: &ElementDef, name: &str) -> bool {
     def.properties.get(name).is_some_and(|p| matches!(p.data_type, PropertyType::Scalar(_)))
 }
 
-/// Loads `path`.
-pub(crate) fn load(path: &Path) -> Result<RawMesh, SceneFileError> {
-    let file = std::fs::File::open(path).map_err(|source| SceneFileError::Io { path: path.to_path_buf(), source })?;
-    // ply-rs is not known to panic, but a malformed file must never take the program down.
-    std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| read(BufReader::new(file), path)))
-        .unwrap_or_else(|_| Err(ply_err(path, "the PLY parser failed on this file".into())))
+/// Parses the PLY file `bytes`; `path` names it in errors.
+pub(crate) fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh, SceneFileError> {
+    // The checks in `read` keep ply-rs off the inputs fuzzing found it to panic on; should it
+    // panic on another, a malformed file must still not take the program down.
+    std::panic::catch_unwind(|| read(bytes, path)).unwrap_or_else(|_| Err(ply_err(path, "the PLY parser failed on this file".into())))
 }
 
 fn ply_err(path: &Path, message: String) -> SceneFileError {
     SceneFileError::Ply { path: path.to_path_buf(), message }
 }
 
-fn read<R: std::io::BufRead>(mut r: R, path: &Path) -> Result<RawMesh, SceneFileError> {
+/// Rejects header numbers `ply-rs` cannot hold: its grammar unwraps the parse of every
+/// `element` count and `format` version number as a `u64` and panics on a larger one
+/// (found by fuzzing). Checks the leading digits of every word after `element` or
+/// `format` on each header line; `Err` names the line.
+fn check_header_numbers(bytes: &[u8]) -> Result<(), String> {
+    for (number, line) in bytes.split(|&b| b == b'\n').enumerate() {
+        let line = String::from_utf8_lossy(line);
+        let mut words = line.split([' ', '\t', '\r']).filter(|w| !w.is_empty());
+        match words.next() {
+            Some("end_header") => break,
+            Some("element" | "format") => {}
+            _ => continue,
+        }
+        for part in words.flat_map(|w| w.split('.')) {
+            let digits = part.find(|c: char| !c.is_ascii_digit()).map_or(part, |end| &part[..end]);
+            if !digits.is_empty() && digits.parse::<u64>().is_err() {
+                return Err(format!("header line {}: the number {digits} is too large", number + 1));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Smallest number of payload bytes one element of `def` takes: the sizes of its scalars
+/// and list counts in a binary file; in an ASCII file one character and a separator per
+/// property (at least the line break).
+fn min_element_bytes(def: &ElementDef, encoding: Encoding) -> u128 {
+    let size = |t: &ScalarType| match t {
+        ScalarType::Char | ScalarType::UChar => 1,
+        ScalarType::Short | ScalarType::UShort => 2,
+        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
+        ScalarType::Double => 8,
+    };
+    match encoding {
+        Encoding::Ascii => 2 * (def.properties.len() as u128).max(1),
+        Encoding::BinaryBigEndian | Encoding::BinaryLittleEndian => def
+            .properties
+            .values()
+            .map(|p| match &p.data_type {
+                PropertyType::Scalar(t) | PropertyType::List(t, _) => size(t),
+            })
+            .sum::<u128>()
+            .max(1),
+    }
+}
+
+fn read(mut r: &[u8], path: &Path) -> Result<RawMesh, SceneFileError> {
     let err = |m: String| ply_err(path, m);
     let vparser = Parser::<Vertex>::new();
     let fparser = Parser::<Face>::new();
+    check_header_numbers(r).map_err(err)?;
     let header = vparser.read_header(&mut r).map_err(|e| err(format!("bad header: {}", e.to_string().replace('\n', " ").replace('\t', ""))))?;
+    // ply-rs reads `count` elements whatever the file holds: an element of no properties
+    // costs no bytes, so a huge count would loop and allocate without end. Every element
+    // needs at least `min_element_bytes` of the payload (+1: the last line break).
+    let payload = r.len() as u128;
+    let mut needed = 0u128;
+    for (name, def) in &header.elements {
+        needed += def.count as u128 * min_element_bytes(def, header.encoding);
+        if needed > payload + 1 {
+            return Err(err(format!("file ends early (truncated?): the header declares {} '{name}' elements, more than the {payload} bytes after the header can hold", def.count)));
+        }
+    }
     let vdef = header.elements.get("vertex").ok_or_else(|| err("no 'vertex' element".into()))?;
     if !["x", "y", "z"].iter().all(|k| has_scalar(vdef, k)) {
         return Err(err("the 'vertex' element lacks scalar x, y, z properties".into()));

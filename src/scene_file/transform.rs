@@ -41,7 +41,8 @@ fn vec_attr(n: &Node, key: &str) -> Result<DVec3, String> {
     let s = n.attr(key).ok_or_else(|| format!("<{}> lacks the attribute '{key}'", n.tag))?;
     let v = numbers(s)?;
     match v.as_slice() {
-        [x, y, z] => Ok(DVec3::new(*x, *y, *z)),
+        [x, y, z] if [x, y, z].iter().all(|c| c.is_finite()) => Ok(DVec3::new(*x, *y, *z)),
+        [_, _, _] => Err(format!("<{}> attribute '{key}' is not finite: '{s}'", n.tag)),
         _ => Err(format!("<{}> attribute '{key}' needs 3 numbers, found '{s}'", n.tag)),
     }
 }
@@ -100,10 +101,23 @@ pub(crate) fn parse_transform(t: &Node) -> Result<DMat4, (usize, String)> {
             }
             other => return Err(e(format!("unsupported transform operation <{other}> (supported: translate, rotate, scale, matrix, lookat)"))),
         };
+        if !next.is_finite() {
+            return Err(e(format!("<{}> is not finite (NaN or infinite values)", op.tag)));
+        }
         m = next * m;
+        if !m.is_finite() {
+            return Err(e(format!("the transform overflows at <{}> (not finite)", op.tag)));
+        }
     }
-    if !m.is_finite() {
-        return Err((t.line, "transform is not finite".into()));
+    // A singular linear part flattens space: shapes lose their area and normals (the
+    // inverse transpose) are undefined; a camera or light has no frame.
+    let linear = DMat3::from_mat4(m);
+    let det = linear.determinant();
+    if det.is_infinite() {
+        return Err((t.line, format!("the transform's scale overflows (determinant {det:e})")));
+    }
+    if !det.is_normal() || !linear.inverse().is_finite() {
+        return Err((t.line, format!("the transform is singular (determinant {det:e}): it maps space onto a plane, line or point")));
     }
     Ok(m)
 }

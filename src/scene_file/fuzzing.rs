@@ -1,0 +1,112 @@
+//! Entry points of the loaders' fuzz targets (`fuzz/`, run by `scripts/fuzz.sh` under
+//! cargo-fuzz) and of their regression tests on stable (`tests/fuzz_regressions.rs`), so
+//! both run exactly the same code.
+//!
+//! Each entry point loads through the code [`load_scene`](super::load_scene) runs (XML,
+//! PLY and OBJ parsing, `to_world`, the loader's checks, [`Scene::validate`]) with mesh
+//! files in memory instead of on disk, then prepares the loaded scene for rendering
+//! ([`PreparedScene::new`]), as a render would. Any input must give `Ok` or an error that
+//! names the file ([`error_names_file`]); a panic, hang or runaway allocation is a bug.
+
+use super::{LoadedScene, SceneFileError, load_scene_bytes};
+use arpa_core::prepared_scene::PreparedScene;
+#[cfg(doc)]
+use arpa_core::scene::Scene;
+use std::io::{Error, ErrorKind};
+use std::path::Path;
+
+/// Name of the scene file in the fuzzing entry points' messages.
+pub const SCENE_PATH: &str = "fuzz/scene.xml";
+
+/// Name under which [`ply`] serves its input to the scene.
+pub const PLY_PATH: &str = "fuzz/mesh.ply";
+
+/// Name under which [`obj`] serves its input to the scene.
+pub const OBJ_PATH: &str = "fuzz/mesh.obj";
+
+/// The mesh [`scene_xml`] serves for every `.ply` file a scene names: a unit square of two
+/// triangles with normals, so the shared scenes load past their mesh references.
+pub const SMALL_PLY: &str = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n-1 -1 0 0 0 1\n1 -1 0 0 0 1\n1 1 0 0 0 1\n-1 1 0 0 0 1\n3 0 1 2\n3 0 2 3\n";
+
+/// The mesh [`scene_xml`] serves for every `.obj` file a scene names (the square of
+/// [`SMALL_PLY`], one quad).
+pub const SMALL_OBJ: &str = "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvn 0 0 1\nf 1//1 2//1 3//1 4//1\n";
+
+/// A scene that uses the mesh file `file` twice: as a plain diffuse shape with its stored
+/// normals, then flipped as an area emitter (which checks its area and normal sides).
+fn mesh_scene(kind: &str, file: &str) -> String {
+    format!(
+        r#"<scene version="3.0.0">
+  <sensor type="perspective">
+    <float name="fov" value="45"/>
+    <transform name="to_world"><lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="6"/></film>
+  </sensor>
+  <shape type="{kind}"><string name="filename" value="{file}"/></shape>
+  <shape type="{kind}">
+    <string name="filename" value="{file}"/>
+    <boolean name="flip_normals" value="true"/>
+    <emitter type="area"><rgb name="radiance" value="1, 2, 3"/></emitter>
+  </shape>
+</scene>
+"#
+    )
+}
+
+/// Loads with meshes from `read` and prepares the result for rendering.
+fn load_and_prepare(xml: &[u8], read: &dyn Fn(&Path) -> std::io::Result<Vec<u8>>) -> Result<LoadedScene, SceneFileError> {
+    let path = Path::new(SCENE_PATH);
+    let loaded = load_scene_bytes(xml, path, &[], read)?;
+    PreparedScene::new(loaded.scene.clone()).map_err(|source| SceneFileError::Scene { path: path.to_path_buf(), source })?;
+    Ok(loaded)
+}
+
+/// The `scene_xml` target: `data` is a Mitsuba XML scene file; every `.ply` or `.obj` it
+/// names is [`SMALL_PLY`] or [`SMALL_OBJ`], any other file does not exist.
+pub fn scene_xml(data: &[u8]) -> Result<LoadedScene, SceneFileError> {
+    load_and_prepare(data, &|p: &Path| match p.extension().and_then(|e| e.to_str()) {
+        Some("ply") => Ok(SMALL_PLY.as_bytes().to_vec()),
+        Some("obj") => Ok(SMALL_OBJ.as_bytes().to_vec()),
+        _ => Err(Error::new(ErrorKind::NotFound, "no such file (fuzzing serves only .ply and .obj meshes)")),
+    })
+}
+
+/// Serves `data` as the one mesh file `name` of a scene.
+fn mesh_file(data: &[u8], kind: &str, name: &str) -> Result<LoadedScene, SceneFileError> {
+    let file = Path::new(name).file_name().and_then(|f| f.to_str()).unwrap_or(name);
+    let xml = mesh_scene(kind, file);
+    load_and_prepare(xml.as_bytes(), &|p: &Path| if p == Path::new(name) { Ok(data.to_vec()) } else { Err(Error::new(ErrorKind::NotFound, "no such file")) })
+}
+
+/// The `ply` target: `data` is a PLY file (ASCII or binary) used by a small scene
+/// ([`PLY_PATH`]).
+pub fn ply(data: &[u8]) -> Result<LoadedScene, SceneFileError> {
+    mesh_file(data, "ply", PLY_PATH)
+}
+
+/// The `obj` target: `data` is a Wavefront OBJ file used by a small scene ([`OBJ_PATH`]).
+pub fn obj(data: &[u8]) -> Result<LoadedScene, SceneFileError> {
+    mesh_file(data, "obj", OBJ_PATH)
+}
+
+/// Whether the message of `e` names the file it concerns: the scene file, or a mesh file
+/// it names (every loader error must; the fuzz targets and their regression tests assert
+/// it). [`SceneFileError::BadDefine`] concerns a command-line argument, not a file, and the
+/// entry points never give it.
+pub fn error_names_file(e: &SceneFileError) -> bool {
+    use SceneFileError as E;
+    let path = match e {
+        E::Io { path, .. }
+        | E::Xml { path, .. }
+        | E::Unsupported { path, .. }
+        | E::Invalid { path, .. }
+        | E::UndefinedVariable { path, .. }
+        | E::Ply { path, .. }
+        | E::Obj { path, .. }
+        | E::Mesh { path, .. }
+        | E::Scene { path, .. } => path,
+        E::BadDefine(_) => return false,
+    };
+    let name = path.to_string_lossy();
+    !name.is_empty() && e.to_string().contains(&*name)
+}
