@@ -8,7 +8,7 @@
 //! For every scene and both methods (`arpa`, `rtpm`), with default [`RenderSettings`],
 //! seed 1 and 250,000 photons per iteration:
 //! - the rays of iteration 0's photon pass are recorded in photon order (origin,
-//!   direction, `t_max`, through a wrapping [`RayCaster`]);
+//!   direction, `t_min`, `t_max`, through a wrapping [`RayCaster`]);
 //! - `raw`: those rays replayed through [`arpa::cpu::EmbreeScene::intersect`] (`rtcIntersect1`
 //!   on the caster's own BVH), ns per ray;
 //! - `pass`: [`CpuTracer::photon_pass`] of iteration 0 on a one-thread rayon pool, ns per
@@ -48,6 +48,7 @@ const T_NEAR: f32 = f32::MIN_POSITIVE;
 struct Segment {
     origin: [f32; 3],
     direction: [f32; 3],
+    t_min: f32,
     t_max: f32,
 }
 
@@ -58,12 +59,12 @@ struct Recorder<'a> {
 }
 
 impl RayCaster for Recorder<'_> {
-    fn intersect(&self, origin: Vec3, direction: Vec3, t_max: f32) -> Option<RayHit> {
-        self.log.lock().expect("recorder lock").push(Segment { origin: origin.to_array(), direction: direction.to_array(), t_max });
-        self.inner.intersect(origin, direction, t_max)
+    fn intersect(&self, origin: Vec3, direction: Vec3, t_min: f32, t_max: f32) -> Option<RayHit> {
+        self.log.lock().expect("recorder lock").push(Segment { origin: origin.to_array(), direction: direction.to_array(), t_min, t_max });
+        self.inner.intersect(origin, direction, t_min, t_max)
     }
-    fn occluded(&self, origin: Vec3, direction: Vec3, t_max: f32) -> bool {
-        self.inner.occluded(origin, direction, t_max)
+    fn occluded(&self, origin: Vec3, direction: Vec3, t_min: f32, t_max: f32) -> bool {
+        self.inner.occluded(origin, direction, t_min, t_max)
     }
 }
 
@@ -113,7 +114,7 @@ fn measure(cfg: &Config, name: &str, path: &Path, method: Method) -> Row {
         let t0 = Instant::now();
         let hits = segments
             .iter()
-            .filter(|r| matches!(embree.intersect(r.origin, r.direction, T_NEAR, r.t_max), Ok(Some(_))))
+            .filter(|r| matches!(embree.intersect(r.origin, r.direction, r.t_min.max(T_NEAR), r.t_max), Ok(Some(_))))
             .count();
         raw = raw.min(t0.elapsed().as_secs_f64());
         std::hint::black_box(hits);

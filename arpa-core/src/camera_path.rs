@@ -13,8 +13,8 @@ use crate::differential::{refract_direction, reflect_direction, RefractionEvent}
 use crate::emission::Light;
 use crate::fresnel::dielectric_reflectance;
 use crate::lambertian::DiffuseShading;
-use crate::prepared_scene::{offset_origin, PreparedScene, SurfacePoint};
-use crate::ray_cast::RayCaster;
+use crate::prepared_scene::{PreparedScene, SurfacePoint};
+use crate::ray_cast::{RayCaster, RayStart, TriangleId};
 use crate::rng::{Rng, StreamDomain};
 use crate::sampling::uniform_triangle;
 use crate::scene::Scattering;
@@ -30,12 +30,12 @@ pub fn trace_camera_path(scene: &PreparedScene, caster: &impl RayCaster, setting
     let (px, py) = (pixel % cam.width, pixel / cam.width);
     let jitter = rng.next_2d();
     let mut dir = frame.direction(px as f32 + jitter.x as f32, py as f32 + jitter.y as f32, cam.width, cam.height).as_dvec3();
-    let mut origin = cam.position;
+    let mut start = RayStart::at(cam.position);
     let mut throughput = DVec3::ONE;
     let mut radiance = DVec3::ZERO;
     let mut record = QueryRecord { pixel, ..QueryRecord::default() };
     for _ in 0..settings.max_depth {
-        let Some(hit) = caster.intersect(origin, dir.as_vec3(), f32::INFINITY) else { break };
+        let Some(hit) = start.intersect(caster, dir.as_vec3(), f32::INFINITY) else { break };
         scene.prefetch_hit(&hit);
         let s = scene.surface(&hit);
         let front = if dir.dot(s.geometric_normal) < 0.0 { s.geometric_normal } else { -s.geometric_normal };
@@ -64,7 +64,7 @@ pub fn trace_camera_path(scene: &PreparedScene, caster: &impl RayCaster, setting
                 throughput *= reflectance.as_dvec3();
                 let n = shading_normal(scene, &s);
                 dir = reflect_direction(dir, n).normalize_or(dir);
-                origin = offset_origin(s.position, front);
+                start = leave(&s);
             }
             Scattering::Refractive(ior, transmittance) => {
                 let ior = ior as f64;
@@ -72,14 +72,14 @@ pub fn trace_camera_path(scene: &PreparedScene, caster: &impl RayCaster, setting
                 let fresnel = dielectric_reflectance(dir.dot(n), ior);
                 if rng.next_f64() < fresnel {
                     dir = reflect_direction(dir, n).normalize_or(dir);
-                    origin = offset_origin(s.position, front);
+                    start = leave(&s);
                 } else {
                     let (t, event, eta) = refract_direction(dir, n, ior);
                     if event == RefractionEvent::Transmitted {
                         throughput *= transmittance.as_dvec3() * (eta * eta);
-                        origin = offset_origin(s.position, -front);
+                        start = leave(&s);
                     } else {
-                        origin = offset_origin(s.position, front);
+                        start = leave(&s);
                     }
                     dir = t;
                 }
@@ -94,6 +94,11 @@ pub fn trace_camera_path(scene: &PreparedScene, caster: &impl RayCaster, setting
     record
 }
 
+/// The start of a ray leaving the surface point `s` (either side).
+fn leave(s: &SurfacePoint) -> RayStart {
+    RayStart::leaving(s.position, TriangleId { mesh: s.mesh, triangle: s.triangle })
+}
+
 fn shading_normal(scene: &PreparedScene, s: &SurfacePoint) -> DVec3 {
     scene.shading_normal(s, DVec3::ZERO, DVec3::ZERO).map(|n| n.n).unwrap_or(s.geometric_normal)
 }
@@ -106,14 +111,13 @@ fn shading_normal(scene: &PreparedScene, s: &SurfacePoint) -> DVec3 {
 /// ([`DiffuseShading::cosine`]), as in Mitsuba 3; with `shading.shading = shading.geometric`
 /// this is the plain `E = ∫ L cos θ dω`.
 pub fn direct_irradiance(scene: &PreparedScene, caster: &impl RayCaster, s: &SurfacePoint, shading: &DiffuseShading, rng: &mut Rng) -> DVec3 {
-    let front = shading.geometric;
     let p = s.position;
-    let from = offset_origin(p, front);
+    let from = leave(s);
     let mut e = DVec3::ZERO;
     let visible = |to: DVec3| {
-        let d = to - from.as_dvec3();
+        let d = to - from.origin.as_dvec3();
         let dist = d.length();
-        dist > 0.0 && !caster.occluded(from, (d / dist).as_vec3(), (dist * (1.0 - 1e-4)) as f32)
+        dist > 0.0 && !from.occluded(caster, (d / dist).as_vec3(), (dist * (1.0 - 1e-4)) as f32)
     };
     for light in scene.emitters() {
         match light {

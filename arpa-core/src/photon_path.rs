@@ -10,14 +10,14 @@
 //! backend's implementation.
 
 use crate::classify::{PathClassifier, SurfaceInteraction};
-use crate::differential::{refract_direction, reflect_direction, DifferentialError, NormalDifferential, RayDifferential, RefractionEvent};
+use crate::differential::{refract_direction, reflect_direction, DifferentialError, NormalDifferential, RayDifferential};
 use crate::emission::{EmissionParams, PreparedLight};
 use crate::footprint::{Footprint, PhotonMap};
 use crate::fresnel::dielectric_reflectance;
 use crate::heuristics::ResolvedHeuristics;
 use crate::lambertian::DiffuseShading;
-use crate::prepared_scene::{offset_origin, PreparedScene, SurfacePoint};
-use crate::ray_cast::{RayCaster, RayHit};
+use crate::prepared_scene::{PreparedScene, SurfacePoint};
+use crate::ray_cast::{RayCaster, RayHit, RayStart, TriangleId};
 use crate::reemission::{diffuse_direction_unit, reemit_unit};
 use crate::rng::{Rng, StreamDomain};
 use crate::scene::Scattering;
@@ -114,8 +114,8 @@ pub fn trace_photon(
     sink: &mut impl FnMut(StoredPhoton),
 ) -> PhotonPathStats {
     let Some(mut walk) = PhotonWalk::start(settings, setup, index) else { return PhotonPathStats::default() };
-    while let Some((origin, direction)) = walk.next_ray() {
-        let hit = caster.intersect(origin, direction, f32::INFINITY);
+    while let Some((start, direction)) = walk.next_ray() {
+        let hit = start.intersect(caster, direction, f32::INFINITY);
         if let Some(h) = &hit {
             scene.prefetch_hit(h);
         }
@@ -134,8 +134,8 @@ pub fn trace_photon(
 pub struct PhotonWalk {
     st: PathState,
     rng: Rng,
-    /// Origin of the next segment (metres, offset off the last surface).
-    origin: Vec3,
+    /// Start of the next segment (on the surface it leaves, which it skips).
+    start: RayStart,
     reemission_length: f64,
     max_depth: u32,
     stats: PhotonPathStats,
@@ -157,14 +157,14 @@ impl PhotonWalk {
         let differential_valid = settings.method == Method::Arpa;
         let st = PathState { ray: emitted.ray, differential_valid, flux: emitted.flux, classifier: PathClassifier::new() };
         // Area-light photons start on the emitter: leave it along its normal.
-        let origin = match emitted.surface_normal {
-            Some(n) => offset_origin(st.ray.p, n),
-            None => st.ray.p.as_vec3(),
+        let start = match emitted.surface_normal {
+            Some(n) => RayStart::off_surface(st.ray.p, n),
+            None => RayStart::at(st.ray.p.as_vec3()),
         };
         Some(Self {
             st,
             rng,
-            origin,
+            start,
             reemission_length: emitted.reemission_length,
             max_depth: settings.max_depth,
             stats: PhotonPathStats::default(),
@@ -172,12 +172,12 @@ impl PhotonWalk {
         })
     }
 
-    /// The next segment to cast, `(origin, unit direction)` in world space (metres), from
-    /// the origin to infinity; `None` once the path has ended (absorbed, escaped, or
+    /// The next segment to cast, `(start, unit direction)` in world space (metres), from
+    /// the start to infinity, cast with [`RayStart::intersect`]; `None` once the path has ended (absorbed, escaped, or
     /// `max_depth` segments cast).
     #[inline(always)]
-    pub fn next_ray(&self) -> Option<(Vec3, Vec3)> {
-        (!self.done && self.stats.segments < self.max_depth).then(|| (self.origin, self.st.ray.d.as_vec3()))
+    pub fn next_ray(&self) -> Option<(RayStart, Vec3)> {
+        (!self.done && self.stats.segments < self.max_depth).then(|| (self.start, self.st.ray.d.as_vec3()))
     }
 
     /// Counts of the path so far.
@@ -274,7 +274,7 @@ impl PhotonWalk {
                         lost_differential(s.position, dir)
                     }
                 };
-                self.origin = offset_origin(s.position, front);
+                self.start = leave(&s);
             }
             // Mirrors and dielectrics share the transfer, the shading normal's derivative
             // and the reflection: one inlined copy of each in the compiled pass instead of
@@ -299,7 +299,7 @@ impl PhotonWalk {
                 match refraction {
                     None => {
                         st.reflect(&ray_at_hit, nd, n);
-                        self.origin = offset_origin(s.position, front);
+                        self.start = leave(&s);
                     }
                     Some((ior, transmittance)) => {
                         st.flux *= transmittance.as_dvec3();
@@ -311,14 +311,19 @@ impl PhotonWalk {
                                 lost_differential(s.position, dir)
                             }
                         };
-                        let side = if event == RefractionEvent::Transmitted { -front } else { front };
-                        self.origin = offset_origin(s.position, side);
+                        self.start = leave(&s);
                     }
                 }
             }
         }
         true
     }
+}
+
+/// The start of a ray leaving the surface point `s` (either side).
+#[inline(always)]
+fn leave(s: &SurfacePoint) -> RayStart {
+    RayStart::leaving(s.position, TriangleId { mesh: s.mesh, triangle: s.triangle })
 }
 
 impl PathState {

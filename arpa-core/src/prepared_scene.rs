@@ -347,7 +347,10 @@ impl PreparedScene {
 }
 
 /// Offsets a ray origin off a surface along `normal` (oriented to the side the ray
-/// leaves towards) to avoid self-intersection in `f32`.
+/// leaves towards) by `1e-5 (1 + max |p_i|)` metres, to avoid self-intersection in `f32`.
+/// Only photons leaving an area light start so ([`crate::ray_cast::RayStart::off_surface`]);
+/// rays leaving a surface they hit start on it and skip its triangle
+/// ([`crate::ray_cast::RayStart::leaving`]), which glass thinner than this offset needs.
 #[inline]
 pub fn offset_origin(p: DVec3, normal: DVec3) -> Vec3 {
     let scale = 1e-5 * (1.0 + p.abs().max_element());

@@ -148,9 +148,11 @@ pub const RECORDS: WgslFile = WgslFile { name: "path/records.wgsl", source: incl
 /// `path/scene.wgsl`: bind group 0 of the camera and photon passes (bindings 1 to 4: the
 /// tables of [`crate::gpu::scene::SceneTables`]), `ArpaSceneHit`, `arpa_scene_hit`,
 /// `arpa_scene_miss`, `ArpaSurface`, `arpa_scene_surface`, `arpa_scene_triangle_vertices`,
-/// `arpa_scene_triangle_normals`, `arpa_offset_origin`, `ARPA_SCENE_T_MAX`. The backend's
-/// glue adds binding 0 (its acceleration structure over the triangles) and defines
-/// `arpa_scene_intersect` and `arpa_scene_occluded` (the file states their contract).
+/// `arpa_scene_triangle_normals`, `arpa_offset_origin`, `ARPA_SCENE_T_MAX`, and the ray
+/// starts of [`crate::ray_cast::RayStart`] (`ArpaRayStart`, `arpa_ray_start_*`,
+/// `arpa_start_intersect`, `arpa_start_occluded`). The backend's glue adds binding 0 (its
+/// acceleration structure over the triangles) and defines `arpa_scene_intersect` and
+/// `arpa_scene_occluded` with a `t_min` (the file states their contract).
 pub const SCENE: WgslFile = WgslFile { name: "path/scene.wgsl", source: include_str!("../shaders/path/scene.wgsl"), deps: &[&MATH, &RECORDS] };
 
 /// `path/camera_pass.wgsl`: per pixel `arpa_camera_trace` (group 1:

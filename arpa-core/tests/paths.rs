@@ -376,7 +376,7 @@ fn tilted_vertex_normals_reflect_photons_by_the_adjoint() {
 fn only_triangles_with_distinct_vertex_normals_are_shaded() {
     let hit = |scene: &PreparedScene| {
         let caster = BruteForceCaster::new(scene);
-        let h = arpa_core::ray_cast::RayCaster::intersect(&caster, Vec3::new(0.3, 2.0, 0.2), Vec3::NEG_Y, f32::INFINITY).unwrap();
+        let h = arpa_core::ray_cast::RayCaster::intersect(&caster, Vec3::new(0.3, 2.0, 0.2), Vec3::NEG_Y, 0.0, f32::INFINITY).unwrap();
         scene.surface(&h)
     };
     let tilted = tilted_plane_scene(4);

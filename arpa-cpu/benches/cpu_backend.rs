@@ -431,22 +431,24 @@ struct Recorder<'a> {
 struct Segment {
     origin: [f32; 3],
     direction: [f32; 3],
+    t_min: f32,
     t_max: f32,
 }
 
 impl RayCaster for Recorder<'_> {
-    fn intersect(&self, origin: Vec3, direction: Vec3, t_max: f32) -> Option<RayHit> {
-        let hit = self.inner.intersect(origin, direction, t_max);
+    fn intersect(&self, origin: Vec3, direction: Vec3, t_min: f32, t_max: f32) -> Option<RayHit> {
+        let hit = self.inner.intersect(origin, direction, t_min, t_max);
         let seg = Segment {
             origin: origin.to_array(),
             direction: direction.to_array(),
+            t_min,
             t_max,
         };
         self.log.lock().unwrap().push((seg, hit));
         hit
     }
-    fn occluded(&self, origin: Vec3, direction: Vec3, t_max: f32) -> bool {
-        self.inner.occluded(origin, direction, t_max)
+    fn occluded(&self, origin: Vec3, direction: Vec3, t_min: f32, t_max: f32) -> bool {
+        self.inner.occluded(origin, direction, t_min, t_max)
     }
 }
 
@@ -457,7 +459,7 @@ struct Replay<'a> {
 }
 
 impl RayCaster for Replay<'_> {
-    fn intersect(&self, _: Vec3, _: Vec3, _: f32) -> Option<RayHit> {
+    fn intersect(&self, _: Vec3, _: Vec3, _: f32, _: f32) -> Option<RayHit> {
         let i = self.next.fetch_add(1, Ordering::Relaxed);
         self.hits.get(i).copied().flatten()
     }
@@ -531,7 +533,7 @@ fn bench_rays(cfg: &Config, scene: &Scene, raw_rate: &mut [Rate; 2], pass_rate: 
     // `p`; returns the number of hits.
     let raw_replay = |p: &rayon::ThreadPool| {
         count_hits(p, &segments, |r| {
-            matches!(emb.intersect(r.origin, r.direction, T_NEAR, r.t_max), Ok(Some(_)))
+            matches!(emb.intersect(r.origin, r.direction, r.t_min.max(T_NEAR), r.t_max), Ok(Some(_)))
         })
     };
     for (k, p) in pools.iter().enumerate() {
@@ -552,7 +554,7 @@ fn bench_rays(cfg: &Config, scene: &Scene, raw_rate: &mut [Rate; 2], pass_rate: 
         let t = best_time(cfg, || {
             count_hits(p, &segments, |r| {
                 caster
-                    .intersect(Vec3::from_array(r.origin), Vec3::from_array(r.direction), r.t_max)
+                    .intersect(Vec3::from_array(r.origin), Vec3::from_array(r.direction), r.t_min, r.t_max)
                     .is_some()
             })
         });
@@ -567,7 +569,7 @@ fn bench_rays(cfg: &Config, scene: &Scene, raw_rate: &mut [Rate; 2], pass_rate: 
     if std::env::var_os("ARPA_CPU_BENCH_PACKETS").is_some() {
         let prays: Vec<arpa_cpu::PacketRay> = segments
             .iter()
-            .map(|r| arpa_cpu::PacketRay { origin: r.origin, dir: r.direction, tnear: T_NEAR, tfar: r.t_max })
+            .map(|r| arpa_cpu::PacketRay { origin: r.origin, dir: r.direction, tnear: r.t_min.max(T_NEAR), tfar: r.t_max })
             .collect();
         // A fixed pseudo-random permutation (incoherent packets).
         let mut perm: Vec<usize> = (0..prays.len()).collect();

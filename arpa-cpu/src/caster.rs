@@ -17,14 +17,14 @@ use crate::embree::{BuildQuality, Device, EmbreeScene, EmbreeSceneBuilder, Resul
 /// triangle index within it. The BVH is built with [`BuildQuality::High`] and Embree's
 /// robust (watertight) mode, so rays do not leak through shared edges of closed meshes.
 ///
-/// The core's rays are open segments `t ∈ (0, t_max)` ([`RayCaster`]); Embree's are
-/// closed (`tnear ≤ t ≤ tfar`), so the segments start at `tnear = f32::MIN_POSITIVE`: a ray
-/// whose origin lies exactly on a triangle does not hit it at `t = 0`, as with
-/// [`arpa_core::ray_cast::BruteForceCaster`].
+/// The core's rays are open segments `t ∈ (t_min, t_max)` ([`RayCaster`]); Embree's are
+/// closed (`tnear ≤ t ≤ tfar`), so a segment starts at `tnear = max(t_min,
+/// f32::MIN_POSITIVE)`: a ray whose origin lies exactly on a triangle does not hit it at
+/// `t = 0`, as with [`arpa_core::ray_cast::BruteForceCaster`].
 ///
-/// Rays leaving a surface start off it: the core's paths offset every origin along the
-/// surface normal ([`arpa_core::prepared_scene::offset_origin`]), photons leaving an area
-/// light included, so no self-intersection rule is needed here.
+/// Rays leaving a surface start on it and skip the triangle they leave: that rule is the
+/// core's ([`arpa_core::ray_cast::RayStart`]), on top of these queries, so none is needed
+/// here.
 ///
 /// Embree reports errors per query; a failed query (an invalid ray, which the core's paths
 /// never produce, or an Embree error) counts as a miss and is tallied in
@@ -84,8 +84,8 @@ const T_NEAR: f32 = f32::MIN_POSITIVE;
 
 impl RayCaster for EmbreeCaster {
     #[inline]
-    fn intersect(&self, origin: Vec3, direction: Vec3, t_max: f32) -> Option<RayHit> {
-        let hit = match self.scene.intersect(origin.to_array(), direction.to_array(), T_NEAR, t_max) {
+    fn intersect(&self, origin: Vec3, direction: Vec3, t_min: f32, t_max: f32) -> Option<RayHit> {
+        let hit = match self.scene.intersect(origin.to_array(), direction.to_array(), t_min.max(T_NEAR), t_max) {
             Ok(Some(hit)) => hit,
             Ok(None) => return None,
             Err(_) => {
@@ -102,10 +102,10 @@ impl RayCaster for EmbreeCaster {
         }
     }
 
-    fn occluded(&self, origin: Vec3, direction: Vec3, t_max: f32) -> bool {
+    fn occluded(&self, origin: Vec3, direction: Vec3, t_min: f32, t_max: f32) -> bool {
         match self
             .scene
-            .occluded(origin.to_array(), direction.to_array(), T_NEAR, t_max)
+            .occluded(origin.to_array(), direction.to_array(), t_min.max(T_NEAR), t_max)
         {
             Ok(o) => o,
             Err(_) => {

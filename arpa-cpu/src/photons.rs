@@ -223,8 +223,8 @@ pub(crate) fn trace_chunk(
             // Cast this slot's next segment, retiring ended photons and starting new ones.
             loop {
                 if let Some(slot) = &mut slots[k] {
-                    if let Some((origin, direction)) = slot.walk.next_ray() {
-                        let hit = caster.intersect(origin, direction, f32::INFINITY);
+                    if let Some((start, direction)) = slot.walk.next_ray() {
+                        let hit = start.intersect(caster, direction, f32::INFINITY);
                         if let Some(h) = &hit {
                             prepared.prefetch_hit(h);
                         }

@@ -35,11 +35,11 @@ fn vk_cast_miss_record() -> VkCastHit {
     return VkCastHit(0.0, VK_CAST_MISS, 0u, 0u, 0.0, 0.0, 0u, 0u);
 }
 
-// Closest hit along origin + t dir, 0 < t <= t_max (RayCaster::intersect); `triangle` is
+// Closest hit along origin + t dir, t_min < t <= t_max (RayCaster::intersect); `triangle` is
 // the mesh's triangle index as the core numbers it.
-fn arpa_scene_intersect(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> ArpaSceneHit {
+fn arpa_scene_intersect(origin: vec3<f32>, dir: vec3<f32>, t_min: f32, t_max: f32) -> ArpaSceneHit {
     vk_cast_payload = vk_cast_miss_record();
-    traceRay(arpa_scene_tlas, RayDesc(RAY_FLAG_FORCE_OPAQUE, 0xffu, 0.0, t_max, origin, dir), &vk_cast_payload);
+    traceRay(arpa_scene_tlas, RayDesc(RAY_FLAG_FORCE_OPAQUE, 0xffu, t_min, t_max, origin, dir), &vk_cast_payload);
     let h = vk_cast_payload;
     if h.mesh != VK_CAST_MISS && h.t > 0.0 {
         return arpa_scene_hit(h.mesh, h.primitive, h.t, vec2<f32>(h.b1, h.b2));
@@ -47,12 +47,12 @@ fn arpa_scene_intersect(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> ArpaSc
     return arpa_scene_miss();
 }
 
-// Whether anything lies along origin + t dir, 0 < t <= t_max (RayCaster::occluded): the
+// Whether anything lies along origin + t dir, t_min < t <= t_max (RayCaster::occluded): the
 // payload starts as a hit and only the miss shader clears it (no closest-hit runs).
-fn arpa_scene_occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
+fn arpa_scene_occluded(origin: vec3<f32>, dir: vec3<f32>, t_min: f32, t_max: f32) -> bool {
     vk_cast_payload = VkCastHit(0.0, 0u, 0u, 0u, 0.0, 0.0, 0u, 0u);
     traceRay(arpa_scene_tlas,
-        RayDesc(RAY_FLAG_FORCE_OPAQUE | RAY_FLAG_TERMINATE_ON_FIRST_HIT | RAY_FLAG_SKIP_CLOSEST_HIT_SHADER, 0xffu, 0.0, t_max, origin, dir),
+        RayDesc(RAY_FLAG_FORCE_OPAQUE | RAY_FLAG_TERMINATE_ON_FIRST_HIT | RAY_FLAG_SKIP_CLOSEST_HIT_SHADER, 0xffu, t_min, t_max, origin, dir),
         &vk_cast_payload);
     return vk_cast_payload.mesh != VK_CAST_MISS;
 }

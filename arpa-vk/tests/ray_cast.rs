@@ -174,7 +174,7 @@ fn closest_hits_match_brute_force() {
     let (mut worst_t, mut worst_b) = (0.0f32, 0.0f32);
     for (r, g) in rs.iter().zip(&got) {
         let (o, d) = (Vec3::from_array(r.origin), Vec3::from_array(r.direction));
-        let want = reference.intersect(o, d, r.t_max);
+        let want = reference.intersect(o, d, r.t_min, r.t_max);
         let have = (g.mesh != u32::MAX).then_some(g);
         if let Some(h) = have {
             assert_eq!(accel.mesh_triangle(h.mesh, h.primitive), Some(h.triangle), "the shader's primitive -> triangle map");

@@ -263,6 +263,26 @@ pub const SLAB_FOV_DEGREES: f32 = 24.0;
 /// camera ray enters the slab through its top face and the floor is seen only through
 /// the glass. The slab's faces are parallel: every chain top–bottom has a closed form.
 pub fn glass_slab(size: u32) -> Scene {
+    slab_scene(size, SLAB_THICKNESS)
+}
+
+/// Thickness of [`thin_sheet`]'s glass (m): a twelfth of the ray-origin offset the paths
+/// once used (`1e-5 (1 + |p|)`, 5e-5 m at the sheet's corners), 8 times the `t_min` of a
+/// ray leaving it ([`arpa_core::ray_cast::leave_t_min`] at `|p| = 4`).
+pub const THIN_SHEET_THICKNESS: f64 = 4e-6;
+
+/// [`glass_slab`] with the slab only [`THIN_SHEET_THICKNESS`] thick (its top at
+/// `0.5 + 4e-6` rounded to `f32`, see [`thin_sheet_thickness`]).
+pub fn thin_sheet(size: u32) -> Scene {
+    slab_scene(size, THIN_SHEET_THICKNESS)
+}
+
+/// The thickness of [`thin_sheet`]'s glass as its `f32` vertices have it (m).
+pub fn thin_sheet_thickness() -> f64 {
+    (SLAB_BOTTOM + THIN_SHEET_THICKNESS) as f32 as f64 - SLAB_BOTTOM
+}
+
+fn slab_scene(size: u32, thickness: f64) -> Scene {
     let floor = quad(
         "floor",
         Vec3::new(-6.0, 0.0, -6.0),
@@ -274,7 +294,7 @@ pub fn glass_slab(size: u32) -> Scene {
     let slab = cuboid(
         "glass slab",
         Vec3::new(-h, SLAB_BOTTOM as f32, -h),
-        Vec3::new(h, (SLAB_BOTTOM + SLAB_THICKNESS) as f32, h),
+        Vec3::new(h, (SLAB_BOTTOM + thickness) as f32, h),
         1,
     );
     scene(
@@ -343,5 +363,71 @@ pub fn mirror_wall(size: u32) -> Scene {
             MIRROR_FOV_DEGREES,
             size,
         ),
+    )
+}
+
+/// Height of [`knife_edge`]'s wedge bottom (m).
+pub const WEDGE_BOTTOM: f64 = 0.5;
+/// Slope of [`knife_edge`]'s top face: thickness per metre from the knife edge (rad, ≈).
+pub const WEDGE_SLOPE: f64 = 0.05;
+/// Length of the wedge from its knife edge at `x = 0` (m).
+pub const WEDGE_LENGTH: f64 = 1.0;
+/// Half width of the wedge along z (m).
+pub const WEDGE_HALF_WIDTH: f64 = 1.0;
+/// [`knife_edge`]'s camera position (m).
+pub const WEDGE_CAMERA: Vec3 = Vec3::new(-0.625, 1.5, 0.25);
+/// [`knife_edge`]'s camera target (m): on the wedge's bottom plane, 0.5 mm in from the edge.
+pub const WEDGE_TARGET: Vec3 = Vec3::new(0.0005, 0.5, 0.0);
+/// [`knife_edge`]'s vertical field of view (degrees): about 2 mm across at the target.
+pub const WEDGE_FOV_DEGREES: f32 = 0.07;
+
+/// A glass wedge (prism, IOR 1.5) with a knife edge along z at `x = 0`, `y = 0.5`: bottom
+/// face `y = 0.5`, top face rising by [`WEDGE_SLOPE`] per metre to `x = 1`, so it is
+/// thinner than `1e-5 m` for the first 0.2 mm; a diffuse floor at `y = 0` (albedo
+/// [`SLAB_FLOOR_ALBEDO`]), a point light above, and a camera zoomed on the first 2 mm of
+/// the wedge (the rim of a lens, seen closely), looking down at it from the knife-edge
+/// side. Flat faces: every chain has a closed form.
+pub fn knife_edge(size: u32) -> Scene {
+    let floor = quad(
+        "floor",
+        Vec3::new(-3.0, 0.0, -3.0),
+        Vec3::new(0.0, 0.0, 6.0),
+        Vec3::new(6.0, 0.0, 0.0),
+        0,
+    );
+    let (y0, l, w) = (WEDGE_BOTTOM as f32, WEDGE_LENGTH as f32, WEDGE_HALF_WIDTH as f32);
+    let y1 = (WEDGE_BOTTOM + WEDGE_SLOPE * WEDGE_LENGTH) as f32;
+    // Edge a0-a1, far bottom b0-b1, far top c0-c1; every face wound outwards.
+    let positions = vec![
+        Vec3::new(0.0, y0, -w),
+        Vec3::new(0.0, y0, w),
+        Vec3::new(l, y0, -w),
+        Vec3::new(l, y0, w),
+        Vec3::new(l, y1, -w),
+        Vec3::new(l, y1, w),
+    ];
+    let (a0, a1, b0, b1, c0, c1) = (0, 1, 2, 3, 4, 5);
+    let wedge = TriangleMesh {
+        name: "glass wedge".into(),
+        positions,
+        normals: None,
+        indices: vec![
+            [a0, b0, b1],
+            [a0, b1, a1], // bottom, -y
+            [a0, a1, c1],
+            [a0, c1, c0], // top
+            [b0, c0, c1],
+            [b0, c1, b1], // far end, +x
+            [a0, c0, b0], // side, -z
+            [a1, b1, c1], // side, +z
+        ],
+        material: 1,
+        emission: None,
+    };
+    scene(
+        vec![floor, wedge],
+        vec![diffuse(SLAB_FLOOR_ALBEDO as f32), glass()],
+        vec![point_light(DVec3::new(-0.5, 2.5, 0.0), SLAB_INTENSITY)],
+        camera(WEDGE_CAMERA, WEDGE_TARGET, Vec3::Y, WEDGE_FOV_DEGREES, size),
     )
 }

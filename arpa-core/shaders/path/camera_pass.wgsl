@@ -45,19 +45,19 @@ fn arpa_camera_direction(x: f32, y: f32) -> vec3<f32> {
     return arpa_glam_normalize_or(c.forward + c.right * sx + c.up * sy, c.forward);
 }
 
-// Whether the segment from `origin` to `to` is unoccluded (the core's shadow ray: up to
+// Whether the segment from `start` to `to` is unoccluded (the core's shadow ray: up to
 // 1 - 1e-4 of the distance).
-fn arpa_camera_visible(origin: vec3<f32>, to: vec3<f32>) -> bool {
-    let d = to - origin;
+fn arpa_camera_visible(start: ArpaRayStart, to: vec3<f32>) -> bool {
+    let d = to - start.origin;
     let dist = length(d);
-    return dist > 0.0 && !arpa_scene_occluded(origin, d / dist, dist * (1.0 - 1e-4));
+    return dist > 0.0 && !arpa_start_occluded(start, d / dist, dist * (1.0 - 1e-4));
 }
 
 // camera_path::direct_irradiance (W/m^2, RGB) at the diffuse point s in the shading frame sh:
 // every delta light exactly, then one area emitter picked by power with one sampled point.
 fn arpa_camera_direct(s: ArpaSurface, sh: ArpaDiffuseShading, rng: ptr<function, ArpaRng>) -> vec3<f32> {
     let p = s.position;
-    let shadow_origin = arpa_offset_origin(p, sh.geometric);
+    let shadow_origin = arpa_ray_start_leaving(s);
     var e = vec3<f32>(0.0);
     let info = arpa_scene_info;
     for (var i = 0u; i < info.delta_count; i++) {
@@ -137,12 +137,12 @@ fn arpa_camera_trace(pixel: u32) -> ArpaQueryRecord {
     let jx = arpa_rng_next_f64_as_f32(&rng);
     let jy = arpa_rng_next_f64_as_f32(&rng);
     var dir = arpa_camera_direction(f32(px) + jx, f32(py) + jy);
-    var origin = c.position;
+    var start = arpa_ray_start_at(c.position);
     var throughput = vec3<f32>(1.0);
     var radiance = vec3<f32>(0.0);
     var rec = ArpaQueryRecord(vec3<f32>(0.0), pixel, vec3<f32>(0.0), 0u, vec3<f32>(0.0), 0u, vec3<f32>(0.0), 0u);
     for (var depth = 0u; depth < c.max_depth; depth++) {
-        let h = arpa_scene_intersect(origin, dir, ARPA_SCENE_T_MAX);
+        let h = arpa_start_intersect(start, dir, ARPA_SCENE_T_MAX);
         if h.hit == 0u {
             break;
         }
@@ -175,20 +175,20 @@ fn arpa_camera_trace(pixel: u32) -> ArpaQueryRecord {
         if s.kind == ARPA_SCATTER_MIRROR {
             throughput *= s.color;
             dir = arpa_glam_normalize_or(arpa_reflect_direction(dir, n), dir);
-            origin = arpa_offset_origin(s.position, front);
+            start = arpa_ray_start_leaving(s);
         } else {
             let fresnel = arpa_dielectric_reflectance(dot(dir, n), s.ior);
             // The core's `rng.next_f64() < fresnel`, exactly (rng.wgsl).
             if arpa_rng_next_below(&rng, fresnel) {
                 dir = arpa_glam_normalize_or(arpa_reflect_direction(dir, n), dir);
-                origin = arpa_offset_origin(s.position, front);
+                start = arpa_ray_start_leaving(s);
             } else {
                 let t = arpa_refract_direction(dir, n, s.ior);
                 if t.event == ARPA_REFRACTION_TRANSMITTED {
                     throughput *= s.color * (t.eta * t.eta);
-                    origin = arpa_offset_origin(s.position, -front);
+                    start = arpa_ray_start_leaving(s);
                 } else {
-                    origin = arpa_offset_origin(s.position, front);
+                    start = arpa_ray_start_leaving(s);
                 }
                 dir = t.dir;
             }

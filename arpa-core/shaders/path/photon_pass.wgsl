@@ -243,15 +243,15 @@ fn photon_trace(index: u32) -> u32 {
     var flux = emitted.flux;
     var specular_events = 0u;
     var diffuse_events = 0u;
-    var origin = ray.p;
+    var start = arpa_ray_start_at(ray.p);
     if emitted.has_surface_normal != 0u {
-        origin = arpa_offset_origin(ray.p, emitted.surface_normal);
+        start = arpa_ray_start_off_surface(ray.p, emitted.surface_normal);
     }
     let max_depth = photon_params.max_depth;
     for (var depth = 0u; depth < max_depth; depth++) {
         let d = ray.d;
         segments += 1u;
-        let hit = arpa_scene_intersect(origin, d, ARPA_SCENE_T_MAX);
+        let hit = arpa_start_intersect(start, d, ARPA_SCENE_T_MAX);
         if hit.hit == 0u {
             break;
         }
@@ -326,7 +326,7 @@ fn photon_trace(index: u32) -> u32 {
                 valid = false;
                 ray = photon_lost(s.position, dir);
             }
-            origin = arpa_offset_origin(s.position, front);
+            start = arpa_ray_start_leaving(s);
         } else if s.kind == ARPA_SCATTER_MIRROR {
             specular_events += 1u;
             flux *= s.color;
@@ -334,7 +334,7 @@ fn photon_trace(index: u32) -> u32 {
             let r = photon_reflect(at, valid, nd, s.geometric_normal);
             ray = r.ray;
             valid = r.valid;
-            origin = arpa_offset_origin(s.position, front);
+            start = arpa_ray_start_leaving(s);
         } else {
             specular_events += 1u;
             let nd = photon_shading_normal(s, at.dp_du, at.dp_dv);
@@ -347,7 +347,7 @@ fn photon_trace(index: u32) -> u32 {
                 let r = photon_reflect(at, valid, nd, s.geometric_normal);
                 ray = r.ray;
                 valid = r.valid;
-                origin = arpa_offset_origin(s.position, front);
+                start = arpa_ray_start_leaving(s);
             } else {
                 flux *= s.color;
                 let rd = arpa_refract_direction(d, n, s.ior);
@@ -363,11 +363,7 @@ fn photon_trace(index: u32) -> u32 {
                     valid = false;
                     ray = photon_lost(s.position, rd.dir);
                 }
-                var side = front;
-                if rd.event == ARPA_REFRACTION_TRANSMITTED {
-                    side = -front;
-                }
-                origin = arpa_offset_origin(s.position, side);
+                start = arpa_ray_start_leaving(s);
             }
         }
         if !(photon_max3(flux) > 0.0) || !arpa_finite3(flux) {

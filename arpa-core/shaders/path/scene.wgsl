@@ -9,13 +9,14 @@
 // structure over the triangles: one bottom level per mesh holding the mesh's triangles in
 // the order of SceneTables::triangle_orders, instance custom index = mesh index) and
 // defines
-//   fn arpa_scene_intersect(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> ArpaSceneHit
-//     closest hit along origin + t dir, 0 < t <= t_max (RayCaster::intersect), built with
-//     arpa_scene_hit / arpa_scene_miss from what the hit reports;
-//   fn arpa_scene_occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool
-//     whether anything lies along origin + t dir, 0 < t <= t_max (RayCaster::occluded);
+//   fn arpa_scene_intersect(origin: vec3<f32>, dir: vec3<f32>, t_min: f32, t_max: f32) -> ArpaSceneHit
+//     closest hit along origin + t dir, t_min < t <= t_max (RayCaster::intersect), built
+//     with arpa_scene_hit / arpa_scene_miss from what the hit reports;
+//   fn arpa_scene_occluded(origin: vec3<f32>, dir: vec3<f32>, t_min: f32, t_max: f32) -> bool
+//     whether anything lies along origin + t dir, t_min < t <= t_max (RayCaster::occluded);
 // both with opaque triangles, unit dir and t_max up to ARPA_SCENE_T_MAX (arpa-wgpu:
-// ray queries).
+// ray queries; arpa-vk: ray-tracing pipelines). The passes cast through an ArpaRayStart
+// (arpa_start_intersect / arpa_start_occluded below), never directly.
 
 // Scattering kinds (arpa_core::scene::Scattering; arpa_core::gpu::codes::SCATTER_*).
 const ARPA_SCATTER_DIFFUSE: u32 = 0u;
@@ -239,9 +240,76 @@ fn arpa_scene_surface(h: ArpaSceneHit) -> ArpaSurface {
 }
 
 // A ray origin offset off the surface point p along the unit normal n (oriented to the side
-// the ray leaves towards), prepared_scene::offset_origin.
+// the ray leaves towards), prepared_scene::offset_origin: only for photons leaving an area
+// light (arpa_ray_start_off_surface).
 fn arpa_offset_origin(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
     let a = abs(p);
     let scale = 1e-5 * (1.0 + max(a.x, max(a.y, a.z)));
     return p + n * scale;
+}
+
+// Where a ray starts and what it must not hit there (ray_cast::RayStart): a ray leaving a
+// surface starts on it, not offset, and skips the triangle it leaves (mesh, triangle;
+// mesh = ARPA_NO_TRIANGLE: none), so glass thinner than any offset is entered and left.
+struct ArpaRayStart {
+    origin: vec3<f32>,
+    // Hits at t <= t_min (metres) are not reported.
+    t_min: f32,
+    mesh: u32,
+    triangle: u32,
+}
+
+const ARPA_NO_TRIANGLE: u32 = 0xffffffffu;
+// ray_cast::LEAVE_RECASTS.
+const ARPA_LEAVE_RECASTS: u32 = 2u;
+
+// RayStart::at: from a point off every surface.
+fn arpa_ray_start_at(origin: vec3<f32>) -> ArpaRayStart {
+    return ArpaRayStart(origin, 0.0, ARPA_NO_TRIANGLE, 0u);
+}
+
+// ray_cast::leave_t_min: 2^-23 (1 + max |origin_i|).
+fn arpa_leave_t_min(origin: vec3<f32>) -> f32 {
+    let a = abs(origin);
+    return 1.1920929e-7 * (1.0 + max(a.x, max(a.y, a.z)));
+}
+
+// RayStart::leaving: a ray leaving the surface point s (either side).
+fn arpa_ray_start_leaving(s: ArpaSurface) -> ArpaRayStart {
+    return ArpaRayStart(s.position, arpa_leave_t_min(s.position), s.mesh, s.triangle);
+}
+
+// RayStart::off_surface: photons leaving an area light along its normal n.
+fn arpa_ray_start_off_surface(p: vec3<f32>, n: vec3<f32>) -> ArpaRayStart {
+    return arpa_ray_start_at(arpa_offset_origin(p, n));
+}
+
+// ray_cast::next_up: the next f32 above t >= 0.
+fn arpa_next_up(t: f32) -> f32 {
+    return bitcast<f32>(bitcast<u32>(max(t, 0.0)) + 1u);
+}
+
+fn arpa_start_is_left(start: ArpaRayStart, h: ArpaSceneHit) -> bool {
+    return h.hit != 0u && h.mesh == start.mesh && h.triangle == start.triangle;
+}
+
+// RayStart::intersect: the closest hit along unit dir up to t_max, the left triangle
+// skipped (cast again just past it, at most ARPA_LEAVE_RECASTS times, then a miss).
+fn arpa_start_intersect(start: ArpaRayStart, dir: vec3<f32>, t_max: f32) -> ArpaSceneHit {
+    var h = arpa_scene_intersect(start.origin, dir, start.t_min, t_max);
+    for (var i = 0u; i < ARPA_LEAVE_RECASTS && arpa_start_is_left(start, h); i++) {
+        h = arpa_scene_intersect(start.origin, dir, arpa_next_up(max(h.t, start.t_min)), t_max);
+    }
+    if arpa_start_is_left(start, h) {
+        return arpa_scene_miss();
+    }
+    return h;
+}
+
+// RayStart::occluded: anything but the left triangle before t_max.
+fn arpa_start_occluded(start: ArpaRayStart, dir: vec3<f32>, t_max: f32) -> bool {
+    if !arpa_scene_occluded(start.origin, dir, start.t_min, t_max) {
+        return false;
+    }
+    return start.mesh == ARPA_NO_TRIANGLE || arpa_start_intersect(start, dir, t_max).hit != 0u;
 }

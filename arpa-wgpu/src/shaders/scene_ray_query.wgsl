@@ -7,11 +7,11 @@ enable wgpu_ray_query;
 
 @group(0) @binding(0) var arpa_scene_tlas: acceleration_structure;
 
-// Closest hit along origin + t dir, 0 < t <= t_max (RayCaster::intersect); `triangle` is
+// Closest hit along origin + t dir, t_min < t <= t_max (RayCaster::intersect); `triangle` is
 // the mesh's triangle index as the core numbers it.
-fn arpa_scene_intersect(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> ArpaSceneHit {
+fn arpa_scene_intersect(origin: vec3<f32>, dir: vec3<f32>, t_min: f32, t_max: f32) -> ArpaSceneHit {
     var rq: ray_query;
-    rayQueryInitialize(&rq, arpa_scene_tlas, RayDesc(RAY_FLAG_FORCE_OPAQUE, 0xffu, 0.0, t_max, origin, dir));
+    rayQueryInitialize(&rq, arpa_scene_tlas, RayDesc(RAY_FLAG_FORCE_OPAQUE, 0xffu, t_min, t_max, origin, dir));
     while rayQueryProceed(&rq) {}
     let h = rayQueryGetCommittedIntersection(&rq);
     if h.kind == RAY_QUERY_INTERSECTION_TRIANGLE && h.t > 0.0 {
@@ -20,11 +20,11 @@ fn arpa_scene_intersect(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> ArpaSc
     return arpa_scene_miss();
 }
 
-// Whether anything lies along origin + t dir, 0 < t <= t_max (RayCaster::occluded).
-fn arpa_scene_occluded(origin: vec3<f32>, dir: vec3<f32>, t_max: f32) -> bool {
+// Whether anything lies along origin + t dir, t_min < t <= t_max (RayCaster::occluded).
+fn arpa_scene_occluded(origin: vec3<f32>, dir: vec3<f32>, t_min: f32, t_max: f32) -> bool {
     var rq: ray_query;
     rayQueryInitialize(&rq, arpa_scene_tlas,
-        RayDesc(RAY_FLAG_FORCE_OPAQUE | RAY_FLAG_TERMINATE_ON_FIRST_HIT, 0xffu, 0.0, t_max, origin, dir));
+        RayDesc(RAY_FLAG_FORCE_OPAQUE | RAY_FLAG_TERMINATE_ON_FIRST_HIT, 0xffu, t_min, t_max, origin, dir));
     while rayQueryProceed(&rq) {}
     let h = rayQueryGetCommittedIntersection(&rq);
     return h.kind == RAY_QUERY_INTERSECTION_TRIANGLE && h.t > 0.0;

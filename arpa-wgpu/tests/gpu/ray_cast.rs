@@ -68,7 +68,7 @@ proptest! {
         let got = crate::support::cast_rays(ctx, &gpu_scene, &rs);
         let (mut hits, mut misses, mut sphere, mut panel) = (0, 0, 0, 0);
         for (&(o, d, t_max), g) in rs.iter().zip(&got) {
-            let want = reference.intersect(o, d, t_max);
+            let want = reference.intersect(o, d, 0.0, t_max);
             if let Some(w) = want {
                 let edge = w.b1.min(w.b2).min(1.0 - w.b1 - w.b2);
                 if edge < 1e-4 {

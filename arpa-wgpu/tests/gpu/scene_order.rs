@@ -29,7 +29,7 @@ fn in_v3(i: u32) -> vec3<f32> { return vec3<f32>(bitcast<f32>(input[i]), bitcast
 fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     if gid.x * 3u >= arrayLength(&input) { return; }
     let o = in_v3(gid.x * 3u);
-    let h = arpa_scene_intersect(o, vec3<f32>(0.0, -1.0, 0.0), 10.0);
+    let h = arpa_scene_intersect(o, vec3<f32>(0.0, -1.0, 0.0), 0.0, 10.0);
     let ob = gid.x * 13u;
     output[ob] = h.hit;
     output[ob + 1u] = h.mesh;
@@ -114,7 +114,7 @@ fn scrambled_triangles_keep_the_core_numbering() {
     let rays: Vec<(Vec3, Vec3, f32)> = origins.iter().map(|&o| (o, Vec3::new(0.0, -1.0, 0.0), 10.0)).collect();
     let cast = crate::support::cast_rays(ctx, gpu_scene.geometry(), &rays);
     for (t, (g, c)) in out.chunks(13).zip(&cast).enumerate() {
-        let want = caster.intersect(rays[t].0, rays[t].1, rays[t].2).expect("the core hits the grid");
+        let want = caster.intersect(rays[t].0, rays[t].1, 0.0, rays[t].2).expect("the core hits the grid");
         assert_eq!((want.mesh, want.triangle), (0, t as u32), "core");
         assert_eq!(&g[..4], &[1, 0, t as u32, t as u32], "device hit/mesh/triangle/surface triangle for triangle {t}");
         let tri = prepared.triangle(0, t as u32);

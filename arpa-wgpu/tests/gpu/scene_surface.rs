@@ -1,9 +1,10 @@
 //! The scene on the device (`GpuScene::upload`, scene.wgsl) against `PreparedScene`: random
 //! rays inside the mixed test scene (diffuse, mirror, glass, rough materials resolved by the
 //! cut-off, smooth and flat vertex normals, emitters) through `arpa_scene_intersect`,
-//! then `arpa_scene_surface`, the triangle lookups and `arpa_offset_origin` at the device's
+//! then `arpa_scene_surface`, the triangle lookups, `arpa_offset_origin` and a ray leaving
+//! the hit straight on (`arpa_ray_start_leaving`, `arpa_start_intersect`) at the device's
 //! hit, compared with `PreparedScene::surface`, `shading_normal_at`, `has_shading_normals`,
-//! `shading_normal` and `offset_origin` at the same hit.
+//! `shading_normal`, `offset_origin` and `RayStart::leaving(..).intersect` at the same hit.
 //!
 //! Bounds (ε = f32::EPSILON): vertices, vertex normals, geometric normals, materials and
 //! flags exact (the host rounds the core's values once); position within 4ε·max|vertex|
@@ -11,12 +12,14 @@
 //! normalisation); the offset origin within 8ε·(1 + |p|). Hits agree with the core's
 //! brute-force caster (mesh and triangle) for >= 99 % of the rays; those that differ must
 //! lie within 1e-4 (barycentric) of a triangle edge. `arpa_scene_occluded` agrees with
-//! the closest hit's existence on every ray.
+//! the closest hit's existence on every ray. The leaving ray's `t_min` is the core's within
+//! one ulp; it never reports the triangle it leaves, and its next triangle agrees with the
+//! core's for >= 99 % of the rays (the others near an edge).
 
 use crate::common::*;
 use crate::scenes::mixed_scene;
 use arpa_core::prepared_scene::{offset_origin, PreparedScene};
-use arpa_core::ray_cast::{BruteForceCaster, RayCaster, RayHit};
+use arpa_core::ray_cast::{BruteForceCaster, RayCaster, RayHit, RayStart, TriangleId};
 use arpa_core::rng::{Rng, StreamDomain};
 use arpa_core::scene::Scattering;
 use crate::support::run_scene_kernel;
@@ -43,9 +46,9 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let o = in_v3(ib);
     let d = in_v3(ib + 3u);
     let t_max = in_f(ib + 6u);
-    let h = arpa_scene_intersect(o, d, t_max);
+    let h = arpa_scene_intersect(o, d, 0.0, t_max);
     out_u(ob, h.hit);
-    out_u(ob + 1u, select(0u, 1u, arpa_scene_occluded(o, d, t_max)));
+    out_u(ob + 1u, select(0u, 1u, arpa_scene_occluded(o, d, 0.0, t_max)));
     if h.hit == 0u { return; }
     out_f(ob + 2u, h.t); out_u(ob + 3u, h.mesh); out_u(ob + 4u, h.triangle); out_f(ob + 5u, h.b1); out_f(ob + 6u, h.b2);
     let s = arpa_scene_surface(h);
@@ -71,6 +74,11 @@ fn main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let side = select(s.geometric_normal, -s.geometric_normal, dot(d, s.geometric_normal) > 0.0);
     out_v3(ob + 53u, arpa_offset_origin(s.position, side));
+    let start = arpa_ray_start_leaving(s);
+    let next = arpa_start_intersect(start, d, ARPA_SCENE_T_MAX);
+    out_u(ob + 56u, next.hit); out_u(ob + 57u, next.mesh); out_u(ob + 58u, next.triangle); out_f(ob + 59u, next.t);
+    out_f(ob + 60u, start.t_min);
+    out_v3(ob + 61u, start.origin);
 }
 "#;
 
@@ -107,11 +115,12 @@ fn surfaces_match_prepared_scene() {
     let out = run_scene_kernel(ctx, &scene, "scene surface", &source, "main", &input, rs.len() as u32, rs.len() * OUT);
     let meshes = &prepared.scene().meshes;
     let (mut hits, mut agree, mut differ) = (0usize, 0usize, 0usize);
+    let (mut next_agree, mut next_differ) = (0usize, 0usize);
     let mut kinds = [0usize; 3];
     let (mut shaded, mut flat_with_normals, mut emissive) = (0, 0, 0);
     for (&(o, d, t_max), g) in rs.iter().zip(out.chunks(OUT)) {
         assert_eq!(g[0], g[1], "occluded disagrees with the closest hit for ray {o:?} {d:?} {t_max}");
-        let want = caster.intersect(o, d, t_max);
+        let want = caster.intersect(o, d, 0.0, t_max);
         if g[0] == 0 {
             if let Some(w) = want {
                 assert!(w.b1.min(w.b2).min(1.0 - w.b1 - w.b2) < 1e-4 || (w.t - t_max).abs() <= 1e-5 * t_max, "device missed {w:?} for ray {o:?} {d:?}");
@@ -172,8 +181,23 @@ fn surfaces_match_prepared_scene() {
         let side = if d.as_dvec3().dot(s.geometric_normal) > 0.0 { -s.geometric_normal } else { s.geometric_normal };
         let want_o = offset_origin(s.position, side).as_dvec3();
         assert!((dv(g, 53) - want_o).length() <= 8.0 * EPS * (1.0 + s.position.abs().max_element()), "offset origin {:?} vs {:?}", dv(g, 53), want_o);
+        // The ray leaving the hit straight on: from the device's origin, the core's rule.
+        let left = TriangleId { mesh: hit.mesh, triangle: hit.triangle };
+        let core_start = RayStart { origin: Vec3::from_array([f(g[61]), f(g[62]), f(g[63])]), ..RayStart::leaving(s.position, left) };
+        assert!((dv(g, 61) - s.position).length() <= 4.0 * EPS * vmax, "leaving origin {:?} vs {:?}", dv(g, 61), s.position);
+        let want_t_min = arpa_core::ray_cast::leave_t_min(core_start.origin);
+        assert!((f(g[60]) - want_t_min).abs() <= want_t_min * EPS as f32, "t_min {} vs {want_t_min}", f(g[60]));
+        let next = (g[56] == 1).then(|| RayHit { t: f(g[59]), mesh: g[57], triangle: g[58], b1: 0.0, b2: 0.0 });
+        assert!(next.is_none_or(|n| (n.mesh, n.triangle) != (left.mesh, left.triangle)), "the leaving ray hit the triangle it left: {hit:?}");
+        let core_next = core_start.intersect(&caster, d, f32::INFINITY);
+        match (next, core_next) {
+            (None, None) => next_agree += 1,
+            (Some(a), Some(b)) if (a.mesh, a.triangle) == (b.mesh, b.triangle) => next_agree += 1,
+            _ => next_differ += 1,
+        }
     }
     assert!(agree as f64 >= 0.99 * (agree + differ) as f64, "{agree} hits agree, {differ} differ");
+    assert!(next_agree as f64 >= 0.99 * (next_agree + next_differ) as f64, "leaving rays: {next_agree} agree, {next_differ} differ");
     assert!(hits > 4000 && kinds.iter().all(|&k| k > 50) && shaded > 200 && flat_with_normals > 20 && emissive > 5,
         "hits {hits}, kinds {kinds:?}, shaded {shaded}, flat with normals {flat_with_normals}, emissive {emissive}");
 }

@@ -319,10 +319,16 @@ fn verdict_of(errors: &[f64], msg: String) -> CaseResult {
 /// t tan θ_t` (`sin θ = n sin θ_t`) carrying `I (1 − F(θ))² dΩ` (the same `F` at both
 /// faces), so `E = I (1 − F)² sin θ / (ρ dρ/dθ)`; at `ρ → 0`, `I (1 − F)²/ρ'(0)²`.
 pub fn slab_irradiance(rho: f64) -> f64 {
+    slab_irradiance_through(rho, scenes::SLAB_THICKNESS)
+}
+
+/// [`slab_irradiance`] with the slab `thick` metres thick (its bottom still at
+/// [`scenes::SLAB_BOTTOM`]).
+pub fn slab_irradiance_through(rho: f64, thick: f64) -> f64 {
     use super::optics::{fresnel, slab_entry_angle, slab_offset_derivative};
     let n = scenes::SLAB_IOR;
-    let above = scenes::SLAB_LIGHT.y - scenes::SLAB_BOTTOM - scenes::SLAB_THICKNESS;
-    let (below, thick) = (scenes::SLAB_BOTTOM, scenes::SLAB_THICKNESS);
+    let above = scenes::SLAB_LIGHT.y - scenes::SLAB_BOTTOM - thick;
+    let below = scenes::SLAB_BOTTOM;
     let th = slab_entry_angle(rho, above, below, thick, n, 1);
     let tf = 1.0 - fresnel(1.0, n, th);
     let deriv = slab_offset_derivative(th, above, below, thick, n, 1);
@@ -339,15 +345,20 @@ pub fn slab_irradiance(rho: f64) -> f64 {
 /// two-interface transmittance. Ring means `ρ < 0.4`, `< 0.8`, `< 1.2` of the light's
 /// foot within [`SPECULAR_TOL_PERCENT`]; ignoring Fresnel would be 8 % too bright.
 fn glass_slab(t: &mut dyn DynTracer, method: Method) -> CaseResult {
-    let scene = scenes::glass_slab(SPECULAR_SIZE);
+    slab_regions(t, method, &scenes::glass_slab(SPECULAR_SIZE), scenes::SLAB_THICKNESS)
+}
+
+/// The region check of [`glass_slab`] on `scene`: the slab scene's layout with the slab
+/// `thick` metres thick.
+pub(crate) fn slab_regions(t: &mut dyn DynTracer, method: Method, scene: &arpa_core::scene::Scene, thick: f64) -> CaseResult {
     let foot = DVec3::new(scenes::SLAB_LIGHT.x, 0.0, scenes::SLAB_LIGHT.z);
     let rho = |q: DVec3| (q - foot).length();
     let (errors, msg) = region_means(
         t,
         method,
-        &scene,
+        scene,
         3,
-        |q| slab_irradiance(rho(q)),
+        |q| slab_irradiance_through(rho(q), thick),
         |q| Some((rho(q) / 0.4) as usize).filter(|&k| k < 3),
         &["ρ<0.4", "ρ<0.8", "ρ<1.2"],
     )?;

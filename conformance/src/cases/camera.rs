@@ -296,26 +296,32 @@ pub const MAX_CROSSINGS: u32 = 7;
 /// `Σ (1 − F)/(1 + F)` and the number with `k = 0` matches `Σ (1 − F)²` (F at each pixel's
 /// centre ray) within [`SIGMAS`] binomial standard deviations.
 pub fn glass_slab(t: &mut dyn DynTracer) -> CaseResult {
-    let scene = scenes::glass_slab(SIZE);
+    slab_chains(t, &scenes::glass_slab(SIZE), scenes::SLAB_THICKNESS, MAX_CROSSINGS, 5)
+}
+
+/// The camera check of [`glass_slab`] on `scene` (the slab scene's layout with a slab
+/// `thickness` thick), with chains of at most `max_crossings` slab crossings (odd): the
+/// expected Fresnel counts are `Σ_k (1 − F)² F^{2k}` over the chains that fit.
+pub(crate) fn slab_chains(t: &mut dyn DynTracer, scene: &arpa_core::scene::Scene, thickness: f64, max_crossings: u32, seed: u32) -> CaseResult {
     let pin = Pinhole::new(&scene.camera);
     let n = scenes::SLAB_IOR;
-    let top = scenes::SLAB_BOTTOM + scenes::SLAB_THICKNESS;
+    let top = scenes::SLAB_BOTTOM + thickness;
     let air = pin.eye.y - top;
     let settings = RenderSettings {
         method: Method::Arpa,
         photons_per_iteration: 1000,
-        seed: 5,
-        max_depth: 2 + MAX_CROSSINGS,
+        seed,
+        max_depth: 2 + max_crossings,
         direct_lighting: false,
         ..RenderSettings::default()
     };
-    t.upload_scene(&scene, &settings).ctx("upload_scene")?;
+    t.upload_scene(scene, &settings).ctx("upload_scene")?;
     let rho_pi = scenes::SLAB_FLOOR_ALBEDO / PI;
     let (mut valid, mut first) = (0usize, 0usize);
     let (mut e_valid, mut v_valid, mut e_first, mut v_first) = (0.0, 0.0, 0.0, 0.0);
     let mut worst = 0.0f64;
     let mut jitter = Jitter::default();
-    let mut by_k = [0usize; MAX_CROSSINGS as usize / 2 + 1];
+    let mut by_k = vec![0usize; max_crossings as usize / 2 + 1];
     for records in collect(t, 6)? {
         for r in &records {
             let centre = pin.pixel_probes(r.pixel)[0];
@@ -332,7 +338,7 @@ pub fn glass_slab(t: &mut dyn DynTracer) -> CaseResult {
                 ));
             }
             let f = fresnel(1.0, n, centre.y.abs().acos());
-            let p_valid = (1.0 - f) / (1.0 + f);
+            let p_valid = (0..=max_crossings / 2).map(|k| (1.0 - f) * (1.0 - f) * f.powi(2 * k as i32)).sum::<f64>();
             let p_first = (1.0 - f) * (1.0 - f);
             e_valid += p_valid;
             v_valid += p_valid * (1.0 - p_valid);
@@ -346,13 +352,13 @@ pub fn glass_slab(t: &mut dyn DynTracer) -> CaseResult {
             let horizontal = DVec3::new(q.x - pin.eye.x, 0.0, q.z - pin.eye.z);
             let rho = horizontal.length();
             let azimuth = horizontal / rho.max(1e-300);
-            let best = (0..=MAX_CROSSINGS / 2)
+            let best = (0..=max_crossings / 2)
                 .map(|k| {
                     let th = slab_entry_angle(
                         rho,
                         air,
                         scenes::SLAB_BOTTOM,
-                        scenes::SLAB_THICKNESS,
+                        thickness,
                         n,
                         1 + 2 * k,
                     );

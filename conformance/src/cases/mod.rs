@@ -12,6 +12,7 @@ pub mod gather;
 pub mod optics;
 pub mod reference;
 pub mod stage;
+pub mod thin_glass;
 pub mod twin;
 
 /// Every case, in report-row order.
@@ -64,6 +65,18 @@ pub fn all() -> Vec<Case> {
             title: "camera pass: query points through a glass slab = geometric optics + Fresnel",
             needs: None,
             run: CaseBody::Tracer(camera::glass_slab),
+        },
+        Case {
+            id: "camera-thin-glass",
+            title: "camera pass: query points through a 4 µm sheet and a wedge's knife edge = geometric optics + Fresnel",
+            needs: None,
+            run: CaseBody::Tracer(thin_glass::camera),
+        },
+        Case {
+            id: "analytic-thin-sheet-arpa",
+            title: "point light through a 4 µm glass sheet: two-interface Fresnel transmittance (arpa)",
+            needs: None,
+            run: CaseBody::Tracer(thin_glass::photons_sheet_arpa),
         },
         Case {
             id: "analytic-glass-slab-arpa",
