@@ -516,7 +516,12 @@ pub fn summary(r: &Rendered, settings: &RenderSettings) -> String {
         m(t.differential_lost),
         m(t.overflowed)
     );
-    s += &format!("  query points        {} per iteration, {} containments gathered per iteration\n", m(t.query_points), m(t.gathered));
+    let (cand, contrib) = (t.candidates_per_query(), t.contributions_per_query());
+    s += &format!("  query points        {} per iteration, {} containments gathered per iteration\n", m(t.query_points), m(t.gathered()));
+    s += &format!(
+        "  per query point     caustic {:.1} candidates, {:.1} contributions; global {:.1} candidates, {:.1} contributions\n",
+        cand[0], contrib[0], cand[1], contrib[1]
+    );
     s += &format!("  radii (last)        caustic {:.3e}, global {:.3e}\n", r.last.radii[0], r.last.radii[1]);
     s += &format!(
         "  mean per iteration  camera {:.2} ms, photons {:.2} ms, AS build {:.2} ms, gather {:.2} ms, accumulate {:.2} ms\n",
@@ -801,7 +806,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("sub/m.csv");
         let mut csv = MetricsCsv::create(&path).unwrap();
-        let row = |iteration, metrics| CheckpointRow { iteration, seconds: 1.5, times: Default::default(), metrics };
+        let row = |iteration, metrics| CheckpointRow { iteration, seconds: 1.5, times: Default::default(), metrics, candidates_per_query: [0.0; 2], contributions_per_query: [0.0; 2] };
         csv.write(&row(2, None)).unwrap();
         csv.write(&row(3, Some(Metrics { rel_mse: 0.0, ssim: 1.0, flip: 0.0 }))).unwrap();
         csv.finish().unwrap();

@@ -124,6 +124,11 @@ pub struct CheckpointRow {
     pub times: StageTimes,
     /// Metrics against the [`Reference`], when there is one.
     pub metrics: Option<Metrics>,
+    /// Gather candidates per valid query point so far, `[caustic, global]`
+    /// ([`IterationStats::candidates`]).
+    pub candidates_per_query: [f64; 2],
+    /// Gather contributions per valid query point so far, `[caustic, global]`.
+    pub contributions_per_query: [f64; 2],
 }
 
 /// What a render produced.
@@ -274,7 +279,14 @@ pub fn render_with<T: Tracer, H: Hooks + ?Sized>(
     let checkpoint = |tracer: &T, hooks: &mut H, i: u32, at: Duration, totals: &StatTotals, rows: &mut Vec<CheckpointRow>| -> anyhow::Result<Image> {
         let image = read_checked(tracer, &capabilities)?;
         let metrics = options.reference.map(|r| r.compare(&image)).transpose()?;
-        let row = CheckpointRow { iteration: i, seconds: at.as_secs_f64(), times: totals.mean_times(), metrics };
+        let row = CheckpointRow {
+            iteration: i,
+            seconds: at.as_secs_f64(),
+            times: totals.mean_times(),
+            metrics,
+            candidates_per_query: totals.sum.candidates_per_query(),
+            contributions_per_query: totals.sum.contributions_per_query(),
+        };
         hooks.checkpoint(&row, &image)?;
         rows.push(row);
         Ok(image)

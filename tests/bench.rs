@@ -41,8 +41,8 @@ fn csv_rows(path: &Path) -> Vec<Vec<String>> {
     }
     let mut lines = text.lines().filter(|l| !l.starts_with('#'));
     let columns: Vec<&str> = lines.next().expect("no column line").split(',').collect();
-    assert_eq!(columns.len(), 17, "{columns:?}");
-    lines.map(|l| l.split(',').map(str::to_owned).collect::<Vec<_>>()).inspect(|f| assert_eq!(f.len(), 17, "{f:?}")).collect()
+    assert_eq!(columns.len(), 21, "{columns:?}");
+    lines.map(|l| l.split(',').map(str::to_owned).collect::<Vec<_>>()).inspect(|f| assert_eq!(f.len(), 21, "{f:?}")).collect()
 }
 
 #[test]

@@ -31,6 +31,11 @@ pub struct IrradianceEstimate {
     pub footprints: u32,
     /// Number of progressive photons that contributed.
     pub photons: u32,
+    /// Records tested against the query point (by `add_footprint` / `add_photon`: the
+    /// candidates an acceleration structure reported), per map.
+    pub candidates: [u32; 2],
+    /// Records that contributed (non-zero, finite), per map.
+    pub contributions: [u32; 2],
 }
 
 impl IrradianceEstimate {
@@ -42,6 +47,7 @@ impl IrradianceEstimate {
             return false;
         }
         self.per_map[map.index()] += e.as_dvec3();
+        self.contributions[map.index()] += 1;
         true
     }
 
@@ -49,6 +55,7 @@ impl IrradianceEstimate {
     /// and faces it. Returns `true` when it contributed.
     #[inline]
     pub fn add_footprint(&mut self, fp: &PackedFootprint, q: &QueryPoint, kernel: Kernel) -> bool {
+        self.candidates[fp.photon_map().index()] += 1;
         let counted = self.add(fp.photon_map(), fp.irradiance(q.position, q.normal, kernel));
         self.footprints += counted as u32;
         counted
@@ -58,6 +65,7 @@ impl IrradianceEstimate {
     #[inline]
     pub fn add_photon(&mut self, ph: &PackedPhoton, q: &QueryPoint, radii: [f32; 2]) -> bool {
         let map = ph.photon_map();
+        self.candidates[map.index()] += 1;
         let counted = self.add(map, ph.irradiance(q.position, q.normal, radii[map.index()]));
         self.photons += counted as u32;
         counted
@@ -156,15 +164,19 @@ pub fn estimate_f64(q: DVec3, query_normal: DVec3, footprints: &[Footprint], pho
     let mut e = IrradianceEstimate::default();
     for fp in footprints {
         let c = fp.irradiance(q, query_normal, radii[fp.map.index()], kernel);
+        e.candidates[fp.map.index()] += 1;
         if c != DVec3::ZERO {
             e.per_map[fp.map.index()] += c;
+            e.contributions[fp.map.index()] += 1;
             e.footprints += 1;
         }
     }
     for ph in photons {
         let c = ph.irradiance(q, query_normal, radii[ph.map.index()]);
+        e.candidates[ph.map.index()] += 1;
         if c != DVec3::ZERO {
             e.per_map[ph.map.index()] += c;
+            e.contributions[ph.map.index()] += 1;
             e.photons += 1;
         }
     }

@@ -616,8 +616,14 @@ pub struct IterationStats {
     pub overflowed: u64,
     /// Valid query points.
     pub query_points: u64,
-    /// Footprint and photon containments found by the gather.
-    pub gathered: u64,
+    /// Candidate records the gather's acceleration structure handed to the exact test at
+    /// the valid query points, `[caustic, global]`: the gather's work. On ray-tracing
+    /// hardware (wgpu, vk) these are the records whose box contains the point; Embree's
+    /// point query (cpu) also hands over the other records of the leaves it visits.
+    pub candidates: [u64; 2],
+    /// Records that contributed at the valid query points (inside the footprint or photon
+    /// sphere, facing, non-zero), `[caustic, global]`.
+    pub contributions: [u64; 2],
     /// Progressive radii used, `[caustic, global]` (metres).
     pub radii: [f64; 2],
     /// Stage timings.
@@ -702,6 +708,21 @@ impl IterationStats {
         self.differential_lost += u64::from(counters.differential_lost);
     }
 
+    /// Contributions of both maps (footprint and photon containments found).
+    pub fn gathered(&self) -> u64 {
+        self.contributions[0] + self.contributions[1]
+    }
+
+    /// Candidates (`[caustic, global]`) per valid query point; zero without query points.
+    pub fn candidates_per_query(&self) -> [f64; 2] {
+        self.candidates.map(|c| if self.query_points > 0 { c as f64 / self.query_points as f64 } else { 0.0 })
+    }
+
+    /// Contributions (`[caustic, global]`) per valid query point; zero without query points.
+    pub fn contributions_per_query(&self) -> [f64; 2] {
+        self.contributions.map(|c| if self.query_points > 0 { c as f64 / self.query_points as f64 } else { 0.0 })
+    }
+
     /// Adds the counts and stage times of `other` (to total several iterations, or to
     /// merge the partial counts of a parallel pass); `iteration` and `radii` become
     /// `other`'s.
@@ -720,7 +741,10 @@ impl IterationStats {
         self.differential_lost += other.differential_lost;
         self.overflowed += other.overflowed;
         self.query_points += other.query_points;
-        self.gathered += other.gathered;
+        for m in 0..2 {
+            self.candidates[m] += other.candidates[m];
+            self.contributions[m] += other.contributions[m];
+        }
         self.times.accumulate(&other.times);
     }
 }
@@ -872,17 +896,17 @@ mod tests {
         assert_eq!(c.begin(Accumulate), Err(StageError::order(Accumulate, Gather)));
         c.begin(Gather).unwrap();
         c.finish(Gather);
-        c.stats_mut().gathered = 7;
+        c.stats_mut().contributions = [3, 4];
         c.begin(Accumulate).unwrap();
         c.finish(Accumulate);
         assert_eq!(c.completed(), 1);
         assert_eq!(c.stats().iteration, 1);
-        assert_eq!(c.stats().gathered, 7, "the last iteration's stats stay readable");
+        assert_eq!(c.stats().gathered(), 7, "the last iteration's stats stay readable");
         // The next iteration needs its own passes; the reads still see the last outputs.
         assert_eq!(c.begin(Gather), Err(StageError::order(Gather, CameraPass)));
         assert!(c.require_output(Call::ReadFootprints, PhotonPass).is_ok());
         c.begin(CameraPass).unwrap();
-        assert_eq!(c.stats().gathered, 0, "a new iteration starts new counts");
+        assert_eq!(c.stats().gathered(), 0, "a new iteration starts new counts");
         assert_eq!(c.stats().iteration, 1);
     }
 

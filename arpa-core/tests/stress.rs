@@ -2194,7 +2194,7 @@ fn big_vec() -> BoxedStrategy<DVec3> {
 }
 
 fn check_lambertian(((e0, e1), albedo): ((DVec3, DVec3), DVec3)) -> Outcome {
-    let est = IrradianceEstimate { per_map: [e0, e1], footprints: 1, photons: 1 };
+    let est = IrradianceEstimate { per_map: [e0, e1], footprints: 1, photons: 1, candidates: [1, 1], contributions: [1, 1] };
     let l = est.lambertian_radiance(albedo);
     prop_assert!(l.is_finite(), "{}", l);
     let raw = albedo * FRAC_1_PI * (e0 + e1);

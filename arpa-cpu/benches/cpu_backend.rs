@@ -781,7 +781,7 @@ fn bench_gather(cfg: &Config, scene: &Scene) {
         let q = stats.query_points as f64;
         println!(
             "gather.{name}.gathered_per_query: {:.2} records",
-            stats.gathered as f64 / q
+            stats.gathered() as f64 / q
         );
         let stored = (stats.footprints[0] + stats.footprints[1]) as f64;
         let photons = (stats.progressive[0] + stats.progressive[1]) as f64;
@@ -979,7 +979,7 @@ fn print_breakdown(label: &str, method: Method, stats: &[IterationStats]) {
         s.footprints[0] + s.footprints[1],
         s.progressive[0] + s.progressive[1],
         s.query_points,
-        s.gathered as f64 / s.query_points.max(1) as f64
+        s.gathered() as f64 / s.query_points.max(1) as f64
     );
 }
 

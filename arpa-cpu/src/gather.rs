@@ -25,20 +25,37 @@ pub(crate) struct GatherInput<'a> {
     pub errors: &'a AtomicU64,
 }
 
+/// The gather's counts over every valid query point, per map `[caustic, global]`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct GatherCounts {
+    /// Records whose box the BVH reported at the point (each then tested exactly).
+    pub candidates: [u64; 2],
+    /// Records that contributed.
+    pub contributions: [u64; 2],
+}
+
 /// Writes the radiance of each query record's pixel to `image` (resized to
-/// `queries.len()`; one task per record, in parallel) and returns the number of footprint
-/// and photon contributions found.
-pub(crate) fn gather(queries: &[QueryRecord], input: &GatherInput<'_>, image: &mut Vec<Vec3>) -> u64 {
-    let gathered = AtomicU64::new(0);
+/// `queries.len()`; one task per record, in parallel) and returns the candidates and
+/// contributions found.
+pub(crate) fn gather(queries: &[QueryRecord], input: &GatherInput<'_>, image: &mut Vec<Vec3>) -> GatherCounts {
+    let counts: [AtomicU64; 4] = Default::default();
     queries
         .par_iter()
         .map_init(Vec::new, |scratch, rec| {
-            let (l, n) = gather_one(rec, input, scratch);
-            gathered.fetch_add(n as u64, Ordering::Relaxed);
+            let (l, e) = gather_one(rec, input, scratch);
+            for m in 0..2 {
+                if e.candidates[m] > 0 {
+                    counts[m].fetch_add(e.candidates[m] as u64, Ordering::Relaxed);
+                }
+                if e.contributions[m] > 0 {
+                    counts[2 + m].fetch_add(e.contributions[m] as u64, Ordering::Relaxed);
+                }
+            }
             l
         })
         .collect_into_vec(image);
-    gathered.into_inner()
+    let [c0, c1, n0, n1] = counts.map(AtomicU64::into_inner);
+    GatherCounts { candidates: [c0, c1], contributions: [n0, n1] }
 }
 
 /// Replaces non-finite components by 0.
@@ -50,7 +67,8 @@ fn finite_or_zero(v: DVec3) -> DVec3 {
 /// (`2³² + index`), the order [`arpa_core::estimate::gather_brute_force`] sums in.
 const PHOTON_KEY: u64 = 1 << 32;
 
-/// The gather of one query record: its pixel's radiance and the number of contributions.
+/// The gather of one query record: its pixel's radiance and its estimate (with the
+/// candidates and contributions per map).
 ///
 /// Two phases. The Embree point query reports every box containing the query point (and
 /// possibly a few more); its callback only notes the candidate's key in `keys` and
@@ -60,10 +78,10 @@ const PHOTON_KEY: u64 = 1 << 32;
 /// [`IrradianceEstimate::add_photon`] (exact test and `f64` sum) in `(kind, index)` order,
 /// so the sum is bit-identical to [`arpa_core::estimate::gather_brute_force`] over the
 /// same records, whatever order the BVH reported them in.
-fn gather_one(rec: &QueryRecord, input: &GatherInput<'_>, keys: &mut Vec<u64>) -> (Vec3, u32) {
+fn gather_one(rec: &QueryRecord, input: &GatherInput<'_>, keys: &mut Vec<u64>) -> (Vec3, IrradianceEstimate) {
     let known = Vec3::from_array(rec.radiance).as_dvec3();
     if rec.valid == 0 {
-        return (finite_or_zero(known).as_vec3(), 0);
+        return (finite_or_zero(known).as_vec3(), IrradianceEstimate::default());
     }
     let mut estimate = IrradianceEstimate::default();
     if let Accel::Boxes {
@@ -108,8 +126,5 @@ fn gather_one(rec: &QueryRecord, input: &GatherInput<'_>, keys: &mut Vec<u64>) -
     }
     let weight = Vec3::from_array(rec.weight).as_dvec3();
     let radiance = known + weight * estimate.irradiance();
-    (
-        finite_or_zero(radiance).as_vec3(),
-        estimate.footprints + estimate.photons,
-    )
+    (finite_or_zero(radiance).as_vec3(), estimate)
 }

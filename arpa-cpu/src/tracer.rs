@@ -260,7 +260,10 @@ impl Tracer for CpuTracer {
                 radii: st.photons.radii,
                 errors: &st.gather_errors,
             };
-            clock.stats_mut().gathered = crate::gather::gather(&st.queries, &input, &mut st.image);
+            let counts = crate::gather::gather(&st.queries, &input, &mut st.image);
+            let stats = clock.stats_mut();
+            stats.candidates = counts.candidates;
+            stats.contributions = counts.contributions;
             Ok(())
         })
     }

@@ -125,7 +125,7 @@ fn furnace_with(method: Method, direct_lighting: bool, face_vertex_normals: bool
         method.name(),
         stats.footprints[0] + stats.footprints[1],
         stats.progressive[0] + stats.progressive[1],
-        stats.gathered,
+        stats.gathered(),
         start.elapsed().as_secs_f64()
     );
     match method {

@@ -30,6 +30,8 @@ const float ARPA_3_FRAC_1_PI = 0.9549296;
 // hitKind reported by the intersection shader.
 const uint ARPA_HIT_FOOTPRINT = 0u;
 const uint ARPA_HIT_PHOTON = 1u;
+// Added to the hit kind of a candidate whose record does not contain the query point.
+const uint ARPA_HIT_OUTSIDE = 2u;
 
 // arpa_core::footprint::PackedFootprint (64 bytes).
 struct ArpaPackedFootprint {

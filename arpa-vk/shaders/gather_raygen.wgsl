@@ -13,8 +13,8 @@ enable wgpu_ray_tracing_pipeline;
 
 @group(0) @binding(7) var arpa_gather_boxes: acceleration_structure;
 
-// Per-map sums and contribution counts of one point query, and the query's unit normal
-// (the any-hit shader's side test).
+// Per-map sums and contribution counts of one point query, the query's unit normal (the
+// any-hit shader's side test) and the candidates per map.
 struct VkGatherPayload {
     caustic: vec3<f32>,
     caustic_count: u32,
@@ -22,6 +22,8 @@ struct VkGatherPayload {
     global_count: u32,
     normal: vec3<f32>,
     pad: u32,
+    candidates: vec2<u32>,
+    pad1: vec2<u32>,
 }
 
 var<ray_payload> vk_gather_payload: VkGatherPayload;
@@ -32,11 +34,11 @@ var<incoming_ray_payload> vk_gather_incoming: VkGatherPayload;
 const ARPA_GATHER_RAY_LENGTH: f32 = 1e-6;
 
 fn arpa_gather_at(q: vec3<f32>, n: vec3<f32>, kernel: u32, radii: vec2<f32>) -> ArpaGatherResult {
-    vk_gather_payload = VkGatherPayload(vec3<f32>(0.0), 0u, vec3<f32>(0.0), 0u, n, 0u);
+    vk_gather_payload = VkGatherPayload(vec3<f32>(0.0), 0u, vec3<f32>(0.0), 0u, n, 0u, vec2<u32>(0u), vec2<u32>(0u));
     // Not opaque (an opaque ray skips any-hit); every instance mask.
     traceRay(arpa_gather_boxes, RayDesc(RAY_FLAG_NONE, 0xffu, 0.0, ARPA_GATHER_RAY_LENGTH, q, vec3<f32>(0.0, 0.0, 1.0)), &vk_gather_payload);
     let p = vk_gather_payload;
-    return ArpaGatherResult(p.caustic, p.caustic_count, p.global_sum, p.global_count);
+    return ArpaGatherResult(p.caustic, p.caustic_count, p.global_sum, p.global_count, p.candidates, vec2<u32>(0u));
 }
 
 // One invocation per query record, launched (x, y, 1) and linearised x fastest.

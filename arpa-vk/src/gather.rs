@@ -25,7 +25,7 @@ use crate::device::VkContext;
 use crate::error::VkError;
 use crate::pipeline::{BindingKind, HitGroup, Resource, RtPipeline, RtPipelineDesc, ShaderEntry};
 use crate::shaders::{GATHER_ANY_HIT, GATHER_INTERSECTION, GATHER_RAYGEN, GlslStage, compile_wgsl};
-use arpa_core::gpu::layout::{GatherBatch, GatherImageParams};
+use arpa_core::gpu::layout::{self, GatherBatch, GatherImageParams};
 use arpa_core::kernel::Kernel;
 use ash::vk;
 use std::sync::Arc;
@@ -82,11 +82,18 @@ pub struct GatherPass {
     pixels: u32,
 }
 
-/// Contributions summed and valid query points of one gather.
+/// Size of the device's counters ([`layout::GatherCounts`], bytes).
+const COUNTS_BYTES: u64 = size_of::<layout::GatherCounts>() as u64;
+
+/// Contributions and candidates summed and valid query points of one gather (from the
+/// device's [`layout::GatherCounts`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct GatherCounts {
-    /// Records that contributed, over every query point.
-    pub contributions: u64,
+    /// Records that contributed, over every query point, per map.
+    pub contributions: [u64; 2],
+    /// Candidate records (boxes containing the query point), over every query point, per
+    /// map.
+    pub candidates: [u64; 2],
     /// Query records with a valid query point.
     pub query_points: u64,
 }
@@ -100,7 +107,7 @@ impl GatherPass {
         Ok(Self {
             pipeline,
             params: ctx.create_buffer("gather parameters", size_of::<GatherImageParams>() as u64, storage, MemoryLocation::CpuToGpu)?,
-            counts: ctx.create_buffer("gather counts", 16, storage, MemoryLocation::GpuToCpu)?,
+            counts: ctx.create_buffer("gather counts", COUNTS_BYTES, storage, MemoryLocation::GpuToCpu)?,
             batch_irradiance: ctx.create_buffer("gather batch irradiance", u64::from(pixels.max(1)) * 16, storage, MemoryLocation::GpuOnly)?,
             kernel,
             pixels,
@@ -115,7 +122,7 @@ impl GatherPass {
     pub fn run(&mut self, ctx: &VkContext, queries: &Buffer, image: &Buffer, maps: &GatherInputs<'_>, batch: GatherBatch) -> Result<GatherCounts, VkError> {
         let params = GatherImageParams::new(maps.radii, self.kernel, self.pixels, batch);
         self.params.write(0, bytemuck::bytes_of(&params))?;
-        self.counts.write(0, &[0u8; 16])?;
+        self.counts.write(0, &[0u8; COUNTS_BYTES as usize])?;
         if self.pixels == 0 {
             return Ok(GatherCounts::default());
         }
@@ -132,7 +139,7 @@ impl GatherPass {
         let bindings = self.pipeline.bind(&[&set])?;
         let x = self.pixels.min(LAUNCH_WIDTH);
         self.pipeline.trace_and_wait(ctx, &bindings, &[], [x, self.pixels.div_ceil(x), 1])?;
-        let c: [u32; 4] = bytemuck::pod_read_unaligned(&self.counts.read(0, 16)?);
-        Ok(GatherCounts { contributions: u64::from(c[0]) | u64::from(c[1]) << 32, query_points: u64::from(c[2]) })
+        let c: layout::GatherCounts = bytemuck::pod_read_unaligned(&self.counts.read(0, COUNTS_BYTES)?);
+        Ok(GatherCounts { contributions: c.contributions(), candidates: c.candidates(), query_points: u64::from(c.query_points) })
     }
 }

@@ -419,17 +419,21 @@ impl Tracer for VkTracer {
         let st = uploaded(self.state.as_deref_mut(), Stage::Gather)?;
         st.clock.run(Stage::Gather, |clock| {
             let batches = st.batch_count;
-            let (mut contributions, mut query_points) = (0u64, 0u64);
+            let (mut contributions, mut candidates, mut query_points) = ([0u64; 2], [0u64; 2], 0u64);
             for (k, b) in st.batches[..batches].iter().enumerate() {
                 let accel = b.accel.as_ref().ok_or_else(|| StageError::order(Stage::Gather, Stage::BuildAccelerationStructure))?;
                 let inputs = GatherInputs { footprints: b.store.footprints(), photons: b.store.photons(), tlas: accel.tlas(), radii: st.radii };
                 let batch = GatherBatch { first: k == 0, last: k + 1 == batches };
                 let counts = st.gather.run(&self.ctx, &st.queries, &st.image, &inputs, batch)?;
-                contributions += counts.contributions;
+                for m in 0..2 {
+                    contributions[m] += counts.contributions[m];
+                    candidates[m] += counts.candidates[m];
+                }
                 query_points += counts.query_points;
             }
             let stats = clock.stats_mut();
-            stats.gathered = contributions;
+            stats.contributions = contributions;
+            stats.candidates = candidates;
             stats.query_points = query_points;
             Ok(())
         })

@@ -90,12 +90,16 @@ struct GpuQuery {
     pad1: u32,
 }
 
-/// `ArpaGatherResult` of gather_test.rgen (arpa_core::gpu::layout::GatherResult, 32 bytes).
+/// `ArpaGatherResult` of gather_test.rgen (arpa_core::gpu::layout::GatherResult, 48 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 struct GpuResult {
     sum: [[f32; 4]; 2],
+    candidates: [u32; 2],
+    pad: [u32; 2],
 }
+const RESULT_BYTES: usize = size_of::<GpuResult>();
+const _: () = assert!(RESULT_BYTES == size_of::<arpa_core::gpu::layout::GatherResult>());
 
 impl GpuResult {
     fn sum(&self, map: usize) -> DVec3 {
@@ -233,6 +237,23 @@ fn near_boundary(q: &QueryPoint, r: &Records) -> bool {
     })
 }
 
+/// Boxes per map that contain `q` shrunk by `margin` (metres; negative: grown): the
+/// device's candidates lie between the counts for `margin = 1e-6` and `-1e-5` (its ray
+/// is 1e-6 long, and box tests may be conservative).
+fn boxes_containing(q: &QueryPoint, r: &Records, margin: f32) -> [u32; 2] {
+    let mut c = [0u32; 2];
+    let inside = |b: &[f32; 6]| (0..3).all(|k| b[k] + margin <= q.position[k] && q.position[k] <= b[k + 3] - margin);
+    for (fp, b) in r.footprints.iter().zip(&r.footprint_boxes) {
+        c[fp.photon_map().index()] += inside(b) as u32;
+    }
+    for ph in &r.photons {
+        let m = ph.photon_map().index();
+        let (lo, hi) = Aabb::from_centre_half_extent(Vec3::from_array(ph.position).as_dvec3(), DVec3::splat(RADII[m].into())).padded_f32();
+        c[m] += inside(&[lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]]) as u32;
+    }
+    c
+}
+
 /// Contributions per map at `q` (what the device counts).
 fn counts(q: &QueryPoint, r: &Records, kernel: Kernel) -> ([u32; 2], [DVec3; 2]) {
     let (mut c, mut abs) = ([0u32; 2], [DVec3::ZERO; 2]);
@@ -272,7 +293,7 @@ fn gather_hit_group_matches_the_core() {
         .collect();
     let q_buf = upload("queries", bytemuck::cast_slice(&gpu_queries));
     let n = recs.queries.len();
-    let result_buf = ctx.create_buffer("results", (n * 32) as u64, usage, MemoryLocation::GpuToCpu).expect("results");
+    let result_buf = ctx.create_buffer("results", (n * RESULT_BYTES) as u64, usage, MemoryLocation::GpuToCpu).expect("results");
 
     // One BLAS per non-empty (kind, map).
     let mut blases: Vec<(AccelerationStructure, u32, u8)> = Vec::new();
@@ -347,14 +368,26 @@ fn gather_hit_group_matches_the_core() {
         pipeline.trace_and_wait(&ctx, &bindings, &[], [width, (n as u32).div_ceil(width), 1]).expect("trace");
         let trace_s = t0.elapsed().as_secs_f64();
         let got: Vec<GpuResult> =
-            result_buf.read(0, (n * 32) as u64).expect("read results").chunks_exact(32).map(bytemuck::pod_read_unaligned).collect();
+            result_buf.read(0, (n * RESULT_BYTES) as u64).expect("read results").chunks_exact(RESULT_BYTES).map(bytemuck::pod_read_unaligned).collect();
 
-        let (mut single, mut single_exact) = (0u32, 0u32);
+        let (mut single, mut single_exact, mut candidates) = (0u32, 0u32, 0u64);
         let (mut total, mut max_count, mut empty, mut mismatched, mut worst_rel, mut worst_vs_bound) = (0u64, 0u32, 0, 0, 0.0f64, 0.0f64);
         for (i, (q, g)) in recs.queries.iter().zip(&got).enumerate() {
             let want = gather_brute_force(q, &recs.footprints, &recs.photons, RADII.map(f64::from), kernel);
             let (c, abs) = counts(q, &recs, kernel);
             assert_eq!(c[0] + c[1], want.footprints + want.photons);
+            let (lo, hi) = (boxes_containing(q, &recs, 1e-6), boxes_containing(q, &recs, -1e-5));
+            for m in 0..2 {
+                assert!(
+                    (lo[m]..=hi[m]).contains(&g.candidates[m]) && g.candidates[m] >= g.count(m),
+                    "{kernel:?} query {i} map {m}: {} candidates, boxes containing the point {}..={}, {} contributions",
+                    g.candidates[m],
+                    lo[m],
+                    hi[m],
+                    g.count(m)
+                );
+                candidates += u64::from(g.candidates[m]);
+            }
             let have = [g.count(0), g.count(1)];
             if have != c {
                 assert!(near[i], "{kernel:?} query {i} {q:?}: device counts {have:?}, core {c:?}, no record on a boundary");
@@ -380,7 +413,7 @@ fn gather_hit_group_matches_the_core() {
             }
         }
         eprintln!(
-            "arpa-vk gather hit group, {kernel:?}: {n} queries, {} footprints, {} photons: {total} contributions agree exactly (max {max_count} per query, {empty} queries with none), {mismatched} differ ({near_count} queries have a record on a boundary within 1e-5); worst relative sum error {worst_rel:.3e} ({:.2} of the bound), {single_exact} of {single} single-contribution sums bit-identical; trace {trace_s:.3} s",
+            "arpa-vk gather hit group, {kernel:?}: {n} queries, {} footprints, {} photons: {total} contributions agree exactly (max {max_count} per query, {empty} queries with none; {candidates} candidates within the boxes' bounds), {mismatched} differ ({near_count} queries have a record on a boundary within 1e-5); worst relative sum error {worst_rel:.3e} ({:.2} of the bound), {single_exact} of {single} single-contribution sums bit-identical; trace {trace_s:.3} s",
             recs.footprints.len(),
             recs.photons.len(),
             worst_vs_bound

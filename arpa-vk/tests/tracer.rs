@@ -76,7 +76,7 @@ fn renders_both_methods_cleanly_and_deterministically() {
             assert_eq!(st.photons_emitted, u64::from(s.photons_per_iteration), "{method:?} iteration {i}: {st:?}");
             assert!(st.query_points > pixels / 2 && st.query_points <= pixels, "{method:?} {i}: {st:?}");
             let records: u64 = st.footprints.iter().chain(&st.progressive).sum();
-            assert!(records > 1000 && st.gathered > st.query_points, "{method:?} {i}: {st:?}");
+            assert!(records > 1000 && st.gathered() > st.query_points, "{method:?} {i}: {st:?}");
             assert!(st.footprints[0] + st.progressive[0] > 0, "{method:?} {i}: no caustic records: {st:?}");
             if method == Method::Rtpm {
                 assert_eq!(st.footprints, [0, 0], "{st:?}");
@@ -122,7 +122,7 @@ fn photon_batches_sum_to_the_single_pass_image() {
     assert_eq!(t.batch_photons(), Some(7_000));
     // The same photons, records and contributions, in three batches.
     for (a, b) in one.iter().zip(&three) {
-        assert_eq!((a.photons_emitted, a.footprints, a.progressive, a.gathered, a.query_points), (b.photons_emitted, b.footprints, b.progressive, b.gathered, b.query_points));
+        assert_eq!((a.photons_emitted, a.footprints, a.progressive, a.contributions, a.candidates, a.query_points), (b.photons_emitted, b.footprints, b.progressive, b.contributions, b.candidates, b.query_points));
     }
     assert_eq!(t.read_footprints().expect("footprints").len() + t.read_photons().expect("photons").len(), records);
     // Summed in another f32 order: equal to rounding.

@@ -4,13 +4,14 @@
 //! ([`crate::accel`]), tested exactly and summed per map; the iteration's radiance per pixel
 //! out.
 
-use arpa_core::gpu::layout::{GatherBatch, GatherImageParams};
+use arpa_core::gpu::layout::{GatherBatch, GatherCounts, GatherImageParams};
 use arpa_core::kernel::Kernel;
 
 /// The tracer's gather: per query record (one per pixel, [`arpa_core::tracer::QueryRecord`]),
 /// `radiance + weight · (E_caustic + E_global)` with non-finite components set to 0 (as
-/// arpa-cpu's gather), written as `vec4<f32>` (RGB, 0) per pixel; the number of contributions
-/// summed into a 64-bit counter and the valid records counted ([`ImageGather::total_buffer`]).
+/// arpa-cpu's gather), written as `vec4<f32>` (RGB, 0) per pixel; the contributions and
+/// candidates per map summed into 64-bit counters and the valid records counted
+/// ([`ImageGather::total_buffer`]).
 pub struct ImageGather {
     pipeline: wgpu::ComputePipeline,
     params: wgpu::Buffer,
@@ -32,11 +33,11 @@ impl ImageGather {
         });
         let buffer = |size, usage| device.create_buffer(&wgpu::BufferDescriptor { label, size, usage, mapped_at_creation: false });
         use wgpu::BufferUsages as U;
-        Self { pipeline, params: buffer(size_of::<GatherImageParams>() as u64, U::STORAGE | U::COPY_DST), total: buffer(16, U::STORAGE | U::COPY_DST | U::COPY_SRC) }
+        Self { pipeline, params: buffer(size_of::<GatherImageParams>() as u64, U::STORAGE | U::COPY_DST), total: buffer(size_of::<GatherCounts>() as u64, U::STORAGE | U::COPY_DST | U::COPY_SRC) }
     }
 
-    /// The counters (four `u32`: contributions low and high word, valid query records,
-    /// zero), valid after the commands of [`ImageGather::encode`] ran.
+    /// The counters ([`GatherCounts`]), valid after the commands of
+    /// [`ImageGather::encode`] ran.
     pub fn total_buffer(&self) -> &wgpu::Buffer {
         &self.total
     }

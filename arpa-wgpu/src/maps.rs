@@ -246,8 +246,7 @@ impl PhotonMaps {
         Ok(())
     }
 
-    /// The gather's counter buffer (four `u32`: contributions low, high word, valid query
-    /// records, zero).
+    /// The gather's counter buffer ([`arpa_core::gpu::layout::GatherCounts`]).
     pub fn gathered_buffer(&self) -> &wgpu::Buffer {
         self.gather.total_buffer()
     }

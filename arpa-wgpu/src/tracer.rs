@@ -9,7 +9,7 @@ use crate::scene::GpuScene;
 use arpa_core::accumulate::Accumulation;
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::gpu::batch::{Overflow, RecordLimits, after_overflow, for_each_batch, initial_capacity, shrink};
-use arpa_core::gpu::layout::{PhotonCounters, StoreSettings, check_record_keys};
+use arpa_core::gpu::layout::{GatherCounts, PhotonCounters, StoreSettings, check_record_keys};
 use arpa_core::gpu::sort::{MAX_SORT_ITEMS, sorted_len};
 use arpa_core::photon_path::PhotonPassSetup;
 use arpa_core::prepared_scene::PreparedScene;
@@ -420,10 +420,12 @@ impl Tracer for WgpuTracer {
                     Ok(())
                 })?;
             }
-            let total: [u32; 4] = bytemuck::pod_read_unaligned(&read_buffer(ctx, "gather counts", maps.gathered_buffer(), 16)?);
+            let size = size_of::<GatherCounts>() as u64;
+            let total: GatherCounts = bytemuck::pod_read_unaligned(&read_buffer(ctx, "gather counts", maps.gathered_buffer(), size)?);
             let stats = clock.stats_mut();
-            stats.gathered = total[0] as u64 | (total[1] as u64) << 32;
-            stats.query_points = total[2] as u64;
+            stats.contributions = total.contributions();
+            stats.candidates = total.candidates();
+            stats.query_points = u64::from(total.query_points);
             Ok(())
         })
     }

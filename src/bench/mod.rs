@@ -96,6 +96,10 @@ pub struct BenchRow {
     pub mean_ratio: f64,
     /// Mean per-iteration stage times (seconds; zero for peers).
     pub times: StageTimes,
+    /// Gather candidates per valid query point, `[caustic, global]` (zero for peers).
+    pub candidates_per_query: [f64; 2],
+    /// Gather contributions per valid query point, `[caustic, global]` (zero for peers).
+    pub contributions_per_query: [f64; 2],
 }
 
 /// The outcome of one run.
@@ -199,6 +203,8 @@ impl Hooks for RowHooks<'_> {
             flip: m.flip,
             mean_ratio: metrics::mean(image) / self.reference_mean,
             times: row.times,
+            candidates_per_query: row.candidates_per_query,
+            contributions_per_query: row.contributions_per_query,
         });
         Ok(())
     }
@@ -395,6 +401,8 @@ fn run_peer(
                     flip: m.flip,
                     mean_ratio: metrics::mean(&image) / reference_mean,
                     times: StageTimes::default(),
+                    candidates_per_query: [0.0; 2],
+                    contributions_per_query: [0.0; 2],
                 });
                 last_image = Some(image);
             }

@@ -59,7 +59,7 @@ pub fn write_all(out: &Path, header: &Header, cfg: &LoadedConfig, results: &[Run
 }
 
 /// The CSV columns.
-pub const CSV_COLUMNS: &str = "scene,run,backend,method,photons,status,iteration,seconds,relmse,ssim,flip,mean_ratio,camera_ms,photon_ms,build_ms,gather_ms,accumulate_ms";
+pub const CSV_COLUMNS: &str = "scene,run,backend,method,photons,status,iteration,seconds,relmse,ssim,flip,mean_ratio,camera_ms,photon_ms,build_ms,gather_ms,accumulate_ms,caustic_candidates_per_query,caustic_contributions_per_query,global_candidates_per_query,global_contributions_per_query";
 
 /// `# header` lines, then one row per checkpoint (a skipped run is one `skipped: …` row).
 pub fn csv_text(header: &Header, results: &[RunResult]) -> String {
@@ -75,14 +75,14 @@ pub fn csv_text(header: &Header, results: &[RunResult]) -> String {
         };
         let run = r.kind.label();
         if let Some(why) = &r.skipped {
-            let _ = writeln!(s, "{},{run},{backend},{method},{photons},\"skipped: {}\",,,,,,,,,,,", r.scene, why.replace('"', "'"));
+            let _ = writeln!(s, "{},{run},{backend},{method},{photons},\"skipped: {}\",,,,,,,,,,,,,,,", r.scene, why.replace('"', "'"));
             continue;
         }
         for row in &r.rows {
             let t = &row.times;
             let _ = writeln!(
                 s,
-                "{},{run},{backend},{method},{photons},ok,{},{:.6},{:.9e},{:.9},{:.9},{:.6},{:.3},{:.3},{:.3},{:.3},{:.3}",
+                "{},{run},{backend},{method},{photons},ok,{},{:.6},{:.9e},{:.9},{:.9},{:.6},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3}",
                 r.scene,
                 row.iteration,
                 row.seconds,
@@ -94,7 +94,11 @@ pub fn csv_text(header: &Header, results: &[RunResult]) -> String {
                 t.photon * 1e3,
                 t.build * 1e3,
                 t.gather * 1e3,
-                t.accumulate * 1e3
+                t.accumulate * 1e3,
+                row.candidates_per_query[0],
+                row.contributions_per_query[0],
+                row.candidates_per_query[1],
+                row.contributions_per_query[1]
             );
         }
     }

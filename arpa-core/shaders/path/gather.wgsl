@@ -24,19 +24,22 @@
 // gathers each batch's maps in turn; E is summed over the batches in batch_irradiance and
 // the last batch writes the radiance.
 
-// Irradiance per map (W/m^2, RGB) and the number of contributing records
-// (arpa_core::gpu::layout::GatherResult, 32 bytes).
+// Irradiance per map (W/m^2, RGB), the number of contributing records and the number of
+// candidate records per map (arpa_core::gpu::layout::GatherResult, 48 bytes).
 struct ArpaGatherResult {
     caustic: vec3<f32>,
     caustic_count: u32,
     global: vec3<f32>,
     global_count: u32,
+    candidates: vec2<u32>,
+    pad: vec2<u32>,
 }
 
 // The sums of one query while its candidates come in (zero-initialised).
 struct ArpaGatherSum {
     sum: array<vec3<f32>, 2>,
     count: array<u32, 2>,
+    candidates: array<u32, 2>,
 }
 
 // layout::GatherImageParams (32 bytes).
@@ -65,8 +68,9 @@ const ARPA_INSTANCE_INDEX_MASK: u32 = 0x7fffffu;
 @group(0) @binding(2) var<storage, read> records: array<ArpaQueryRecord>;
 @group(0) @binding(3) var<storage, read_write> image: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> image_params: GatherImageParams;
-// [contributions low word, high word, valid query records, 0]
-@group(0) @binding(5) var<storage, read_write> gathered_total: array<atomic<u32>, 4>;
+// layout::GatherCounts: contributions per map (low, high word) at 0..3, candidates per map
+// (low, high word) at 4..7, valid query records at 8, padding 9..11.
+@group(0) @binding(5) var<storage, read_write> gathered_total: array<atomic<u32>, 12>;
 // Per pixel: irradiance summed over the batches gathered so far (W/m^2, RGB; caustic +
 // global), written by every batch but the last.
 @group(0) @binding(6) var<storage, read_write> batch_irradiance: array<vec4<f32>>;
@@ -103,6 +107,7 @@ fn arpa_gather_candidate(acc: ptr<function, ArpaGatherSum>, custom: u32, primiti
         m = min(ph.map, 1u);
         e = gather_photon_irradiance(ph, q, n, radii[m]);
     }
+    (*acc).candidates[m] += 1u;
     if any(e != vec3<f32>(0.0)) && arpa_is_finite3(e) {
         (*acc).sum[m] += e;
         (*acc).count[m] += 1u;
@@ -111,7 +116,7 @@ fn arpa_gather_candidate(acc: ptr<function, ArpaGatherSum>, custom: u32, primiti
 
 // The result of a query's sums.
 fn arpa_gather_result(acc: ArpaGatherSum) -> ArpaGatherResult {
-    return ArpaGatherResult(acc.sum[0], acc.count[0], acc.sum[1], acc.count[1]);
+    return ArpaGatherResult(acc.sum[0], acc.count[0], acc.sum[1], acc.count[1], vec2<u32>(acc.candidates[0], acc.candidates[1]), vec2<u32>(0u));
 }
 
 fn gather_finite_or_zero(v: vec3<f32>) -> vec3<f32> {
@@ -125,7 +130,8 @@ fn arpa_gather_pixel(i: u32) {
     let last = (image_params.batch & GATHER_BATCH_LAST) != 0u;
     var radiance = rec.radiance;
     var e = vec3<f32>(0.0);
-    var n = 0u;
+    var counts = vec2<u32>(0u);
+    var candidates = vec2<u32>(0u);
     if rec.valid != 0u {
         let g = arpa_gather_at(rec.position, rec.normal, image_params.kernel, image_params.radii);
         // One batch: exactly the single-pass expression (no addition of a zero sum).
@@ -134,9 +140,10 @@ fn arpa_gather_pixel(i: u32) {
             e = batch_irradiance[i].xyz + e;
         }
         radiance = rec.radiance + rec.weight * e;
-        n = g.caustic_count + g.global_count;
+        counts = vec2<u32>(g.caustic_count, g.global_count);
+        candidates = g.candidates;
         if first {
-            atomicAdd(&gathered_total[2], 1u);
+            atomicAdd(&gathered_total[8], 1u);
         }
     }
     if last {
@@ -144,11 +151,18 @@ fn arpa_gather_pixel(i: u32) {
     } else {
         batch_irradiance[i] = vec4<f32>(e, 0.0);
     }
+    for (var m = 0u; m < 2u; m++) {
+        gather_count(2u * m, counts[m]);
+        gather_count(4u + 2u * m, candidates[m]);
+    }
+}
+
+// Adds n to the 64-bit total at gathered_total[at] (low word; carry into at + 1).
+fn gather_count(at: u32, n: u32) {
     if n > 0u {
-        // 64-bit total: low word, carry into the high word.
-        let old = atomicAdd(&gathered_total[0], n);
+        let old = atomicAdd(&gathered_total[at], n);
         if old > 0xffffffffu - n {
-            atomicAdd(&gathered_total[1], 1u);
+            atomicAdd(&gathered_total[at + 1u], 1u);
         }
     }
 }

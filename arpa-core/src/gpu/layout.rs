@@ -379,7 +379,7 @@ impl SortStep {
     }
 }
 
-/// Irradiance gathered at one query point (`ArpaGatherResult` of `gather.wgsl`, 32 bytes;
+/// Irradiance gathered at one query point (`ArpaGatherResult` of `gather.wgsl`, 48 bytes;
 /// W/m², RGB, summed in `f32` on the device).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
@@ -392,8 +392,42 @@ pub struct GatherResult {
     pub global: [f32; 3],
     /// Global records that contributed.
     pub global_count: u32,
+    /// Candidate records per map (`[caustic, global]`: boxes containing the point, each
+    /// tested exactly).
+    pub candidates: [u32; 2],
+    /// Padding.
+    pub pad: [u32; 2],
 }
-layout!(GatherResult, 32, { caustic: 0, caustic_count: 12, global: 16, global_count: 28 });
+layout!(GatherResult, 48, { caustic: 0, caustic_count: 12, global: 16, global_count: 28, candidates: 32, pad: 40 });
+
+/// The gather's counters of one iteration (`gathered_total` of `gather.wgsl`, 48 bytes):
+/// 64-bit totals kept as `[low, high]` words (the device adds to the low word and carries
+/// into the high one).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GatherCounts {
+    /// Contributions per map, `[caustic, global]`, each `[low, high]`.
+    pub contributions: [[u32; 2]; 2],
+    /// Candidates per map, `[caustic, global]`, each `[low, high]`.
+    pub candidates: [[u32; 2]; 2],
+    /// Valid query records (counted by the iteration's first batch).
+    pub query_points: u32,
+    /// Padding.
+    pub pad: [u32; 3],
+}
+layout!(GatherCounts, 48, { contributions: 0, candidates: 16, query_points: 32, pad: 36 });
+
+impl GatherCounts {
+    /// The contributions per map.
+    pub fn contributions(&self) -> [u64; 2] {
+        self.contributions.map(|[lo, hi]| u64::from(lo) | u64::from(hi) << 32)
+    }
+
+    /// The candidates per map.
+    pub fn candidates(&self) -> [u64; 2] {
+        self.candidates.map(|[lo, hi]| u64::from(lo) | u64::from(hi) << 32)
+    }
+}
 
 /// Where one gather stands among the photon batches of an iteration
 /// ([`crate::gpu::batch`]: each batch's maps are gathered in turn).

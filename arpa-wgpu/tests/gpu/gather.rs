@@ -95,6 +95,10 @@ pub(crate) fn check(fps: &[PackedFootprint], qs: &[QueryPoint], got: &[GatherRes
             let diff = (got_maps[m] - est.per_map[m]).abs().max_element();
             prop_assert!(diff <= tol, "map {}: device {:?} core {:?} (diff {:e} > {:e}) at {:?}", m, got_maps[m], est.per_map[m], diff, tol, q);
         }
+        // Every contributing record was a candidate; every candidate is a record.
+        for (m, c) in [g.caustic_count, g.global_count].into_iter().enumerate() {
+            prop_assert!(c <= g.candidates[m] && g.candidates[m] as usize <= fps.len(), "map {}: {} contributions, {} candidates of {} records at {:?}", m, c, g.candidates[m], fps.len(), q);
+        }
         let count = g.caustic_count + g.global_count;
         prop_assert!(count.abs_diff(est.footprints) <= near, "contributing footprints: device {} core {} ({} near a boundary) at {:?}", count, est.footprints, near, q);
         contributions += est.footprints as usize;

@@ -126,7 +126,7 @@ fn records_have_the_layouts_of_their_rust_twins() {
         ("ArpaLight", size_of::<PackedLight>(), vec![]),
         ("ArpaHeuristics", size_of::<PackedHeuristics>(), vec![]),
         ("StoreParams", size_of::<StoreParams>(), vec![("radii", offset_of!(StoreParams, radii)), ("scene_lo", offset_of!(StoreParams, scene_lo)), ("raw_count", offset_of!(StoreParams, raw_count)), ("scene_inv", offset_of!(StoreParams, scene_inv)), ("photon_count", offset_of!(StoreParams, photon_count)), ("fp_sorted", offset_of!(StoreParams, fp_sorted)), ("ph_count", offset_of!(StoreParams, ph_count))]),
-        ("ArpaGatherResult", size_of::<GatherResult>(), vec![("caustic", 0), ("caustic_count", 12), ("global", 16), ("global_count", 28)]),
+        ("ArpaGatherResult", size_of::<GatherResult>(), vec![("caustic", 0), ("caustic_count", 12), ("global", 16), ("global_count", 28), ("candidates", 32), ("pad", 40)]),
         ("GatherImageParams", size_of::<GatherImageParams>(), vec![("radii", 0), ("kernel", 8), ("pixels", 12), ("batch", 16)]),
         ("AccumPixel", size_of::<AccumPixel>(), vec![("sum", 0), ("rejected", 12), ("compensation", 16)]),
         ("ArpaCameraParams", size_of::<CameraParams>(), vec![("position", 0), ("width", 12), ("forward", 16), ("height", 28), ("right", 32), ("tan_half_fov", 44), ("up", 48), ("aspect", 60), ("seed", 64), ("iteration", 68), ("max_depth", 72), ("direct_lighting", 76), ("pixel_count", 80), ("row_invocations", 84)]),

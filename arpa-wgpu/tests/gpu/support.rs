@@ -9,7 +9,7 @@ use arpa_core::estimate::QueryPoint;
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::glam::Vec3;
 use arpa_core::gpu::codes::kernel_code;
-use arpa_core::gpu::layout::{AccumPixel, GatherResult, KeyedFootprint, KeyedPhoton, PhotonCounters, RawFootprint, SortItem, StoreCounts, StoreParams, StoreSettings};
+use arpa_core::gpu::layout::{AccumPixel, GatherCounts, GatherResult, KeyedFootprint, KeyedPhoton, PhotonCounters, RawFootprint, SortItem, StoreCounts, StoreParams, StoreSettings};
 use arpa_core::gpu::sort::sorted_len;
 use arpa_core::heuristics::PackedHeuristics;
 use arpa_core::kernel::Kernel;
@@ -483,16 +483,16 @@ pub fn run_from_host(
         ctx.queue.submit([encoder.finish()]);
     });
     let [img, total, acc_pixels] =
-        read(ctx, &[(&image, pixels as u64 * 16), (maps.gathered_buffer(), 16), (&acc.pixels, pixels as u64 * size_of::<AccumPixel>() as u64)]).try_into().unwrap();
+        read(ctx, &[(&image, pixels as u64 * 16), (maps.gathered_buffer(), size_of::<GatherCounts>() as u64), (&acc.pixels, pixels as u64 * size_of::<AccumPixel>() as u64)]).try_into().unwrap();
     let img: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&img);
-    let total: [u32; 4] = bytemuck::pod_read_unaligned(&total);
+    let total: GatherCounts = bytemuck::pod_read_unaligned(&total);
     let acc_pixels: Vec<AccumPixel> = bytemuck::pod_collect_to_vec(&acc_pixels);
     HostRun {
         counts,
         footprints: maps.read_footprints(ctx).unwrap(),
         photons: maps.read_photons(ctx).unwrap(),
         image: img.iter().map(|p| [p[0], p[1], p[2]]).collect(),
-        gathered: total[0] as u64 | (total[1] as u64) << 32,
+        gathered: total.contributions().iter().sum(),
         mean: acc_pixels.iter().map(|p| p.mean(iterations)).collect(),
     }
 }

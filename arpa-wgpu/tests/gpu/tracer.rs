@@ -172,7 +172,7 @@ fn counts(s: &IterationStats) -> [u64; 13] {
         s.unrepresentable,
         s.differential_lost,
         s.query_points,
-        s.gathered,
+        s.gathered(),
         s.radii[0].to_bits() ^ s.radii[1].to_bits(),
     ]
 }

@@ -82,7 +82,8 @@ fn check(
     // Sum over iterations of each pixel's expected value (f64).
     let mut expected_sum = vec![DVec3::ZERO; pixels];
     let mut cov = Coverage::default();
-    let (mut found, mut reported, mut records) = (0u64, 0u64, [0usize; 2]);
+    let (mut found, mut reported, mut records) = ([0u64; 2], [0u64; 2], [0usize; 2]);
+    let (mut candidates, mut query_points) = ([0u64; 2], 0u64);
     for _ in 0..GATHER_ITERATIONS {
         t.iterate().ctx("iterate")?;
         let queries = t.read_query_points().ctx("read_query_points")?;
@@ -90,7 +91,17 @@ fn check(
         let phs = t.read_photons().ctx("read_photons")?;
         let stats = t.read_stats().ctx("read_stats")?;
         let radii = stats.radii.map(|r| r as f32);
-        reported += stats.gathered;
+        for m in 0..2 {
+            reported[m] += stats.contributions[m];
+            candidates[m] += stats.candidates[m];
+            if stats.candidates[m] < stats.contributions[m] {
+                return Err(format!(
+                    "map {m}: {} candidates reported but {} contributions",
+                    stats.candidates[m], stats.contributions[m]
+                ));
+            }
+        }
+        query_points += stats.query_points;
         records[0] += fps.len();
         records[1] += phs.len();
         if queries.len() != pixels {
@@ -119,7 +130,9 @@ fn check(
                     normal: Vec3::from_array(rec.normal),
                 };
                 let e = gather_brute_force(&q, &fps, &phs, stats.radii, kernel);
-                found += (e.footprints + e.photons) as u64;
+                for (f, c) in found.iter_mut().zip(e.contributions) {
+                    *f += u64::from(c);
+                }
                 cov.contributing += e.footprints as u64;
                 for (fp, b) in fps.iter().zip(&boxes) {
                     let y = fp.filter_coords(q.position);
@@ -173,10 +186,18 @@ fn check(
             worst = worst.max(err);
         }
     }
+    let per_query = |c: [u64; 2]| {
+        let n = query_points.max(1) as f64;
+        format!("{:.2}/{:.2}", c[0] as f64 / n, c[1] as f64 / n)
+    };
     let gathered = if reported == found {
-        "= brute force".to_owned()
+        format!(
+            "= brute force per map; per query point caustic/global: candidates {}, contributions {}",
+            per_query(candidates),
+            per_query(reported)
+        )
     } else {
-        format!("(backend reports {reported})")
+        format!("(backend reports {reported:?} per map, candidates {candidates:?})")
     };
     let arpa = method == Method::Arpa;
     let lacking: Vec<&str> = [
@@ -205,9 +226,10 @@ fn check(
         ));
     }
     Ok(format!(
-        "{pixels} px × {GATHER_ITERATIONS} it, max rel {worst:.1e}; {} footprints, {} photons; {found} contributions {gathered}; pairs: {} near ellipse boundary, {} in box outside ellipse, {} back-facing, {} near sphere boundary",
+        "{pixels} px × {GATHER_ITERATIONS} it, max rel {worst:.1e}; {} footprints, {} photons; {} contributions {gathered}; pairs: {} near ellipse boundary, {} in box outside ellipse, {} back-facing, {} near sphere boundary",
         records[0],
         records[1],
+        found[0] + found[1],
         cov.near_boundary,
         cov.box_not_ellipse,
         cov.back_facing,
