@@ -66,7 +66,7 @@ use arpa_core::glam::{DVec3, Vec3};
 use arpa_core::photon_path::{PhotonPassSetup, trace_photon};
 use arpa_core::prepared_scene::PreparedScene;
 use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::ray_cast::{RayCaster, RayHit};
+use arpa_core::ray_cast::{LEAVE_RECASTS, RayCaster, RayHit};
 use arpa_core::scene::{Camera, Material, Scene, TriangleMesh};
 use arpa_core::shapes::parallelogram as quad;
 use arpa_core::store::StoredPhoton;
@@ -686,10 +686,12 @@ fn bench_rays(cfg: &Config, scene: &Scene, raw_rate: &mut [Rate; 2], pass_rate: 
                 }
             }
             if method == Method::Arpa {
-                assert_eq!(
-                    stats.photon_segments,
-                    segments.len() as u64,
-                    "photon pass traced other rays"
+                // One cast per segment, plus the re-casts past a left triangle (RayStart).
+                let casts = segments.len() as u64;
+                assert!(
+                    stats.photon_segments <= casts && casts <= stats.photon_segments * (1 + u64::from(LEAVE_RECASTS)),
+                    "photon pass traced {} segments, the recording {casts} casts",
+                    stats.photon_segments
                 );
             }
             let segs = stats.photon_segments as f64;
