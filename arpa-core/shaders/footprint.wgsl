@@ -9,7 +9,9 @@
 // normal-f32 magnitude work). The rows carry a relative error of about c eps32 / sin(theta),
 // theta the angle between D_u and D_v, and the degenerate test uses 16 eps32 where the core
 // uses 16 eps64: D_u, D_v closer to parallel than sin(theta) ~ 2e-6 are labelled degenerate
-// here (f32 cannot resolve them) although the f64 core may still pack them.
+// here (f32 cannot resolve them) although the f64 core may still pack them. The slab
+// half-thickness is the minor semi-axis sigma_2 = |D_u x D_v| / (2 sigma_1) (clamped to
+// the radius), relative error ~ eps32 sigma_1/sigma_2 (the f32 rounding of the cross product).
 
 const ARPA_F32_EPSILON: f32 = 1.1920929e-7;
 const ARPA_F32_MAX: f32 = 0x1.fffffep+127f;
@@ -66,7 +68,30 @@ fn arpa_safe_length(v: vec3<f32>) -> f32 {
     return m * length(v / m);
 }
 
-// Slab half-thickness (metres): min(minor/2, radius), at least 8 eps32 (|x_p|_inf + major).
+// (2 sigma_1)^2 in the units of la2: the larger eigenvalue of the Gram matrix
+// [[la2, uv], [uv, lb2]] of two differentials (arpa_core::footprint::principal_axes).
+fn arpa_major_axis2(la2: f32, lb2: f32, uv: f32) -> f32 {
+    let h = 0.5 * (la2 - lb2);
+    return 0.5 * (la2 + lb2) + sqrt(h * h + uv * uv);
+}
+
+// Principal axis lengths (2 sigma_1, 2 sigma_2) in metres of the ellipse spanned by the
+// tangent differentials du, dv (Footprint::axis_lengths): the Gram matrix of the vectors
+// pre-scaled by their largest component, 2 sigma_2 = |du x dv| / (2 sigma_1).
+fn arpa_footprint_axes(du: vec3<f32>, dv: vec3<f32>) -> vec2<f32> {
+    let m = max(arpa_max_abs(du), arpa_max_abs(dv));
+    if !(m > 0.0) || !arpa_is_finite(m) {
+        return vec2<f32>(m, 0.0);
+    }
+    let uh = du / m;
+    let vh = dv / m;
+    let l1 = sqrt(arpa_major_axis2(dot(uh, uh), dot(vh, vh), dot(uh, vh)));
+    let l2 = min(length(cross(uh, vh)) / l1, l1);
+    return m * vec2<f32>(l1, l2);
+}
+
+// Slab half-thickness (metres) for principal axis lengths major = 2 sigma_1, minor =
+// 2 sigma_2: min(minor/2, radius), at least 8 eps32 (|x_p|_inf + major).
 fn arpa_half_thickness(center: vec3<f32>, major: f32, minor: f32, radius: f32) -> f32 {
     let floor_h = 8.0 * ARPA_F32_EPSILON * (arpa_max_abs(center) + major);
     return max(min(0.5 * minor, radius), floor_h);
@@ -94,9 +119,8 @@ fn arpa_footprint_pack(center: vec3<f32>, normal: vec3<f32>, du: vec3<f32>, dv: 
     if !(den_h * den_h > k * k * lu2 * lv2) {
         return out;
     }
-    let la = su * sqrt(lu2);
-    let lb = sv * sqrt(lv2);
-    let h = arpa_half_thickness(center, max(la, lb), min(la, lb), radius);
+    let axes = arpa_footprint_axes(du, dv);
+    let h = arpa_half_thickness(center, axes.x, axes.y, radius);
     // Representability: |a x b| / sqrt(|a|^2 + |b|^2) (a, b = D/2) >= 64 eps32 max(|x_p|, 1e-30).
     out.status = ARPA_FOOTPRINT_UNREPRESENTABLE;
     let m = max(su, sv);

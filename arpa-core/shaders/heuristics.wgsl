@@ -1,15 +1,21 @@
 // WGSL twin of arpa_core::heuristics::ResolvedHeuristics::store: dampened adaptation,
 // H-max limit, degenerate removal, the footprint's box and bounding-box culling, in the
-// core's order, then the f32 record (footprint.wgsl's arpa_footprint_pack). The parameters
-// come from arpa_core::heuristics::PackedHeuristics (same 48-byte layout). Needs
-// footprint.wgsl (and so kernel.wgsl).
+// core's order, on the ellipse's principal axes (arpa_core::footprint::principal_axes), then
+// the f32 record (footprint.wgsl's arpa_footprint_pack). The parameters come from
+// arpa_core::heuristics::PackedHeuristics (same 48-byte layout). Needs footprint.wgsl (and
+// so kernel.wgsl).
 //
 // Precision: f32 on vectors pre-scaled by their largest component (any normal-f32
 // magnitude). The dampening ratio (l_ref/l)^(1 - gamma) is taken as exp of a logarithm
 // difference: relative error ~ eps32 |ln(l/l_ref)| (below 1e-5 over the f32 range). The
-// box is rounded outwards (it contains the core's f64 box). Decisions at a threshold
-// (degenerate fraction, culling, M_p^-1's own degeneracy at 16 eps32) can differ from the
-// core's within the f32 rounding of the compared quantities.
+// minor axis 2 sigma_2 = |D_u x D_v| / (2 sigma_1) carries a relative error
+// ~ eps32 sigma_1/sigma_2; where H-max clamps the axes separately the footprint comes out
+// as its principal differentials, whose directions are ill-determined for a near-circle
+// (the ellipse they span is not: compare ellipses, not vectors). A footprint whose axis
+// ratio sigma_2/sigma_1 is at most 16 eps32 has no ellipse f32 can resolve and is
+// degenerate here (the core uses 16 eps64). The box is rounded outwards (it contains the
+// core's f64 box). Decisions at a threshold (degenerate fraction, culling, the axis-ratio
+// resolution) can differ from the core's within the f32 rounding of the compared quantities.
 
 // Store outcomes (StoreRejection).
 const ARPA_STORE_OK: u32 = 0u;
@@ -21,7 +27,7 @@ const ARPA_STORE_UNREPRESENTABLE: u32 = 3u;
 struct ArpaHeuristics {
     enabled: u32,               // bit 0 dampening, 1 H-max, 2 degenerate removal, 3 culling
     dampen_reference_kind: u32, // 0 absolute, 1 progressive diameter 2 r_i
-    h_max_mode: u32,            // 0 each differential, 1 preserve aspect
+    h_max_mode: u32,            // 0 each principal axis, 1 preserve aspect
     cull_metric: u32,           // 0 largest extent, 1 diagonal, 2 surface area
     dampen_exponent: f32,
     dampen_reference: f32,      // m
@@ -60,9 +66,29 @@ fn arpa_store(hp: ArpaHeuristics, center: vec3<f32>, normal: vec3<f32>, du_in: v
     out.status = ARPA_STORE_DEGENERATE;
     var du = du_in;
     var dv = dv_in;
-    // 1. Dampened adaptation: both scaled by (l_ref / l)^(1 - gamma), l = |D_major|.
+    // The principal axes (metres) from the Gram matrix of the vectors scaled by m0.
+    let m0 = max(arpa_max_abs(du), arpa_max_abs(dv));
+    if !(m0 > 0.0) || !arpa_is_finite(m0) || !arpa_is_finite3(normal) {
+        return out;
+    }
+    let uh0 = du / m0;
+    let vh0 = dv / m0;
+    let la2 = dot(uh0, uh0);
+    let lb2 = dot(vh0, vh0);
+    let uv = dot(uh0, vh0);
+    let c0 = cross(uh0, vh0);
+    let area = length(c0);
+    let den = dot(c0, normal);
+    let mu1 = arpa_major_axis2(la2, lb2, uv);
+    // No ellipse f32 resolves: sigma_2/sigma_1 <= 16 eps32.
+    if !(area > 16.0 * ARPA_F32_EPSILON * mu1) {
+        return out;
+    }
+    let l1 = sqrt(mu1);
+    var major = m0 * l1;
+    var minor = m0 * min(area / l1, l1);
+    // 1. Dampened adaptation: the ellipse scaled by (l_ref / l)^(1 - gamma), l = 2 sigma_1.
     if (hp.enabled & 1u) != 0u {
-        let major = max(arpa_safe_length(du), arpa_safe_length(dv));
         var reference = hp.dampen_reference;
         if hp.dampen_reference_kind == 1u {
             reference = 2.0 * radius;
@@ -72,43 +98,60 @@ fn arpa_store(hp: ArpaHeuristics, center: vec3<f32>, normal: vec3<f32>, du_in: v
             if arpa_is_finite(ratio) && ratio > 0.0 {
                 du *= ratio;
                 dv *= ratio;
+                major *= ratio;
+                minor *= ratio;
             }
         }
     }
-    // 2. H-max limit.
-    if (hp.enabled & 2u) != 0u && hp.h_max > 0.0 {
+    // 2. H-max limit on the principal axes.
+    if (hp.enabled & 2u) != 0u && hp.h_max > 0.0 && major > hp.h_max {
         let h = hp.h_max;
-        let la = arpa_safe_length(du);
-        let lb = arpa_safe_length(dv);
         if hp.h_max_mode == 0u {
-            if la > h { du *= h / la; }
-            if lb > h { dv *= h / lb; }
-        } else {
-            let major = max(la, lb);
-            if major > h {
-                let s = h / major;
-                du *= s;
-                dv *= s;
+            // Each axis clamped: the principal differentials with the clamped lengths. The
+            // eigenvector of the Gram matrix for (2 sigma_1)^2 in its cancellation-free form.
+            let hh = 0.5 * (la2 - lb2);
+            let d = sqrt(hh * hh + uv * uv);
+            var w = vec2<f32>(uv, d - hh);
+            if hh >= 0.0 {
+                w = vec2<f32>(d + hh, uv);
             }
+            let wm = max(abs(w.x), abs(w.y));
+            var e1 = uh0; // a circle spanned by orthogonal equal-length differentials
+            if wm > 0.0 {
+                e1 = uh0 * (w.x / wm) + vh0 * (w.y / wm);
+            }
+            e1 = e1 / arpa_safe_length(e1);
+            var e2 = cross(normal, e1);
+            if den < 0.0 {
+                e2 = -e2;
+            }
+            minor = min(minor, h);
+            major = h;
+            du = e1 * h;
+            dv = e2 * minor;
+        } else {
+            let s = h / major;
+            du *= s;
+            dv *= s;
+            minor *= s;
+            major = h;
         }
     }
-    // 3. Degenerate removal: |D_u x D_v| < f |D_major|^2, on vectors scaled by a common m.
+    // 3. Degenerate removal: sigma_2 / sigma_1 < f.
+    if (hp.enabled & 4u) != 0u {
+        if !(minor >= hp.degenerate_fraction * major) {
+            return out;
+        }
+    }
+    // 4. The box of the elliptic slab, rounded outwards, and culling.
     let m = max(arpa_max_abs(du), arpa_max_abs(dv));
     if !(m > 0.0) || !arpa_is_finite(m) {
         return out;
     }
     let uh = du / m;
     let vh = dv / m;
-    let major2 = max(dot(uh, uh), dot(vh, vh));
-    if (hp.enabled & 4u) != 0u {
-        if !(length(cross(uh, vh)) >= hp.degenerate_fraction * major2) {
-            return out;
-        }
-    }
-    // 4. The box of the elliptic slab, rounded outwards, and culling.
-    let la = arpa_safe_length(du);
-    let lb = arpa_safe_length(dv);
-    let h = arpa_half_thickness(center, max(la, lb), min(la, lb), radius);
+    let axes = arpa_footprint_axes(du, dv);
+    let h = arpa_half_thickness(center, axes.x, axes.y, radius);
     let e = 0.5 * m * sqrt(uh * uh + vh * vh) + abs(normal * h);
     if (hp.enabled & 8u) != 0u {
         if !(arpa_store_culled_metric(hp.cull_metric, e) <= hp.cull_threshold) {

@@ -5,6 +5,12 @@
 //! With `a = D_u/2` and `b = D_v/2` the footprint is the ellipse
 //! `{x_p + a cos θ + b sin θ}` in the surface's tangent plane (`a`, `b` are conjugate
 //! semi-diameters, not necessarily orthogonal). Its area is `π|a × b| = (π/4)|D_u × D_v|`.
+//!
+//! Any orthogonal re-mixing `(D_u, D_v) ↦ (D_u, D_v) Q` (`QᵀQ = I`) spans the same ellipse
+//! and the same filter (`M_p⁻¹` changes by a rotation or reflection of filter space, so
+//! `|M_p⁻¹ Δ|`, the density and the box do not change). Everything here that describes the
+//! footprint's shape therefore goes through the ellipse's principal axes
+//! ([`principal_axes`]), not through the lengths of `D_u` and `D_v`.
 
 use crate::aabb::Aabb;
 use crate::differential::RayDifferential;
@@ -184,22 +190,41 @@ impl Footprint {
     }
 
     /// Lengths `(|D_major|, |D_minor|)` of the longer and shorter differential (metres).
+    /// These depend on how `D_u`, `D_v` parametrise the ellipse; its axes are
+    /// [`Footprint::principal_axes`].
     #[inline]
     pub fn major_minor(&self) -> (f64, f64) {
         let (a, b) = (self.du.length(), self.dv.length());
         if a >= b { (a, b) } else { (b, a) }
     }
 
-    /// Principal semi-axes `(σ₁, σ₂)` of the ellipse (metres), the square roots of the
-    /// eigenvalues of `a aᵀ + b bᵀ` with `a = D_u/2`, `b = D_v/2`; `σ₁σ₂ = |a × b|`.
+    /// Principal semi-axes `(σ₁, σ₂)` of the ellipse (metres): see [`principal_axes`].
+    #[inline]
     pub fn semi_axes(&self) -> (f64, f64) {
-        let a = 0.5 * self.du;
-        let b = 0.5 * self.dv;
-        let (aa, bb, ab) = (a.length_squared(), b.length_squared(), a.dot(b));
-        let half = 0.5 * (aa - bb);
-        let s1 = libm::sqrt(0.5 * (aa + bb) + libm::sqrt(half * half + ab * ab));
-        let s2 = if s1 > 0.0 { a.cross(b).length() / s1 } else { 0.0 };
-        (s1, s2)
+        let (l1, l2) = self.axis_lengths();
+        (0.5 * l1, 0.5 * l2)
+    }
+
+    /// Full lengths `(2σ₁, 2σ₂)` of the ellipse's principal axes (metres), the lengths of
+    /// the principal differentials ([`PrincipalAxes::differentials`]).
+    #[inline]
+    pub fn axis_lengths(&self) -> (f64, f64) {
+        principal_lengths(self.du.length_squared(), self.dv.length_squared(), self.du.dot(self.dv), self.parallelogram_area())
+    }
+
+    /// The ellipse's principal axes ([`principal_axes`] of `D_u`, `D_v` around the normal).
+    #[inline]
+    pub fn principal_axes(&self) -> PrincipalAxes {
+        principal_axes(self.du, self.dv, self.normal)
+    }
+
+    /// The same footprint with `D_u`, `D_v` replaced by its principal differentials
+    /// `2σ₁e₁`, `2σ₂e₂` ([`PrincipalAxes::differentials`]): the same ellipse, orientation,
+    /// density and box, with orthogonal differentials along the axes.
+    #[inline]
+    pub fn to_principal(self) -> Self {
+        let (du, dv) = self.principal_axes().differentials();
+        Self { du, dv, ..self }
     }
 
     /// `M_p⁻¹` (ARPA eq. 3). Errors when `D_u`, `D_v` are parallel or zero.
@@ -214,15 +239,16 @@ impl Footprint {
         if t.row_u.is_finite() && t.row_v.is_finite() { Ok(t) } else { Err(FootprintError::Degenerate) }
     }
 
-    /// Half-thickness of the footprint along its normal: half the minor differential,
-    /// clamped to `slab_limit` (metres; a photon pass passes the map's current progressive
-    /// radius, ARPA §4.2, fig. 3), but never thinner than `f32` can resolve at the
-    /// footprint's position ([`half_thickness`]), in metres. `slab_limit` only bounds
-    /// this thickness: the ellipse, its density and the in-plane extent do not depend
-    /// on it.
+    /// Half-thickness of the footprint along its normal: the minor semi-axis `σ₂` (half
+    /// the minor principal differential), clamped to `slab_limit` (metres; a photon pass
+    /// passes the map's current progressive radius, ARPA §4.2, fig. 3), but never thinner
+    /// than `f32` can resolve at the footprint's position ([`half_thickness`]), in metres.
+    /// `slab_limit` only bounds this thickness: the ellipse, its density and the in-plane
+    /// extent do not depend on it. A function of the ellipse alone (the same for any
+    /// orthogonal re-mixing of `D_u`, `D_v`).
     #[inline]
     pub fn half_thickness(&self, slab_limit: f64) -> f64 {
-        let (major, minor) = self.major_minor();
+        let (major, minor) = self.axis_lengths();
         half_thickness(self.center, major, minor, slab_limit)
     }
 
@@ -299,9 +325,127 @@ impl Footprint {
         if degenerate_denominator(den, la2, lb2) {
             return Err(FootprintError::Degenerate);
         }
-        let h = half_thickness(self.center, libm::sqrt(la2.max(lb2)), libm::sqrt(la2.min(lb2)), slab_limit);
+        let (major, minor) = principal_lengths(la2, lb2, self.du.dot(self.dv), cross.length());
+        let h = half_thickness(self.center, major, minor, slab_limit);
         pack_parts(self, la2, lb2, cross, den, h)
     }
+}
+
+/// The principal axes of a footprint ellipse (see [`principal_axes`]): semi-axes in
+/// metres, unit directions in world space, in the tangent plane.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PrincipalAxes {
+    /// Semi-major axis `σ₁ ≥ σ₂` (metres).
+    pub semi_major: f64,
+    /// Semi-minor axis `σ₂ = |a × b|/σ₁` (metres): 0 for parallel or zero differentials.
+    pub semi_minor: f64,
+    /// Unit direction `e₁` of the major axis (world space, tangent plane); zero when
+    /// both differentials are zero.
+    pub major_dir: DVec3,
+    /// Unit direction `e₂ = ±n × e₁` of the minor axis (world space, tangent plane), the
+    /// sign chosen so that `(e₁ × e₂)·n` has the sign of `(D_u × D_v)·n` (positive when
+    /// that is 0): the principal differentials keep the footprint's orientation.
+    pub minor_dir: DVec3,
+}
+
+impl PrincipalAxes {
+    /// The principal differentials `(D₁, D₂) = (2σ₁e₁, 2σ₂e₂)` (metres, world space):
+    /// orthogonal conjugate diameters of the same ellipse, usable as `D_u`, `D_v` (same
+    /// `|M_p⁻¹ Δ|`, density and box).
+    #[inline]
+    pub fn differentials(&self) -> (DVec3, DVec3) {
+        (self.major_dir * (2.0 * self.semi_major), self.minor_dir * (2.0 * self.semi_minor))
+    }
+
+    /// Axis ratio `σ₂/σ₁` (dimensionless, in `[0, 1]`); 0 when `σ₁` is 0 or not finite.
+    #[inline]
+    pub fn ratio(&self) -> f64 {
+        let r = self.semi_minor / self.semi_major;
+        if r >= 0.0 && r.is_finite() { r.min(1.0) } else { 0.0 }
+    }
+}
+
+/// The principal axes of the ellipse `{a cos θ + b sin θ}`, `a = D_u/2`, `b = D_v/2`, for
+/// differentials `du`, `dv` (metres) in the tangent plane of the unit `normal`: the
+/// singular value decomposition of the 2×2 matrix `[D_u D_v]` in that plane.
+///
+/// Closed form through the symmetric Gram matrix `G = [[|D_u|², D_u·D_v], [D_u·D_v, |D_v|²]]`:
+/// with `h = (|D_u|² − |D_v|²)/2` and `d = √(h² + (D_u·D_v)²)`, `(2σ₁)² = (|D_u|² + |D_v|²)/2 + d`
+/// (a sum, no cancellation), `2σ₂ = |D_u × D_v| / (2σ₁)` (accurate for a thin ellipse,
+/// where the smaller eigenvalue of `G` would cancel), and `e₁ ∝ w₀ D_u + w₁ D_v` for the
+/// eigenvector `w` of `G` for `(2σ₁)²`, taken as `(d + h, D_u·D_v)` when `h ≥ 0` and as
+/// `(D_u·D_v, d − h)` otherwise (the form whose first or second entry has no cancellation).
+/// A near-circular ellipse (`d` small against `|D_u|² + |D_v|²`) has an ill-determined
+/// `e₁`, but any axis pair describes it to rounding: `σ₁² − σ₂² = d` is small. This is the
+/// singular value decomposition of the 3×2 matrix `[D_u D_v]`; `D_u`, `D_v` should lie in
+/// the tangent plane of `normal` (every [`Footprint`]'s do), which `e₂ = ±n × e₁` assumes.
+///
+/// ```
+/// use arpa_core::footprint::principal_axes;
+/// use arpa_core::glam::DVec3;
+///
+/// // A sheared pair spanning the ellipse with semi-axes 2 along x and 1 along y.
+/// let (c, s) = (0.6f64, 0.8f64);
+/// let du = DVec3::new(4.0 * c, 2.0 * s, 0.0);
+/// let dv = DVec3::new(-4.0 * s, 2.0 * c, 0.0);
+/// let axes = principal_axes(du, dv, DVec3::Z);
+/// assert!((axes.semi_major - 2.0).abs() < 1e-12 && (axes.semi_minor - 1.0).abs() < 1e-12);
+/// assert!(axes.major_dir.dot(DVec3::X).abs() > 1.0 - 1e-12);
+/// ```
+pub fn principal_axes(du: DVec3, dv: DVec3, normal: DVec3) -> PrincipalAxes {
+    let (la2, lb2, uv) = (du.length_squared(), dv.length_squared(), du.dot(dv));
+    let cross = du.cross(dv);
+    let den = cross.dot(normal);
+    let (l1, l2) = principal_lengths(la2, lb2, uv, cross.length());
+    let e1 = unit_scaled(major_differential(du, dv, la2, lb2, uv));
+    let e2 = normal.cross(e1);
+    PrincipalAxes { semi_major: 0.5 * l1, semi_minor: 0.5 * l2, major_dir: e1, minor_dir: if den < 0.0 { -e2 } else { e2 } }
+}
+
+/// `(2σ₁)²`, the larger eigenvalue of the Gram matrix of `D_u`, `D_v` (m²), from
+/// `|D_u|²`, `|D_v|²` and `D_u·D_v` (see [`principal_axes`]).
+#[inline(always)]
+pub(crate) fn major_axis2(la2: f64, lb2: f64, uv: f64) -> f64 {
+    let h = 0.5 * (la2 - lb2);
+    0.5 * (la2 + lb2) + libm::sqrt(h * h + uv * uv)
+}
+
+/// Principal axis lengths `(2σ₁, 2σ₂)` (metres) from `|D_u|²`, `|D_v|²`, `D_u·D_v` and
+/// `area = |D_u × D_v|` (see [`principal_axes`]); `2σ₂ ≤ 2σ₁` also after rounding.
+#[inline(always)]
+pub(crate) fn principal_lengths(la2: f64, lb2: f64, uv: f64, area: f64) -> (f64, f64) {
+    let l1 = libm::sqrt(major_axis2(la2, lb2, uv));
+    let l2 = if l1 > 0.0 { (area / l1).min(l1) } else { 0.0 };
+    (l1, l2)
+}
+
+/// The major principal differential `2σ₁e₁` (metres, up to rounding of its length) as the
+/// combination of `du`, `dv` given by [`principal_axes`]'s eigenvector; `du` itself for a
+/// circle spanned by orthogonal equal-length differentials (and for non-finite input).
+#[inline]
+pub(crate) fn major_differential(du: DVec3, dv: DVec3, la2: f64, lb2: f64, uv: f64) -> DVec3 {
+    let h = 0.5 * (la2 - lb2);
+    let d = libm::sqrt(h * h + uv * uv);
+    let (w0, w1) = if h >= 0.0 { (d + h, uv) } else { (uv, d - h) };
+    let m = w0.abs().max(w1.abs());
+    if !(m > 0.0) || !m.is_finite() {
+        return du;
+    }
+    let (w0, w1) = (w0 / m, w1 / m);
+    let norm = libm::sqrt(w0 * w0 + w1 * w1);
+    du * (w0 / norm) + dv * (w1 / norm)
+}
+
+/// `v/|v|` for any finite magnitude (scaled by its largest component first, so tiny or
+/// huge vectors do not underflow or overflow in `|v|²`); zero for zero or non-finite `v`.
+#[inline]
+pub(crate) fn unit_scaled(v: DVec3) -> DVec3 {
+    let m = v.abs().max_element();
+    if !(m > 0.0) || !m.is_finite() {
+        return DVec3::ZERO;
+    }
+    let w = v / m;
+    w / libm::sqrt(w.length_squared())
 }
 
 /// `true` when `M_p⁻¹`'s denominator `(D_u × D_v)·n` is zero up to rounding: below
@@ -313,10 +457,10 @@ pub(crate) fn degenerate_denominator(den: f64, la2: f64, lb2: f64) -> bool {
     !(den * den > K2 * la2 * lb2) || !den.is_finite()
 }
 
-/// Slab half-thickness (metres) of a footprint centred at `center` with differential
-/// lengths `major`, `minor` (metres): `min(minor/2, slab_limit)`, but at least
-/// `8 ε₃₂ (|x_p|_∞ + major)` so that the `f32` record still accepts points in its own
-/// plane.
+/// Slab half-thickness (metres) of a footprint centred at `center` with principal axis
+/// lengths `major = 2σ₁`, `minor = 2σ₂` (metres, [`Footprint::axis_lengths`]):
+/// `min(minor/2, slab_limit)`, but at least `8 ε₃₂ (|x_p|_∞ + major)` so that the `f32`
+/// record still accepts points in its own plane.
 #[inline]
 pub fn half_thickness(center: DVec3, major: f64, minor: f64, slab_limit: f64) -> f64 {
     let floor = 8.0 * f32::EPSILON as f64 * (center.abs().max_element() + major);

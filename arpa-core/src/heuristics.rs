@@ -1,42 +1,58 @@
 //! The four footprint heuristics of ARPA §4.5, each switchable and parameterised.
 //!
+//! ## On the ellipse, not on its parametrisation
+//! `D_u`, `D_v` are conjugate diameters of the footprint ellipse: any orthogonal re-mixing
+//! `(D_u, D_v) Q` spans the same ellipse and the same filter. Every heuristic therefore
+//! looks at the ellipse's principal axes ([`crate::footprint::principal_axes`]): the
+//! principal differentials `D₁ = 2σ₁e₁`, `D₂ = 2σ₂e₂` (`σ₁ ≥ σ₂` the semi-axes, metres;
+//! `e₁`, `e₂` orthonormal in the tangent plane). Lengths below ("major axis" `ℓ₁ = 2σ₁`,
+//! "minor axis" `ℓ₂ = 2σ₂`) are these full axis lengths, which play the role the
+//! differentials' lengths play for orthogonal `D_u`, `D_v`. Verdicts, the final ellipse,
+//! its area, density and box are the same for every re-mixing (up to rounding).
+//!
 //! ## Order of application
 //! After the smoothing factor `S_c`/`S_g` has scaled the footprint ([`crate::classify`]):
 //! 1. **dampened adaptation** (changes the size),
-//! 2. **H-max limit** (changes the size; may create degeneracy, so it comes before 3),
+//! 2. **H-max limit** (changes the size, and with [`HMaxMode::EachAxis`] the shape),
 //! 3. **degenerate removal** (rejects),
 //! 4. the AABB is built ([`Footprint::aabb`]) and **bounding-box culling** tests it (rejects).
 //!
-//! Rejected footprints become progressive photons with the map's current radius
-//! ([`crate::store`]). The paper gives neither the order nor the values; the choices
-//! below are this crate's readings of the open points of the design digest (§9), and every
-//! ambiguous quantity is a parameter.
+//! Before 2, a footprint whose axis ratio `σ₂/σ₁` is at rounding level (at most `16 ε`,
+//! `ε` = `f64::EPSILON`), or whose differentials are zero or not finite, has no usable
+//! ellipse and is rejected as degenerate whatever the configuration (the invariant form of
+//! `M_p⁻¹`'s own test). Rejected footprints become progressive photons with the map's
+//! current radius ([`crate::store`]). The paper gives neither the order nor the values;
+//! the choices below are this crate's readings of the open points of the design digest
+//! (§9), and every ambiguous quantity is a parameter.
 //!
 //! ## Readings chosen
 //! * **Dampened adaptation** — ARPA: "raises the major positional differential ∂P to
 //!   ∂P^{1/4}; the minor one is dampened by the same ratio". Taken literally the result
 //!   depends on the unit of length, so the length is measured relative to a reference:
-//!   `ℓ' = ℓ_ref (ℓ/ℓ_ref)^γ` with `ℓ = |D_major|`, `γ = 1/4`, and both differentials are
-//!   scaled by `ℓ'/ℓ` (aspect ratio kept). Default reference: the progressive *diameter*
-//!   `2 r_i` of the photon's map ([`DampenReference::ProgressiveDiameter`]), so adaptation
-//!   is measured against the size a PPM photon would have. `Absolute(1.0)` gives the literal
-//!   reading.
-//! * **H-max limit** — "clamps the positional differentials to a set length h_max": each of
-//!   `D_u`, `D_v` longer than `h_max` is shortened to `h_max`
-//!   ([`HMaxMode::EachDifferential`], default); `PreserveAspect` scales both by
-//!   `h_max/|D_major|` instead. Default `h_max` = 5% of the scene's bounding-box diagonal.
+//!   `ℓ₁' = ℓ_ref (ℓ₁/ℓ_ref)^γ` for the major axis `ℓ₁ = 2σ₁`, `γ = 1/4`, and the minor
+//!   axis is scaled by the same ratio `ℓ₁'/ℓ₁` (a uniform scale: shape, axis directions
+//!   and aspect ratio kept). Default reference: the progressive *diameter* `2 r_i` of the
+//!   photon's map ([`DampenReference::ProgressiveDiameter`]), so adaptation is measured
+//!   against the size a PPM photon would have. `Absolute(1.0)` gives the literal reading.
+//!   Footprints smaller than the reference are *enlarged*; [`Dampening`] states by how much.
+//! * **H-max limit** — "clamps the positional differentials to a set length h_max": each
+//!   principal axis longer than `h_max` is shortened to `h_max` ([`HMaxMode::EachAxis`],
+//!   default: the axes keep their directions, a clamped ellipse becomes rounder);
+//!   `PreserveAspect` scales the whole ellipse by `h_max/ℓ₁` instead. Default `h_max` = 5%
+//!   of the scene's bounding-box diagonal.
 //! * **Degenerate removal** — "footprint height below a small threshold fraction f of
-//!   their base": base `|D_major|`, parallelogram height `|D_u × D_v|/|D_major|`;
-//!   degenerate iff `|D_u × D_v| < f |D_major|²` (equivalently
-//!   `(|D_minor|/|D_major|) sin α < f`). Zero or non-finite differentials are degenerate.
-//!   Default `f = 0.05`.
+//!   their base": base the major axis `ℓ₁`, height the minor axis `ℓ₂`; degenerate iff
+//!   `σ₂/σ₁ < f`, equivalently `|D_u × D_v| < f ℓ₁²` (`4σ₁σ₂ = |D_u × D_v|`).
+//!   For orthogonal `D_u`, `D_v` this is `|D_minor|/|D_major| < f`. Default `f = 0.05`.
 //! * **Bounding-box culling** — "bounding box larger than 5% of the total scene area":
 //!   default metric: the footprint AABB's longest side exceeds 5% of the scene AABB's
 //!   longest side ([`CullMetric::LargestExtent`]). Alternatives: diagonal against diagonal,
-//!   or AABB surface area against the scene AABB's surface area.
+//!   or AABB surface area against the scene AABB's surface area. The box is the ellipse's
+//!   (semi-axes `σ₁e₁`, `σ₂e₂`) extruded by the slab half-thickness `min(σ₂, r_i)`
+//!   ([`Footprint::aabb`]), a function of the ellipse alone.
 
 use crate::aabb::Aabb;
-use crate::footprint::{degenerate_denominator, half_thickness, pack_parts, Footprint, PackedFootprint};
+use crate::footprint::{degenerate_denominator, half_thickness, major_axis2, major_differential, pack_parts, principal_lengths, unit_scaled, Footprint, PackedFootprint};
 use crate::store::ProgressiveReason;
 use glam::DVec3;
 
@@ -81,16 +97,27 @@ impl DampenReference {
     }
 }
 
-/// Dampened adaptation parameters: `ℓ' = ℓ_ref (ℓ/ℓ_ref)^γ` for the major differential
-/// length `ℓ`, both differentials scaled by `ℓ'/ℓ = (ℓ/ℓ_ref)^{γ−1}`.
+/// Dampened adaptation parameters: `ℓ₁' = ℓ_ref (ℓ₁/ℓ_ref)^γ` for the major axis
+/// `ℓ₁ = 2σ₁` (metres), the whole ellipse scaled by `ℓ₁'/ℓ₁ = (ℓ₁/ℓ_ref)^{γ−1}`.
 ///
-/// With `γ < 1` this pulls every footprint towards `ℓ_ref`: footprints **larger** than the
-/// reference shrink, and footprints **smaller** than it grow (with `γ = 1/4`, a footprint
-/// a quarter of `ℓ_ref` grows `4^{3/4} ≈ 2.8`-fold, one a hundredth of it `100^{3/4} ≈
-/// 32`-fold). With the default reference, twice the map's progressive radius, small
-/// footprints (many photons, or a focused caustic) are therefore blurred towards the PPM
-/// photon size, which lowers their noise and raises their bias; as the radius shrinks over
-/// the iterations the reference shrinks with it, so the footprints do too.
+/// **What it does to small footprints.** With `γ < 1` the map `ℓ₁ ↦ ℓ₁'` has the fixed
+/// point `ℓ_ref` and pulls every footprint towards it: one larger than the reference
+/// shrinks, one **smaller** than it is **enlarged**, by the linear factor
+/// `(ℓ_ref/ℓ₁)^{1−γ}` and the area factor `(ℓ_ref/ℓ₁)^{2(1−γ)}`. With ARPA's `γ = 1/4`:
+/// a footprint a quarter of `ℓ_ref` across grows `4^{3/4} ≈ 2.83`-fold (area 8-fold), one a
+/// hundredth of it `100^{3/4} ≈ 31.6`-fold (area 1000-fold). The map is increasing, so the
+/// order of sizes is kept and an enlarged footprint stays below the reference
+/// (`ℓ₁ < ℓ₁' < ℓ_ref`); the flux is unchanged, so the density drops by the area factor.
+/// The shape (axis ratio, directions) is kept, so the degenerate verdict is unchanged.
+///
+/// This is intended by the formula the paper gives: `∂P ↦ ∂P^{1/4}` enlarges every length
+/// below one scene unit, and any power law with `γ < 1` enlarges below its reference; the
+/// paper states the formula and not this consequence. With the default reference (twice
+/// the map's progressive radius), small footprints (many photons, or a focused caustic)
+/// are blurred towards the PPM photon size, which lowers their noise and raises their
+/// bias; as the radius shrinks over the iterations the reference shrinks with it, so the
+/// enlarged footprints shrink too. Switch dampening off to keep small footprints as they
+/// are.
 ///
 /// ```
 /// use arpa_core::aabb::Aabb;
@@ -103,6 +130,7 @@ impl DampenReference {
 /// let small = Footprint { center: DVec3::ZERO, normal: DVec3::Z, du: DVec3::X * 0.01, dv: DVec3::Y * 0.01, flux: DVec3::ONE, map: PhotonMap::Global };
 /// let grown = h.dampen(small, &ctx);
 /// assert!((grown.du.length() / 0.01 - 4f64.powf(0.75)).abs() < 1e-12);
+/// assert!((grown.area() / small.area() - 8.0).abs() < 1e-9);
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Dampening {
@@ -112,19 +140,21 @@ pub struct Dampening {
     pub reference: DampenReference,
 }
 
-/// How the H-max limit clamps.
+/// How the H-max limit clamps the ellipse's principal axes (full lengths `ℓ₁ = 2σ₁ ≥
+/// ℓ₂ = 2σ₂`, metres).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum HMaxMode {
-    /// Clamp the length of each differential separately.
-    EachDifferential,
-    /// Scale both by the same factor so that the major one has length `h_max`.
+    /// Clamp each principal axis separately: `ℓᵢ' = min(ℓᵢ, h_max)`, directions kept. A
+    /// clamped ellipse gets rounder (both axes clamped: a circle of diameter `h_max`).
+    EachAxis,
+    /// Scale the whole ellipse so that its major axis is `h_max` when it is longer.
     PreserveAspect,
 }
 
 /// H-max limit parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct HMax {
-    /// `h_max`.
+    /// `h_max`, the longest allowed principal axis `2σ` (metres once resolved).
     pub length: LengthSpec,
     /// Clamping mode.
     pub mode: HMaxMode,
@@ -133,7 +163,7 @@ pub struct HMax {
 /// Degenerate-removal parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DegenerateRemoval {
-    /// Threshold fraction `f`: degenerate iff `|D_u × D_v| < f |D_major|²`.
+    /// Threshold fraction `f` (dimensionless): degenerate iff the axis ratio `σ₂/σ₁ < f`.
     pub fraction: f64,
 }
 
@@ -175,7 +205,7 @@ impl Default for Heuristics {
     fn default() -> Self {
         Self {
             dampening: Some(Dampening { exponent: 0.25, reference: DampenReference::ProgressiveDiameter }),
-            h_max: Some(HMax { length: LengthSpec::RelativeToDiagonal(0.05), mode: HMaxMode::EachDifferential }),
+            h_max: Some(HMax { length: LengthSpec::RelativeToDiagonal(0.05), mode: HMaxMode::EachAxis }),
             degenerate: Some(DegenerateRemoval { fraction: 0.05 }),
             culling: Some(BoundingBoxCulling { fraction: 0.05, metric: CullMetric::LargestExtent }),
         }
@@ -195,10 +225,11 @@ impl Heuristics {
     /// All heuristics off.
     pub const NONE: Self = Self { dampening: None, h_max: None, degenerate: None, culling: None };
 
-    /// Dampened adaptation alone (identity when off or not applicable).
+    /// Dampened adaptation alone (identity when off or not applicable): `D_u`, `D_v` both
+    /// scaled by `(ℓ₁/ℓ_ref)^{γ−1}`, `ℓ₁ = 2σ₁` the major axis (see [`Dampening`]).
     pub fn dampen(&self, fp: Footprint, ctx: &HeuristicContext) -> Footprint {
         let Some(d) = self.dampening else { return fp };
-        let (major, _) = fp.major_minor();
+        let (major, _) = fp.axis_lengths();
         let reference = d.reference.length(ctx.radius);
         if !(major > 0.0) || !major.is_finite() || !(reference > 0.0) || !reference.is_finite() {
             return fp;
@@ -208,36 +239,43 @@ impl Heuristics {
         if ratio.is_finite() && ratio > 0.0 { fp.scaled(ratio) } else { fp }
     }
 
-    /// H-max limit alone.
-    pub fn clamp_h_max(&self, mut fp: Footprint, ctx: &HeuristicContext) -> Footprint {
+    /// H-max limit alone: the principal axes clamped as [`HMaxMode`] says. A footprint
+    /// the limit does not touch, or scales as a whole, keeps its `D_u`, `D_v` (scaled);
+    /// one whose axes [`HMaxMode::EachAxis`] clamps comes out as its principal
+    /// differentials ([`Footprint::to_principal`]) with the clamped lengths.
+    pub fn clamp_h_max(&self, fp: Footprint, ctx: &HeuristicContext) -> Footprint {
         let Some(h) = self.h_max else { return fp };
         let h_max = h.length.resolve(&ctx.scene_bounds);
         if !(h_max > 0.0) {
             return fp;
         }
+        let (major, minor) = fp.axis_lengths();
+        if !(major > h_max) {
+            return fp;
+        }
         match h.mode {
-            HMaxMode::EachDifferential => {
-                let clamp = |v: glam::DVec3| {
-                    let l = v.length();
-                    if l > h_max { v * (h_max / l) } else { v }
-                };
-                fp.du = clamp(fp.du);
-                fp.dv = clamp(fp.dv);
-                fp
+            HMaxMode::EachAxis => {
+                let axes = fp.principal_axes();
+                Footprint { du: axes.major_dir * h_max, dv: axes.minor_dir * minor.min(h_max), ..fp }
             }
-            HMaxMode::PreserveAspect => {
-                let (major, _) = fp.major_minor();
-                if major > h_max { fp.scaled(h_max / major) } else { fp }
-            }
+            HMaxMode::PreserveAspect => fp.scaled(h_max / major),
         }
     }
 
-    /// `true` if degenerate removal (when on) rejects `fp`.
+    /// `true` if degenerate removal (when on) rejects `fp`: axis ratio `σ₂/σ₁ < f`, or
+    /// zero or non-finite differentials.
     pub fn is_degenerate(&self, fp: &Footprint) -> bool {
         let Some(d) = self.degenerate else { return false };
-        let (major, _) = fp.major_minor();
-        let cross = fp.parallelogram_area();
-        !(major > 0.0) || !(cross >= d.fraction * major * major)
+        let (major, minor) = fp.axis_lengths();
+        !(major > 0.0) || !major.is_finite() || !(minor >= d.fraction * major)
+    }
+
+    /// `true` when `fp` has no usable ellipse whatever the configuration: zero or
+    /// non-finite differentials, or an axis ratio `σ₂/σ₁` at rounding level (`≤ 16 ε`),
+    /// where `σ₂` is rounding noise of `D_u × D_v`. Scale-invariant.
+    pub fn is_unresolved(fp: &Footprint) -> bool {
+        let cross2 = fp.du.cross(fp.dv).length_squared();
+        unresolved(cross2, major_axis2(fp.du.length_squared(), fp.dv.length_squared(), fp.du.dot(fp.dv)))
     }
 
     /// `true` if bounding-box culling (when on) rejects a footprint with box `bounds`.
@@ -252,10 +290,14 @@ impl Heuristics {
     }
 
     /// Applies the heuristics in the documented order. Returns the final footprint and
-    /// its AABB, or the reason it must become a progressive photon. A footprint whose
-    /// `M_p⁻¹` does not exist is rejected as degenerate even with degenerate removal off.
+    /// its AABB, or the reason it must become a progressive photon. A footprint without a
+    /// usable ellipse ([`Heuristics::is_unresolved`], or one whose `M_p⁻¹` does not
+    /// exist) is rejected as degenerate even with degenerate removal off.
     pub fn apply(&self, fp: Footprint, ctx: &HeuristicContext) -> Result<(Footprint, Aabb), ProgressiveReason> {
         let fp = self.dampen(fp, ctx);
+        if Self::is_unresolved(&fp) {
+            return Err(ProgressiveReason::Degenerate);
+        }
         let fp = self.clamp_h_max(fp, ctx);
         if self.is_degenerate(&fp) || fp.filter_transform().is_err() {
             return Err(ProgressiveReason::Degenerate);
@@ -268,9 +310,18 @@ impl Heuristics {
     }
 }
 
+/// `true` when `|D_u × D_v|² = cross2` and `(2σ₁)² = major2` leave no usable ellipse:
+/// `|D_u × D_v| ≤ 16 ε major2` (axis ratio `σ₂/σ₁ ≤ 16 ε`, compared in squares), zero, or
+/// not finite.
+#[inline(always)]
+fn unresolved(cross2: f64, major2: f64) -> bool {
+    const K2: f64 = 256.0 * f64::EPSILON * f64::EPSILON;
+    !(cross2 > K2 * major2 * major2) || !cross2.is_finite() || !major2.is_finite()
+}
+
 /// [`Heuristics`] with every scene-dependent quantity resolved once per scene (h_max
 /// in metres, culling thresholds), and a fused [`ResolvedHeuristics::store`] that runs the
-/// whole chain with each length, cross product and square root computed once. This is
+/// whole chain with each principal axis, cross product and square root computed once. This is
 /// the per-photon hot path; it makes exactly the decisions of [`Heuristics::apply`]
 /// followed by [`Footprint::pack`].
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -412,26 +463,30 @@ impl ResolvedHeuristics {
     /// Runs dampening, H-max, degenerate removal, the AABB and culling (the documented
     /// order) and packs the footprint for progressive radius `radius` (metres). Returns
     /// the final footprint, its record and its box, or why it must become a progressive
-    /// photon.
+    /// photon. Makes the decisions of [`Heuristics::apply`] followed by
+    /// [`Footprint::pack`]; the final footprint is the same ellipse (`D_u`, `D_v` may be
+    /// its principal differentials where [`HMaxMode::EachAxis`] clamped).
     ///
-    /// Dampening scales `D_u` and `D_v` by one factor `s`, and the degenerate test, the
-    /// squared lengths, the semi-axes and the box extents are homogeneous in it, so they
+    /// Dampening scales `D_u` and `D_v` by one factor `s`, and the principal axes, the
+    /// resolution and degenerate tests and the box extents are homogeneous in it, so they
     /// are computed from the undampened differentials while `s` is still being computed
     /// and scaled afterwards (`D_u × D_v` and the record's rows use the dampened
-    /// differentials, as [`Footprint::pack`] does). Only an H-max clamp of one
-    /// differential (which breaks the homogeneity) takes the sequential path.
+    /// differentials, as [`Footprint::pack`] does). Only an H-max clamp takes another path.
     #[inline(always)]
     pub fn store(&self, fp: Footprint, radius: f64) -> Result<(Footprint, PackedFootprint, Aabb), ProgressiveReason> {
         // Scale-free parts, independent of the dampening factor.
         let la2_0 = fp.du.length_squared();
         let lb2_0 = fp.dv.length_squared();
-        let major2_0 = la2_0.max(lb2_0);
-        let cross_0 = fp.du.cross(fp.dv);
+        let uv_0 = fp.du.dot(fp.dv);
+        let cross2_0 = fp.du.cross(fp.dv).length_squared();
+        let major2_0 = major_axis2(la2_0, lb2_0, uv_0);
         let e2_0 = 0.25 * (fp.du * fp.du + fp.dv * fp.dv);
-        // Degenerate removal, |D_u × D_v| < f |D_major|² in squares, is invariant under a
-        // common scale (decided here, applied after H-max, which may change it).
-        let degenerate = self.degenerate.is_some_and(|f| !(major2_0 > 0.0) || !(cross_0.length_squared() >= f * f * major2_0 * major2_0));
-        let (major_0, minor_0) = (libm::sqrt(major2_0), libm::sqrt(la2_0.min(lb2_0)));
+        // No usable ellipse; degenerate removal, σ₂/σ₁ < f ⇔ |D_u × D_v| < f ℓ₁² (in
+        // squares), is invariant under a common scale (decided here, applied after H-max,
+        // which may change it).
+        let unresolved = unresolved(cross2_0, major2_0);
+        let degenerate = self.degenerate.is_some_and(|f| !(cross2_0 >= f * f * major2_0 * major2_0));
+        let (major_0, minor_0) = principal_lengths(la2_0, lb2_0, uv_0, libm::sqrt(cross2_0));
         let e_0 = DVec3::new(libm::sqrt(e2_0.x), libm::sqrt(e2_0.y), libm::sqrt(e2_0.z));
         let s = match self.dampening {
             None => 1.0,
@@ -449,17 +504,21 @@ impl ResolvedHeuristics {
                 }
             }
         };
-        let s2 = s * s;
-        let (la2, lb2) = (la2_0 * s2, lb2_0 * s2);
+        if unresolved {
+            return Err(ProgressiveReason::Degenerate);
+        }
+        let (major, minor) = (s * major_0, s * minor_0);
         if let Some((h, mode)) = self.h_max.filter(|(h, _)| *h > 0.0)
-            && la2.max(lb2) > h * h
+            && major > h
         {
-            return self.store_clamped(fp.scaled(s), la2, lb2, h, mode, radius);
+            return self.store_clamped(fp.scaled(s), major, minor, h, mode, radius);
         }
         if degenerate {
             return Err(ProgressiveReason::Degenerate);
         }
         let fp = fp.scaled(s);
+        let s2 = s * s;
+        let (la2, lb2) = (la2_0 * s2, lb2_0 * s2);
         // From the scaled differentials, like the record's rows (`pack_parts`): the
         // denominator may cancel, and the density must match the rows it is used with.
         let cross = fp.du.cross(fp.dv);
@@ -467,50 +526,50 @@ impl ResolvedHeuristics {
         if degenerate_denominator(den, la2, lb2) {
             return Err(ProgressiveReason::Degenerate);
         }
-        let h = half_thickness(fp.center, s * major_0, s * minor_0, radius);
+        let h = half_thickness(fp.center, major, minor, radius);
         self.finish(fp, la2, lb2, cross, den, h, e_0 * s)
     }
 
     /// [`ResolvedHeuristics::store`] after dampening when H-max clamps: `fp` is dampened,
-    /// `la2`, `lb2` its squared differential lengths.
+    /// `major`, `minor` its principal axis lengths (metres), `major > h`.
     #[cold]
     #[inline(never)]
-    fn store_clamped(&self, mut fp: Footprint, mut la2: f64, mut lb2: f64, h: f64, mode: HMaxMode, radius: f64) -> Result<(Footprint, PackedFootprint, Aabb), ProgressiveReason> {
-        let h2 = h * h;
-        match mode {
-            HMaxMode::EachDifferential => {
-                if la2 > h2 {
-                    fp.du *= h / libm::sqrt(la2);
-                    la2 = fp.du.length_squared();
-                }
-                if lb2 > h2 {
-                    fp.dv *= h / libm::sqrt(lb2);
-                    lb2 = fp.dv.length_squared();
-                }
+    fn store_clamped(&self, mut fp: Footprint, major: f64, minor: f64, h: f64, mode: HMaxMode, radius: f64) -> Result<(Footprint, PackedFootprint, Aabb), ProgressiveReason> {
+        let (major, minor) = match mode {
+            HMaxMode::EachAxis => {
+                // The principal differentials with the clamped lengths (`to_principal`).
+                let (la2, lb2, uv) = (fp.du.length_squared(), fp.dv.length_squared(), fp.du.dot(fp.dv));
+                let den = fp.du.cross(fp.dv).dot(fp.normal);
+                let e1 = unit_scaled(major_differential(fp.du, fp.dv, la2, lb2, uv));
+                let e2 = fp.normal.cross(e1);
+                let minor = minor.min(h);
+                fp.du = e1 * h;
+                fp.dv = (if den < 0.0 { -e2 } else { e2 }) * minor;
+                (h, minor)
             }
             HMaxMode::PreserveAspect => {
-                let s = h / libm::sqrt(la2.max(lb2));
-                fp.du *= s;
-                fp.dv *= s;
-                la2 = fp.du.length_squared();
-                lb2 = fp.dv.length_squared();
+                let t = h / major;
+                fp.du *= t;
+                fp.dv *= t;
+                (h, minor * t)
             }
-        }
-        let cross = fp.du.cross(fp.dv);
-        let major2 = la2.max(lb2);
+        };
         if let Some(f) = self.degenerate
-            && (!(major2 > 0.0) || !(cross.length_squared() >= f * f * major2 * major2))
+            && !(minor >= f * major)
         {
             return Err(ProgressiveReason::Degenerate);
         }
+        let (la2, lb2) = (fp.du.length_squared(), fp.dv.length_squared());
+        let cross = fp.du.cross(fp.dv);
         let den = cross.dot(fp.normal);
         if degenerate_denominator(den, la2, lb2) {
             return Err(ProgressiveReason::Degenerate);
         }
-        let h = half_thickness(fp.center, libm::sqrt(major2), libm::sqrt(la2.min(lb2)), radius);
+        let (major, minor) = principal_lengths(la2, lb2, fp.du.dot(fp.dv), cross.length());
+        let hh = half_thickness(fp.center, major, minor, radius);
         let e2 = 0.25 * (fp.du * fp.du + fp.dv * fp.dv);
         let e = DVec3::new(libm::sqrt(e2.x), libm::sqrt(e2.y), libm::sqrt(e2.z));
-        self.finish(fp, la2, lb2, cross, den, h, e)
+        self.finish(fp, la2, lb2, cross, den, hh, e)
     }
 
     /// Box, culling and packing of the final footprint `fp` (squared differential lengths
@@ -551,7 +610,7 @@ pub struct PackedHeuristics {
     pub enabled: u32,
     /// Dampening reference: 0 absolute (`dampen_reference`), 1 progressive diameter `2 r_i`.
     pub dampen_reference_kind: u32,
-    /// H-max mode: 0 each differential, 1 preserve aspect.
+    /// H-max mode: 0 each principal axis ([`HMaxMode::EachAxis`]), 1 preserve aspect.
     pub h_max_mode: u32,
     /// Culling metric: 0 largest extent, 1 diagonal, 2 surface area.
     pub cull_metric: u32,
@@ -585,7 +644,7 @@ impl ResolvedHeuristics {
             p.enabled |= 2;
             p.h_max = h as f32;
             p.h_max_mode = match mode {
-                HMaxMode::EachDifferential => 0,
+                HMaxMode::EachAxis => 0,
                 HMaxMode::PreserveAspect => 1,
             };
         }

@@ -86,7 +86,8 @@ pub const KERNEL: WgslFile = WgslFile { name: "kernel.wgsl", source: include_str
 
 /// `footprint.wgsl`: `ArpaPackedFootprint`, `arpa_footprint_pack`,
 /// `arpa_footprint_filter_coords`, `arpa_footprint_contains`, `arpa_footprint_faces`,
-/// `arpa_footprint_irradiance`, `arpa_half_thickness`. Metres, W, W/m².
+/// `arpa_footprint_irradiance`, `arpa_half_thickness`, `arpa_major_axis2`,
+/// `arpa_footprint_axes` (principal axis lengths). Metres, W, W/m².
 pub const FOOTPRINT: WgslFile = WgslFile { name: "footprint.wgsl", source: include_str!("../shaders/footprint.wgsl"), deps: &[&KERNEL] };
 
 /// `radius.wgsl`: `arpa_radius(r₁, α, iteration)` and `arpa_radius_next`, metres.

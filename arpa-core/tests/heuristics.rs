@@ -6,7 +6,7 @@ use arpa_core::classify::Smoothing;
 use arpa_core::footprint::{Footprint, PhotonMap};
 use arpa_core::heuristics::*;
 use arpa_core::store::{store_footprint, ProgressiveReason, StoredPhoton};
-use glam::DVec3;
+use glam::{DMat3, DVec3};
 
 fn scene() -> Aabb {
     Aabb { min: DVec3::ZERO, max: DVec3::new(10.0, 4.0, 2.0) } // largest side 10, diagonal √120
@@ -14,6 +14,13 @@ fn scene() -> Aabb {
 
 fn ctx(radius: f64) -> HeuristicContext {
     HeuristicContext { radius, scene_bounds: scene() }
+}
+
+/// The ellipse's shape matrix `D_u D_uᵀ + D_v D_vᵀ` (m², `4 Σ σᵢ² eᵢeᵢᵀ`): equal for two
+/// pairs exactly when they span the same centred ellipse.
+fn shape(f: &Footprint) -> DMat3 {
+    let outer = |v: DVec3| DMat3::from_cols(v * v.x, v * v.y, v * v.z);
+    outer(f.du) + outer(f.dv)
 }
 
 fn fp(du: DVec3, dv: DVec3) -> Footprint {
@@ -45,10 +52,10 @@ fn dampening_follows_its_formula() {
 #[test]
 fn h_max_clamps_exactly() {
     let h_max = 0.05 * scene().diagonal();
-    let each = Heuristics { h_max: Some(HMax { length: LengthSpec::RelativeToDiagonal(0.05), mode: HMaxMode::EachDifferential }), ..Heuristics::NONE };
+    let each = Heuristics { h_max: Some(HMax { length: LengthSpec::RelativeToDiagonal(0.05), mode: HMaxMode::EachAxis }), ..Heuristics::NONE };
     let out = each.clamp_h_max(fp(DVec3::X * 3.0, DVec3::new(0.0, 0.0, 0.2)), &ctx(0.01));
-    assert!((out.du.length() - h_max).abs() < 1e-12);
-    assert_eq!(out.dv, DVec3::new(0.0, 0.0, 0.2)); // shorter than h_max: untouched
+    assert!((out.du - DVec3::X * h_max).length() < 1e-12);
+    assert!((out.dv - DVec3::new(0.0, 0.0, 0.2)).length() < 1e-12); // shorter than h_max: kept
     let both_long = each.clamp_h_max(fp(DVec3::X * 3.0, DVec3::Z * 2.0), &ctx(0.01));
     assert!((both_long.du.length() - h_max).abs() < 1e-12 && (both_long.dv.length() - h_max).abs() < 1e-12);
     let aspect = Heuristics { h_max: Some(HMax { length: LengthSpec::Absolute(0.5), mode: HMaxMode::PreserveAspect }), ..Heuristics::NONE };
@@ -56,20 +63,45 @@ fn h_max_clamps_exactly() {
     assert!((out.du.length() - 0.5).abs() < 1e-12 && (out.dv.length() - 0.25).abs() < 1e-12);
     let short = fp(DVec3::X * 0.1, DVec3::Z * 0.1);
     assert_eq!(aspect.clamp_h_max(short, &ctx(0.01)), short);
+
+    // A 57:1 sliver along x (axes 5.7 and 0.1) given by a sheared conjugate pair: each
+    // principal axis is clamped along its own direction, so the result is the ellipse with
+    // axes h_max = 0.5 along x and 0.1 along z, whatever pair spans the sliver.
+    let each = Heuristics { h_max: Some(HMax { length: LengthSpec::Absolute(0.5), mode: HMaxMode::EachAxis }), ..Heuristics::NONE };
+    let (a, b) = (DVec3::X * 5.7, DVec3::Z * 0.1);
+    for phi in [0.0f64, 0.4, 1.2, 2.5] {
+        let sliver = fp(a * phi.cos() + b * phi.sin(), b * phi.cos() - a * phi.sin());
+        let out = each.clamp_h_max(sliver, &ctx(0.01));
+        let axes = out.principal_axes();
+        assert!((axes.semi_major - 0.25).abs() < 1e-12 && (axes.semi_minor - 0.05).abs() < 1e-12, "φ {phi}: {axes:?}");
+        assert!(axes.major_dir.dot(DVec3::X).abs() > 1.0 - 1e-12, "φ {phi}: {axes:?}");
+        assert!((out.area() - core::f64::consts::PI * 0.25 * 0.05).abs() < 1e-12);
+    }
 }
 
 #[test]
 fn degenerate_removal_at_its_threshold() {
     let h = Heuristics { degenerate: Some(DegenerateRemoval { fraction: 0.05 }), ..Heuristics::NONE };
-    // |Du × Dv| / |Dmajor|² = (|Dv|/|Du|) sin α.
+    // Degenerate iff the axis ratio σ₂/σ₁ < f: for orthogonal differentials |Dv|/|Du|; for
+    // equal lengths at angle α, tan(α/2) (threshold α = 5.72°); for |Dv| = 0.1 |Du|, α ≈ 30.1°.
     let major = DVec3::X * 0.2;
-    for (ratio, angle, degenerate) in [(0.049, 90.0f64, true), (0.051, 90.0, false), (1.0, 2.8, true), (1.0, 2.9, false), (0.1, 29.0, true), (0.1, 31.0, false)] {
+    for (ratio, angle, degenerate) in [(0.049, 90.0f64, true), (0.051, 90.0, false), (1.0, 5.7, true), (1.0, 5.75, false), (0.1, 29.0, true), (0.1, 31.0, false)] {
         let a = angle.to_radians();
         let dv = (DVec3::X * a.cos() + DVec3::Z * a.sin()) * 0.2 * ratio;
         let f = fp(major, dv);
         assert_eq!(h.is_degenerate(&f), degenerate, "ratio {ratio}, α {angle}°");
         let outcome = h.apply(f, &ctx(0.01));
         assert_eq!(outcome.is_err(), degenerate);
+    }
+    // The same ellipses spanned by orthogonal re-mixings of the pair get the same verdicts.
+    for (ratio, angle, degenerate) in [(1.0, 5.7f64, true), (1.0, 5.75, false), (0.1, 29.0, true), (0.1, 31.0, false)] {
+        let a = angle.to_radians();
+        let dv = (DVec3::X * a.cos() + DVec3::Z * a.sin()) * 0.2 * ratio;
+        for phi in [0.3f64, 1.1, 2.0, 2.9] {
+            let (c, s) = (phi.cos(), phi.sin());
+            let f = fp(major * c + dv * s, dv * c - major * s);
+            assert_eq!(h.is_degenerate(&f), degenerate, "ratio {ratio}, α {angle}°, φ {phi}");
+        }
     }
     // Zero and parallel differentials are degenerate, even with the heuristic off.
     assert!(h.is_degenerate(&fp(DVec3::ZERO, DVec3::ZERO)));
@@ -103,11 +135,12 @@ fn order_dampen_then_clamp_then_degenerate_then_cull() {
     // Dampening (literal reading, ℓ^(1/4)) grows a small footprint; h-max then clamps it.
     let h = Heuristics {
         dampening: Some(Dampening { exponent: 0.25, reference: DampenReference::Absolute(1.0) }),
-        h_max: Some(HMax { length: LengthSpec::Absolute(0.3), mode: HMaxMode::EachDifferential }),
+        h_max: Some(HMax { length: LengthSpec::Absolute(0.3), mode: HMaxMode::EachAxis }),
         degenerate: Some(DegenerateRemoval { fraction: 0.05 }),
         culling: Some(BoundingBoxCulling { fraction: 0.05, metric: CullMetric::LargestExtent }),
     };
-    // 0.0016^(1/4) = 0.2: below h_max; 0.0256^(1/4) = 0.4: clamped to 0.3.
+    // Orthogonal differentials are the principal axes: 0.0016^(1/4) = 0.2: below h_max;
+    // 0.0256^(1/4) = 0.4: clamped to 0.3.
     let (out, bb) = h.apply(fp(DVec3::X * 0.0256, DVec3::Z * 0.0256), &ctx(0.01)).unwrap();
     assert!((out.du.length() - 0.3).abs() < 1e-12 && (out.dv.length() - 0.3).abs() < 1e-12);
     assert_eq!(bb, out.aabb(0.01));
@@ -161,7 +194,7 @@ mod fused_path {
     fn heuristics() -> impl Strategy<Value = Heuristics> {
         (any::<[bool; 4]>(), prop_oneof![Just(0.25), 0.1f64..0.9], any::<bool>(), any::<bool>(), 0.01f64..0.5, 0usize..3).prop_map(|(on, gamma, lit, aspect, f, metric)| Heuristics {
             dampening: on[0].then_some(Dampening { exponent: gamma, reference: if lit { DampenReference::Absolute(1.0) } else { DampenReference::ProgressiveDiameter } }),
-            h_max: on[1].then_some(HMax { length: LengthSpec::RelativeToDiagonal(0.05), mode: if aspect { HMaxMode::PreserveAspect } else { HMaxMode::EachDifferential } }),
+            h_max: on[1].then_some(HMax { length: LengthSpec::RelativeToDiagonal(0.05), mode: if aspect { HMaxMode::PreserveAspect } else { HMaxMode::EachAxis } }),
             degenerate: on[2].then_some(DegenerateRemoval { fraction: f }),
             culling: on[3].then_some(BoundingBoxCulling { fraction: 0.05, metric: [CullMetric::LargestExtent, CullMetric::Diagonal, CullMetric::SurfaceArea][metric] }),
         })
@@ -189,8 +222,10 @@ mod fused_path {
             let fused = h.resolve(&scene()).store(fp, radius);
             match (reference, fused) {
                 (Ok((f1, p1, b1)), Ok((f2, p2, b2))) => {
-                    let tol = 1e-9 * f1.du.length().max(f1.dv.length());
-                    prop_assert!((f1.du - f2.du).length() <= tol && (f1.dv - f2.dv).length() <= tol);
+                    // The same ellipse (the pairs themselves may differ where a near-circle's
+                    // principal directions are ill-determined).
+                    let (s1, s2) = (shape(&f1), shape(&f2));
+                    prop_assert!((s1 - s2).abs().to_cols_array().iter().all(|x| *x <= 1e-9 * s1.col(0).length().max(s1.col(1).length()).max(s1.col(2).length())), "{:?} vs {:?}", f1, f2);
                     let scale = (b1.max - b1.min).max_element();
                     prop_assert!((b1.min - b2.min).abs().max_element() <= 1e-9 * scale && (b1.max - b2.max).abs().max_element() <= 1e-9 * scale);
                     let (a, b): (&[f32; 16], &[f32; 16]) = (bytemuck::cast_ref(&p1), bytemuck::cast_ref(&p2));
@@ -201,6 +236,215 @@ mod fused_path {
                 (Err(r1), Err(r2)) => prop_assert_eq!(r1, r2),
                 (r1, r2) => prop_assert!(false, "reference {:?} vs fused {:?}", r1.map(|x| x.2), r2.map(|x| x.2)),
             }
+        }
+    }
+}
+
+/// Orthogonal re-mixing `(D_u, D_v) ↦ (D_u, D_v) Q` spans the same ellipse; every heuristic
+/// and the whole store must give the same verdict and the same ellipse, area, box and
+/// record for every such `Q` (rotations and reflections).
+mod remixing {
+    use super::*;
+    use arpa_core::footprint::{principal_axes, MIN_RELATIVE_SEMI_AXIS};
+    use arpa_core::store::StoredPhoton;
+    use proptest::prelude::*;
+    use proptest::strategy::ValueTree;
+
+    /// Random configurations: each heuristic on or off, every mode, metric and reference;
+    /// thresholds wide enough that every verdict occurs.
+    fn heuristics() -> impl Strategy<Value = Heuristics> {
+        (any::<[bool; 4]>(), prop_oneof![Just(0.25), 0.1f64..0.9], any::<bool>(), -2.5f64..0.0, any::<bool>(), 0.01f64..0.3, 0.002f64..0.05, 0usize..3).prop_map(
+            |(on, gamma, lit, h_exp, aspect, f, cull, metric)| Heuristics {
+                dampening: on[0].then_some(Dampening { exponent: gamma, reference: if lit { DampenReference::Absolute(0.05) } else { DampenReference::ProgressiveDiameter } }),
+                h_max: on[1].then_some(HMax { length: LengthSpec::Absolute(10f64.powf(h_exp)), mode: if aspect { HMaxMode::PreserveAspect } else { HMaxMode::EachAxis } }),
+                degenerate: on[2].then_some(DegenerateRemoval { fraction: f }),
+                culling: on[3].then_some(BoundingBoxCulling { fraction: cull, metric: [CullMetric::LargestExtent, CullMetric::Diagonal, CullMetric::SurfaceArea][metric] }),
+            },
+        )
+    }
+
+    /// A footprint on a random plane: lengths 3e-3 … 3 m (the shorter down to 1e-2 of the
+    /// longer), the angle between the differentials down to grazing (sin α ≥ 1e-3), any
+    /// orientation.
+    fn footprint() -> impl Strategy<Value = Footprint> {
+        (
+            (-1.0f64..1.0, 0.0f64..std::f64::consts::TAU),
+            (-5.0f64..5.0, -5.0f64..5.0, -2.0f64..2.0),
+            (0.0f64..std::f64::consts::TAU, -3.0f64..0.0, any::<bool>(), -2.5f64..0.5, -2.0f64..0.5),
+            any::<bool>(),
+        )
+            .prop_map(|((z, phi), (x, y, zc), (rot, sin_exp, obtuse, la, lb_rel), caustic)| {
+                let r = (1.0 - z * z).sqrt();
+                let normal = DVec3::new(r * phi.cos(), r * phi.sin(), z);
+                let t1 = normal.any_orthonormal_vector();
+                let t2 = normal.cross(t1);
+                let alpha = {
+                    let a = 10f64.powf(sin_exp).asin();
+                    if obtuse { std::f64::consts::PI - a } else { a }
+                };
+                let dir = |t: f64| t1 * t.cos() + t2 * t.sin();
+                let la = 10f64.powf(la);
+                Footprint {
+                    center: DVec3::new(x, y, zc),
+                    normal,
+                    du: dir(rot) * la,
+                    dv: dir(rot + alpha) * la * 10f64.powf(lb_rel),
+                    flux: DVec3::new(1.0, 0.5, 0.25),
+                    map: if caustic { PhotonMap::Caustic } else { PhotonMap::Global },
+                }
+            })
+    }
+
+    /// `(D_u, D_v) Q` for the rotation by `phi`, or the reflection across the line at `phi/2`.
+    fn remix(f: &Footprint, phi: f64, reflect: bool) -> Footprint {
+        let (c, s) = (phi.cos(), phi.sin());
+        let (du, dv) = if reflect { (f.du * c + f.dv * s, f.du * s - f.dv * c) } else { (f.du * c + f.dv * s, f.dv * c - f.du * s) };
+        Footprint { du, dv, ..*f }
+    }
+
+    fn close_mat(a: DMat3, b: DMat3, tol: f64) -> bool {
+        let scale = a.col(0).length().max(a.col(1).length()).max(a.col(2).length());
+        (a - b).abs().to_cols_array().iter().all(|x| *x <= tol * scale)
+    }
+
+    fn close(a: f64, b: f64, tol: f64) -> bool {
+        (a - b).abs() <= tol * a.abs().max(b.abs())
+    }
+
+    /// The filter's quadratic form `row_uᵀrow_u + row_vᵀrow_v` (1/m²) of a record: the same
+    /// for every pair spanning the ellipse (the rows themselves rotate in filter space).
+    fn filter_form(p: &arpa_core::footprint::PackedFootprint) -> DMat3 {
+        let outer = |a: [f32; 3]| {
+            let v = glam::Vec3::from_array(a).as_dvec3();
+            DMat3::from_cols(v * v.x, v * v.y, v * v.z)
+        };
+        outer(p.row_u) + outer(p.row_v)
+    }
+
+    /// `true` when a verdict of `h` on `f` (smoothed by `smoothing`) lies within 1e-9
+    /// relative of its threshold, where rounding may decide it differently for two pairs.
+    fn near_threshold(h: &Heuristics, f: &Footprint, smoothing: f64, radius: f64) -> bool {
+        let c = ctx(radius);
+        let f = h.clamp_h_max(h.dampen(f.scaled(smoothing), &c), &c);
+        let near = |x: f64, t: f64| (x / t - 1.0).abs() < 1e-9;
+        let axes = f.principal_axes();
+        let ratio = axes.semi_minor / axes.semi_major;
+        let deg = h.degenerate.is_some_and(|d| near(ratio, d.fraction));
+        let cull = h.culling.is_some_and(|cull| {
+            let b = f.aabb(radius);
+            let (mine, scene) = match cull.metric {
+                CullMetric::LargestExtent => (b.largest_extent(), scene().largest_extent()),
+                CullMetric::Diagonal => (b.diagonal(), scene().diagonal()),
+                CullMetric::SurfaceArea => (b.surface_area(), scene().surface_area()),
+            };
+            near(mine, cull.fraction * scene)
+        });
+        let scale = f.center.abs().max_element().max(1e-30) * MIN_RELATIVE_SEMI_AXIS;
+        deg || cull || (f.minor_semi_axis_bound() / scale - 1.0).abs() < 1e-6
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 4000, ..ProptestConfig::default() })]
+
+        /// The principal axes are those of the ellipse: `σ₁² + σ₂²` and `σ₁σ₂` are the
+        /// trace and area invariants of `a aᵀ + b bᵀ`, the directions are orthonormal in the
+        /// tangent plane, the principal differentials span the same ellipse with the same
+        /// orientation, and all of it is the same for every re-mixing.
+        #[test]
+        fn principal_axes_are_the_ellipses_and_invariant(f in footprint(), phi in 0.0f64..std::f64::consts::TAU, reflect in any::<bool>()) {
+            let axes = principal_axes(f.du, f.dv, f.normal);
+            let (a, b) = (f.du * 0.5, f.dv * 0.5);
+            let (s1, s2) = (axes.semi_major, axes.semi_minor);
+            prop_assert!(s1 >= s2 && s2 > 0.0);
+            prop_assert!(close(s1 * s1 + s2 * s2, a.length_squared() + b.length_squared(), 1e-12));
+            prop_assert!(close(s1 * s2, a.cross(b).length(), 1e-9));
+            prop_assert!((axes.major_dir.length() - 1.0).abs() < 1e-12 && (axes.minor_dir.length() - 1.0).abs() < 1e-12);
+            prop_assert!(axes.major_dir.dot(axes.minor_dir).abs() < 1e-12 && axes.major_dir.dot(f.normal).abs() < 1e-12);
+            let p = f.to_principal();
+            prop_assert!(close_mat(shape(&p), shape(&f), 1e-12));
+            prop_assert!(p.du.cross(p.dv).dot(f.normal) * f.du.cross(f.dv).dot(f.normal) > 0.0, "orientation changed");
+            prop_assert!(close(p.area(), f.area(), 1e-9));
+            let g = remix(&f, phi, reflect);
+            let axes_g = g.principal_axes();
+            prop_assert!(close(axes_g.semi_major, s1, 1e-12) && close(axes_g.semi_minor, s2, 1e-9));
+            prop_assert!(close_mat(shape(&g.to_principal()), shape(&p), 1e-12));
+            prop_assert!(close(g.half_thickness(0.01), f.half_thickness(0.01), 1e-9));
+            let (bf, bg) = (f.aabb(0.01), g.aabb(0.01));
+            prop_assert!((bf.min - bg.min).abs().max_element() <= 1e-12 * (1.0 + bf.diagonal()) && (bf.max - bg.max).abs().max_element() <= 1e-12 * (1.0 + bf.diagonal()));
+        }
+
+        /// Each heuristic alone and `Heuristics::apply`: the same verdict, ellipse, area and
+        /// box for the footprint and any orthogonal re-mixing of its differentials.
+        #[test]
+        fn heuristics_are_invariant_under_remixing(h in heuristics(), f in footprint(), radius in 1e-3f64..0.1, phi in 0.0f64..std::f64::consts::TAU, reflect in any::<bool>()) {
+            prop_assume!(!near_threshold(&h, &f, 1.0, radius));
+            let c = ctx(radius);
+            let g = remix(&f, phi, reflect);
+            let (df, dg) = (h.dampen(f, &c), h.dampen(g, &c));
+            prop_assert!(close_mat(shape(&df), shape(&dg), 1e-10) && close(df.area(), dg.area(), 1e-9), "dampening");
+            let (cf, cg) = (h.clamp_h_max(df, &c), h.clamp_h_max(dg, &c));
+            prop_assert!(close_mat(shape(&cf), shape(&cg), 1e-10) && close(cf.area(), cg.area(), 1e-9), "H-max: {:?} vs {:?}", cf, cg);
+            prop_assert_eq!(h.is_degenerate(&cf), h.is_degenerate(&cg), "degenerate removal");
+            prop_assert_eq!(h.is_culled(&cf.aabb(radius), &c), h.is_culled(&cg.aabb(radius), &c), "culling");
+            match (h.apply(f, &c), h.apply(g, &c)) {
+                (Ok((ff, bf)), Ok((fg, bg))) => {
+                    prop_assert!(close_mat(shape(&ff), shape(&fg), 1e-10));
+                    prop_assert!(close(ff.area(), fg.area(), 1e-9));
+                    let tol = 1e-9 * bf.diagonal();
+                    prop_assert!((bf.min - bg.min).abs().max_element() <= tol && (bf.max - bg.max).abs().max_element() <= tol);
+                }
+                (rf, rg) => prop_assert_eq!(rf.err(), rg.err()),
+            }
+        }
+
+        /// `store_footprint` (smoothing, then the fused heuristics and packing): the same
+        /// outcome (footprint, or progressive photon with the same reason), and for
+        /// footprints the same filter (quadratic form of the rows), density (so area), slab
+        /// and box.
+        #[test]
+        fn store_footprint_is_invariant_under_remixing(h in heuristics(), f in footprint(), radius in 1e-3f64..0.1, s in 0.3f64..3.0, phi in 0.0f64..std::f64::consts::TAU, reflect in any::<bool>()) {
+            prop_assume!(!near_threshold(&h, &f, s, radius));
+            let smoothing = Smoothing { caustic: s, global: s };
+            let resolved = h.resolve(&scene());
+            let g = remix(&f, phi, reflect);
+            match (store_footprint(f, &smoothing, &resolved, radius), store_footprint(g, &smoothing, &resolved, radius)) {
+                (StoredPhoton::Footprint { packed: pf, aabb: bf }, StoredPhoton::Footprint { packed: pg, aabb: bg }) => {
+                    prop_assert!(close_mat(filter_form(&pf), filter_form(&pg), 1e-5), "filter {:?} vs {:?}", pf, pg);
+                    for (x, y) in pf.flux_density().to_array().iter().zip(pg.flux_density().to_array()) {
+                        prop_assert!(close(*x as f64, y as f64, 1e-5), "density {:?} vs {:?}", pf, pg);
+                    }
+                    prop_assert!((glam::Vec3::from_array(pf.row_n) - glam::Vec3::from_array(pg.row_n)).length() <= 1e-5 * glam::Vec3::from_array(pf.row_n).length());
+                    let tol = 1e-9 * bf.diagonal();
+                    prop_assert!((bf.min - bg.min).abs().max_element() <= tol && (bf.max - bg.max).abs().max_element() <= tol);
+                }
+                (StoredPhoton::Progressive { reason: rf, .. }, StoredPhoton::Progressive { reason: rg, .. }) => prop_assert_eq!(rf, rg),
+                (a, b) => prop_assert!(false, "{:?} vs {:?}", a, b),
+            }
+        }
+    }
+
+    /// The strategies reach every verdict often, so the invariance tests above test each.
+    #[test]
+    fn remixing_cases_reach_every_verdict() {
+        let mut runner = proptest::test_runner::TestRunner::deterministic();
+        let mut counts = std::collections::HashMap::new();
+        for _ in 0..4000 {
+            let (h, f, radius) = (heuristics(), footprint(), 1e-3f64..0.1).new_tree(&mut runner).unwrap().current();
+            let verdict = match h.resolve(&scene()).store(f, radius) {
+                Ok(_) => "stored",
+                Err(ProgressiveReason::Degenerate) if h.degenerate.is_some() => "degenerate",
+                Err(ProgressiveReason::Culled) => "culled",
+                Err(ProgressiveReason::Unrepresentable) => "unrepresentable",
+                Err(_) => "other",
+            };
+            let clamped = h.h_max.is_some_and(|hm| h.dampen(f, &ctx(radius)).principal_axes().semi_major * 2.0 > hm.length.resolve(&scene()));
+            *counts.entry(verdict).or_insert(0usize) += 1;
+            if clamped && verdict == "stored" {
+                *counts.entry("clamped and stored").or_insert(0usize) += 1;
+            }
+        }
+        for v in ["stored", "degenerate", "culled", "clamped and stored"] {
+            assert!(counts.get(v).copied().unwrap_or(0) > 100, "{counts:?}");
         }
     }
 }

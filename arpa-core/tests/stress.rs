@@ -381,7 +381,7 @@ fn heuristic_configs() -> Vec<(&'static str, Heuristics)> {
         ),
         (
             "h_max_absolute_only",
-            Heuristics { h_max: Some(HMax { length: LengthSpec::Absolute(1.0), mode: HMaxMode::EachDifferential }), ..none },
+            Heuristics { h_max: Some(HMax { length: LengthSpec::Absolute(1.0), mode: HMaxMode::EachAxis }), ..none },
         ),
         ("degenerate_only", Heuristics { degenerate: Some(DegenerateRemoval { fraction: 0.05 }), ..none }),
         ("culling_only", Heuristics { culling: cull(CullMetric::LargestExtent), ..none }),
@@ -1368,23 +1368,30 @@ fn check_heuristics_apply((((fp, kind), ctx), (name, h)): HeurIn) -> Outcome {
             prop_assert!(out.filter_transform().is_ok());
             prop_assert_eq!(bb, out.aabb(ctx.radius));
             prop_assert!(bb.min.is_finite() && bb.max.is_finite() && bb.contains(out.center));
-            let (major, _) = out.major_minor();
+            let (major, minor) = out.axis_lengths();
             if let Some(d) = h.degenerate {
-                prop_assert!(out.parallelogram_area() >= d.fraction * major * major, "[{}] degenerate footprint kept", name);
+                prop_assert!(minor >= d.fraction * major * (1.0 - 1e-12), "[{}] degenerate footprint kept", name);
             }
             prop_assert!(!h.is_culled(&bb, &ctx));
             if let Some(hm) = h.h_max {
                 let h_max = hm.length.resolve(&ctx.scene_bounds);
                 if h_max > 0.0 {
-                    prop_assert!(major <= h_max * (1.0 + 1e-12), "[{}] |D_major| {:e} > h_max {:e}", name, major, h_max);
+                    prop_assert!(major <= h_max * (1.0 + 1e-12), "[{}] major axis {:e} > h_max {:e}", name, major, h_max);
                 }
             }
             Ok("ok")
         }
         Err(ProgressiveReason::Degenerate) => {
             if h.degenerate.is_none() {
-                let processed = h.clamp_h_max(h.dampen(fp, &ctx), &ctx);
-                prop_assert!(processed.filter_transform().is_err(), "[{}] rejected as degenerate with degenerate removal off", name);
+                // Only a footprint without a usable ellipse (axis ratio at rounding level) or
+                // without M_p⁻¹.
+                let dampened = h.dampen(fp, &ctx);
+                let processed = h.clamp_h_max(dampened, &ctx);
+                prop_assert!(
+                    Heuristics::is_unresolved(&dampened) || processed.filter_transform().is_err(),
+                    "[{}] rejected as degenerate with degenerate removal off",
+                    name
+                );
             }
             Ok("degenerate")
         }
@@ -1412,7 +1419,8 @@ fn check_dampen((((fp, _), ctx), (name, h)): HeurIn) -> Outcome {
         prop_assert_eq!(out, fp);
         return Ok("off");
     };
-    let (major, minor) = fp.major_minor();
+    // On the principal axes (ℓ₁ = 2σ₁ the major axis), the ellipse scaled as a whole.
+    let (major, minor) = fp.axis_lengths();
     let reference = match d.reference {
         DampenReference::Absolute(l) => l,
         DampenReference::ProgressiveDiameter => 2.0 * ctx.radius,
@@ -1421,7 +1429,7 @@ fn check_dampen((((fp, _), ctx), (name, h)): HeurIn) -> Outcome {
         prop_assert_eq!(out, fp);
         return Ok("identity");
     }
-    let (major2, minor2) = out.major_minor();
+    let (major2, minor2) = out.axis_lengths();
     let want = reference * (major / reference).powf(d.exponent);
     prop_assert!((major2 - want).abs() <= 1e-9 * want, "[{}] ℓ' = {:e}, want {:e}", name, major2, want);
     prop_assert!((minor2 / major2 - minor / major).abs() <= 1e-12, "[{}] aspect changed", name);
@@ -1440,10 +1448,11 @@ fn check_clamp_h_max((((fp, kind), ctx), (name, h)): HeurIn) -> Outcome {
     let out = h.clamp_h_max(fp, &ctx);
     prop_assert!(all_finite(&[out.du, out.dv]), "[{}] {:?}", name, out);
     prop_assert!(out.center == fp.center && out.normal == fp.normal && out.flux == fp.flux && out.map == fp.map);
+    let (major, minor) = fp.axis_lengths();
+    let (major2, minor2) = out.axis_lengths();
     if kind == Pair::Parallel {
-        // Clamping only one of the two scales it by a non-power-of-two factor: parallel up to
-        // rounding only.
-        prop_assert!(sin_between(out.du, out.dv) <= 1e-15, "clamp made parallel differentials non-parallel");
+        // Clamping keeps a pair without an ellipse without one: axis ratio at rounding level.
+        prop_assert!(!(minor2 > 1e-15 * major2), "clamp made parallel differentials span an ellipse: {:e} / {:e}", minor2, major2);
     }
     let Some(hm) = h.h_max else {
         prop_assert_eq!(out, fp);
@@ -1454,18 +1463,36 @@ fn check_clamp_h_max((((fp, kind), ctx), (name, h)): HeurIn) -> Outcome {
         prop_assert_eq!(out, fp);
         return Ok("identity");
     }
-    for (before, after) in [(fp.du, out.du), (fp.dv, out.dv)] {
-        prop_assert!(after.length() <= h_max * (1.0 + 1e-12), "[{}] {:e} > h_max {:e}", name, after.length(), h_max);
-        prop_assert!(after.length() <= before.length() * (1.0 + 1e-15));
-        // Direction kept.
-        prop_assert!(after.cross(before).length() <= 1e-12 * after.length() * before.length());
-        prop_assert!(after.dot(before) >= 0.0);
+    if !(major > h_max) {
+        prop_assert_eq!(out, fp);
+        return Ok("unchanged");
     }
-    Ok(if out == fp { "unchanged" } else { "clamped" })
+    // Both principal axes at most h_max and never longer than before.
+    prop_assert!(major2 <= h_max * (1.0 + 1e-12) && minor2 <= h_max * (1.0 + 1e-12), "[{}] axes {:e} {:e} > h_max {:e}", name, major2, minor2, h_max);
+    prop_assert!(major2 <= major * (1.0 + 1e-12) && minor2 <= minor * (1.0 + 1e-9) + 1e-15 * major2, "[{}] an axis grew", name);
+    match hm.mode {
+        HMaxMode::PreserveAspect => {
+            // The ellipse scaled as a whole: the differentials keep their directions.
+            for (before, after) in [(fp.du, out.du), (fp.dv, out.dv)] {
+                prop_assert!(after.cross(before).length() <= 1e-12 * after.length() * before.length());
+                prop_assert!(after.dot(before) >= 0.0);
+            }
+        }
+        HMaxMode::EachAxis => {
+            // Principal differentials: orthogonal, the major one along the old major axis
+            // (where the axes are distinct enough to have directions).
+            prop_assert!(out.du.dot(out.dv).abs() <= 1e-12 * out.du.length() * out.dv.length());
+            if minor2 < 0.5 * major2 && in_plane(&fp) {
+                let (e_in, e_out) = (fp.principal_axes().major_dir, out.principal_axes().major_dir);
+                prop_assert!(e_in.dot(e_out).abs() >= 1.0 - 1e-9, "[{}] major axis turned: {} vs {}", name, e_in, e_out);
+            }
+        }
+    }
+    Ok("clamped")
 }
 
 stress!(
-    clamp_h_max_bounds_lengths_keeps_directions_and_is_finite,
+    clamp_h_max_bounds_axes_keeps_directions_and_is_finite,
     clamp_h_max_cases_reach_every_outcome,
     (footprint_and_ctx(), heuristics()),
     check_clamp_h_max,
@@ -1508,14 +1535,16 @@ fn check_store_footprint((((fp, kind), ctx), (name, h), smoothing): StoreIn) -> 
                 ProgressiveReason::Degenerate => {
                     prop_assert_eq!(rejection, Some(ProgressiveReason::Degenerate));
                     if h.degenerate.is_none() {
-                        // Without degenerate removal only differentials that are (nearly) parallel
-                        // or zero in the tangent plane may be rejected as degenerate.
-                        let processed = h.clamp_h_max(h.dampen(smoothing.apply(fp), &ctx), &ctx);
+                        // Without degenerate removal only footprints whose ellipse is a sliver at
+                        // rounding level (axis ratio), or whose differentials are (nearly)
+                        // parallel or zero in the tangent plane, may be rejected as degenerate.
+                        let smoothed = smoothing.apply(fp);
+                        let processed = h.clamp_h_max(h.dampen(smoothed, &ctx), &ctx);
                         let triple = processed.du.cross(processed.dv).dot(processed.normal).abs()
                             / (processed.du.length() * processed.dv.length());
                         prop_assert!(
-                            !(triple > 1e-10),
-                            "[{}] non-parallel footprint rejected as degenerate with degenerate removal off",
+                            !(smoothed.principal_axes().ratio() > 1e-10) || !(triple > 1e-10),
+                            "[{}] footprint with an ellipse rejected as degenerate with degenerate removal off",
                             name
                         );
                     }

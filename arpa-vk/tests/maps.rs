@@ -168,8 +168,8 @@ fn near_threshold(h: &Heuristics, fp: &Footprint, radius: f64) -> bool {
     let ctx = HeuristicContext { radius, scene_bounds: scene_bounds() };
     let fp = h.clamp_h_max(h.dampen(*fp, &ctx), &ctx);
     let near = |x: f64, t: f64| (x / t - 1.0).abs() < 1e-3;
-    let (major, _) = fp.major_minor();
-    let deg = h.degenerate.is_some_and(|d| near(fp.parallelogram_area(), d.fraction * major * major));
+    let (major, minor) = fp.axis_lengths();
+    let deg = h.degenerate.is_some_and(|d| near(minor, d.fraction * major));
     let cull = h.culling.is_some_and(|c| near(fp.aabb(radius).largest_extent(), c.fraction * scene_bounds().largest_extent()));
     deg || cull
 }
