@@ -35,7 +35,8 @@ use anyhow::{Context, bail};
 use arpa_core::classify::Smoothing;
 use arpa_core::radius::{ProgressiveConfig, RadiusSpec};
 use crate::backends::{self, BackendOptions};
-use crate::session::{Budget, CheckpointRow, Checkpoints, Hooks, Reference, Rendered, SaveEvery, SaveState, SessionOptions, StatTotals, render_with};
+use crate::session::{Budget, CheckpointRow, Checkpoints, Hooks, Reference, Rendered, SaveEvery, SaveState, SessionOptions, StatTotals, auto_smoothing, render_with};
+use arpa_core::classify::AutoSmoothing;
 use crate::state_file::{RenderIdentity, StateFile};
 use arpa_core::accumulate::Accumulation;
 use arpa_core::tracer::{BackendKind, Image, Method, RenderSettings};
@@ -95,6 +96,15 @@ pub struct BenchArgs {
     /// Python interpreter that runs the Mitsuba peers (`scripts/peer_mitsuba.py`).
     #[arg(long, value_name = "PYTHON", default_value = "python3")]
     pub python: String,
+}
+
+/// How the smoothing factors are chosen (`--smoothing`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum SmoothingMode {
+    /// From a pilot iteration ([`arpa_core::classify::AutoSmoothing`]).
+    Auto,
+    /// The given factors.
+    Fixed,
 }
 
 /// Density-estimation method on the command line.
@@ -306,13 +316,21 @@ pub struct RenderArgs {
     #[arg(long)]
     pub no_direct: bool,
 
-    /// Smoothing factor S_c of caustic footprints.
-    #[arg(long, allow_negative_numbers = true, value_name = "S_C", default_value_t = 1.0, value_parser = parse_positive_f64)]
-    pub smoothing_caustic: f64,
+    /// How ARPA's smoothing factors are chosen: `auto` (a pilot iteration at S = 1 picks
+    /// S_c and S_g so that about 8 footprints of a map cover each point it lights,
+    /// arpa_core::classify::AutoSmoothing) or `fixed` (--smoothing-caustic and
+    /// --smoothing-global, 1 when not given) [default: auto, or fixed when either factor
+    /// is given].
+    #[arg(long, value_enum, value_name = "MODE")]
+    pub smoothing: Option<SmoothingMode>,
 
-    /// Smoothing factor S_g of global footprints.
-    #[arg(long, allow_negative_numbers = true, value_name = "S_G", default_value_t = 1.0, value_parser = parse_positive_f64)]
-    pub smoothing_global: f64,
+    /// Smoothing factor S_c of caustic footprints (implies --smoothing fixed).
+    #[arg(long, allow_negative_numbers = true, value_name = "S_C", value_parser = parse_positive_f64)]
+    pub smoothing_caustic: Option<f64>,
+
+    /// Smoothing factor S_g of global footprints (implies --smoothing fixed).
+    #[arg(long, allow_negative_numbers = true, value_name = "S_G", value_parser = parse_positive_f64)]
+    pub smoothing_global: Option<f64>,
 
     /// Maximum number of surface interactions of photon and camera paths [default: the
     /// scene file's integrator `max_depth` minus one (Mitsuba counts path segments, so
@@ -370,6 +388,17 @@ pub struct RenderArgs {
 }
 
 impl RenderArgs {
+    /// Whether the smoothing factors are chosen automatically (`--smoothing`); an error when
+    /// `--smoothing auto` comes with explicit factors.
+    pub fn auto_smoothing(&self) -> anyhow::Result<bool> {
+        let given = self.smoothing_caustic.is_some() || self.smoothing_global.is_some();
+        match self.smoothing {
+            Some(SmoothingMode::Auto) if given => bail!("--smoothing auto chooses S_c and S_g itself: drop --smoothing-caustic/--smoothing-global or use --smoothing fixed"),
+            Some(mode) => Ok(mode == SmoothingMode::Auto),
+            None => Ok(!given),
+        }
+    }
+
     /// The render settings these arguments select.
     pub fn settings(&self) -> RenderSettings {
         let defaults = RenderSettings::default();
@@ -379,7 +408,7 @@ impl RenderArgs {
             seed: self.seed,
             max_depth: self.max_depth.unwrap_or(DEFAULT_MAX_DEPTH),
             direct_lighting: !self.no_direct,
-            smoothing: Smoothing { caustic: self.smoothing_caustic, global: self.smoothing_global },
+            smoothing: Smoothing { caustic: self.smoothing_caustic.unwrap_or(1.0), global: self.smoothing_global.unwrap_or(1.0) },
             radii: ProgressiveConfig {
                 caustic: self.radius_caustic.map_or(defaults.radii.caustic, RadiusSpec::Absolute),
                 global: self.radius_global.map_or(defaults.radii.global, RadiusSpec::Absolute),
@@ -595,7 +624,8 @@ pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
     if let Some(c) = args.roughness_cutoff {
         scene.roughness_cutoff = c;
     }
-    let settings = args.settings_for_file(file_max_depth);
+    let mut settings = args.settings_for_file(file_max_depth);
+    let auto = args.auto_smoothing()?;
     let budget = args.budget();
     let (exr_path, png_path) = output_paths(&args.out)?;
     if let Some(dir) = exr_path.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -615,6 +645,21 @@ pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
         (Some(_), Some(n)) => Checkpoints::Every(n),
         (Some(_), None) => Checkpoints::PowersOfTwo,
     };
+
+    let options = BackendOptions { adapter: args.adapter.clone() };
+    let mut tracer = backends::create(args.backend, &options)?;
+    if auto && settings.method == Method::Arpa {
+        let pilot = auto_smoothing(&mut tracer, &scene, &settings, &AutoSmoothing::default())?;
+        settings.smoothing = pilot.smoothing;
+        eprintln!(
+            "automatic smoothing: S_c {:.3}, S_g {:.3} (pilot at S = 1: {:.2} caustic and {:.2} global footprints per lit query point; {:.2} s)",
+            pilot.smoothing.caustic,
+            pilot.smoothing.global,
+            pilot.overlap_at_one[0],
+            pilot.overlap_at_one[1],
+            pilot.time.as_secs_f64()
+        );
+    }
 
     // Where the accumulation starts: a resumed state, the first iteration of a part, or 0.
     let identity = RenderIdentity::new(&scene, &settings, args.backend.name());
@@ -648,8 +693,6 @@ pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
         identity: &identity,
     });
 
-    let options = BackendOptions { adapter: args.adapter.clone() };
-    let mut tracer = backends::create(args.backend, &options)?;
     let done = start.as_ref().map_or(0, |a| a.end() as u32);
     let shown = match budget {
         Budget::Iterations(end) => Budget::Iterations(end.saturating_sub(done)),

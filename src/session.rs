@@ -14,6 +14,7 @@ use crate::metrics::{Metrics, compare_images};
 use crate::state_file::{RenderIdentity, StateFile};
 use anyhow::{Context, bail};
 use arpa_core::accumulate::Accumulation;
+use arpa_core::classify::{AutoSmoothing, Smoothing};
 use arpa_core::scene::Scene;
 use arpa_core::tracer::{Capabilities, Image, IterationStats, RenderSettings, StageTimes, Tracer};
 use std::path::{Path, PathBuf};
@@ -230,6 +231,39 @@ impl Hooks for NoHooks {}
 /// statistics. Backend errors are returned with the stage and iteration that failed.
 pub fn render<T: Tracer>(tracer: &mut T, scene: &Scene, settings: &RenderSettings, budget: Budget) -> anyhow::Result<Rendered> {
     render_with(tracer, scene, settings, &SessionOptions::budget(budget), &mut NoHooks)
+}
+
+/// What the pilot of [`auto_smoothing`] measured and chose.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SmoothingPilot {
+    /// The chosen `S_c`, `S_g`.
+    pub smoothing: Smoothing,
+    /// Overlap per map at `S = 1` (contributions per covered query point,
+    /// [`IterationStats::overlap`]).
+    pub overlap_at_one: [f64; 2],
+    /// The pilot's wall-clock time (upload and one iteration).
+    pub time: Duration,
+}
+
+/// Automatic smoothing ([`AutoSmoothing`]): uploads `scene` with `settings` at `S = 1`,
+/// renders iteration 0 as a pilot, and returns the smoothing `auto` chooses from its
+/// overlap. The pilot is deterministic (the same seed, iteration and backend give the same
+/// choice), so a resumed render or a part of a distributed one chooses the same `S`. The
+/// caller renders with the result in `settings.smoothing` ([`render_with`] uploads again
+/// and starts afresh). RTPM has no footprints: its settings come back unchanged.
+pub fn auto_smoothing<T: Tracer>(tracer: &mut T, scene: &Scene, settings: &RenderSettings, auto: &AutoSmoothing) -> anyhow::Result<SmoothingPilot> {
+    let start = Instant::now();
+    if settings.method != arpa_core::tracer::Method::Arpa {
+        return Ok(SmoothingPilot { smoothing: settings.smoothing, overlap_at_one: [0.0; 2], time: start.elapsed() });
+    }
+    let capabilities = tracer.capabilities();
+    let pilot = RenderSettings { smoothing: Smoothing { caustic: 1.0, global: 1.0 }, ..*settings };
+    tracer.upload_scene(scene, &pilot).with_context(|| format!("backend '{}' could not load the scene for the smoothing pilot", capabilities.backend))?;
+    tracer.iterate().with_context(|| format!("backend '{}' failed in the smoothing pilot", capabilities.backend))?;
+    let stats = tracer.read_stats().context("cannot read the smoothing pilot's statistics")?;
+    let overlap_at_one = stats.overlap();
+    let smoothing = auto.resolve(overlap_at_one, settings.heuristics.dampening.as_ref());
+    Ok(SmoothingPilot { smoothing, overlap_at_one, time: start.elapsed() })
 }
 
 fn read_checked<T: Tracer>(tracer: &T, capabilities: &Capabilities) -> anyhow::Result<Image> {

@@ -62,11 +62,11 @@ fn smoke_config_writes_every_output() {
     let err = String::from_utf8_lossy(&cmd.stderr);
     assert!(cmd.status.success(), "arpa bench failed: {err}");
     // One progress line per run, with the ETA of the sweep.
-    assert_eq!(err.lines().filter(|l| l.contains("ETA")).count(), 8, "{err}");
+    assert_eq!(err.lines().filter(|l| l.contains("ETA")).count(), 12, "{err}");
 
     let rows = csv_rows(&out.join("runs.csv"));
     for scene in ["cornell-caustic", "caustic-glass"] {
-        for run in ["arpa E-20K", "arpa E-50K", "rtpm E-20K", "rtpm E-50K"] {
+        for run in ["arpa E-20K", "arpa E-50K", "arpa-auto E-20K", "arpa-auto E-50K", "rtpm E-20K", "rtpm E-50K"] {
             let mine: Vec<&Vec<String>> = rows.iter().filter(|r| r[0] == scene && r[1] == run).collect();
             assert!(!mine.is_empty(), "no rows for {scene} {run}");
             let mut last_iteration = 0;
@@ -79,7 +79,9 @@ fn smoke_config_writes_every_output() {
                 assert!(num(7) > 0.0 && num(8) >= 0.0 && (-1.0..=1.0).contains(&num(9)) && (0.0..=1.0).contains(&num(10)));
                 // The whole-image mean is near the reference's (a wrong image is far off).
                 assert!((0.8..1.25).contains(&num(11)), "mean ratio {r:?}");
-                assert!((12..17).all(|i| num(i) >= 0.0));
+                assert!((12..21).all(|i| num(i) >= 0.0));
+                // Gather candidates and contributions per query point (RTPM: photons only).
+                assert!(num(17) >= num(18) && num(19) >= num(20) && num(19) > 0.0, "gather counts {r:?}");
             }
             let stem = format!("{scene}-{}-cpu", run.replace(' ', "-").replace("-E-", "-E"));
             let exr = arpa::image_io::read_exr(&out.join("images").join(format!("{stem}.exr"))).unwrap();
@@ -95,7 +97,7 @@ fn smoke_config_writes_every_output() {
     }
     let table = std::fs::read_to_string(out.join("table.md")).unwrap();
     assert!(table.contains("## Table 2 (cpu)") && table.contains("| E-20K SSIM | NI | ATI (ms) |"), "{table}");
-    assert!(table.contains("| cornell-caustic | ARPA |") && table.contains("| caustic-glass | RTPM |"), "{table}");
+    assert!(table.contains("| cornell-caustic | ARPA |") && table.contains("| cornell-caustic | ARPA auto |") && table.contains("| caustic-glass | RTPM |"), "{table}");
     assert!(table.contains("- config sha256:"), "{table}");
 }
 

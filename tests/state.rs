@@ -116,7 +116,9 @@ fn killed_at_random_moments_and_resumed_ends_bit_identical() {
     assert_eq!(bits(&out.with_extension("exr")), reference, "resumed after {kills} kills: the image differs from the uninterrupted render");
     // No temporary files are left behind by the kills... except the one a kill may
     // interrupt mid-write, which the next save replaces; none survives a finished run.
-    let leftovers: Vec<PathBuf> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().path()).filter(|p| p.to_string_lossy().contains(".tmp")).collect();
+    // (The file names only: the temporary directory's own name starts with ".tmp".)
+    let leftovers: Vec<PathBuf> =
+        std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().path()).filter(|p| p.file_name().is_some_and(|n| n.to_string_lossy().contains(".tmp"))).collect();
     assert!(leftovers.len() <= kills, "{leftovers:?}");
 }
 

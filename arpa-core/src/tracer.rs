@@ -624,6 +624,10 @@ pub struct IterationStats {
     /// Records that contributed at the valid query points (inside the footprint or photon
     /// sphere, facing, non-zero), `[caustic, global]`.
     pub contributions: [u64; 2],
+    /// Valid query points with at least one contribution of the map, `[caustic, global]`
+    /// (on the GPU backends counted per photon batch: a point covered in two batches of
+    /// an iteration counts twice).
+    pub covered: [u64; 2],
     /// Progressive radii used, `[caustic, global]` (metres).
     pub radii: [f64; 2],
     /// Stage timings.
@@ -723,6 +727,12 @@ impl IterationStats {
         self.contributions.map(|c| if self.query_points > 0 { c as f64 / self.query_points as f64 } else { 0.0 })
     }
 
+    /// Contributions per covered query point (`[caustic, global]`): how many records of
+    /// the map overlap where the map has light at all; zero where nothing is covered.
+    pub fn overlap(&self) -> [f64; 2] {
+        [0, 1].map(|m| if self.covered[m] > 0 { self.contributions[m] as f64 / self.covered[m] as f64 } else { 0.0 })
+    }
+
     /// Adds the counts and stage times of `other` (to total several iterations, or to
     /// merge the partial counts of a parallel pass); `iteration` and `radii` become
     /// `other`'s.
@@ -744,6 +754,7 @@ impl IterationStats {
         for m in 0..2 {
             self.candidates[m] += other.candidates[m];
             self.contributions[m] += other.contributions[m];
+            self.covered[m] += other.covered[m];
         }
         self.times.accumulate(&other.times);
     }

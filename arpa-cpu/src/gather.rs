@@ -32,13 +32,15 @@ pub(crate) struct GatherCounts {
     pub candidates: [u64; 2],
     /// Records that contributed.
     pub contributions: [u64; 2],
+    /// Query points with at least one contribution.
+    pub covered: [u64; 2],
 }
 
 /// Writes the radiance of each query record's pixel to `image` (resized to
 /// `queries.len()`; one task per record, in parallel) and returns the candidates and
 /// contributions found.
 pub(crate) fn gather(queries: &[QueryRecord], input: &GatherInput<'_>, image: &mut Vec<Vec3>) -> GatherCounts {
-    let counts: [AtomicU64; 4] = Default::default();
+    let counts: [AtomicU64; 6] = Default::default();
     queries
         .par_iter()
         .map_init(Vec::new, |scratch, rec| {
@@ -49,13 +51,14 @@ pub(crate) fn gather(queries: &[QueryRecord], input: &GatherInput<'_>, image: &m
                 }
                 if e.contributions[m] > 0 {
                     counts[2 + m].fetch_add(e.contributions[m] as u64, Ordering::Relaxed);
+                    counts[4 + m].fetch_add(1, Ordering::Relaxed);
                 }
             }
             l
         })
         .collect_into_vec(image);
-    let [c0, c1, n0, n1] = counts.map(AtomicU64::into_inner);
-    GatherCounts { candidates: [c0, c1], contributions: [n0, n1] }
+    let [c0, c1, n0, n1, v0, v1] = counts.map(AtomicU64::into_inner);
+    GatherCounts { candidates: [c0, c1], contributions: [n0, n1], covered: [v0, v1] }
 }
 
 /// Replaces non-finite components by 0.

@@ -264,6 +264,7 @@ impl Tracer for CpuTracer {
             let stats = clock.stats_mut();
             stats.candidates = counts.candidates;
             stats.contributions = counts.contributions;
+            stats.covered = counts.covered;
             Ok(())
         })
     }

@@ -96,6 +96,8 @@ pub struct GatherCounts {
     pub candidates: [u64; 2],
     /// Query records with a valid query point.
     pub query_points: u64,
+    /// Valid query records with a contribution per map.
+    pub covered: [u64; 2],
 }
 
 impl GatherPass {
@@ -140,6 +142,6 @@ impl GatherPass {
         let x = self.pixels.min(LAUNCH_WIDTH);
         self.pipeline.trace_and_wait(ctx, &bindings, &[], [x, self.pixels.div_ceil(x), 1])?;
         let c: layout::GatherCounts = bytemuck::pod_read_unaligned(&self.counts.read(0, COUNTS_BYTES)?);
-        Ok(GatherCounts { contributions: c.contributions(), candidates: c.candidates(), query_points: u64::from(c.query_points) })
+        Ok(GatherCounts { contributions: c.contributions(), candidates: c.candidates(), query_points: u64::from(c.query_points), covered: c.covered.map(u64::from) })
     }
 }

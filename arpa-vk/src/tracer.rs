@@ -419,7 +419,7 @@ impl Tracer for VkTracer {
         let st = uploaded(self.state.as_deref_mut(), Stage::Gather)?;
         st.clock.run(Stage::Gather, |clock| {
             let batches = st.batch_count;
-            let (mut contributions, mut candidates, mut query_points) = ([0u64; 2], [0u64; 2], 0u64);
+            let (mut contributions, mut candidates, mut covered, mut query_points) = ([0u64; 2], [0u64; 2], [0u64; 2], 0u64);
             for (k, b) in st.batches[..batches].iter().enumerate() {
                 let accel = b.accel.as_ref().ok_or_else(|| StageError::order(Stage::Gather, Stage::BuildAccelerationStructure))?;
                 let inputs = GatherInputs { footprints: b.store.footprints(), photons: b.store.photons(), tlas: accel.tlas(), radii: st.radii };
@@ -428,12 +428,14 @@ impl Tracer for VkTracer {
                 for m in 0..2 {
                     contributions[m] += counts.contributions[m];
                     candidates[m] += counts.candidates[m];
+                    covered[m] += counts.covered[m];
                 }
                 query_points += counts.query_points;
             }
             let stats = clock.stats_mut();
             stats.contributions = contributions;
             stats.candidates = candidates;
+            stats.covered = covered;
             stats.query_points = query_points;
             Ok(())
         })

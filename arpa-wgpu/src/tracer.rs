@@ -425,6 +425,7 @@ impl Tracer for WgpuTracer {
             let stats = clock.stats_mut();
             stats.contributions = total.contributions();
             stats.candidates = total.candidates();
+            stats.covered = total.covered.map(u64::from);
             stats.query_points = u64::from(total.query_points);
             Ok(())
         })

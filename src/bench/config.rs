@@ -99,7 +99,52 @@ pub struct LoadedConfig {
     /// Backends, in sweep order.
     pub backends: Vec<BackendKind>,
     /// Methods, in sweep order.
-    pub methods: Vec<Method>,
+    pub methods: Vec<BenchMethod>,
+}
+
+/// A method of the sweep: `arpa` (the scene's `S_c`, `S_g`), `arpa-auto` (automatic
+/// smoothing from a pilot iteration, [`crate::session::auto_smoothing`]) or `rtpm`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BenchMethod {
+    /// ARPA with the scene entry's smoothing factors.
+    Arpa,
+    /// ARPA with automatic smoothing.
+    ArpaAuto,
+    /// RTPM.
+    Rtpm,
+}
+
+impl BenchMethod {
+    /// The core's method.
+    pub fn method(self) -> Method {
+        match self {
+            BenchMethod::Arpa | BenchMethod::ArpaAuto => Method::Arpa,
+            BenchMethod::Rtpm => Method::Rtpm,
+        }
+    }
+
+    /// Whether the smoothing is chosen automatically.
+    pub fn auto_smoothing(self) -> bool {
+        self == BenchMethod::ArpaAuto
+    }
+
+    /// The config and label name: `arpa`, `arpa-auto`, `rtpm`.
+    pub fn name(self) -> &'static str {
+        match self {
+            BenchMethod::Arpa => "arpa",
+            BenchMethod::ArpaAuto => "arpa-auto",
+            BenchMethod::Rtpm => "rtpm",
+        }
+    }
+
+    /// The name in the Table-2 layout: `ARPA`, `ARPA auto`, `RTPM`.
+    pub fn title(self) -> &'static str {
+        match self {
+            BenchMethod::Arpa => "ARPA",
+            BenchMethod::ArpaAuto => "ARPA auto",
+            BenchMethod::Rtpm => "RTPM",
+        }
+    }
 }
 
 impl LoadedConfig {
@@ -133,9 +178,10 @@ impl LoadedConfig {
         let mut methods = Vec::new();
         for m in &config.methods {
             match m.to_ascii_lowercase().as_str() {
-                "arpa" => methods.push(Method::Arpa),
-                "rtpm" => methods.push(Method::Rtpm),
-                _ => return bad(format!("unknown method '{m}' (arpa, rtpm)")),
+                "arpa" => methods.push(BenchMethod::Arpa),
+                "arpa-auto" => methods.push(BenchMethod::ArpaAuto),
+                "rtpm" => methods.push(BenchMethod::Rtpm),
+                _ => return bad(format!("unknown method '{m}' (arpa, arpa-auto, rtpm)")),
             }
         }
         for p in &config.peers {
@@ -187,7 +233,7 @@ smoothing_caustic = 0.5
     fn a_config_loads_with_defaults_and_a_hash() {
         let c = load(OK).unwrap();
         assert_eq!(c.config.seconds, 10.0);
-        assert_eq!(c.methods, vec![Method::Arpa, Method::Rtpm]);
+        assert_eq!(c.methods, vec![BenchMethod::Arpa, BenchMethod::Rtpm]);
         assert_eq!(c.hash.len(), 64);
         assert_eq!(c.config.scenes[0].smoothing_caustic, Some(0.5));
     }

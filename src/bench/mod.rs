@@ -23,7 +23,9 @@ pub mod report;
 use crate::backends::{self, BackendOptions};
 use crate::metrics;
 use crate::scene_file::load_scene;
-use crate::session::{Budget, CheckpointRow, Checkpoints, Hooks, Reference, SessionOptions, render_with};
+use crate::session::{Budget, CheckpointRow, Checkpoints, Hooks, Reference, SessionOptions, auto_smoothing, render_with};
+use arpa_core::classify::AutoSmoothing;
+pub use config::BenchMethod;
 use anyhow::{Context, bail};
 use arpa_core::classify::Smoothing;
 use arpa_core::radius::RadiusSpec;
@@ -40,7 +42,7 @@ pub enum RunKind {
         /// Backend name.
         backend: String,
         /// Method.
-        method: Method,
+        method: BenchMethod,
         /// Photons per iteration.
         photons: u32,
     },
@@ -306,12 +308,21 @@ pub fn run_bench(cfg: &LoadedConfig, options: &BenchOptions) -> anyhow::Result<V
             for &method in &cfg.methods {
                 for &photons in &c.photons {
                     let kind = RunKind::Arpa { backend: kind_backend.name().to_string(), method, photons };
-                    let settings = settings_for(&scene, method, photons, c.seed);
+                    let mut settings = settings_for(&scene, method.method(), photons, c.seed);
+                    let mut budget = Duration::from_secs_f64(seconds);
+                    let mut pilot_note = String::new();
+                    if method.auto_smoothing() {
+                        // The pilot iteration's time comes out of the run's budget.
+                        let pilot = auto_smoothing(tracer, &scene.scene, &settings, &AutoSmoothing::default()).with_context(|| format!("{} {}", entry.name, kind.label()))?;
+                        settings.smoothing = pilot.smoothing;
+                        budget = budget.saturating_sub(pilot.time);
+                        pilot_note = format!(" (pilot: overlap {:.2}/{:.2} at S = 1, S_c {:.3}, S_g {:.3})", pilot.overlap_at_one[0], pilot.overlap_at_one[1], pilot.smoothing.caustic, pilot.smoothing.global);
+                    }
                     let mut hooks = RowHooks { reference_mean, scene: &entry.name, kind: &kind, rows: Vec::new() };
-                    let session = SessionOptions { budget: Budget::Time(Duration::from_secs_f64(seconds)), checkpoints: Checkpoints::PowersOfTwo, reference: Some(&scene.reference), resume: None, save: None };
+                    let session = SessionOptions { budget: Budget::Time(budget), checkpoints: Checkpoints::PowersOfTwo, reference: Some(&scene.reference), resume: None, save: None };
                     let rendered = render_with(tracer, &scene.scene, &settings, &session, &mut hooks).with_context(|| format!("{} {}", entry.name, kind.label()))?;
                     report::write_run_images(&options.out, &entry.name, &kind, &rendered.image, &scene.reference.image)?;
-                    let last = hooks.rows.last().map_or(String::new(), |r| format!("NI {} relMSE {:.4e} SSIM {:.3}", r.iteration, r.rel_mse, r.ssim));
+                    let last = hooks.rows.last().map_or(String::new(), |r| format!("NI {} relMSE {:.4e} SSIM {:.3}{pilot_note}", r.iteration, r.rel_mse, r.ssim));
                     progress(&format!("{} {} ({kind_backend})", entry.name, kind.label()), &last);
                     let rows = hooks.rows;
                     results.push(RunResult { scene: entry.name.clone(), kind, rows, skipped: None });

@@ -6,7 +6,7 @@ use super::{BenchRow, Header, RunKind, RunResult, budget_label};
 use crate::image_io;
 use crate::metrics;
 use anyhow::{Context, anyhow};
-use arpa_core::tracer::{Image, Method};
+use arpa_core::tracer::Image;
 use plotters::prelude::*;
 use plotters::style::colors::colormaps::ViridisRGB;
 use std::fmt::Write as _;
@@ -141,7 +141,7 @@ pub fn table_text(header: &Header, cfg: &LoadedConfig, results: &[RunResult]) ->
         let _ = writeln!(s, "{head}\n{rule}");
         for scene in &c.scenes {
             for &method in &cfg.methods {
-                let _ = write!(s, "| {} | {} |", scene.name, method_name(method));
+                let _ = write!(s, "| {} | {} |", scene.name, method.title());
                 for &p in &c.photons {
                     let row = final_of(results, &scene.name, |k| matches!(k, RunKind::Arpa { backend: b, method: m, photons } if b == backend.name() && *m == method && *photons == p));
                     match row.first().and_then(|(_, r)| *r) {
@@ -238,12 +238,6 @@ fn short_number(v: f64) -> String {
     if s.contains('.') { s.trim_end_matches('0').trim_end_matches('.').to_string() } else { s }
 }
 
-fn method_name(m: Method) -> &'static str {
-    match m {
-        Method::Arpa => "ARPA",
-        Method::Rtpm => "RTPM",
-    }
-}
 
 /// Registers the embedded DejaVu Sans as the plots' font (once).
 fn register_font() -> anyhow::Result<()> {

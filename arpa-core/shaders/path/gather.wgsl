@@ -69,7 +69,8 @@ const ARPA_INSTANCE_INDEX_MASK: u32 = 0x7fffffu;
 @group(0) @binding(3) var<storage, read_write> image: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> image_params: GatherImageParams;
 // layout::GatherCounts: contributions per map (low, high word) at 0..3, candidates per map
-// (low, high word) at 4..7, valid query records at 8, padding 9..11.
+// (low, high word) at 4..7, valid query records at 8, query records with a contribution
+// per map at 9..10, padding 11.
 @group(0) @binding(5) var<storage, read_write> gathered_total: array<atomic<u32>, 12>;
 // Per pixel: irradiance summed over the batches gathered so far (W/m^2, RGB; caustic +
 // global), written by every batch but the last.
@@ -154,6 +155,9 @@ fn arpa_gather_pixel(i: u32) {
     for (var m = 0u; m < 2u; m++) {
         gather_count(2u * m, counts[m]);
         gather_count(4u + 2u * m, candidates[m]);
+        if counts[m] > 0u {
+            atomicAdd(&gathered_total[9u + m], 1u);
+        }
     }
 }
 

@@ -412,10 +412,13 @@ pub struct GatherCounts {
     pub candidates: [[u32; 2]; 2],
     /// Valid query records (counted by the iteration's first batch).
     pub query_points: u32,
+    /// Valid query records with at least one contribution per map, `[caustic, global]`
+    /// (counted by every batch).
+    pub covered: [u32; 2],
     /// Padding.
-    pub pad: [u32; 3],
+    pub pad: u32,
 }
-layout!(GatherCounts, 48, { contributions: 0, candidates: 16, query_points: 32, pad: 36 });
+layout!(GatherCounts, 48, { contributions: 0, candidates: 16, query_points: 32, covered: 36, pad: 44 });
 
 impl GatherCounts {
     /// The contributions per map.
