@@ -431,7 +431,7 @@ fn trace_counts(
     let q_buf = storage_upload(ctx, "queries", bytemuck::cast_slice(&gpu));
     let n = queries.len();
     let results = ctx
-        .create_buffer("results", (n * 32) as u64, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::GpuToCpu)
+        .create_buffer("results", (n * 48) as u64, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::GpuToCpu)
         .expect("results");
     // layout::GatherImageParams: radii, kernel, query count, batch flags, padding.
     let mut params = Vec::with_capacity(32);
@@ -453,8 +453,8 @@ fn trace_counts(
     ];
     let bindings = pipeline.bind(&[&set]).expect("bind");
     pipeline.trace_and_wait(ctx, &bindings, &[], [64, (n as u32).div_ceil(64), 1]).expect("trace");
-    let bytes = results.read(0, (n * 32) as u64).expect("read results");
-    bytes.chunks_exact(32).map(|r| [u32::from_le_bytes(r[12..16].try_into().unwrap()), u32::from_le_bytes(r[28..32].try_into().unwrap())]).collect()
+    let bytes = results.read(0, (n * 48) as u64).expect("read results");
+    bytes.chunks_exact(48).map(|r| [u32::from_le_bytes(r[12..16].try_into().unwrap()), u32::from_le_bytes(r[28..32].try_into().unwrap())]).collect()
 }
 
 #[test]
