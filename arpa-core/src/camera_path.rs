@@ -14,7 +14,7 @@ use crate::emission::Light;
 use crate::fresnel::dielectric_reflectance;
 use crate::lambertian::DiffuseShading;
 use crate::prepared_scene::{PreparedScene, SurfacePoint};
-use crate::ray_cast::{RayCaster, RayStart, TriangleId};
+use crate::ray_cast::{RayCaster, RayStart};
 use crate::rng::{Rng, StreamDomain};
 use crate::sampling::uniform_triangle;
 use crate::scene::Scattering;
@@ -64,7 +64,7 @@ pub fn trace_camera_path(scene: &PreparedScene, caster: &impl RayCaster, setting
                 throughput *= reflectance.as_dvec3();
                 let n = shading_normal(scene, &s);
                 dir = reflect_direction(dir, n).normalize_or(dir);
-                start = leave(&s);
+                start = RayStart::leaving_surface(&s);
             }
             Scattering::Refractive(ior, transmittance) => {
                 let ior = ior as f64;
@@ -72,14 +72,14 @@ pub fn trace_camera_path(scene: &PreparedScene, caster: &impl RayCaster, setting
                 let fresnel = dielectric_reflectance(dir.dot(n), ior);
                 if rng.next_f64() < fresnel {
                     dir = reflect_direction(dir, n).normalize_or(dir);
-                    start = leave(&s);
+                    start = RayStart::leaving_surface(&s);
                 } else {
                     let (t, event, eta) = refract_direction(dir, n, ior);
                     if event == RefractionEvent::Transmitted {
                         throughput *= transmittance.as_dvec3() * (eta * eta);
-                        start = leave(&s);
+                        start = RayStart::leaving_surface(&s);
                     } else {
-                        start = leave(&s);
+                        start = RayStart::leaving_surface(&s);
                     }
                     dir = t;
                 }
@@ -92,11 +92,6 @@ pub fn trace_camera_path(scene: &PreparedScene, caster: &impl RayCaster, setting
     let radiance = DVec3::select(radiance.is_finite_mask(), radiance, DVec3::ZERO);
     record.radiance = radiance.as_vec3().to_array();
     record
-}
-
-/// The start of a ray leaving the surface point `s` (either side).
-fn leave(s: &SurfacePoint) -> RayStart {
-    RayStart::leaving(s.position, TriangleId { mesh: s.mesh, triangle: s.triangle })
 }
 
 fn shading_normal(scene: &PreparedScene, s: &SurfacePoint) -> DVec3 {
@@ -112,7 +107,7 @@ fn shading_normal(scene: &PreparedScene, s: &SurfacePoint) -> DVec3 {
 /// this is the plain `E = ∫ L cos θ dω`.
 pub fn direct_irradiance(scene: &PreparedScene, caster: &impl RayCaster, s: &SurfacePoint, shading: &DiffuseShading, rng: &mut Rng) -> DVec3 {
     let p = s.position;
-    let from = leave(s);
+    let from = RayStart::leaving_surface(s);
     let mut e = DVec3::ZERO;
     let visible = |to: DVec3| {
         let d = to - from.origin.as_dvec3();

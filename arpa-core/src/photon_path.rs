@@ -17,7 +17,7 @@ use crate::fresnel::dielectric_reflectance;
 use crate::heuristics::ResolvedHeuristics;
 use crate::lambertian::DiffuseShading;
 use crate::prepared_scene::{PreparedScene, SurfacePoint};
-use crate::ray_cast::{RayCaster, RayHit, RayStart, TriangleId};
+use crate::ray_cast::{RayCaster, RayHit, RayStart};
 use crate::reemission::{diffuse_direction_unit, reemit_unit};
 use crate::rng::{Rng, StreamDomain};
 use crate::scene::Scattering;
@@ -274,7 +274,7 @@ impl PhotonWalk {
                         lost_differential(s.position, dir)
                     }
                 };
-                self.start = leave(&s);
+                self.start = RayStart::leaving_surface(&s);
             }
             // Mirrors and dielectrics share the transfer, the shading normal's derivative
             // and the reflection: one inlined copy of each in the compiled pass instead of
@@ -299,7 +299,7 @@ impl PhotonWalk {
                 match refraction {
                     None => {
                         st.reflect(&ray_at_hit, nd, n);
-                        self.start = leave(&s);
+                        self.start = RayStart::leaving_surface(&s);
                     }
                     Some((ior, transmittance)) => {
                         st.flux *= transmittance.as_dvec3();
@@ -311,19 +311,13 @@ impl PhotonWalk {
                                 lost_differential(s.position, dir)
                             }
                         };
-                        self.start = leave(&s);
+                        self.start = RayStart::leaving_surface(&s);
                     }
                 }
             }
         }
         true
     }
-}
-
-/// The start of a ray leaving the surface point `s` (either side).
-#[inline(always)]
-fn leave(s: &SurfacePoint) -> RayStart {
-    RayStart::leaving(s.position, TriangleId { mesh: s.mesh, triangle: s.triangle })
 }
 
 impl PathState {

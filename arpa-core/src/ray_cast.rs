@@ -89,6 +89,12 @@ impl RayStart {
         Self { origin, t_min: leave_t_min(origin), leaves: Some(leaves) }
     }
 
+    /// A ray leaving the surface point `s` it hit (either side): [`RayStart::leaving`] at
+    /// its position and triangle.
+    pub fn leaving_surface(s: &crate::prepared_scene::SurfacePoint) -> Self {
+        Self::leaving(s.position, TriangleId { mesh: s.mesh, triangle: s.triangle })
+    }
+
     /// A ray from `p` offset along `normal` (unit, towards the side the ray leaves to) by
     /// [`crate::prepared_scene::offset_origin`]: for photons leaving an area light, whose
     /// triangle the emission does not know.
