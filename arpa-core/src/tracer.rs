@@ -69,6 +69,38 @@ pub struct RenderSettings {
     pub radii: ProgressiveConfig,
     /// Kernel of the footprints (progressive photons always use the constant kernel).
     pub kernel: Kernel,
+    /// How the photons of an iteration are emitted: projection maps and the caustic pass
+    /// ([`crate::projection`]).
+    pub emission: EmissionStrategy,
+}
+
+/// How the photon pass spends its photons ([`crate::projection`]).
+///
+/// With `projection` on, every light emits its global photons only into the cells of its
+/// emission domain that see some geometry, and a separate caustic pass emits
+/// `caustic_photons` photons only into the cells that see a specular (mirror, glass)
+/// object; both carry the flux of the part of the domain they sample, so the estimate is
+/// unchanged in expectation. Off, one pass emits `photons_per_iteration` photons over
+/// every light's whole domain and stores both maps (the method of the paper).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EmissionStrategy {
+    /// Projection maps and the caustic pass on (default) or off.
+    pub projection: bool,
+    /// Photons of the caustic pass per iteration; `None` chooses them from the projected
+    /// power ([`crate::projection::auto_caustic_photons`]); `Some(0)` runs no caustic pass.
+    /// Ignored without projection.
+    pub caustic_photons: Option<u32>,
+}
+
+impl Default for EmissionStrategy {
+    fn default() -> Self {
+        Self { projection: true, caustic_photons: None }
+    }
+}
+
+impl EmissionStrategy {
+    /// One pass over every light's whole domain (projection off).
+    pub const WHOLE_DOMAIN: Self = Self { projection: false, caustic_photons: None };
 }
 
 impl Default for RenderSettings {
@@ -83,6 +115,7 @@ impl Default for RenderSettings {
             heuristics: Heuristics::default(),
             radii: ProgressiveConfig::default(),
             kernel: Kernel::default(),
+            emission: EmissionStrategy::default(),
         }
     }
 }
@@ -596,8 +629,13 @@ pub struct StageTimes {
 pub struct IterationStats {
     /// Iterations completed so far (1-based index of the last one).
     pub iteration: u32,
-    /// Photons emitted.
+    /// Photons emitted (both passes).
     pub photons_emitted: u64,
+    /// Photons emitted per pass, `[caustic pass, global pass]` (without projection every
+    /// photon is a global-pass photon).
+    pub emitted: [u64; 2],
+    /// The work the photon pass left out because the scene does not need it.
+    pub skipped: Skipped,
     /// Ray segments traced by the photon pass.
     pub photon_segments: u64,
     /// Footprints stored, `[caustic, global]`.
@@ -664,7 +702,58 @@ impl StageTimes {
     }
 }
 
+/// Why a photon pass does not run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PassSkip {
+    /// Caustic pass: the scene has no mirror or glass surface.
+    NoSpecularSurface,
+    /// Caustic pass: no light's emission domain sees a mirror or glass surface.
+    SpecularUnreached,
+    /// Caustic pass: the settings ask for no caustic photons (`--caustic-photons 0`).
+    NoCausticPhotons,
+    /// Global pass: direct lighting is on and no photon can reach a second surface after
+    /// a diffuse one (`max_depth` below 2, all geometry in one plane, or every diffuse
+    /// surface black), so no global record can be stored.
+    NothingToBounceTo,
+    /// Either pass: no light reaches any geometry.
+    NoLightReachesGeometry,
+}
+
+impl PassSkip {
+    /// The reason in words, as the stats summary prints it.
+    pub const fn reason(self) -> &'static str {
+        match self {
+            PassSkip::NoSpecularSurface => "no specular surface",
+            PassSkip::SpecularUnreached => "no light reaches a specular surface",
+            PassSkip::NoCausticPhotons => "no caustic photons requested",
+            PassSkip::NothingToBounceTo => "direct lighting on and nothing to bounce to",
+            PassSkip::NoLightReachesGeometry => "no light reaches any geometry",
+        }
+    }
+}
+
+/// What the photon pass of an iteration skipped ([`crate::projection`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Skipped {
+    /// Why the caustic pass did not run; `None` when it ran (or projection is off).
+    pub caustic_pass: Option<PassSkip>,
+    /// Why the global pass did not run; `None` when it ran.
+    pub global_pass: Option<PassSkip>,
+    /// Lights whose emission domain sees no geometry: they emit nothing.
+    pub lights: u32,
+    /// Fraction of the emitted power (luminance) sent into directions or aperture cells
+    /// that see no geometry, and so not emitted by the global pass (0 without projection).
+    pub power_fraction: f64,
+}
+
 impl IterationStats {
+    /// Records stored per photon emitted, `[caustic, global]` map (footprints and
+    /// progressive photons of the map over the photons of both passes); zero without
+    /// photons.
+    pub fn records_per_photon(&self) -> [f64; 2] {
+        [0, 1].map(|m| if self.photons_emitted > 0 { (self.footprints[m] + self.progressive[m]) as f64 / self.photons_emitted as f64 } else { 0.0 })
+    }
+
     /// Counts one stored photon: a footprint or a progressive photon of its map, and the
     /// reason a footprint was replaced.
     #[inline]
@@ -689,6 +778,7 @@ impl IterationStats {
     /// iteration, nor the times).
     pub fn reset_photon_counts(&mut self) {
         self.photons_emitted = 0;
+        self.emitted = [0; 2];
         self.photon_segments = 0;
         self.footprints = [0; 2];
         self.progressive = [0; 2];
@@ -740,6 +830,10 @@ impl IterationStats {
         self.iteration = other.iteration;
         self.radii = other.radii;
         self.photons_emitted += other.photons_emitted;
+        self.skipped = other.skipped;
+        for p in 0..2 {
+            self.emitted[p] += other.emitted[p];
+        }
         self.photon_segments += other.photon_segments;
         for m in 0..2 {
             self.footprints[m] += other.footprints[m];
