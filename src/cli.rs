@@ -39,7 +39,7 @@ use crate::session::{Budget, CheckpointRow, Checkpoints, Hooks, Reference, Rende
 use arpa_core::classify::AutoSmoothing;
 use crate::state_file::{RenderIdentity, StateFile};
 use arpa_core::accumulate::Accumulation;
-use arpa_core::tracer::{BackendKind, Image, Method, RenderSettings};
+use arpa_core::tracer::{BackendKind, EmissionStrategy, Image, Method, RenderSettings};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
@@ -105,6 +105,15 @@ pub enum SmoothingMode {
     Auto,
     /// The given factors.
     Fixed,
+}
+
+/// A switch on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum OnOff {
+    /// On.
+    On,
+    /// Off.
+    Off,
 }
 
 /// Density-estimation method on the command line.
@@ -316,6 +325,18 @@ pub struct RenderArgs {
     #[arg(long)]
     pub no_direct: bool,
 
+    /// Projection maps (arpa_core::projection): `on` sends global photons only where a
+    /// light sees geometry and runs a caustic pass aimed at mirror and glass objects;
+    /// `off` emits one pass over every light's whole domain.
+    #[arg(long, value_enum, value_name = "MODE", default_value = "on")]
+    pub projection: OnOff,
+
+    /// Photons of the caustic pass per iteration [default: chosen from the power the
+    /// lights send towards specular objects, arpa_core::projection::auto_caustic_photons;
+    /// 0 runs no caustic pass].
+    #[arg(long, value_name = "N")]
+    pub caustic_photons: Option<u32>,
+
     /// How ARPA's smoothing factors are chosen: `auto` (a pilot iteration at S = 1 picks
     /// S_c and S_g so that about 8 footprints of a map cover each point it lights,
     /// arpa_core::classify::AutoSmoothing) or `fixed` (--smoothing-caustic and
@@ -408,6 +429,7 @@ impl RenderArgs {
             seed: self.seed,
             max_depth: self.max_depth.unwrap_or(DEFAULT_MAX_DEPTH),
             direct_lighting: !self.no_direct,
+            emission: EmissionStrategy { projection: self.projection == OnOff::On, caustic_photons: self.caustic_photons },
             smoothing: Smoothing { caustic: self.smoothing_caustic.unwrap_or(1.0), global: self.smoothing_global.unwrap_or(1.0) },
             radii: ProgressiveConfig {
                 caustic: self.radius_caustic.map_or(defaults.radii.caustic, RadiusSpec::Absolute),
@@ -517,6 +539,24 @@ fn si(v: f64) -> String {
     format!("{v:.2} {p}")
 }
 
+/// What the photon pass skipped, one line each ("caustic pass (no specular surface)").
+pub fn skipped_lines(k: &arpa_core::tracer::Skipped) -> Vec<String> {
+    let mut out = Vec::new();
+    if let Some(why) = k.caustic_pass {
+        out.push(format!("caustic pass ({})", why.reason()));
+    }
+    if let Some(why) = k.global_pass {
+        out.push(format!("global pass ({})", why.reason()));
+    }
+    if k.lights > 0 {
+        out.push(format!("{} light(s) that reach no geometry", k.lights));
+    }
+    if k.power_fraction > 0.0 {
+        out.push(format!("{:.1} % of the emitted power, sent where no geometry is", 100.0 * k.power_fraction));
+    }
+    out
+}
+
 /// The human-readable statistics summary printed at the end of a render.
 pub fn summary(r: &Rendered, settings: &RenderSettings) -> String {
     let t = &r.totals.sum;
@@ -535,6 +575,14 @@ pub fn summary(r: &Rendered, settings: &RenderSettings) -> String {
         settings.method.name()
     );
     s += &format!("  photons emitted     {} per iteration, {} in total ({} segments per iteration)\n", m(t.photons_emitted), t.photons_emitted, m(t.photon_segments));
+    if settings.emission.projection {
+        s += &format!("  passes              caustic {} photons, global {} photons per iteration\n", m(t.emitted[0]), m(t.emitted[1]));
+    }
+    let per = t.records_per_photon();
+    s += &format!("  records per photon  caustic {:.4}, global {:.4}\n", per[0], per[1]);
+    for line in skipped_lines(&r.last.skipped) {
+        s += &format!("  skipped: {line}\n");
+    }
     s += &format!("  caustic map         {} footprints + {} progressive photons per iteration\n", m(t.footprints[0]), m(t.progressive[0]));
     s += &format!("  global map          {} footprints + {} progressive photons per iteration\n", m(t.footprints[1]), m(t.progressive[1]));
     s += &format!(

@@ -1,5 +1,5 @@
 // WGSL twin of arpa_core::emission's per-photon step (PreparedLight::emit): photon `index`
-// of a light prepared on the host (arpa_core::emission::PackedLight, same 160-byte layout)
+// of a light prepared on the host (arpa_core::emission::PackedLight, same 176-byte layout)
 // with its ray differential, flux and re-emission length. Needs math.wgsl, rng.wgsl,
 // frame.wgsl, sampling.wgsl and differential.wgsl.
 //
@@ -24,7 +24,7 @@ struct ArpaLight {
     kind: u32,
     falloff: u32,
     photon_count: u32,         // N photons this iteration
-    pad0: u32,
+    cell_grid: u32,            // projection grid cells per side; 0: the whole domain
     p0: vec3<f32>,             // point/spot position, triangle p0, quad origin (m)
     scene_radius: f32,         // bounding-sphere radius (m)
     p1: vec3<f32>,             // triangle p1, quad edge_u (m)
@@ -40,9 +40,14 @@ struct ArpaLight {
     flux: vec3<f32>,           // flux per photon (W, RGB)
     one_minus_cos_cutoff: f32, // 1 - cos(cutoff), from f64 on the host
     scene_centre: vec3<f32>,   // bounding-sphere centre (m)
-    pad1: f32,
+    caustic_weight: f32,       // weight of the photons' caustic records (0: none stored)
     lattice_shift: vec2<f32>,  // Cranley-Patterson shift of this iteration
-    pad2: vec2<f32>,
+    cell_first: u32,           // first projection cell in the caller's cell table
+    cell_count: u32,           // projection cells sampled; 0: the whole domain
+    cell_offset: u32,          // start of the round robin over the cells this iteration
+    pad3a: u32,
+    pad3b: u32,
+    pad3c: u32,
 }
 
 // One emitted photon; `ray` and the rest are meaningful only when status == ARPA_DIFF_OK.
@@ -87,15 +92,44 @@ fn arpa_ray_new(p: vec3<f32>, d: vec3<f32>, dp_du: vec3<f32>, dp_dv: vec3<f32>, 
     return arpa_diff_checked(r, 0u);
 }
 
-// Photon `index` of `light` (PreparedLight::emit). Area lights draw their direction from
-// `rng` (one 2-D draw); the primary sample comes from the shifted Fibonacci lattice.
+// Photon `index` of `light` over its whole domain (PreparedLight::emit; cell_count 0).
+// Area lights draw their direction from `rng` (one 2-D draw); the primary sample comes
+// from the shifted Fibonacci lattice.
 fn arpa_emit(light: ArpaLight, index: u32, rng: ptr<function, ArpaRng>) -> ArpaEmitted {
+    return arpa_emit_in(light, index, rng, 0u);
+}
+
+// PreparedLight::emission_slot: the slot in the light's cell list of photon `index`
+// whose stream, before emission, is `rng` (a copy: not advanced). The caller looks the
+// cell up in its table (entry cell_first + slot) and hands it to arpa_emit_in.
+fn arpa_emission_slot(light: ArpaLight, index: u32, rng_in: ArpaRng) -> u32 {
+    if light.cell_count == 0u {
+        return 0u;
+    }
+    if light.kind == ARPA_LIGHT_TRIANGLE || light.kind == ARPA_LIGHT_QUAD {
+        var rng = rng_in;
+        return arpa_split_draw_slot(arpa_rng_next_u32(&rng), light.cell_count);
+    }
+    return arpa_round_robin(index, light.photon_count, light.cell_count, light.cell_offset).x;
+}
+
+// Photon `index` of `light` (PreparedLight::emit_in) in projection cell `cell` (the entry
+// of arpa_emission_slot's slot; ignored when the light samples its whole domain).
+fn arpa_emit_in(light: ArpaLight, index: u32, rng: ptr<function, ArpaRng>, cell: u32) -> ArpaEmitted {
     var out: ArpaEmitted;
     out.flux = light.flux;
     out.reemission_length = light.len_reemission;
     out.has_surface_normal = 0u;
     out.surface_normal = vec3<f32>(0.0);
-    let u = arpa_fibonacci_lattice(index, light.photon_count, light.lattice_shift);
+    let projected = light.cell_count != 0u;
+    let area = light.kind == ARPA_LIGHT_TRIANGLE || light.kind == ARPA_LIGHT_QUAD;
+    var u: vec2<f32>;
+    if projected && !area {
+        let rr = arpa_round_robin(index, light.photon_count, light.cell_count, light.cell_offset);
+        u = arpa_cell_point(arpa_fibonacci_lattice(rr.y, rr.z, light.lattice_shift), cell, light.cell_grid);
+    } else {
+        u = arpa_fibonacci_lattice(index, light.photon_count, light.lattice_shift);
+    }
     let w = light.len_directional;
     let x = light.len_positional;
     let zero = vec3<f32>(0.0);
@@ -129,7 +163,16 @@ fn arpa_emit(light: ArpaLight, index: u32, rng: ptr<function, ArpaRng>) -> ArpaE
                 p = light.p0 + light.p1 * u.x + light.p2 * u.y;
             }
             let lf = ArpaFrame(light.frame_t, light.frame_b, light.frame_n);
-            let d = arpa_frame_normalize_or(arpa_frame_to_world(lf, arpa_cosine_hemisphere(arpa_rng_next_2d(rng))), light.frame_n);
+            var draw: vec2<f32>;
+            if projected {
+                let word = arpa_rng_next_u32(rng);
+                let fx = arpa_split_draw_fraction(word, light.cell_count);
+                let fy = arpa_rng_next_f32(rng);
+                draw = arpa_cell_point(vec2<f32>(fx, fy), cell, light.cell_grid);
+            } else {
+                draw = arpa_rng_next_2d(rng);
+            }
+            let d = arpa_frame_normalize_or(arpa_frame_to_world(lf, arpa_cosine_hemisphere(draw)), light.frame_n);
             let df = arpa_frame_from_normal_and_hint(d, light.frame_t);
             res = arpa_ray_new(p, d, light.frame_t * x, light.frame_b * x, df.t * w, df.b * w);
             out.surface_normal = light.frame_n;

@@ -107,3 +107,34 @@ fn arpa_fibonacci_lattice(i: u32, n: u32, shift: vec2<f32>) -> vec2<f32> {
     let y = g + arpa_unit(shift.y);
     return vec2<f32>(x - floor(x), y - floor(y));
 }
+
+// sampling::cell_point: the point `local` of the unit square placed in cell `cell`
+// (ix + iy * grid) of a grid x grid grid over the unit square.
+fn arpa_cell_point(local: vec2<f32>, cell: u32, grid: u32) -> vec2<f32> {
+    let g = max(grid, 1u);
+    let ix = f32(cell % g);
+    let iy = f32(cell / g);
+    return vec2<f32>((ix + arpa_unit(local.x)) / f32(g), (iy + arpa_unit(local.y)) / f32(g));
+}
+
+// sampling::round_robin: photon i of n over m cells from `offset`: (slot, j, n_j).
+fn arpa_round_robin(i: u32, n: u32, m_in: u32, offset: u32) -> vec3<u32> {
+    let m = max(m_in, 1u);
+    let r = i % m;
+    let j = i / m;
+    var count = n / m;
+    if r < n % m {
+        count += 1u;
+    }
+    let start = arpa_mul_hi_u32(offset, m);
+    return vec3<u32>((r + start) % m, j, max(count, 1u));
+}
+
+// sampling::split_draw: slot floor(word m / 2^32) and the fraction within (24 bits).
+fn arpa_split_draw_slot(word: u32, m: u32) -> u32 {
+    return arpa_mul_hi_u32(word, max(m, 1u));
+}
+
+fn arpa_split_draw_fraction(word: u32, m: u32) -> f32 {
+    return f32((word * max(m, 1u)) >> 8u) * (1.0 / 16777216.0);
+}

@@ -185,13 +185,47 @@ pub struct EmissionParams {
     /// Cranley–Patterson shift of the Fibonacci lattice for this iteration (unit square,
     /// finite; [`EmissionParams::for_iteration`] draws it).
     pub lattice_shift: DVec2,
+    /// The part of the emission domain the photons are sent into: the whole domain, or the
+    /// cells of a projection map ([`crate::projection`]). The photons then carry the flux
+    /// of that part only and their differentials tile it.
+    pub cells: CellDomain,
+    /// Where the round robin over the projection cells starts this iteration (a uniform
+    /// `u32`, [`crate::sampling::round_robin`]; [`EmissionParams::for_iteration`] draws it).
+    pub cell_offset: u32,
+}
+
+/// Which part of a light's emission domain its photons sample: cells of a `grid` × `grid`
+/// grid over the unit square that the light's equal-area map takes to its domain
+/// (directions of point, spot and area lights, the aperture disc of directional lights),
+/// as listed by a projection map ([`crate::projection::DomainCells`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CellDomain {
+    /// Cells per side; 0 for the whole domain.
+    pub grid: u32,
+    /// Cells sampled (`1..=grid²`; 0 for the whole domain).
+    pub count: u32,
+}
+
+impl CellDomain {
+    /// The whole domain.
+    pub const WHOLE: Self = Self { grid: 0, count: 0 };
+
+    /// The fraction of the domain's measure sampled (1 for the whole domain).
+    pub fn fraction(&self) -> f64 {
+        if self.grid == 0 { 1.0 } else { self.count as f64 / (self.grid as f64 * self.grid as f64) }
+    }
+
+    /// Whether only some cells are sampled.
+    pub fn is_projected(&self) -> bool {
+        self.grid != 0
+    }
 }
 
 impl EmissionParams {
     /// `photon_count` photons with the exact tiling (`scale` 1), no lattice shift and no
     /// scene sphere (enough for point, spot and area lights in one iteration).
     pub const fn new(photon_count: u32) -> Self {
-        Self { photon_count, scale: 1.0, scene_sphere: (DVec3::ZERO, 0.0), lattice_shift: DVec2::ZERO }
+        Self { photon_count, scale: 1.0, scene_sphere: (DVec3::ZERO, 0.0), lattice_shift: DVec2::ZERO, cells: CellDomain::WHOLE, cell_offset: 0 }
     }
 
     /// The same parameters with the lattice shift of iteration `iteration` (0-based) of a
@@ -205,7 +239,8 @@ impl EmissionParams {
     /// ([`crate::radius::ProgressiveConfig::radii`] takes `iteration + 1`).
     pub fn for_iteration(self, seed: u32, iteration: u32, light: u32) -> Self {
         let mut rng = crate::rng::Rng::new(seed, iteration, light, crate::rng::StreamDomain::Iteration);
-        Self { lattice_shift: rng.next_2d(), ..self }
+        let lattice_shift = rng.next_2d();
+        Self { lattice_shift, cell_offset: rng.next_u32(), ..self }
     }
 
     /// The same parameters with the scene's bounding sphere (centre, radius in metres),
@@ -220,6 +255,12 @@ impl EmissionParams {
         Self { scale, ..self }
     }
 
+    /// The same parameters sampling only `count` cells of a `grid` × `grid` projection grid
+    /// ([`CellDomain`]); the cells themselves are handed to [`PreparedLight::emit_in`].
+    pub const fn with_cells(self, grid: u32, count: u32) -> Self {
+        Self { cells: CellDomain { grid, count }, ..self }
+    }
+
     /// Checks the fields a light reads: photon count, scale and shift for every light;
     /// the scene sphere for directional lights ([`Light::validate`]).
     fn validate(&self, light: &Light) -> Result<(), EmissionError> {
@@ -231,6 +272,10 @@ impl EmissionParams {
         }
         if !self.lattice_shift.is_finite() {
             return Err(EmissionError::Params("lattice_shift must be finite"));
+        }
+        let c = self.cells;
+        if c.grid != 0 && !(c.grid <= 4096 && c.count >= 1 && c.count as u64 <= c.grid as u64 * c.grid as u64) {
+            return Err(EmissionError::Params("cells: count must lie in 1..=grid² and grid in 0..=4096"));
         }
         if matches!(light, Light::Directional(_)) && !self.scene_sphere.0.is_finite() {
             return Err(LightError::NoSceneBounds.into());
@@ -427,7 +472,16 @@ impl Light {
 
     /// Differential lengths for `n` photons with emission scale `s` (see module docs).
     pub fn emission_lengths(&self, n: u32, s: f64, scene_sphere_radius: f64) -> EmissionLengths {
-        let n = n.max(1) as f64;
+        self.emission_lengths_in(n, s, scene_sphere_radius, 1.0)
+    }
+
+    /// Differential lengths for `n` photons with emission scale `s` that sample the
+    /// fraction `fraction` of the emission domain ([`CellDomain::fraction`]): they tile
+    /// that part, so the domain's measure in the table of the module docs is multiplied by
+    /// it (the directions of area lights: their hemisphere; their positions are sampled
+    /// whole).
+    pub fn emission_lengths_in(&self, n: u32, s: f64, scene_sphere_radius: f64, fraction: f64) -> EmissionLengths {
+        let n = n.max(1) as f64 / fraction;
         let tile = |measure: f64| 2.0 * s * libm::sqrt(measure / (PI * n));
         let hemisphere = tile(TAU);
         match self {
@@ -445,7 +499,9 @@ impl Light {
                 reemission: hemisphere,
             },
             Light::Triangle(_) | Light::Quad(_) => {
-                EmissionLengths { positional: tile(self.area()), directional: hemisphere, reemission: hemisphere }
+                // Every photon samples the whole emitter: its positional share is 1/N.
+                let positional = 2.0 * s * libm::sqrt(self.area() / (PI * n * fraction));
+                EmissionLengths { positional, directional: hemisphere, reemission: hemisphere }
             }
         }
     }
@@ -469,7 +525,8 @@ impl Light {
         self.validate(radius)?;
         params.validate(self)?;
         let n = params.photon_count;
-        let per_photon = 1.0 / n as f64;
+        let fraction = params.cells.fraction();
+        let per_photon = fraction / n as f64;
         let (flux, frame) = match self {
             Light::Point(l) => (l.intensity * (4.0 * PI * per_photon), Frame::from_normal(DVec3::Z)),
             Light::Spot(l) => (l.intensity * (cone_solid_angle_from_angle(l.cutoff) * per_photon), Frame::from_normal(l.direction)),
@@ -478,7 +535,7 @@ impl Light {
             Light::Quad(l) => (l.radiance * (PI * self.area() * per_photon), Frame::from_normal_and_hint(l.edge_u.cross(l.edge_v), l.edge_u)),
         };
         let cos_cutoff = if let Light::Spot(l) = self { libm::cos(l.cutoff) } else { -1.0 };
-        Ok(PreparedLight { light: *self, params: *params, lengths: self.emission_lengths(n, params.scale, radius), flux, frame, cos_cutoff })
+        Ok(PreparedLight { light: *self, params: *params, lengths: self.emission_lengths_in(n, params.scale, radius, fraction), flux, frame, cos_cutoff })
     }
 }
 
@@ -506,13 +563,63 @@ impl PreparedLight {
         &self.light
     }
 
-    /// Emits photon `index` (see [`Light::emit`]).
+    /// The same light with its flux per photon multiplied by `weight` (finite, ≥ 0): a
+    /// multiple-importance weight of the photons of one of several emission strategies
+    /// ([`crate::projection::EmissionPlan`]).
+    pub fn weighted(self, weight: f64) -> Self {
+        Self { flux: self.flux * weight, ..self }
+    }
+
+    /// The part of the emission domain this light's photons sample.
+    pub fn cells(&self) -> CellDomain {
+        self.params.cells
+    }
+
+    /// Emits photon `index` (see [`Light::emit`]) over the whole domain; a light prepared
+    /// with projection cells needs [`PreparedLight::emit_in`].
     #[inline]
     pub fn emit(&self, index: u32, rng: &mut Rng) -> Result<EmittedPhoton, EmissionError> {
+        self.emit_in(index, rng, &[])
+    }
+
+    /// The slot in the light's cell list of photon `index`, whose stream is `rng` before
+    /// emission (not advanced); 0 for the whole domain. Point, spot and directional lights
+    /// share their photons round robin over the cells
+    /// ([`crate::sampling::round_robin`]); area lights pick the cell of their direction
+    /// with their first draw ([`crate::sampling::split_draw`]). The shaders look the cell
+    /// up with it before they emit (`arpa_emission_slot`).
+    pub fn emission_slot(&self, index: u32, rng: &Rng) -> u32 {
+        let p = &self.params;
+        match (p.cells.grid, &self.light) {
+            (0, _) => 0,
+            (_, Light::Triangle(_) | Light::Quad(_)) => crate::sampling::split_draw({ let mut r = *rng; r.next_u32() }, p.cells.count).0,
+            _ => crate::sampling::round_robin(index, p.photon_count, p.cells.count, p.cell_offset).0,
+        }
+    }
+
+    /// Emits photon `index` into the projection cells `cells` (the list of the light's
+    /// [`CellDomain`], `count` entries, each below `grid²`; empty for the whole domain):
+    /// the primary sample (the lattice point of point, spot and directional lights, the
+    /// direction draw of area lights) lands in the cell of
+    /// [`PreparedLight::emission_slot`]: for point, spot and directional lights the
+    /// Fibonacci lattice of that cell's photons, for area lights the rest of the draw.
+    #[inline]
+    pub fn emit_in(&self, index: u32, rng: &mut Rng, cells: &[u32]) -> Result<EmittedPhoton, EmissionError> {
         let params = &self.params;
+        let domain = params.cells;
+        if cells.len() != domain.count as usize || (domain.grid != 0 && cells.iter().any(|&c| c as u64 >= domain.grid as u64 * domain.grid as u64)) {
+            return Err(EmissionError::Params("cells: the list does not match the light's cell domain"));
+        }
         let (centre, radius) = params.scene_sphere;
         let lengths = &self.lengths;
-        let u = crate::sampling::fibonacci_lattice(index, params.photon_count, params.lattice_shift);
+        let area = matches!(self.light, Light::Triangle(_) | Light::Quad(_));
+        let u = if domain.grid != 0 && !area {
+            let (slot, j, n) = crate::sampling::round_robin(index, params.photon_count, domain.count, params.cell_offset);
+            let local = crate::sampling::fibonacci_lattice(j, n, params.lattice_shift);
+            crate::sampling::cell_point(local, cells[slot as usize], domain.grid)
+        } else {
+            crate::sampling::fibonacci_lattice(index, params.photon_count, params.lattice_shift)
+        };
         let (ray, flux, surface_normal) = match &self.light {
             Light::Point(l) => {
                 let d = uniform_sphere(u);
@@ -537,17 +644,25 @@ impl PreparedLight {
             }
             Light::Triangle(l) => {
                 let b = uniform_triangle(u);
-                self.area_photon(l.p[0] * b.x + l.p[1] * b.y + l.p[2] * b.z, rng)?
+                self.area_photon(l.p[0] * b.x + l.p[1] * b.y + l.p[2] * b.z, rng, cells)?
             }
-            Light::Quad(l) => self.area_photon(l.origin + l.edge_u * u.x + l.edge_v * u.y, rng)?,
+            Light::Quad(l) => self.area_photon(l.origin + l.edge_u * u.x + l.edge_v * u.y, rng, cells)?,
         };
         Ok(EmittedPhoton { ray, flux, reemission_length: lengths.reemission, surface_normal })
     }
 
     #[inline(always)]
-    fn area_photon(&self, p: DVec3, rng: &mut Rng) -> Result<(RayDifferential, DVec3, Option<DVec3>), EmissionError> {
+    fn area_photon(&self, p: DVec3, rng: &mut Rng, cells: &[u32]) -> Result<(RayDifferential, DVec3, Option<DVec3>), EmissionError> {
         let light_frame = &self.frame;
-        let local = cosine_hemisphere(rng.next_2d());
+        let domain = self.params.cells;
+        let draw = if domain.grid != 0 {
+            let (slot, fx) = crate::sampling::split_draw(rng.next_u32(), domain.count);
+            let fy = rng.next_f64();
+            crate::sampling::cell_point(DVec2::new(fx, fy), cells[slot as usize], domain.grid)
+        } else {
+            rng.next_2d()
+        };
+        let local = cosine_hemisphere(draw);
         let d = crate::frame::unit_or(light_frame.to_world(local), light_frame.n);
         let dir_frame = directional_frame(light_frame, local, d);
         let (x, w) = (self.lengths.positional, self.lengths.directional);
@@ -591,7 +706,7 @@ pub enum EmissionError {
     Params(&'static str),
 }
 
-/// The 160-byte `f32` record of a [`PreparedLight`] for GPU storage buffers: the WGSL
+/// The 176-byte `f32` record of a [`PreparedLight`] for GPU storage buffers: the WGSL
 /// twin's `ArpaLight` (`arpa-core/shaders/emission.wgsl`, [`crate::shaders::EMISSION`]),
 /// whose `arpa_emit` emits photon `index` from it as [`PreparedLight::emit`] does. Built by
 /// [`PreparedLight::pack`]; positions in metres, angles in radians, flux in W per photon.
@@ -604,8 +719,8 @@ pub struct PackedLight {
     pub falloff: u32,
     /// Photons this iteration, `N`.
     pub photon_count: u32,
-    /// Padding (0).
-    pub pad0: u32,
+    /// Projection grid cells per side ([`CellDomain::grid`]); 0: the whole domain.
+    pub cell_grid: u32,
     /// Point/spot position, triangle vertex 0 or quad origin (m).
     pub p0: [f32; 3],
     /// Scene bounding-sphere radius (m).
@@ -636,17 +751,28 @@ pub struct PackedLight {
     pub one_minus_cos_cutoff: f32,
     /// Scene bounding-sphere centre (m).
     pub scene_centre: [f32; 3],
-    /// Padding (0).
-    pub pad1: f32,
+    /// Weight of the caustic records of this light's photons (the two passes' balance
+    /// heuristic, [`crate::projection`]; 0: they store none). Set by whoever lays out the
+    /// photon pass's tables ([`crate::gpu::layout::emitter_tables`]); 1 from
+    /// [`PreparedLight::pack`].
+    pub caustic_weight: f32,
     /// Cranley–Patterson shift of the Fibonacci lattice this iteration.
     pub lattice_shift: [f32; 2],
+    /// Index of the light's first projection cell in the cell table the shader reads
+    /// through `arpa_emission_cell` (set by whoever lays out that table, e.g.
+    /// [`crate::gpu::layout::emitter_tables`]; 0 from [`PreparedLight::pack`]).
+    pub cell_first: u32,
+    /// Projection cells sampled ([`CellDomain::count`]); 0: the whole domain.
+    pub cell_count: u32,
+    /// [`EmissionParams::cell_offset`] of this iteration.
+    pub cell_offset: u32,
     /// Padding (0).
-    pub pad2: [f32; 2],
+    pub pad3: [u32; 3],
 }
 
 // The WGSL struct `ArpaLight` has exactly this size (eight vec3 + scalar groups, a header
 // and the lattice shift).
-const _: () = assert!(core::mem::size_of::<PackedLight>() == 160);
+const _: () = assert!(core::mem::size_of::<PackedLight>() == 176);
 
 impl PreparedLight {
     /// The GPU record of this light (see [`PackedLight`]); every value rounded once to `f32`.
@@ -666,7 +792,7 @@ impl PreparedLight {
             kind,
             falloff,
             photon_count: self.params.photon_count,
-            pad0: 0,
+            cell_grid: self.params.cells.grid,
             p0,
             scene_radius: self.params.scene_sphere.1 as f32,
             p1,
@@ -682,9 +808,12 @@ impl PreparedLight {
             flux: f(self.flux),
             one_minus_cos_cutoff: one_minus_cos_cutoff as f32,
             scene_centre: f(self.params.scene_sphere.0),
-            pad1: 0.0,
+            caustic_weight: 1.0,
             lattice_shift: self.params.lattice_shift.as_vec2().to_array(),
-            pad2: [0.0; 2],
+            cell_first: 0,
+            cell_count: self.params.cells.count,
+            cell_offset: self.params.cell_offset,
+            pad3: [0; 3],
         }
     }
 }

@@ -121,6 +121,9 @@ pub mod prepared_scene;
 #[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 pub mod photon_path;
 pub mod prefetch;
+#[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
+pub mod projection;
 pub mod progressive_photon;
 pub mod radius;
 #[cfg(feature = "alloc")]

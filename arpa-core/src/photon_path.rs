@@ -12,6 +12,7 @@
 use crate::classify::{PathClassifier, SurfaceInteraction};
 use crate::differential::{refract_direction, reflect_direction, DifferentialError, NormalDifferential, RayDifferential};
 use crate::emission::{EmissionParams, PreparedLight};
+use crate::projection::EmissionPlan;
 use crate::footprint::{Footprint, PhotonMap};
 use crate::fresnel::dielectric_reflectance;
 use crate::heuristics::ResolvedHeuristics;
@@ -27,15 +28,34 @@ use alloc::vec::Vec;
 use glam::{DVec3, Vec3};
 
 /// Per-iteration inputs of the photon pass, shared by all photons.
+///
+/// The photons of an iteration come from *sources*: source `e < n` is the global pass of
+/// emitter `e` (of `n`), source `n + e` its caustic pass ([`crate::projection`]); the
+/// global photon indices run over the sources in that order. A caustic-pass photon
+/// stores only caustic records and ends at its first diffuse hit; every caustic record
+/// is weighted by its source's [`PhotonPassSetup::caustic_weight`].
 #[derive(Clone, Debug)]
 pub struct PhotonPassSetup {
-    /// Photons per emitter this iteration ([`PreparedScene::photon_allocation`]).
+    /// Photons per source this iteration ([`EmissionPlan`]).
     pub allocation: Vec<u32>,
-    /// First global photon index of each emitter (prefix sums of `allocation`).
+    /// First global photon index of each source (prefix sums of `allocation`).
     pub first_index: Vec<u32>,
-    /// Each emitter prepared for this iteration (lattice shift drawn per iteration);
-    /// `None` for an emitter that cannot emit (never for a validated scene).
+    /// Each source's emitter prepared for this iteration (lattice shift drawn per
+    /// iteration, projection cells of its pass); `None` for a source that does not emit.
     pub lights: Vec<Option<PreparedLight>>,
+    /// Weight of the caustic records of each source's photons (the balance heuristic of
+    /// the two passes; 0: the source stores none).
+    pub caustic_weight: Vec<f64>,
+    /// Emitters of the scene (`n`; the sources are `2n`).
+    pub emitters: usize,
+    /// Where each source's projection cells start in the scene's cell table
+    /// ([`crate::gpu::layout::cell_table`]: every emitter's geometry cells, then every
+    /// emitter's specular cells).
+    pub cell_first: Vec<u32>,
+    /// Photons of the `[caustic, global]` passes.
+    pub pass_photons: [u32; 2],
+    /// What the iteration's plan skipped.
+    pub skipped: crate::tracer::Skipped,
     /// Progressive radii `[caustic, global]` of this iteration (metres).
     pub radii: [f64; 2],
     /// 0-based iteration number.
@@ -47,25 +67,94 @@ pub struct PhotonPassSetup {
 impl PhotonPassSetup {
     /// The setup of iteration `iteration` (0-based) under `settings`.
     pub fn new(scene: &PreparedScene, settings: &RenderSettings, iteration: u32) -> Self {
-        let allocation = scene.photon_allocation(settings.photons_per_iteration);
+        let plan = EmissionPlan::new(scene, settings);
+        let n = scene.emitters().len();
+        let mut allocation = Vec::with_capacity(2 * n);
+        let mut caustic_weight = Vec::with_capacity(2 * n);
+        allocation.extend(plan.lights.iter().map(|l| l.global));
+        allocation.extend(plan.lights.iter().map(|l| l.caustic));
+        caustic_weight.extend(plan.lights.iter().map(|l| l.global_caustic_weight));
+        caustic_weight.extend(plan.lights.iter().map(|l| l.caustic_weight));
         let mut first_index = Vec::with_capacity(allocation.len());
         let mut acc = 0u32;
-        for &n in &allocation {
+        for &k in &allocation {
             first_index.push(acc);
-            acc += n;
+            acc = acc.saturating_add(k);
         }
-        let lights = allocation
-            .iter()
-            .zip(scene.emitters())
-            .enumerate()
-            .map(|(i, (&n, light))| {
-                let (centre, radius) = scene.bounding_sphere();
-                let params = EmissionParams::new(n.max(1)).with_scene_sphere(centre, radius).for_iteration(settings.seed, iteration, i as u32);
-                light.prepare(&params).ok()
+        let (centre, radius) = scene.bounding_sphere();
+        let lights = (0..2 * n)
+            .map(|source| {
+                let (e, caustic) = (source % n.max(1), source >= n);
+                let count = allocation[source];
+                if count == 0 && (caustic || plan.projected) {
+                    return None;
+                }
+                // The lattice shift of the emitter's stream: both passes draw the same
+                // shift (their lattices are over different cells or counts).
+                let mut params = EmissionParams::new(count.max(1)).with_scene_sphere(centre, radius).for_iteration(settings.seed, iteration, e as u32);
+                if plan.projected {
+                    let p = &scene.projections()[e];
+                    let cells = if caustic { &p.specular } else { &p.geometry };
+                    let d = cells.domain();
+                    params = params.with_cells(d.grid, d.count);
+                }
+                scene.emitters()[e].prepare(&params).ok()
             })
             .collect();
         let radii = settings.radii.radii(&scene.bounds(), iteration.saturating_add(1));
-        Self { allocation, first_index, lights, radii, iteration, heuristics: settings.heuristics.resolve(&scene.bounds()).at_radii(radii) }
+        let projections = scene.projections();
+        let mut cell_first = Vec::with_capacity(2 * n);
+        let mut at = 0u32;
+        for p in projections {
+            cell_first.push(at);
+            at += p.geometry.cells.len() as u32;
+        }
+        for p in projections {
+            cell_first.push(at);
+            at += p.specular.cells.len() as u32;
+        }
+        Self {
+            cell_first,
+            allocation,
+            first_index,
+            lights,
+            caustic_weight,
+            emitters: n,
+            pass_photons: plan.pass_photons(),
+            skipped: plan.skipped,
+            radii,
+            iteration,
+            heuristics: settings.heuristics.resolve(&scene.bounds()).at_radii(radii),
+        }
+    }
+
+    /// Whether `source` is a caustic-pass source.
+    #[inline]
+    pub fn is_caustic_source(&self, source: usize) -> bool {
+        source >= self.emitters
+    }
+
+    /// The emitter of `source`.
+    #[inline]
+    pub fn emitter_of(&self, source: usize) -> usize {
+        source % self.emitters.max(1)
+    }
+
+    /// The projection cells `source`'s light samples (empty for the whole domain).
+    pub fn cells<'a>(&self, scene: &'a PreparedScene, source: usize) -> &'a [u32] {
+        match self.lights.get(source).and_then(|l| l.as_ref()) {
+            Some(l) if l.cells().is_projected() => {
+                let p = &scene.projections()[self.emitter_of(source)];
+                if self.is_caustic_source(source) { &p.specular.cells } else { &p.geometry.cells }
+            }
+            _ => &[],
+        }
+    }
+
+    /// Writes the plan's photons per pass and skips into `stats`.
+    pub fn record_plan(&self, stats: &mut crate::tracer::IterationStats) {
+        stats.emitted = self.pass_photons.map(u64::from);
+        stats.skipped = self.skipped;
     }
 
     /// Total photons of the iteration.
@@ -73,7 +162,7 @@ impl PhotonPassSetup {
         self.allocation.iter().sum()
     }
 
-    /// Emitter and index within it of global photon `index`.
+    /// Source and index within it of global photon `index`.
     #[inline]
     pub fn locate(&self, index: u32) -> Option<(usize, u32)> {
         let e = self.first_index.partition_point(|&f| f <= index).checked_sub(1)?;
@@ -113,7 +202,7 @@ pub fn trace_photon(
     index: u32,
     sink: &mut impl FnMut(StoredPhoton),
 ) -> PhotonPathStats {
-    let Some(mut walk) = PhotonWalk::start(settings, setup, index) else { return PhotonPathStats::default() };
+    let Some(mut walk) = PhotonWalk::start(scene, settings, setup, index) else { return PhotonPathStats::default() };
     while let Some((start, direction)) = walk.next_ray() {
         let hit = start.intersect(caster, direction, f32::INFINITY);
         if let Some(h) = &hit {
@@ -140,17 +229,21 @@ pub struct PhotonWalk {
     max_depth: u32,
     stats: PhotonPathStats,
     done: bool,
+    /// A caustic-pass photon: stores only caustic records, ends at its first diffuse hit.
+    caustic_only: bool,
+    /// Weight of the photon's caustic records (0: it stores none).
+    caustic_weight: f64,
 }
 
 impl PhotonWalk {
     /// Emits global photon `index` of the iteration; `None` when it does not exist or its
     /// emitter cannot emit it (such a photon traces nothing and stores nothing).
     #[inline(always)]
-    pub fn start(settings: &RenderSettings, setup: &PhotonPassSetup, index: u32) -> Option<Self> {
-        let (emitter, local) = setup.locate(index)?;
-        let light = setup.lights[emitter].as_ref()?;
+    pub fn start(scene: &PreparedScene, settings: &RenderSettings, setup: &PhotonPassSetup, index: u32) -> Option<Self> {
+        let (source, local) = setup.locate(index)?;
+        let light = setup.lights[source].as_ref()?;
         let mut rng = Rng::new(settings.seed, setup.iteration, index, StreamDomain::Photon);
-        let emitted = light.emit(local, &mut rng).ok()?;
+        let emitted = light.emit_in(local, &mut rng, setup.cells(scene, source)).ok()?;
         // Only ARPA's footprints use the differentials: RTPM's photons (progressive photons
         // only) carry none, so its pass skips the transfer, reflection, refraction and
         // re-emission of the derivatives (its hits are stored at the surface point).
@@ -169,6 +262,8 @@ impl PhotonWalk {
             max_depth: settings.max_depth,
             stats: PhotonPathStats::default(),
             done: false,
+            caustic_only: setup.is_caustic_source(source),
+            caustic_weight: setup.caustic_weight[source],
         })
     }
 
@@ -220,6 +315,10 @@ impl PhotonWalk {
         match s.scattering {
             Scattering::Diffuse(albedo) => {
                 let map = st.classifier.record(SurfaceInteraction::Diffuse).unwrap_or(PhotonMap::Global);
+                // A caustic-pass photon has nothing more to store after its first diffuse hit.
+                if self.caustic_only && map != PhotonMap::Caustic {
+                    return false;
+                }
                 let first_interaction = st.classifier.diffuse_events() == 1 && st.classifier.specular_events() == 0;
                 // Shading normals (Mitsuba's two-sided diffuse in the shading frame): the
                 // photon counts with the adjoint ratio a(ω_i) = |ω_i·n_s|/|ω_i·n_g| both in
@@ -243,7 +342,7 @@ impl PhotonWalk {
                 // only where it is used: a hit that is not stored (direct lighting counts this
                 // first hit) draws its roulette first and skips the transfer if absorbed. The
                 // transfer draws no random numbers, so the stream is the same either way.
-                let stores = !(settings.direct_lighting && first_interaction);
+                let stores = !(settings.direct_lighting && first_interaction) && !(map == PhotonMap::Caustic && self.caustic_weight == 0.0);
                 if !stores && !(rng.next_f64() < survive) {
                     return false;
                 }
@@ -253,9 +352,10 @@ impl PhotonWalk {
                     // stored with its orientation flipped, so that only query points seen
                     // from below the shading plane too gather it (crate::lambertian).
                     let below = shading.as_ref().is_some_and(DiffuseShading::below_shading_plane);
-                    sink(store(&ray_at_hit, &s.geometric_normal, st.flux, map, st.differential_valid, below, settings, setup));
+                    let flux = if map == PhotonMap::Caustic { st.flux * self.caustic_weight } else { st.flux };
+                    sink(store(&ray_at_hit, &s.geometric_normal, flux, map, st.differential_valid, below, settings, setup));
                     self.stats.stored += 1;
-                    if !(rng.next_f64() < survive) {
+                    if self.caustic_only || !(rng.next_f64() < survive) {
                         return false;
                     }
                 }

@@ -5,6 +5,7 @@
 use crate::aabb::Aabb;
 use crate::differential::{DifferentialError, NormalDifferential};
 use crate::emission::Light;
+use crate::projection::{cluster_spheres, project, DomainCells, LightProjection};
 use crate::prefetch::prefetch;
 use crate::ray_cast::RayHit;
 use crate::scene::{CameraFrame, Scattering, Scene, SceneError};
@@ -32,6 +33,13 @@ pub struct PreparedScene {
     /// Per mesh with shading normals, per triangle: its vertex normals and barycentric
     /// gradients ([`ShadingRecord`]); `None` for meshes without normals.
     shading: Vec<Option<Vec<ShadingRecord>>>,
+    /// Per emitter: the cells of its domain that see geometry and specular objects.
+    projections: Vec<LightProjection>,
+    /// Whether some mesh is a mirror or glass.
+    has_specular: bool,
+    /// Whether a photon leaving a diffuse surface can hit another surface at all (some
+    /// diffuse surface scatters and not all geometry lies in one plane).
+    second_hit_possible: bool,
 }
 
 /// One triangle's barycentric gradients, or why it has none.
@@ -121,7 +129,7 @@ impl PreparedScene {
             acc += emitter_power[i];
             area_cdf.push(acc);
         }
-        let scattering = scene.materials.iter().map(|m| m.scattering(scene.roughness_cutoff)).collect();
+        let scattering: Vec<Scattering> = scene.materials.iter().map(|m| m.scattering(scene.roughness_cutoff)).collect();
         let vertices = |m: &crate::scene::TriangleMesh, idx: [u32; 3]| idx.map(|i| m.positions[i as usize].as_dvec3());
         let triangles = scene
             .meshes
@@ -159,7 +167,22 @@ impl PreparedScene {
                 })
             })
             .collect();
+        let is_specular = |m: &crate::scene::TriangleMesh| matches!(scattering.get(m.material as usize), Some(Scattering::Mirror(_) | Scattering::Refractive(..)));
+        let all: Vec<[DVec3; 3]> = scene.meshes.iter().flat_map(|m| m.indices.iter().map(move |&idx| vertices(m, idx))).collect();
+        let specular: Vec<[DVec3; 3]> = scene.meshes.iter().filter(|m| is_specular(m)).flat_map(|m| m.indices.iter().map(move |&idx| vertices(m, idx))).collect();
+        let has_specular = !specular.is_empty();
+        let (all_spheres, specular_spheres) = (cluster_spheres(&all), cluster_spheres(&specular));
+        let sphere = scene.bounding_sphere();
+        let projections = emitters
+            .iter()
+            .map(|l| LightProjection { geometry: project(l, sphere, &all_spheres), specular: if has_specular { project(l, sphere, &specular_spheres) } else { DomainCells { grid: 1, cells: Vec::new() } } })
+            .collect();
+        let scatters = scene.meshes.iter().any(|m| matches!(scattering.get(m.material as usize), Some(Scattering::Diffuse(a)) if a.max_element() > 0.0));
+        let second_hit_possible = scatters && !coplanar(&all);
         Ok(Self {
+            projections,
+            has_specular,
+            second_hit_possible,
             triangles,
             shading,
             bounds: scene.bounds(),
@@ -199,38 +222,30 @@ impl PreparedScene {
         self.camera
     }
 
+    /// Each emitter's projections ([`crate::projection`]), in [`PreparedScene::emitters`]
+    /// order.
+    pub fn projections(&self) -> &[LightProjection] {
+        &self.projections
+    }
+
+    /// Whether some mesh is a mirror or glass.
+    pub fn has_specular(&self) -> bool {
+        self.has_specular
+    }
+
+    /// Whether a photon path of at most `max_depth` interactions can have a second
+    /// interaction after a diffuse one: `max_depth` ≥ 2, some diffuse surface with a
+    /// non-zero albedo, and not all geometry in one plane (a photon leaving a plane never
+    /// meets it again).
+    pub fn can_bounce_twice(&self, max_depth: u32) -> bool {
+        max_depth >= 2 && self.second_hit_possible
+    }
+
     /// Photons each emitter gets out of `total`: proportional to its power (luminance),
     /// by largest remainders, at least one per emitter with power while `total` allows.
     /// The counts sum to `total`.
     pub fn photon_allocation(&self, total: u32) -> Vec<u32> {
-        let n = self.emitters.len();
-        let sum: f64 = self.emitter_power.iter().sum();
-        if n == 0 || total == 0 || !(sum > 0.0) {
-            return alloc::vec![0; n];
-        }
-        let mut counts: Vec<u32> = Vec::with_capacity(n);
-        let mut remainders: Vec<(f64, usize)> = Vec::with_capacity(n);
-        for (i, p) in self.emitter_power.iter().enumerate() {
-            let exact = total as f64 * p / sum;
-            let floor = libm::floor(exact);
-            counts.push(floor as u32);
-            remainders.push((exact - floor, i));
-        }
-        let mut left = total.saturating_sub(counts.iter().sum());
-        // Emitters that would get nothing come first, then the largest remainders.
-        remainders.sort_by(|a, b| {
-            let za = counts[a.1] == 0 && self.emitter_power[a.1] > 0.0;
-            let zb = counts[b.1] == 0 && self.emitter_power[b.1] > 0.0;
-            zb.cmp(&za).then(b.0.total_cmp(&a.0)).then(a.1.cmp(&b.1))
-        });
-        for &(_, i) in &remainders {
-            if left == 0 {
-                break;
-            }
-            counts[i] += 1;
-            left -= 1;
-        }
-        counts
+        crate::projection::allocate(&self.emitter_power, total)
     }
 
     /// Vertices of a triangle in `f64`.
@@ -355,4 +370,18 @@ impl PreparedScene {
 pub fn offset_origin(p: DVec3, normal: DVec3) -> Vec3 {
     let scale = 1e-5 * (1.0 + p.abs().max_element());
     (p + normal * scale).as_vec3()
+}
+
+/// Whether every triangle's vertices lie in one plane (to a relative 1e-6 of the
+/// geometry's size); degenerate triangles do not choose the plane.
+fn coplanar(triangles: &[[DVec3; 3]]) -> bool {
+    let Some(plane) = triangles.iter().find_map(|t| {
+        let n = (t[1] - t[0]).cross(t[2] - t[0]);
+        (n.length() > 0.0).then(|| (n.normalize(), t[0]))
+    }) else {
+        return true;
+    };
+    let b = crate::aabb::Aabb::from_points(triangles.iter().flatten().copied());
+    let tol = 1e-6 * b.diagonal().max(f64::MIN_POSITIVE);
+    triangles.iter().flatten().all(|p| (*p - plane.1).dot(plane.0).abs() <= tol)
 }

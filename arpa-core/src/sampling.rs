@@ -12,6 +12,41 @@ fn unit(x: f64) -> f64 {
     if x >= 0.0 { if x <= 1.0 { x } else { 1.0 } } else { 0.0 }
 }
 
+/// The point `local` of the unit square placed in cell `cell` (`ix + iy · grid`) of a
+/// `grid` × `grid` grid over the unit square: `((ix, iy) + local) / grid`. With an
+/// equal-area map behind it, sampling a list of cells this way samples their union
+/// uniformly (the projection maps, [`crate::projection`]).
+#[inline]
+pub fn cell_point(local: DVec2, cell: u32, grid: u32) -> DVec2 {
+    let g = grid.max(1);
+    let (ix, iy) = ((cell % g) as f64, (cell / g) as f64);
+    DVec2::new((ix + unit(local.x)) / g as f64, (iy + unit(local.y)) / g as f64)
+}
+
+/// Photon `i` of `n` shared round robin over `m` cells, starting at a cell chosen by
+/// `offset` (a uniform `u32`: cell `⌊offset · m / 2³²⌋` takes photon 0): `(slot, j, n_j)`,
+/// the photon's slot in the cell list, its index among that cell's photons and their
+/// number (`⌊n/m⌋` or one more). All integer, so the core and the shaders agree exactly;
+/// with `offset` drawn anew each iteration every cell expects `n/m` photons, also when
+/// `n < m`.
+#[inline]
+pub fn round_robin(i: u32, n: u32, m: u32, offset: u32) -> (u32, u32, u32) {
+    let m = m.max(1);
+    let (r, j) = (i % m, i / m);
+    let count = n / m + u32::from(r < n % m);
+    let start = ((offset as u64 * m as u64) >> 32) as u32;
+    ((r + start) % m, j, count.max(1))
+}
+
+/// A uniform `u32` draw split into a uniform slot among `m` and a uniform fraction within
+/// it: `(⌊word · m / 2³²⌋, frac(word · m / 2³²))`, exact in integers (the shaders take the
+/// fraction to 24 bits).
+#[inline]
+pub fn split_draw(word: u32, m: u32) -> (u32, f64) {
+    let x = word as u64 * m.max(1) as u64;
+    ((x >> 32) as u32, (x & 0xffff_ffff) as f64 * (1.0 / 4_294_967_296.0))
+}
+
 /// Uniform direction on the unit sphere (Archimedes' equal-area map: `z` uniform in
 /// `[-1, 1]`). Density `1 / (4π)` per steradian.
 #[inline]

@@ -11,7 +11,7 @@ use std::f64::consts::PI;
 
 fn params(n: u32, iteration: u32) -> EmissionParams {
     let mut r = Rng::new(1, iteration, 0, StreamDomain::Iteration);
-    EmissionParams { photon_count: n, scale: 1.0, scene_sphere: (DVec3::new(0.0, 1.0, 0.0), 3.0), lattice_shift: r.next_2d() }
+    EmissionParams { photon_count: n, scale: 1.0, scene_sphere: (DVec3::new(0.0, 1.0, 0.0), 3.0), lattice_shift: r.next_2d(), ..EmissionParams::new(n) }
 }
 
 fn emit_all(light: &Light, p: &EmissionParams, iteration: u32) -> Vec<EmittedPhoton> {

@@ -1746,6 +1746,7 @@ fn emission_params() -> BoxedStrategy<EmissionParams> {
             scale,
             scene_sphere,
             lattice_shift: DVec2::new(sx, sy),
+            ..EmissionParams::new(1)
         })
         .boxed()
 }
@@ -2542,7 +2543,7 @@ fn regression_tiny_quad_tiling_check_does_not_underflow() {
         edge_v: DVec3::new(2.2737367544323208e-43, 0.0, -6.845946761352856e-59),
         radiance: DVec3::new(0.0, 0.0, 1.0),
     });
-    let params = EmissionParams { photon_count: u32::MAX, scale: 1e-30, scene_sphere: (DVec3::ZERO, 1.0), lattice_shift: DVec2::ZERO };
+    let params = EmissionParams { photon_count: u32::MAX, scale: 1e-30, scene_sphere: (DVec3::ZERO, 1.0), lattice_shift: DVec2::ZERO, ..EmissionParams::new(1) };
     match check_emit((light, params, 0, 0)) {
         Ok(outcome) => assert_eq!(outcome, "quad_ok"),
         Err(e) => panic!("{e}"),

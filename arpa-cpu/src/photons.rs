@@ -133,6 +133,7 @@ pub(crate) fn photon_pass(
     buffers.emitted = count;
     let c = buffers.store.counts;
     stats.photons_emitted = count as u64;
+    setup.record_plan(stats);
     stats.photon_segments = segments;
     stats.footprints = c.footprints;
     stats.progressive = c.progressive;
@@ -244,7 +245,7 @@ pub(crate) fn trace_chunk(
                 }
                 let index = next;
                 next += 1;
-                if let Some(walk) = PhotonWalk::start(settings, setup, index) {
+                if let Some(walk) = PhotonWalk::start(prepared, settings, setup, index) {
                     slots[k] = Some(Slot { walk, index, hit: None });
                 }
             }

@@ -77,6 +77,9 @@ pub struct PhotonPass {
     params: Buffer,
     lights: Buffer,
     ranges: Buffer,
+    /// The scene's projection cells ([`arpa_core::gpu::layout::cell_table`]), written once.
+    cells: Buffer,
+    /// Sources of the setups this pass takes (twice the scene's emitters).
     emitters: usize,
     settings: RenderSettings,
 }
@@ -86,14 +89,17 @@ pub struct PhotonPass {
 pub fn photon_pipeline(ctx: &VkContext) -> Result<RtPipeline, VkError> {
     let source = arpa_core::shaders::compose(&[&PHOTON_RAYGEN]);
     use BindingKind::{StorageBuffer as Sb, UniformBuffer as Ub};
-    scene_pipeline(ctx, "photon pass", &source, "vk_photon_raygen", &[Ub, Sb, Sb, Sb, Sb, Sb])
+    scene_pipeline(ctx, "photon pass", &source, "vk_photon_raygen", &[Ub, Sb, Sb, Sb, Sb, Sb, Sb])
 }
 
 impl PhotonPass {
-    /// The pass on `pipeline` ([`photon_pipeline`]) for a scene with `emitters` emitters
-    /// under `settings`.
-    pub fn new(ctx: &VkContext, pipeline: &Arc<RtPipeline>, emitters: usize, settings: &RenderSettings) -> Result<Self, VkError> {
+    /// The pass on `pipeline` ([`photon_pipeline`]) for the scene `prepared` (its
+    /// emitters; its projection cells are written here) under `settings`.
+    pub fn new(ctx: &VkContext, pipeline: &Arc<RtPipeline>, prepared: &arpa_core::prepared_scene::PreparedScene, settings: &RenderSettings) -> Result<Self, VkError> {
         let pipeline = Arc::clone(pipeline);
+        // A global and a caustic source per emitter (PhotonPassSetup).
+        let emitters = 2 * prepared.emitters().len();
+        let cell_table = arpa_core::gpu::layout::cell_table(prepared);
         let n = emitters.max(1) as u64;
         let host = MemoryLocation::CpuToGpu;
         Ok(Self {
@@ -102,6 +108,11 @@ impl PhotonPass {
             params: ctx.create_buffer("photon pass parameters", size_of::<PhotonParams>() as u64, vk::BufferUsageFlags::UNIFORM_BUFFER, host)?,
             lights: ctx.create_buffer("photon pass lights", n * size_of::<PackedLight>() as u64, vk::BufferUsageFlags::STORAGE_BUFFER, host)?,
             ranges: ctx.create_buffer("photon pass emitter ranges", n * size_of::<EmitterRange>() as u64, vk::BufferUsageFlags::STORAGE_BUFFER, host)?,
+            cells: {
+                let mut b = ctx.create_buffer("photon pass projection cells", (cell_table.len() * size_of::<u32>()) as u64, vk::BufferUsageFlags::STORAGE_BUFFER, host)?;
+                b.write(0, bytemuck::cast_slice(&cell_table))?;
+                b
+            },
             emitters,
             settings: *settings,
         })
@@ -117,6 +128,7 @@ impl PhotonPass {
             Resource::StorageBuffer(&out.footprints),
             Resource::StorageBuffer(&out.photons),
             Resource::StorageBuffer(&out.counters),
+            Resource::StorageBuffer(&self.cells),
         ];
         self.bindings = Some(self.pipeline.bind(&[&scene.resources(), &pass])?);
         Ok(())

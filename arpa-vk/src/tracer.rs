@@ -334,7 +334,7 @@ impl Tracer for VkTracer {
         let queries = ctx.create_buffer("query records", (u64::from(pixels) * QUERY_RECORD_BYTES).max(QUERY_RECORD_BYTES), storage, MemoryLocation::GpuOnly)?;
         let image = ctx.create_buffer("iteration image", (u64::from(pixels) * 16).max(16), storage, MemoryLocation::GpuOnly)?;
         let camera = CameraPass::new(ctx, &pipelines.camera, &vk_scene, CameraParams::new(&scene.camera, settings, width)?, &queries)?;
-        let mut photon = PhotonPass::new(ctx, &pipelines.photon, prepared.emitters().len(), settings)?;
+        let mut photon = PhotonPass::new(ctx, &pipelines.photon, &prepared, settings)?;
         let batch_photons = self.batch_photons.unwrap_or(settings.photons_per_iteration).min(settings.photons_per_iteration);
         let fp_cap = initial_capacity(batch_photons, self.initial_capacity, limits.raw_footprints);
         let ph_cap = initial_capacity(batch_photons, self.initial_capacity, limits.photons);
@@ -398,6 +398,7 @@ impl Tracer for VkTracer {
             st.batch_photons = batch_photons;
             st.radii = setup.radii.map(|r| r as f32);
             clock.stats_mut().radii = setup.radii;
+            setup.record_plan(clock.stats_mut());
             Ok(())
         });
         st.clock = clock;

@@ -158,16 +158,21 @@ pub struct PhotonPass {
     params: wgpu::Buffer,
     lights: wgpu::Buffer,
     ranges: wgpu::Buffer,
+    /// The scene's projection cells ([`arpa_core::gpu::layout::cell_table`]), written once.
+    cells: wgpu::Buffer,
+    /// Sources of the setups this pass takes (twice the scene's emitters).
     emitters: usize,
     settings: RenderSettings,
 }
 
 impl PhotonPass {
-    /// Compiles the pass for `scene` (uploaded with its bind group 0) with `emitters`
-    /// emitters (the prepared scene's [`arpa_core::prepared_scene::PreparedScene::emitters`]
-    /// count) and the method, seed, `max_depth`, direct-lighting flag and smoothing of
-    /// `settings`.
-    pub fn new(ctx: &GpuContext, scene: &GpuScene, emitters: usize, settings: &RenderSettings) -> Result<Self, PhotonPassError> {
+    /// Compiles the pass for `scene` (uploaded with its bind group 0), the upload of
+    /// `prepared` (its emitters and projection cells, which are written here), and the
+    /// method, seed, `max_depth`, direct-lighting flag and smoothing of `settings`.
+    pub fn new(ctx: &GpuContext, scene: &GpuScene, prepared: &arpa_core::prepared_scene::PreparedScene, settings: &RenderSettings) -> Result<Self, PhotonPassError> {
+        // A global and a caustic source per emitter (PhotonPassSetup).
+        let emitters = 2 * prepared.emitters().len();
+        let cell_table = arpa_core::gpu::layout::cell_table(prepared);
         let device = &ctx.device;
         let label = "photon pass";
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
@@ -181,6 +186,7 @@ impl PhotonPass {
                 storage_entry(3, false),
                 storage_entry(4, false),
                 storage_entry(5, false),
+                storage_entry(6, true),
             ],
         });
         let pipeline = scene_pipeline(device, label, &module, scene, &layout, "photon_pass");
@@ -197,6 +203,11 @@ impl PhotonPass {
             params: buffer(size_of::<PhotonParams>() as u64, wgpu::BufferUsages::UNIFORM),
             lights: buffer(n * size_of::<PackedLight>() as u64, wgpu::BufferUsages::STORAGE),
             ranges: buffer(n * size_of::<EmitterRange>() as u64, wgpu::BufferUsages::STORAGE),
+            cells: {
+                let b = buffer((cell_table.len() * size_of::<u32>()) as u64, wgpu::BufferUsages::STORAGE);
+                ctx.queue.write_buffer(&b, 0, bytemuck::cast_slice(&cell_table));
+                b
+            },
             emitters,
             settings: *settings,
         })
@@ -270,6 +281,7 @@ impl PhotonPass {
                 wgpu::BindGroupEntry { binding: 3, resource: out.footprints.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 4, resource: out.photons.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 5, resource: out.counters.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 6, resource: self.cells.as_entire_binding() },
             ],
         });
         encoder.clear_buffer(&out.counters, 0, None);

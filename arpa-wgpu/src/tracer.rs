@@ -317,7 +317,7 @@ impl Tracer for WgpuTracer {
         let gpu_scene = GpuScene::upload(&self.ctx, &prepared).map_err(|e| WgpuError::SceneUpload(e.to_string()))?;
         let ctx = &self.ctx;
         let camera = CameraPass::new(ctx, &gpu_scene, &prepared, settings)?;
-        let photon = PhotonPass::new(ctx, &gpu_scene, prepared.emitters().len(), settings)?;
+        let photon = PhotonPass::new(ctx, &gpu_scene, &prepared, settings)?;
         let limits = RecordLimits::new(binding_bytes(ctx, self.binding_limit));
         let batch_photons = self.batch_photons.unwrap_or(settings.photons_per_iteration).min(settings.photons_per_iteration);
         let fp_cap = initial_capacity(batch_photons, self.initial_capacity, limits.raw_footprints);
@@ -392,6 +392,7 @@ impl Tracer for WgpuTracer {
             })?;
             st.batch_photons = batch_photons;
             clock.stats_mut().radii = setup.radii;
+            setup.record_plan(clock.stats_mut());
             Ok(())
         });
         st.clock = clock;

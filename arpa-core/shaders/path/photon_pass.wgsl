@@ -48,12 +48,14 @@ struct PhotonParams {
     pad1: vec2<f32>,
 }
 
-// Per emitter: its global photon range and whether it emits (layout::EmitterRange, 16 bytes).
+// Per source (an emitter's global or caustic pass, PhotonPassSetup): its global photon
+// range, whether it emits, and whether it is a caustic-pass source (layout::EmitterRange,
+// 16 bytes).
 struct PhotonEmitterRange {
     first_index: u32,
     count: u32,
     valid: u32,
-    pad: u32,
+    caustic_only: u32,
 }
 
 // layout::PhotonCounters (48 bytes).
@@ -78,6 +80,8 @@ struct PhotonCounters {
 @group(1) @binding(3) var<storage, read_write> photon_footprints: array<ArpaKeyedFootprint>;
 @group(1) @binding(4) var<storage, read_write> photon_photons: array<ArpaKeyedPhoton>;
 @group(1) @binding(5) var<storage, read_write> photon_counters: PhotonCounters;
+// Every source's projection cells (layout::EmitterTables::cells; ArpaLight::cell_first).
+@group(1) @binding(6) var<storage, read> photon_cells: array<u32>;
 
 fn photon_max3(v: vec3<f32>) -> f32 {
     return max(v.x, max(v.y, v.z));
@@ -232,7 +236,16 @@ fn photon_trace(index: u32) -> u32 {
     }
     let local = index - photon_ranges[e].first_index;
     var rng = arpa_rng_new(photon_params.seed, photon_params.iteration, index, ARPA_DOMAIN_PHOTON);
-    let emitted = arpa_emit(photon_lights[e], local, &rng);
+    let light = photon_lights[e];
+    var cell = 0u;
+    if light.cell_count != 0u {
+        cell = photon_cells[light.cell_first + arpa_emission_slot(light, local, rng)];
+    }
+    let emitted = arpa_emit_in(light, local, &rng, cell);
+    // A caustic-pass photon stores only caustic records and ends at its first diffuse hit;
+    // every caustic record is weighted by the source's balance weight (PhotonWalk).
+    let caustic_only = photon_ranges[e].caustic_only != 0u;
+    let caustic_weight = light.caustic_weight;
     if emitted.status != ARPA_DIFF_OK {
         return segments;
     }
@@ -280,6 +293,9 @@ fn photon_trace(index: u32) -> u32 {
             if specular_events > 0u && diffuse_events == 0u {
                 map = 0u;
             }
+            if caustic_only && map != 0u {
+                break;
+            }
             diffuse_events += 1u;
             let first_interaction = diffuse_events == 1u && specular_events == 0u;
             // DiffuseShading::new(front, shading normal, -d) and its adjoint ratio.
@@ -295,9 +311,17 @@ fn photon_trace(index: u32) -> u32 {
                     break;
                 }
             }
-            if !(photon_params.direct_lighting != 0u && first_interaction) {
+            let weighted = map == 0u && caustic_weight != 1.0;
+            if !(photon_params.direct_lighting != 0u && first_interaction) && !(map == 0u && caustic_weight == 0.0) {
                 let below = shaded && arpa_diffuse_below_shading_plane(shading);
-                photon_store(at, s.geometric_normal, flux, map, valid, below, key);
+                var stored_flux = flux;
+                if weighted {
+                    stored_flux = flux * caustic_weight;
+                }
+                photon_store(at, s.geometric_normal, stored_flux, map, valid, below, key);
+            }
+            if caustic_only {
+                break;
             }
             let survive = min(photon_max3(s.color), 1.0);
             if !arpa_rng_next_below(&rng, survive) {

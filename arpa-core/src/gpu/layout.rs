@@ -212,14 +212,17 @@ pub struct EmitterRange {
     pub count: u32,
     /// 1 if the emitter can emit.
     pub valid: u32,
-    /// Padding.
-    pub pad: u32,
+    /// 1 for a caustic-pass source (its photons store only caustic records and end at
+    /// their first diffuse hit; [`crate::photon_path::PhotonPassSetup`]).
+    pub caustic_only: u32,
 }
-layout!(EmitterRange, 16, { first_index: 0, count: 4, valid: 8 });
+layout!(EmitterRange, 16, { first_index: 0, count: 4, valid: 8, caustic_only: 12 });
 
 /// The photon pass's light and range buffers of an iteration: one
-/// [`crate::emission::PackedLight`] and one [`EmitterRange`] per emitter (one zeroed
-/// element each for a scene without emitters: storage bindings must not be empty).
+/// [`crate::emission::PackedLight`] (with its caustic weight and the place of its cells
+/// in [`cell_table`]) and one [`EmitterRange`] per source of `setup` (`2 ×` the scene's
+/// emitters; one zeroed element each for a scene without emitters: storage bindings must
+/// not be empty).
 #[cfg(feature = "alloc")]
 #[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 pub fn emitter_tables(setup: &crate::photon_path::PhotonPassSetup) -> (alloc::vec::Vec<crate::emission::PackedLight>, alloc::vec::Vec<EmitterRange>) {
@@ -227,12 +230,32 @@ pub fn emitter_tables(setup: &crate::photon_path::PhotonPassSetup) -> (alloc::ve
     let mut lights = alloc::vec![crate::emission::PackedLight::default(); n];
     let mut ranges = alloc::vec![EmitterRange::default(); n];
     for (e, light) in setup.lights.iter().enumerate() {
-        ranges[e] = EmitterRange { first_index: setup.first_index[e], count: setup.allocation[e], valid: light.is_some() as u32, pad: 0 };
+        let caustic_only = setup.is_caustic_source(e) as u32;
+        ranges[e] = EmitterRange { first_index: setup.first_index[e], count: setup.allocation[e], valid: light.is_some() as u32, caustic_only };
         if let Some(l) = light {
-            lights[e] = l.pack();
+            let mut packed = l.pack();
+            packed.caustic_weight = setup.caustic_weight[e] as f32;
+            packed.cell_first = setup.cell_first[e];
+            lights[e] = packed;
         }
     }
     (lights, ranges)
+}
+
+/// The photon pass's cell buffer of `scene` (`photon_cells`, the same every iteration):
+/// every emitter's geometry cells, then every emitter's specular cells
+/// ([`crate::projection::LightProjection`]), in the order of the sources
+/// ([`crate::photon_path::PhotonPassSetup::cell_first`]); one zero for a scene without
+/// any (storage bindings must not be empty).
+#[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
+pub fn cell_table(scene: &crate::prepared_scene::PreparedScene) -> alloc::vec::Vec<u32> {
+    let p = scene.projections();
+    let mut cells: alloc::vec::Vec<u32> = p.iter().flat_map(|p| p.geometry.cells.iter().copied()).chain(p.iter().flat_map(|p| p.specular.cells.iter().copied())).collect();
+    if cells.is_empty() {
+        cells.push(0);
+    }
+    cells
 }
 
 /// Per-batch inputs of the keyed store (not a device record: [`StoreParams::new`] makes

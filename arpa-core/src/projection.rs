@@ -1,0 +1,454 @@
+//! Projection maps: which part of each light's emission domain can reach geometry, and
+//! which part can reach a specular (mirror, glass) object; and the plan of an
+//! iteration's two photon passes built on them.
+//!
+//! **Maps.** A light's emission domain is the image of the unit square under its
+//! equal-area map (the sphere of a point light, the cone of a spot, the aperture disc of a
+//! directional light, the cosine-weighted hemisphere of an area light's directions). A
+//! `grid` × `grid` grid over the unit square cuts it into cells of equal measure (Jensen's
+//! projection maps, 1996). A cell is kept when its image can see a target: the
+//! geometry is summarised by bounding spheres of [`CLUSTER_SIZE`] triangles each, in
+//! Morton order, and a cell is kept when a bounding cap of its image (for directions: an
+//! angular cap around the direction of its centre; for the aperture: a disc) meets the
+//! cone of directions from the light towards a sphere (for an area light: from any point
+//! of its bounding sphere; for a directional light: the sphere's shadow on the aperture).
+//! The test is conservative: every ray from the light that hits a target triangle starts
+//! in a kept cell. A cap's radius is the largest distance from the cell's centre image to
+//! points of its boundary's image sampled [`EDGE_SAMPLES`] per edge, plus the largest gap
+//! between neighbouring samples (the maps are smooth and the cells small, so the boundary
+//! between two samples stays within a gap of them), with a relative margin.
+//!
+//! **Unbiased.** A light that samples only the kept cells `C` of its domain emits with
+//! density `1/|C|` there instead of `1/|D|`, so each photon carries `|C|/|D|` of the
+//! light's power per photon ([`crate::emission::CellDomain`]); photons into the rest could
+//! not have reached a target, so what they would have stored is zero.
+//!
+//! **Two passes.** With projection on ([`crate::tracer::EmissionStrategy`]) the global
+//! pass sends its photons into the cells that see any geometry and stores every record
+//! (caustic ones too, see below); the caustic pass sends its own photons into the cells
+//! that see a specular object and stores only caustic records (`L S+ D`: its photons end
+//! at their first diffuse hit). Caustic records then come from two strategies with
+//! densities `N_g/f_g` and `N_c/f_c` per unit of the light's domain (`f` the kept
+//! fractions); the balance heuristic weights a global-pass caustic record by
+//! `w_g = (N_g/f_g) / (N_g/f_g + N_c/f_c)` and a caustic-pass one by `w_c = 1 − w_g`
+//! (constants per light: both densities are uniform over the caustic cells, which the
+//! global cells contain). Where `w_g` falls below [`MIN_GLOBAL_CAUSTIC_WEIGHT`] the global
+//! pass stores no caustic record at all and the caustic pass takes weight 1: its footprints
+//! are small and the global pass's would add little but gather work.
+
+use crate::emission::{CellDomain, Light};
+use crate::frame::Frame;
+use crate::prepared_scene::PreparedScene;
+use crate::sampling::{cosine_hemisphere, uniform_cone, uniform_disc, uniform_sphere};
+use crate::tracer::{PassSkip, RenderSettings, Skipped};
+use alloc::vec::Vec;
+use glam::{DVec2, DVec3};
+
+/// Cells per side of the projection grid of point, spot and directional lights.
+pub const DELTA_GRID: u32 = 64;
+/// Cells per side of the projection grid over an area light's directions.
+pub const AREA_GRID: u32 = 32;
+/// Triangles per bounding sphere of the targets.
+pub const CLUSTER_SIZE: usize = 16;
+/// Boundary points sampled per cell edge for its bounding cap.
+pub const EDGE_SAMPLES: u32 = 6;
+/// Cells per side of the blocks tested before their cells.
+const BLOCK: u32 = 8;
+/// Below this balance weight the global pass stores no caustic records.
+pub const MIN_GLOBAL_CAUSTIC_WEIGHT: f64 = 0.2;
+/// The caustic pass's automatic share of the global pass's photons is at most this.
+pub const MAX_AUTO_CAUSTIC_SHARE: f64 = 0.5;
+
+/// A sphere bounding some triangles (metres).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BoundingSphere {
+    /// Centre (m).
+    pub centre: DVec3,
+    /// Radius (m).
+    pub radius: f64,
+}
+
+/// Bounding spheres of `triangles` (vertices in metres), [`CLUSTER_SIZE`] triangles each
+/// in the Morton order of their centroids, so that each sphere stays small.
+pub fn cluster_spheres(triangles: &[[DVec3; 3]]) -> Vec<BoundingSphere> {
+    if triangles.is_empty() {
+        return Vec::new();
+    }
+    let centroid = |t: &[DVec3; 3]| (t[0] + t[1] + t[2]) / 3.0;
+    let bounds = crate::aabb::Aabb::from_points(triangles.iter().map(centroid));
+    let (lo, hi) = (bounds.min.as_vec3().to_array(), bounds.max.as_vec3().to_array());
+    let inv = crate::gpu::morton::inverse_extent(lo, hi);
+    let mut order: Vec<(u32, usize)> = triangles.iter().enumerate().map(|(i, t)| (crate::gpu::morton::morton_code(centroid(t).as_vec3().to_array(), lo, inv), i)).collect();
+    order.sort_unstable();
+    order
+        .chunks(CLUSTER_SIZE)
+        .map(|chunk| {
+            let b = crate::aabb::Aabb::from_points(chunk.iter().flat_map(|&(_, i)| triangles[i]));
+            let centre = (b.min + b.max) * 0.5;
+            let r = chunk.iter().flat_map(|&(_, i)| triangles[i]).map(|p| (p - centre).length()).fold(0.0, f64::max);
+            // f32 vertices in the ray casts: a relative margin covers their rounding.
+            BoundingSphere { centre, radius: r * (1.0 + 1e-6) + 1e-6 * (1.0 + centre.abs().max_element()) }
+        })
+        .collect()
+}
+
+/// The cells of a light's emission domain that a projection keeps.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct DomainCells {
+    /// Cells per side of the grid; 0: the whole domain (every cell kept, no list).
+    pub grid: u32,
+    /// The kept cells, `ix + iy · grid`, ascending (empty with `grid` 0).
+    pub cells: Vec<u32>,
+}
+
+impl DomainCells {
+    /// The whole domain.
+    pub const fn whole() -> Self {
+        Self { grid: 0, cells: Vec::new() }
+    }
+
+    /// The domain the emission samples ([`CellDomain`]).
+    pub fn domain(&self) -> CellDomain {
+        CellDomain { grid: self.grid, count: self.cells.len() as u32 }
+    }
+
+    /// Fraction of the domain's measure kept.
+    pub fn fraction(&self) -> f64 {
+        self.domain().fraction()
+    }
+
+    /// Whether no cell is kept (the light cannot reach any target).
+    pub fn is_empty(&self) -> bool {
+        self.grid != 0 && self.cells.is_empty()
+    }
+}
+
+/// A light's two projections.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct LightProjection {
+    /// Cells that see any geometry (the global pass).
+    pub geometry: DomainCells,
+    /// Cells that see a mirror or glass object (the caustic pass).
+    pub specular: DomainCells,
+}
+
+/// Where a light's cell images live: unit directions (distances are angles) or the
+/// aperture plane (distances in metres).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Space {
+    Directions,
+    Aperture,
+}
+
+/// A cap bounding the image of a cell or block: its centre and radius (radians or metres).
+#[derive(Clone, Copy, Debug)]
+struct Cap {
+    centre: DVec3,
+    radius: f64,
+}
+
+/// Angle between unit vectors (radians), accurate also for small angles.
+fn angle(a: DVec3, b: DVec3) -> f64 {
+    libm::atan2(a.cross(b).length(), a.dot(b))
+}
+
+/// A target as the light sees it: a cone of directions (axis, half-angle) or a disc on
+/// the aperture (centre, radius); `None` for a target that every cell sees.
+#[derive(Clone, Copy, Debug)]
+struct Seen {
+    centre: DVec3,
+    radius: f64,
+}
+
+/// The projection of the light `light` in a scene with bounding sphere `scene_sphere`
+/// onto the targets `targets`: the kept cells (all cells give [`DomainCells::whole`]).
+pub fn project(light: &Light, scene_sphere: (DVec3, f64), targets: &[BoundingSphere]) -> DomainCells {
+    let (grid, space, map): (u32, Space, &dyn Fn(DVec2) -> DVec3) = match light {
+        Light::Point(_) => (DELTA_GRID, Space::Directions, &|u| uniform_sphere(u)),
+        Light::Spot(l) => {
+            let frame = Frame::from_normal(l.direction);
+            let cos_cutoff = libm::cos(l.cutoff);
+            return project_with(DELTA_GRID, Space::Directions, &move |u| frame.to_world(uniform_cone(u, cos_cutoff)), targets, |t| seen_from(l.position, 0.0, t));
+        }
+        Light::Directional(l) => {
+            let frame = Frame::from_normal(l.direction.normalize());
+            let (centre, radius) = scene_sphere;
+            return project_with(
+                DELTA_GRID,
+                Space::Aperture,
+                &move |u| {
+                    let d = uniform_disc(u) * radius;
+                    DVec3::new(d.x, d.y, 0.0)
+                },
+                targets,
+                |t| {
+                    let rel = t.centre - centre;
+                    Some(Seen { centre: DVec3::new(rel.dot(frame.t), rel.dot(frame.b), 0.0), radius: t.radius })
+                },
+            );
+        }
+        Light::Triangle(_) | Light::Quad(_) => {
+            let (frame, corners): (Frame, alloc::vec::Vec<DVec3>) = match light {
+                Light::Triangle(l) => (Frame::from_normal_and_hint((l.p[1] - l.p[0]).cross(l.p[2] - l.p[0]), l.p[1] - l.p[0]), l.p.to_vec()),
+                Light::Quad(l) => (Frame::from_normal_and_hint(l.edge_u.cross(l.edge_v), l.edge_u), alloc::vec![l.origin, l.origin + l.edge_u, l.origin + l.edge_v, l.origin + l.edge_u + l.edge_v]),
+                _ => unreachable!(),
+            };
+            let b = crate::aabb::Aabb::from_points(corners.iter().copied());
+            let c = (b.min + b.max) * 0.5;
+            let r = corners.iter().map(|p| (*p - c).length()).fold(0.0, f64::max);
+            return project_with(AREA_GRID, Space::Directions, &move |u| frame.to_world(cosine_hemisphere(u)), targets, |t| seen_from(c, r, t));
+        }
+    };
+    let Light::Point(l) = light else { unreachable!() };
+    project_with(grid, space, map, targets, |t| seen_from(l.position, 0.0, t))
+}
+
+/// The cone of directions from a ball (centre `o`, radius `r_o`) towards the target;
+/// `None` when the two overlap (every direction may reach it).
+fn seen_from(o: DVec3, r_o: f64, t: &BoundingSphere) -> Option<Seen> {
+    let v = t.centre - o;
+    let d = v.length();
+    let r = t.radius + r_o;
+    if !(d > r) || !d.is_finite() {
+        return None;
+    }
+    Some(Seen { centre: v / d, radius: libm::asin((r / d).min(1.0)) })
+}
+
+fn project_with(grid: u32, space: Space, map: &dyn Fn(DVec2) -> DVec3, targets: &[BoundingSphere], seen: impl Fn(&BoundingSphere) -> Option<Seen>) -> DomainCells {
+    let dist = |a: DVec3, b: DVec3| match space {
+        Space::Directions => angle(a, b),
+        Space::Aperture => (a - b).length(),
+    };
+    let cap = |x0: u32, y0: u32, size: u32| -> Cap {
+        let g = grid as f64;
+        let (u0, v0) = (x0 as f64 / g, y0 as f64 / g);
+        let side = size as f64 / g;
+        let centre = map(DVec2::new(u0 + 0.5 * side, v0 + 0.5 * side));
+        let n = EDGE_SAMPLES * size.min(4);
+        let mut boundary = Vec::with_capacity(4 * n as usize);
+        for k in 0..n {
+            let t = k as f64 / n as f64;
+            boundary.push(map(DVec2::new(u0 + t * side, v0)));
+        }
+        for k in 0..n {
+            let t = k as f64 / n as f64;
+            boundary.push(map(DVec2::new(u0 + side, v0 + t * side)));
+        }
+        for k in 0..n {
+            let t = k as f64 / n as f64;
+            boundary.push(map(DVec2::new(u0 + side - t * side, v0 + side)));
+        }
+        for k in 0..n {
+            let t = k as f64 / n as f64;
+            boundary.push(map(DVec2::new(u0, v0 + side - t * side)));
+        }
+        let far = boundary.iter().map(|&b| dist(centre, b)).fold(0.0, f64::max);
+        let gap = (0..boundary.len()).map(|i| dist(boundary[i], boundary[(i + 1) % boundary.len()])).fold(0.0, f64::max);
+        Cap { centre, radius: (far + gap) * 1.01 + 1e-9 }
+    };
+    let blocks = grid.div_ceil(BLOCK);
+    let block_caps: Vec<Cap> = (0..blocks * blocks).map(|b| cap((b % blocks) * BLOCK, (b / blocks) * BLOCK, BLOCK)).collect();
+    let mut cell_caps: Vec<Option<Cap>> = alloc::vec![None; (grid * grid) as usize];
+    let mut kept = alloc::vec![false; (grid * grid) as usize];
+    let mut all = false;
+    for t in targets {
+        let Some(s) = seen(t) else {
+            all = true;
+            break;
+        };
+        for (b, bc) in block_caps.iter().enumerate() {
+            if dist(bc.centre, s.centre) > bc.radius + s.radius {
+                continue;
+            }
+            let (bx, by) = ((b as u32 % blocks) * BLOCK, (b as u32 / blocks) * BLOCK);
+            for y in by..(by + BLOCK).min(grid) {
+                for x in bx..(bx + BLOCK).min(grid) {
+                    let i = (x + y * grid) as usize;
+                    if kept[i] {
+                        continue;
+                    }
+                    let c = *cell_caps[i].get_or_insert_with(|| cap(x, y, 1));
+                    if dist(c.centre, s.centre) <= c.radius + s.radius {
+                        kept[i] = true;
+                    }
+                }
+            }
+        }
+    }
+    if all || kept.iter().all(|&k| k) {
+        return DomainCells::whole();
+    }
+    DomainCells { grid, cells: (0..grid * grid).filter(|&i| kept[i as usize]).collect() }
+}
+
+/// Why the caustic pass cannot run for the scene, from its projections (`None`: it can).
+fn caustic_skip(scene: &PreparedScene) -> Option<PassSkip> {
+    if !scene.has_specular() {
+        return Some(PassSkip::NoSpecularSurface);
+    }
+    if scene.projections().iter().all(|p| p.specular.is_empty()) {
+        return Some(PassSkip::SpecularUnreached);
+    }
+    None
+}
+
+/// The photons of the caustic pass chosen from the projected power:
+/// `N_g · min(1/2, √q) · (1 − q)` for the global pass's `N_g` photons and `q` the power
+/// the lights send towards specular objects over the power they send towards any
+/// geometry (luminance). `q` is the share of the global photons that head for a specular
+/// object already; the caustic pass adds `min(1/2, √q)(1 − q) / q` times their density
+/// (about `1/√q` for small `q`) for a share of about `√q` more photons (short ones: they
+/// end at their first diffuse hit), never more than half the global photons, and none
+/// where every photon heads for a specular object anyway (`q = 1`: aiming gains nothing
+/// there). At least one photon when `0 < q < 1`; the caller takes `N_g` itself when the
+/// global pass does not run.
+pub fn auto_caustic_photons(scene: &PreparedScene, global_photons: u32) -> u32 {
+    let (mut caustic, mut global) = (0.0, 0.0);
+    for (p, power) in scene.projections().iter().zip(scene.emitter_powers()) {
+        caustic += power * if p.specular.is_empty() { 0.0 } else { p.specular.fraction() };
+        global += power * if p.geometry.is_empty() { 0.0 } else { p.geometry.fraction() };
+    }
+    if !(caustic > 0.0) || !(global > 0.0) {
+        return 0;
+    }
+    let q = (caustic / global).min(1.0);
+    let share = libm::sqrt(q).min(MAX_AUTO_CAUSTIC_SHARE) * (1.0 - q);
+    if !(share > 0.0) {
+        return 0;
+    }
+    (libm::ceil(global_photons as f64 * share) as u32).max(1)
+}
+
+/// Why the global pass cannot store anything (`None`: it can).
+fn global_skip(scene: &PreparedScene, settings: &RenderSettings) -> Option<PassSkip> {
+    if scene.projections().iter().all(|p| p.geometry.is_empty()) {
+        return Some(PassSkip::NoLightReachesGeometry);
+    }
+    if settings.direct_lighting && !scene.can_bounce_twice(settings.max_depth) {
+        return Some(PassSkip::NothingToBounceTo);
+    }
+    None
+}
+
+/// What one light emits in each pass of an iteration.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightPlan {
+    /// Photons of the global pass.
+    pub global: u32,
+    /// Photons of the caustic pass.
+    pub caustic: u32,
+    /// Weight of the caustic records the global pass stores (0: it stores none).
+    pub global_caustic_weight: f64,
+    /// Weight of the caustic pass's records (1 when the global pass stores none).
+    pub caustic_weight: f64,
+}
+
+/// The photon budget of an iteration over the lights and the two passes, with what it
+/// skipped.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EmissionPlan {
+    /// Per emitter (in [`PreparedScene::emitters`] order).
+    pub lights: Vec<LightPlan>,
+    /// Whether the lights sample their projection cells (projection on).
+    pub projected: bool,
+    /// What was skipped.
+    pub skipped: Skipped,
+}
+
+impl EmissionPlan {
+    /// The plan for `scene` under `settings` (the same every iteration).
+    pub fn new(scene: &PreparedScene, settings: &RenderSettings) -> Self {
+        let n = scene.emitters().len();
+        let strategy = settings.emission;
+        if !strategy.projection {
+            let global = scene.photon_allocation(settings.photons_per_iteration);
+            let lights = global.into_iter().map(|g| LightPlan { global: g, caustic: 0, global_caustic_weight: 1.0, caustic_weight: 0.0 }).collect();
+            return Self { lights, projected: false, skipped: Skipped::default() };
+        }
+        let projections = scene.projections();
+        let powers = scene.emitter_powers();
+        let mut skipped = Skipped::default();
+        let total_power: f64 = powers.iter().sum();
+        let mut unreached = 0.0;
+        for (p, power) in projections.iter().zip(powers) {
+            if p.geometry.is_empty() {
+                skipped.lights += 1;
+            }
+            let f = if p.geometry.is_empty() { 0.0 } else { p.geometry.fraction() };
+            unreached += power * (1.0 - f);
+        }
+        skipped.power_fraction = if total_power > 0.0 { unreached / total_power } else { 0.0 };
+        skipped.global_pass = global_skip(scene, settings);
+        skipped.caustic_pass = caustic_skip(scene);
+        let geometry_power: Vec<f64> = projections.iter().zip(powers).map(|(p, w)| if p.geometry.is_empty() { 0.0 } else { w * p.geometry.fraction() }).collect();
+        let specular_power: Vec<f64> = projections.iter().zip(powers).map(|(p, w)| if p.specular.is_empty() { 0.0 } else { w * p.specular.fraction() }).collect();
+        let global_total = if skipped.global_pass.is_some() { 0 } else { settings.photons_per_iteration };
+        let global = allocate(&geometry_power, global_total);
+        let caustic_total = match (skipped.caustic_pass, strategy.caustic_photons) {
+            (Some(_), _) => 0,
+            (None, Some(c)) => c,
+            (None, None) if global_total == 0 => settings.photons_per_iteration,
+            (None, None) => auto_caustic_photons(scene, global_total),
+        };
+        if skipped.caustic_pass.is_none() && caustic_total == 0 {
+            skipped.caustic_pass = Some(PassSkip::NoCausticPhotons);
+        }
+        let caustic = allocate(&specular_power, caustic_total);
+        let lights = (0..n)
+            .map(|e| {
+                let p = &projections[e];
+                let (g, c) = (global[e], caustic[e]);
+                let dg = if g > 0 { g as f64 / p.geometry.fraction() } else { 0.0 };
+                let dc = if c > 0 { c as f64 / p.specular.fraction() } else { 0.0 };
+                let (wg, wc) = if dc == 0.0 {
+                    (1.0, 0.0)
+                } else {
+                    let wg = dg / (dg + dc);
+                    if wg < MIN_GLOBAL_CAUSTIC_WEIGHT { (0.0, 1.0) } else { (wg, 1.0 - wg) }
+                };
+                LightPlan { global: g, caustic: c, global_caustic_weight: wg, caustic_weight: wc }
+            })
+            .collect();
+        Self { lights, projected: true, skipped }
+    }
+
+    /// Photons of the `[caustic, global]` passes.
+    pub fn pass_photons(&self) -> [u32; 2] {
+        [self.lights.iter().map(|l| l.caustic).sum(), self.lights.iter().map(|l| l.global).sum()]
+    }
+}
+
+/// `total` shared in proportion to `weights` by largest remainders, at least one each for
+/// a positive weight while `total` allows ([`PreparedScene::photon_allocation`]'s rule).
+pub fn allocate(weights: &[f64], total: u32) -> Vec<u32> {
+    let n = weights.len();
+    let sum: f64 = weights.iter().sum();
+    if n == 0 || total == 0 || !(sum > 0.0) {
+        return alloc::vec![0; n];
+    }
+    let mut counts: Vec<u32> = Vec::with_capacity(n);
+    let mut remainders: Vec<(f64, usize)> = Vec::with_capacity(n);
+    for (i, p) in weights.iter().enumerate() {
+        let exact = total as f64 * p / sum;
+        let floor = libm::floor(exact);
+        counts.push(floor as u32);
+        remainders.push((exact - floor, i));
+    }
+    let mut left = total.saturating_sub(counts.iter().sum());
+    remainders.sort_by(|a, b| {
+        let za = counts[a.1] == 0 && weights[a.1] > 0.0;
+        let zb = counts[b.1] == 0 && weights[b.1] > 0.0;
+        zb.cmp(&za).then(b.0.total_cmp(&a.0)).then(a.1.cmp(&b.1))
+    });
+    for &(_, i) in &remainders {
+        if left == 0 {
+            break;
+        }
+        if weights[i] > 0.0 {
+            counts[i] += 1;
+            left -= 1;
+        }
+    }
+    counts
+}
