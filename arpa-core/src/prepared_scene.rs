@@ -5,7 +5,7 @@
 use crate::aabb::Aabb;
 use crate::differential::{DifferentialError, NormalDifferential};
 use crate::emission::Light;
-use crate::projection::{cluster_spheres, project, DomainCells, LightProjection};
+use crate::projection::{project, DomainCells, LightProjection, Targets};
 use crate::prefetch::prefetch;
 use crate::ray_cast::RayHit;
 use crate::scene::{CameraFrame, Scattering, Scene, SceneError};
@@ -171,14 +171,15 @@ impl PreparedScene {
         let all: Vec<[DVec3; 3]> = scene.meshes.iter().flat_map(|m| m.indices.iter().map(move |&idx| vertices(m, idx))).collect();
         let specular: Vec<[DVec3; 3]> = scene.meshes.iter().filter(|m| is_specular(m)).flat_map(|m| m.indices.iter().map(move |&idx| vertices(m, idx))).collect();
         let has_specular = !specular.is_empty();
-        let (all_spheres, specular_spheres) = (cluster_spheres(&all), cluster_spheres(&specular));
+        let coplanar_geometry = coplanar(&all);
+        let (all_targets, specular_targets) = (Targets::new(all), Targets::new(specular));
         let sphere = scene.bounding_sphere();
         let projections = emitters
             .iter()
-            .map(|l| LightProjection { geometry: project(l, sphere, &all_spheres), specular: if has_specular { project(l, sphere, &specular_spheres) } else { DomainCells { grid: 1, cells: Vec::new() } } })
+            .map(|l| LightProjection { geometry: project(l, sphere, &all_targets), specular: if has_specular { project(l, sphere, &specular_targets) } else { DomainCells { grid: 1, cells: Vec::new() } } })
             .collect();
         let scatters = scene.meshes.iter().any(|m| matches!(scattering.get(m.material as usize), Some(Scattering::Diffuse(a)) if a.max_element() > 0.0));
-        let second_hit_possible = scatters && !coplanar(&all);
+        let second_hit_possible = scatters && !coplanar_geometry;
         Ok(Self {
             projections,
             has_specular,

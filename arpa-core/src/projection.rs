@@ -68,28 +68,65 @@ pub struct BoundingSphere {
     pub radius: f64,
 }
 
-/// Bounding spheres of `triangles` (vertices in metres), [`CLUSTER_SIZE`] triangles each
-/// in the Morton order of their centroids, so that each sphere stays small.
-pub fn cluster_spheres(triangles: &[[DVec3; 3]]) -> Vec<BoundingSphere> {
-    if triangles.is_empty() {
-        return Vec::new();
+/// Triangles a projection aims at, grouped in bounding spheres of [`CLUSTER_SIZE`]
+/// triangles in the Morton order of their centroids (so that each sphere stays small).
+/// A sphere that contains a point or spot light says nothing about its directions; its
+/// triangles are then tested one by one (their exact spherical triangles).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Targets {
+    triangles: Vec<[DVec3; 3]>,
+    /// Bounding sphere and triangle index range (into `order`) of each cluster.
+    clusters: Vec<(BoundingSphere, core::ops::Range<usize>)>,
+    /// Triangle indices in Morton order.
+    order: Vec<u32>,
+}
+
+impl Targets {
+    /// Clusters `triangles` (vertices in metres).
+    pub fn new(triangles: Vec<[DVec3; 3]>) -> Self {
+        if triangles.is_empty() {
+            return Self::default();
+        }
+        let centroid = |t: &[DVec3; 3]| (t[0] + t[1] + t[2]) / 3.0;
+        let bounds = crate::aabb::Aabb::from_points(triangles.iter().map(centroid));
+        let (lo, hi) = (bounds.min.as_vec3().to_array(), bounds.max.as_vec3().to_array());
+        let inv = crate::gpu::morton::inverse_extent(lo, hi);
+        let mut keyed: Vec<(u32, u32)> = triangles.iter().enumerate().map(|(i, t)| (crate::gpu::morton::morton_code(centroid(t).as_vec3().to_array(), lo, inv), i as u32)).collect();
+        keyed.sort_unstable();
+        let order: Vec<u32> = keyed.into_iter().map(|(_, i)| i).collect();
+        let clusters = (0..order.len())
+            .step_by(CLUSTER_SIZE)
+            .map(|start| {
+                let range = start..(start + CLUSTER_SIZE).min(order.len());
+                let points = || order[range.clone()].iter().flat_map(|&i| triangles[i as usize]);
+                let b = crate::aabb::Aabb::from_points(points());
+                let centre = (b.min + b.max) * 0.5;
+                let r = points().map(|p| (p - centre).length()).fold(0.0, f64::max);
+                // f32 vertices in the ray casts: a relative margin covers their rounding.
+                (BoundingSphere { centre, radius: r * (1.0 + 1e-6) + 1e-6 * (1.0 + centre.abs().max_element()) }, range)
+            })
+            .collect();
+        Self { triangles, clusters, order }
     }
-    let centroid = |t: &[DVec3; 3]| (t[0] + t[1] + t[2]) / 3.0;
-    let bounds = crate::aabb::Aabb::from_points(triangles.iter().map(centroid));
-    let (lo, hi) = (bounds.min.as_vec3().to_array(), bounds.max.as_vec3().to_array());
-    let inv = crate::gpu::morton::inverse_extent(lo, hi);
-    let mut order: Vec<(u32, usize)> = triangles.iter().enumerate().map(|(i, t)| (crate::gpu::morton::morton_code(centroid(t).as_vec3().to_array(), lo, inv), i)).collect();
-    order.sort_unstable();
-    order
-        .chunks(CLUSTER_SIZE)
-        .map(|chunk| {
-            let b = crate::aabb::Aabb::from_points(chunk.iter().flat_map(|&(_, i)| triangles[i]));
-            let centre = (b.min + b.max) * 0.5;
-            let r = chunk.iter().flat_map(|&(_, i)| triangles[i]).map(|p| (p - centre).length()).fold(0.0, f64::max);
-            // f32 vertices in the ray casts: a relative margin covers their rounding.
-            BoundingSphere { centre, radius: r * (1.0 + 1e-6) + 1e-6 * (1.0 + centre.abs().max_element()) }
-        })
-        .collect()
+
+    /// The clusters' bounding spheres.
+    pub fn spheres(&self) -> impl Iterator<Item = BoundingSphere> + '_ {
+        self.clusters.iter().map(|c| c.0)
+    }
+
+    /// Whether there is no target.
+    pub fn is_empty(&self) -> bool {
+        self.triangles.is_empty()
+    }
+
+    fn cluster_triangles(&self, c: usize) -> impl Iterator<Item = &[DVec3; 3]> + '_ {
+        self.order[self.clusters[c].1.clone()].iter().map(|&i| &self.triangles[i as usize])
+    }
+}
+
+/// Bounding spheres of `triangles` ([`Targets::new`]'s clusters).
+pub fn cluster_spheres(triangles: &[[DVec3; 3]]) -> Vec<BoundingSphere> {
+    Targets::new(triangles.to_vec()).spheres().collect()
 }
 
 /// The cells of a light's emission domain that a projection keeps.
@@ -152,43 +189,49 @@ fn angle(a: DVec3, b: DVec3) -> f64 {
     libm::atan2(a.cross(b).length(), a.dot(b))
 }
 
-/// A target as the light sees it: a cone of directions (axis, half-angle) or a disc on
-/// the aperture (centre, radius); `None` for a target that every cell sees.
+/// A target as the light sees it.
 #[derive(Clone, Copy, Debug)]
-struct Seen {
-    centre: DVec3,
-    radius: f64,
+enum Seen {
+    /// Directions within `radius` of `centre` (unit; radians), or aperture points within
+    /// `radius` of `centre` (metres).
+    Cap { centre: DVec3, radius: f64 },
+    /// Directions through the spherical triangle of these unit vertex directions.
+    Triangle([DVec3; 3]),
+    /// Every cell may see it.
+    All,
 }
 
 /// The projection of the light `light` in a scene with bounding sphere `scene_sphere`
-/// onto the targets `targets`: the kept cells (all cells give [`DomainCells::whole`]).
-pub fn project(light: &Light, scene_sphere: (DVec3, f64), targets: &[BoundingSphere]) -> DomainCells {
-    let (grid, space, map): (u32, Space, &dyn Fn(DVec2) -> DVec3) = match light {
-        Light::Point(_) => (DELTA_GRID, Space::Directions, &|u| uniform_sphere(u)),
+/// onto `targets`: the kept cells (all cells give [`DomainCells::whole`]).
+pub fn project(light: &Light, scene_sphere: (DVec3, f64), targets: &Targets) -> DomainCells {
+    match light {
+        Light::Point(l) => {
+            let o = l.position;
+            project_with(DELTA_GRID, Space::Directions, &|u| uniform_sphere(u), targets, |t| seen_from_point(o, t))
+        }
         Light::Spot(l) => {
             let frame = Frame::from_normal(l.direction);
             let cos_cutoff = libm::cos(l.cutoff);
-            return project_with(DELTA_GRID, Space::Directions, &move |u| frame.to_world(uniform_cone(u, cos_cutoff)), targets, |t| seen_from(l.position, 0.0, t));
+            let o = l.position;
+            project_with(DELTA_GRID, Space::Directions, &move |u| frame.to_world(uniform_cone(u, cos_cutoff)), targets, |t| seen_from_point(o, t))
         }
         Light::Directional(l) => {
             let frame = Frame::from_normal(l.direction.normalize());
             let (centre, radius) = scene_sphere;
-            return project_with(
-                DELTA_GRID,
-                Space::Aperture,
-                &move |u| {
-                    let d = uniform_disc(u) * radius;
-                    DVec3::new(d.x, d.y, 0.0)
-                },
-                targets,
-                |t| {
-                    let rel = t.centre - centre;
-                    Some(Seen { centre: DVec3::new(rel.dot(frame.t), rel.dot(frame.b), 0.0), radius: t.radius })
-                },
-            );
+            let map = move |u: DVec2| {
+                let d = uniform_disc(u) * radius;
+                DVec3::new(d.x, d.y, 0.0)
+            };
+            project_with(DELTA_GRID, Space::Aperture, &map, targets, |t: Target| match t {
+                Target::Sphere(s) => {
+                    let rel = s.centre - centre;
+                    Seen::Cap { centre: DVec3::new(rel.dot(frame.t), rel.dot(frame.b), 0.0), radius: s.radius }
+                }
+                Target::Triangle(_) => Seen::All,
+            })
         }
         Light::Triangle(_) | Light::Quad(_) => {
-            let (frame, corners): (Frame, alloc::vec::Vec<DVec3>) = match light {
+            let (frame, corners): (Frame, Vec<DVec3>) = match light {
                 Light::Triangle(l) => (Frame::from_normal_and_hint((l.p[1] - l.p[0]).cross(l.p[2] - l.p[0]), l.p[1] - l.p[0]), l.p.to_vec()),
                 Light::Quad(l) => (Frame::from_normal_and_hint(l.edge_u.cross(l.edge_v), l.edge_u), alloc::vec![l.origin, l.origin + l.edge_u, l.origin + l.edge_v, l.origin + l.edge_u + l.edge_v]),
                 _ => unreachable!(),
@@ -196,29 +239,97 @@ pub fn project(light: &Light, scene_sphere: (DVec3, f64), targets: &[BoundingSph
             let b = crate::aabb::Aabb::from_points(corners.iter().copied());
             let c = (b.min + b.max) * 0.5;
             let r = corners.iter().map(|p| (*p - c).length()).fold(0.0, f64::max);
-            return project_with(AREA_GRID, Space::Directions, &move |u| frame.to_world(cosine_hemisphere(u)), targets, |t| seen_from(c, r, t));
+            // From any point of the emitter's bounding ball: the cone towards the sphere
+            // grown by the ball's radius; a cluster that overlaps the ball sees everything.
+            project_with(AREA_GRID, Space::Directions, &move |u| frame.to_world(cosine_hemisphere(u)), targets, |t: Target| match t {
+                Target::Sphere(s) => cone(c, r, s).unwrap_or(Seen::All),
+                Target::Triangle(_) => Seen::All,
+            })
         }
-    };
-    let Light::Point(l) = light else { unreachable!() };
-    project_with(grid, space, map, targets, |t| seen_from(l.position, 0.0, t))
+    }
 }
 
-/// The cone of directions from a ball (centre `o`, radius `r_o`) towards the target;
-/// `None` when the two overlap (every direction may reach it).
-fn seen_from(o: DVec3, r_o: f64, t: &BoundingSphere) -> Option<Seen> {
+/// What [`project_with`]'s callback is asked about: a cluster's sphere, or (when the
+/// sphere answered [`Seen::All`] for a point or spot light) one of its triangles.
+#[derive(Clone, Copy, Debug)]
+enum Target<'a> {
+    Sphere(&'a BoundingSphere),
+    Triangle(&'a [DVec3; 3]),
+}
+
+/// The cone of directions from a ball (centre `o`, radius `r_o`) towards the sphere
+/// `t`; `None` when the two overlap (every direction may reach it).
+fn cone(o: DVec3, r_o: f64, t: &BoundingSphere) -> Option<Seen> {
     let v = t.centre - o;
     let d = v.length();
     let r = t.radius + r_o;
     if !(d > r) || !d.is_finite() {
         return None;
     }
-    Some(Seen { centre: v / d, radius: libm::asin((r / d).min(1.0)) })
+    Some(Seen::Cap { centre: v / d, radius: libm::asin((r / d).min(1.0)) })
 }
 
-fn project_with(grid: u32, space: Space, map: &dyn Fn(DVec2) -> DVec3, targets: &[BoundingSphere], seen: impl Fn(&BoundingSphere) -> Option<Seen>) -> DomainCells {
+/// What a point light at `o` sees of a target: the cone towards a sphere, or, for a
+/// sphere around the light, nothing yet ([`Seen::All`]: its triangles are asked next),
+/// and the exact spherical triangle of a triangle (every direction when the light lies
+/// in the triangle's plane).
+fn seen_from_point(o: DVec3, t: Target) -> Seen {
+    match t {
+        Target::Sphere(s) => cone(o, 0.0, s).unwrap_or(Seen::All),
+        Target::Triangle(tri) => {
+            let v = tri.map(|p| p - o);
+            let n = (tri[1] - tri[0]).cross(tri[2] - tri[0]);
+            let plane = n.dot(v[0]);
+            // In (or within rounding of) the plane: no cone bounds it.
+            let scale = n.length() * v.iter().map(|x| x.length()).fold(0.0, f64::max);
+            if !(plane.abs() > 1e-9 * scale) || v.iter().any(|x| !(x.length() > 0.0)) {
+                return Seen::All;
+            }
+            Seen::Triangle(v.map(|x| x.normalize()))
+        }
+    }
+}
+
+/// Whether the cap (unit `x`, angular radius `rho`) meets the spherical triangle `t`
+/// (unit vertices): `x` inside it, or within `rho` of one of its edges.
+fn cap_meets_spherical_triangle(x: DVec3, rho: f64, t: &[DVec3; 3]) -> bool {
+    let orient = t[0].dot(t[1].cross(t[2]));
+    if orient == 0.0 || !orient.is_finite() {
+        return true;
+    }
+    let sign = orient.signum();
+    let edges = [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])];
+    if edges.iter().all(|(p, q)| sign * p.cross(*q).dot(x) >= 0.0) {
+        return true;
+    }
+    edges.iter().any(|&(p, q)| {
+        let n = p.cross(q);
+        let len = n.length();
+        if !(len > 0.0) {
+            return angle(x, p) <= rho;
+        }
+        let n = n / len;
+        let s = x.dot(n);
+        let xp = x - n * s;
+        // The foot of x on the great circle lies on the arc p..q (the short arc).
+        let on_arc = p.cross(xp).dot(n) >= 0.0 && xp.cross(q).dot(n) >= 0.0;
+        if on_arc {
+            libm::asin(s.abs().min(1.0)) <= rho
+        } else {
+            angle(x, p).min(angle(x, q)) <= rho
+        }
+    })
+}
+
+fn project_with(grid: u32, space: Space, map: &dyn Fn(DVec2) -> DVec3, targets: &Targets, seen: impl Fn(Target) -> Seen) -> DomainCells {
     let dist = |a: DVec3, b: DVec3| match space {
         Space::Directions => angle(a, b),
         Space::Aperture => (a - b).length(),
+    };
+    let meets = |c: &Cap, s: &Seen| match s {
+        Seen::Cap { centre, radius } => dist(c.centre, *centre) <= c.radius + radius,
+        Seen::Triangle(t) => cap_meets_spherical_triangle(c.centre, c.radius, t),
+        Seen::All => true,
     };
     let cap = |x0: u32, y0: u32, size: u32| -> Cap {
         let g = grid as f64;
@@ -251,14 +362,9 @@ fn project_with(grid: u32, space: Space, map: &dyn Fn(DVec2) -> DVec3, targets: 
     let block_caps: Vec<Cap> = (0..blocks * blocks).map(|b| cap((b % blocks) * BLOCK, (b / blocks) * BLOCK, BLOCK)).collect();
     let mut cell_caps: Vec<Option<Cap>> = alloc::vec![None; (grid * grid) as usize];
     let mut kept = alloc::vec![false; (grid * grid) as usize];
-    let mut all = false;
-    for t in targets {
-        let Some(s) = seen(t) else {
-            all = true;
-            break;
-        };
+    let mut mark = |s: &Seen, kept: &mut Vec<bool>| {
         for (b, bc) in block_caps.iter().enumerate() {
-            if dist(bc.centre, s.centre) > bc.radius + s.radius {
+            if !meets(bc, s) {
                 continue;
             }
             let (bx, by) = ((b as u32 % blocks) * BLOCK, (b as u32 / blocks) * BLOCK);
@@ -269,14 +375,27 @@ fn project_with(grid: u32, space: Space, map: &dyn Fn(DVec2) -> DVec3, targets: 
                         continue;
                     }
                     let c = *cell_caps[i].get_or_insert_with(|| cap(x, y, 1));
-                    if dist(c.centre, s.centre) <= c.radius + s.radius {
+                    if meets(&c, s) {
                         kept[i] = true;
                     }
                 }
             }
         }
+    };
+    for (k, (sphere, _)) in targets.clusters.iter().enumerate() {
+        match seen(Target::Sphere(sphere)) {
+            Seen::All => {
+                for t in targets.cluster_triangles(k) {
+                    match seen(Target::Triangle(t)) {
+                        Seen::All => return DomainCells::whole(),
+                        s => mark(&s, &mut kept),
+                    }
+                }
+            }
+            s => mark(&s, &mut kept),
+        }
     }
-    if all || kept.iter().all(|&k| k) {
+    if kept.iter().all(|&k| k) {
         return DomainCells::whole();
     }
     DomainCells { grid, cells: (0..grid * grid).filter(|&i| kept[i as usize]).collect() }

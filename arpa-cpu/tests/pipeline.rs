@@ -177,7 +177,8 @@ fn stages_agree_with_the_core_reference() {
             ref_ph.len(),
             segments
         );
-        assert_eq!(stats.photons_emitted, 20_000);
+        assert_eq!(stats.emitted[1], 20_000);
+        assert_eq!(stats.photons_emitted, stats.emitted[0] + stats.emitted[1]);
         assert_eq!(
             (footprints.len(), photons.len()),
             (ref_fp.len(), ref_ph.len())

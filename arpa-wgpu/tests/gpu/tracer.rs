@@ -81,7 +81,8 @@ fn compare_with_core(method: Method) {
     let image = render(&mut t, &scene, &s, 1);
     let stats = t.read_stats().unwrap();
     let (want, want_fp, want_ph) = core_iteration(&scene, &s);
-    assert_eq!(stats.photons_emitted, s.photons_per_iteration as u64);
+    assert_eq!(stats.emitted[1], s.photons_per_iteration as u64);
+    assert_eq!(stats.photons_emitted, stats.emitted[0] + stats.emitted[1]);
     assert_eq!(stats.overflowed, 0);
     let close = |a: u64, b: usize| (a as f64 - b as f64).abs() <= 0.01 * b as f64 + 2.0;
     for m in 0..2 {

@@ -66,6 +66,7 @@ fn plane(t: &mut dyn DynTracer, method: Method) -> CaseResult {
         seed: 7,
         max_depth: 4,
         direct_lighting: false,
+        emission: super::emission(),
         ..RenderSettings::default()
     };
     t.upload_scene(&scene, &settings).ctx("upload_scene")?;
@@ -131,12 +132,12 @@ fn plane(t: &mut dyn DynTracer, method: Method) -> CaseResult {
 
 /// The plane case with ARPA footprints.
 pub fn plane_arpa(t: &mut dyn DynTracer) -> CaseResult {
-    plane(t, Method::Arpa)
+    super::with_and_without_projection(t, |t| plane(t, Method::Arpa))
 }
 
 /// The plane case with RTPM progressive photons.
 pub fn plane_rtpm(t: &mut dyn DynTracer) -> CaseResult {
-    plane(t, Method::Rtpm)
+    super::with_and_without_projection(t, |t| plane(t, Method::Rtpm))
 }
 
 /// Largest error of the furnace's mean radiance (percent).
@@ -168,6 +169,7 @@ fn furnace(t: &mut dyn DynTracer, method: Method, direct_lighting: bool) -> Case
         seed: 7,
         max_depth: 32,
         direct_lighting,
+        emission: super::emission(),
         ..RenderSettings::default()
     };
     t.upload_scene(&scene, &settings).ctx("upload_scene")?;
@@ -210,12 +212,12 @@ fn furnace(t: &mut dyn DynTracer, method: Method, direct_lighting: bool) -> Case
 
 /// The furnace case with ARPA footprints and next-event estimation for the direct light.
 pub fn furnace_arpa_direct(t: &mut dyn DynTracer) -> CaseResult {
-    furnace(t, Method::Arpa, true)
+    super::with_and_without_projection(t, |t| furnace(t, Method::Arpa, true))
 }
 
 /// The furnace case with RTPM photons carrying all the light (direct lighting off).
 pub fn furnace_rtpm_photons_only(t: &mut dyn DynTracer) -> CaseResult {
-    furnace(t, Method::Rtpm, false)
+    super::with_and_without_projection(t, |t| furnace(t, Method::Rtpm, false))
 }
 
 /// Largest error of a region mean in the slab and mirror cases (percent).
@@ -254,6 +256,7 @@ fn region_means(
             caustic: RadiusSpec::Absolute(SPECULAR_CAUSTIC_RADIUS),
             ..ProgressiveConfig::default()
         },
+        emission: super::emission(),
         ..RenderSettings::default()
     };
     t.upload_scene(scene, &settings).ctx("upload_scene")?;
@@ -435,20 +438,20 @@ fn mirror_caustic(t: &mut dyn DynTracer, method: Method) -> CaseResult {
 
 /// The slab case with ARPA footprints.
 pub fn glass_slab_arpa(t: &mut dyn DynTracer) -> CaseResult {
-    glass_slab(t, Method::Arpa)
+    super::with_and_without_projection(t, |t| glass_slab(t, Method::Arpa))
 }
 
 /// The slab case with RTPM progressive photons.
 pub fn glass_slab_rtpm(t: &mut dyn DynTracer) -> CaseResult {
-    glass_slab(t, Method::Rtpm)
+    super::with_and_without_projection(t, |t| glass_slab(t, Method::Rtpm))
 }
 
 /// The mirror case with ARPA footprints.
 pub fn mirror_caustic_arpa(t: &mut dyn DynTracer) -> CaseResult {
-    mirror_caustic(t, Method::Arpa)
+    super::with_and_without_projection(t, |t| mirror_caustic(t, Method::Arpa))
 }
 
 /// The mirror case with RTPM progressive photons.
 pub fn mirror_caustic_rtpm(t: &mut dyn DynTracer) -> CaseResult {
-    mirror_caustic(t, Method::Rtpm)
+    super::with_and_without_projection(t, |t| mirror_caustic(t, Method::Rtpm))
 }

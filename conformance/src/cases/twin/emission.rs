@@ -1,7 +1,9 @@
 //! emission.wgsl (with frame.wgsl, sampling.wgsl) against arpa_core::emission: random
-//! lights of every kind, prepared on the host (`PreparedLight::pack`), photon `index` of N
-//! emitted on the device and by `PreparedLight::emit`; the Fibonacci lattice at large
-//! indices.
+//! lights of every kind, prepared on the host (`PreparedLight::pack`), over their whole
+//! domain or random projection cells (`EmissionParams::with_cells`), photon `index` of N
+//! emitted on the device (`arpa_emission_slot`, then `arpa_emit_in` with the cell of that
+//! slot) and by `PreparedLight::emit_in`; the slots must agree exactly (integer
+//! arithmetic on both sides); the Fibonacci lattice at large indices.
 //!
 //! Bounds (ε = f32::EPSILON): the twin is f32 with the core's formulas (cancellation-free
 //! where the core's f64 could afford cancellation). Its sin/cos are the device's: lavapipe's
@@ -25,7 +27,7 @@ use arpa_core::emission::{
 };
 use arpa_core::glam::{DVec2, DVec3};
 use arpa_core::rng::{Rng, StreamDomain};
-use arpa_core::sampling::fibonacci_lattice;
+use arpa_core::sampling::{fibonacci_lattice, round_robin};
 use proptest::prelude::*;
 
 use super::{check, f, fb, proptest_batches, run, run_prop, v3};
@@ -119,16 +121,36 @@ struct Case {
     params: EmissionParams,
     index: u32,
     stream: (u32, u32),
+    /// Projection cells (empty: the whole domain).
+    cells: Vec<u32>,
+}
+
+/// A projection: none (half the cases), or some cells of a 4, 16 or 64 grid.
+fn projection() -> impl Strategy<Value = (u32, Vec<u32>)> {
+    prop_oneof![
+        Just((0u32, Vec::new())),
+        (prop_oneof![Just(4u32), Just(16u32), Just(64u32)], 0.0f64..1.0, any::<u32>()).prop_map(|(grid, keep, seed)| {
+            let mut rng = Rng::new(seed, 0, 0, StreamDomain::User);
+            let mut cells: Vec<u32> = (0..grid * grid).filter(|_| rng.next_f64() < keep.max(0.02)).collect();
+            if cells.is_empty() {
+                cells.push(seed % (grid * grid));
+            }
+            (grid, cells)
+        }),
+    ]
 }
 
 prop_compose! {
     fn case()(light in light(), n_exp in 0.0f64..6.5, scale in 0.5f64..2.0, centre in point(-1.0, 2.0), r_exp in -1.0f64..3.0,
-              shift in (0.0f64..1.0, 0.0f64..1.0), frac in 0.0f64..1.0, stream in (any::<u32>(), any::<u32>())) -> Case {
+              shift in (0.0f64..1.0, 0.0f64..1.0), frac in 0.0f64..1.0, stream in (any::<u32>(), any::<u32>()),
+              (grid, cells) in projection(), cell_offset in any::<u32>()) -> Case {
         let photon_count = 10f64.powf(n_exp) as u32;
         // The shift as the device sees it (f32), so both sides start from the same lattice.
         let lattice_shift = DVec2::new(shift.0, shift.1).as_vec2().as_dvec2();
-        let params = EmissionParams { photon_count, scale, scene_sphere: (centre, 10f64.powf(r_exp) as f32 as f64), lattice_shift };
-        Case { light, params, index: ((photon_count as f64 * frac) as u32).min(photon_count - 1), stream }
+        let params = EmissionParams { photon_count, scale, scene_sphere: (centre, 10f64.powf(r_exp) as f32 as f64), lattice_shift, ..EmissionParams::new(1) }
+            .with_cells(grid, cells.len() as u32);
+        let params = EmissionParams { cell_offset, ..params };
+        Case { light, params, index: ((photon_count as f64 * frac) as u32).min(photon_count - 1), stream, cells }
     }
 }
 
@@ -145,13 +167,23 @@ fn in_light(b: u32) -> ArpaLight {
     l.flux = in_v3(b + 28u); l.one_minus_cos_cutoff = in_f(b + 31u);
     l.scene_centre = in_v3(b + 32u);
     l.lattice_shift = vec2<f32>(in_f(b + 36u), in_f(b + 37u));
+    l.cell_grid = in_u(b + 3u); l.caustic_weight = in_f(b + 35u);
+    l.cell_first = in_u(b + 38u); l.cell_count = in_u(b + 39u); l.cell_offset = in_u(b + 40u);
     return l;
 }";
 
 const BODY: &str = "
     let light = in_light(ib);
-    var rng = arpa_rng_new(in_u(ib + 41u), in_u(ib + 42u), in_u(ib + 40u), ARPA_DOMAIN_PHOTON);
-    let e = arpa_emit(light, in_u(ib + 40u), &rng);
+    let index = in_u(ib + 44u);
+    var rng = arpa_rng_new(in_u(ib + 45u), in_u(ib + 46u), index, ARPA_DOMAIN_PHOTON);
+    let slot = arpa_emission_slot(light, index, rng);
+    var e: ArpaEmitted;
+    if light.cell_count == 0u {
+        e = arpa_emit(light, index, &rng);
+    } else {
+        e = arpa_emit_in(light, index, &rng, in_u(ib + 47u));
+    }
+    out_u(ob + 27u, slot);
     out_v3(ob, e.ray.p); out_v3(ob + 3u, e.ray.d);
     out_v3(ob + 6u, e.ray.dp_du); out_v3(ob + 9u, e.ray.dp_dv);
     out_v3(ob + 12u, e.ray.dd_du); out_v3(ob + 15u, e.ray.dd_dv);
@@ -192,7 +224,10 @@ fn random_lights(runner: &dyn KernelRunner) -> Result<String, String> {
             input.extend_from_slice(bytemuck::cast_slice::<PackedLight, u32>(
                 std::slice::from_ref(&packed),
             ));
-            input.extend([c.index, c.stream.0, c.stream.1]);
+            let rng = Rng::new(c.stream.0, c.stream.1, c.index, StreamDomain::Photon);
+            let slot = prepared.emission_slot(c.index, &rng);
+            let cell = c.cells.get(slot as usize).copied().unwrap_or(0);
+            input.extend([c.index, c.stream.0, c.stream.1, cell]);
             kept.push((c.clone(), prepared));
         }
         prop_assert!(
@@ -201,10 +236,20 @@ fn random_lights(runner: &dyn KernelRunner) -> Result<String, String> {
             kept.len(),
             cases.len()
         );
-        let out = run_prop(runner, "emission", HELPERS, BODY, &input, 43, 27)?;
+        let out = run_prop(runner, "emission", HELPERS, BODY, &input, 48, 28)?;
         let (mut compared, mut worst_dir) = (0, 0.0f64);
         for ((c, prepared), g) in kept.iter().zip(&out) {
-            let u = fibonacci_lattice(c.index, c.params.photon_count, c.params.lattice_shift);
+            let rng = Rng::new(c.stream.0, c.stream.1, c.index, StreamDomain::Photon);
+            prop_assert_eq!(g[27], prepared.emission_slot(c.index, &rng), "slot of {:?}", c);
+            let area = matches!(c.light, Light::Triangle(_) | Light::Quad(_));
+            // The lattice point the photon's primary sample comes from: of the whole
+            // light, or of its cell's round-robin share.
+            let u = if c.cells.is_empty() || area {
+                fibonacci_lattice(c.index, c.params.photon_count, c.params.lattice_shift)
+            } else {
+                let (_, j, n) = round_robin(c.index, c.params.photon_count, c.cells.len() as u32, c.params.cell_offset);
+                fibonacci_lattice(j, n, c.params.lattice_shift)
+            };
             if [u.x, u.y]
                 .iter()
                 .any(|&x| !(1e-5..=1.0 - 1e-5).contains(&x))
@@ -212,7 +257,7 @@ fn random_lights(runner: &dyn KernelRunner) -> Result<String, String> {
                 continue;
             }
             let mut rng = Rng::new(c.stream.0, c.stream.1, c.index, StreamDomain::Photon);
-            let want = prepared.emit(c.index, &mut rng);
+            let want = prepared.emit_in(c.index, &mut rng, &c.cells);
             let Ok(w) = want else {
                 prop_assert!(
                     g[26] != 0,
@@ -246,7 +291,6 @@ fn random_lights(runner: &dyn KernelRunner) -> Result<String, String> {
             let axis = DVec3::from_array(packed.frame_n.map(f64::from));
             let t_hint = DVec3::from_array(packed.frame_t.map(f64::from));
             let d = w.ray.d;
-            let area = matches!(c.light, Light::Triangle(_) | Light::Quad(_));
             let (jacobian, frame_k) = match c.light {
                 Light::Point(_) => (
                     std::f64::consts::TAU + 4.0 / d.cross(DVec3::Z).length().max(1e-9),
