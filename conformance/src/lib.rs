@@ -10,9 +10,10 @@
 //!   with a reason ([`Verdict::ExpectedFail`]).
 //! * [`cases`]: the cases (stage agreement with `arpa-core`, gather exactness, camera pass
 //!   through a mirror and a glass slab against exact optics, analytic scenes (plane,
-//!   furnace, glass slab, mirror caustic), independent references (each scene of
-//!   `../shared/scenes` against its Mitsuba 3 / LuxCore ground truth), determinism, bad
-//!   input, and the core's WGSL twin against the Rust core ([`cases::twin`])).
+//!   furnace, glass slab, mirror caustic, a small mirror in an open scene with projection
+//!   off and on), independent references (each scene of `../shared/scenes` against its
+//!   Mitsuba 3 / LuxCore ground truth), determinism, bad input, and the core's WGSL twin
+//!   against the Rust core ([`cases::twin`])).
 //! * [`KernelRunner`]: the capability the WGSL-twin cases need, offered per backend by the
 //!   registry; a backend without one (cpu) reports them [`Verdict::NotApplicable`].
 //! * [`suite`]: the runner. `ARPA_REQUIRE_BACKENDS=cpu,wgpu,vk` makes a listed backend that

@@ -431,3 +431,83 @@ pub fn knife_edge(size: u32) -> Scene {
         camera(WEDGE_CAMERA, WEDGE_TARGET, Vec3::Y, WEDGE_FOV_DEGREES, size),
     )
 }
+
+/// Position of [`open_mirror`]'s point light (m).
+pub const OPEN_LIGHT: DVec3 = DVec3::new(0.0, 1.0, 0.0);
+/// Intensity of [`open_mirror`]'s point light (W/sr).
+pub const OPEN_INTENSITY: f64 = 2.0;
+/// Albedo of [`open_mirror`]'s floor.
+pub const OPEN_FLOOR_ALBEDO: f64 = 0.5;
+/// Half side of [`open_mirror`]'s floor (m): far beyond the caustic, so every photon the
+/// mirror reflects lands on it.
+pub const OPEN_FLOOR_HALF_SIDE: f32 = 10.0;
+/// Centre of [`open_mirror`]'s mirror (m).
+pub const OPEN_MIRROR_CENTRE: DVec3 = DVec3::new(0.3, 0.7, 0.1);
+/// The floor point the light's ray through the mirror's centre is reflected to (m): it
+/// fixes the mirror's tilt.
+pub const OPEN_MIRROR_AIM: DVec3 = DVec3::new(-0.2, 0.0, -0.1);
+/// Side of [`open_mirror`]'s square mirror (m).
+pub const OPEN_MIRROR_SIDE: f64 = 0.2;
+/// Rotation of the mirror's square about its normal (degrees), so that no edge is
+/// horizontal.
+pub const OPEN_MIRROR_TWIST_DEGREES: f64 = 20.0;
+/// [`open_mirror`]'s camera: straight above this floor point (m) …
+pub const OPEN_VIEW_CENTRE: Vec3 = Vec3::new(-0.35, 0.0, -0.17);
+/// … at this height (m) …
+pub const OPEN_CAMERA_HEIGHT: f32 = 3.0;
+/// … with this vertical field of view (degrees): it sees the floor
+/// `|x + 0.35|, |z + 0.17| ≤ 0.53`, the whole caustic and some floor beside it, and not
+/// the mirror.
+pub const OPEN_FOV_DEGREES: f32 = 20.0;
+
+/// The corners of [`open_mirror`]'s mirror before rounding to `f32` (m), in order around
+/// the square, wound so that `(p₁ − p₀) × (p₃ − p₀)` faces the light. The mirror's normal
+/// bisects the directions from its centre back to the light and on to
+/// [`OPEN_MIRROR_AIM`].
+pub fn open_mirror_corners() -> [DVec3; 4] {
+    let c = OPEN_MIRROR_CENTRE;
+    let n = ((OPEN_MIRROR_AIM - c).normalize() - (c - OPEN_LIGHT).normalize()).normalize();
+    let e1 = n.cross(DVec3::Y).normalize();
+    let e2 = n.cross(e1);
+    let (s, co) = OPEN_MIRROR_TWIST_DEGREES.to_radians().sin_cos();
+    let (a, b) = (
+        (e1 * co + e2 * s) * OPEN_MIRROR_SIDE,
+        (e2 * co - e1 * s) * OPEN_MIRROR_SIDE,
+    );
+    let origin = c - (a + b) * 0.5;
+    [origin, origin + a, origin + a + b, origin + b]
+}
+
+/// A point light ([`OPEN_LIGHT`], [`OPEN_INTENSITY`]) 1 m above a 20 × 20 diffuse floor
+/// (albedo [`OPEN_FLOOR_ALBEDO`]) and a 0.2 m square mirror (reflectance
+/// [`MIRROR_REFLECTANCE`]) tilted beside and below the light, 0.44 m from it, and nothing
+/// else: an open scene in which the mirror subtends 1 % of the light's sphere of
+/// directions. The mirror's caustic on the floor is the light of the image source (the
+/// light mirrored in the mirror's plane) through the mirror's square; the camera looks
+/// straight down at it. The mirror is mesh 1, its vertices `p₀, p₁, p₁ + p₃ − p₀, p₃` in
+/// `f32`.
+pub fn open_mirror(size: u32) -> Scene {
+    let h = OPEN_FLOOR_HALF_SIDE;
+    let floor = quad(
+        "floor",
+        Vec3::new(-h, 0.0, -h),
+        Vec3::new(0.0, 0.0, 2.0 * h),
+        Vec3::new(2.0 * h, 0.0, 0.0),
+        0,
+    );
+    let [p0, p1, _, p3] = open_mirror_corners().map(|p| p.as_vec3());
+    let mirror_quad = quad("mirror", p0, p1 - p0, p3 - p0, 1);
+    let v = OPEN_VIEW_CENTRE;
+    scene(
+        vec![floor, mirror_quad],
+        vec![diffuse(OPEN_FLOOR_ALBEDO as f32), mirror()],
+        vec![point_light(OPEN_LIGHT, OPEN_INTENSITY)],
+        camera(
+            Vec3::new(v.x, OPEN_CAMERA_HEIGHT, v.z),
+            v,
+            Vec3::new(0.0, 0.0, -1.0),
+            OPEN_FOV_DEGREES,
+            size,
+        ),
+    )
+}

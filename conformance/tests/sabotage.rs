@@ -186,6 +186,7 @@ fn faithful_wrapper_passes() {
         "camera-glass-slab",
         "analytic-glass-slab-arpa",
         "analytic-mirror-caustic-arpa",
+        "analytic-open-mirror",
         "determinism",
         "determinism-threads",
         "resume-merge",
@@ -215,6 +216,9 @@ fn each_fault_is_caught() {
         (Fault::Bright, "analytic-glass-slab-rtpm"),
         (Fault::Bright, "analytic-mirror-caustic-arpa"),
         (Fault::Bright, "analytic-mirror-caustic-rtpm"),
+        (Fault::Bright, "analytic-open-mirror"),
+        (Fault::QueryShift, "analytic-open-mirror"),
+        (Fault::QueryWeight, "analytic-open-mirror"),
         (Fault::ResumeRestartsStreams, "resume-merge"),
         (Fault::StateInF32, "resume-merge"),
     ] {

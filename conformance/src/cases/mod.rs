@@ -9,6 +9,7 @@ pub mod bad_input;
 pub mod camera;
 pub mod determinism;
 pub mod gather;
+pub mod open_mirror;
 pub mod optics;
 pub mod reference;
 pub mod stage;
@@ -101,6 +102,12 @@ pub fn all() -> Vec<Case> {
             title: "point light and plane mirror: image-source caustic (rtpm)",
             needs: None,
             run: CaseBody::Tracer(analytic::mirror_caustic_rtpm),
+        },
+        Case {
+            id: "analytic-open-mirror",
+            title: "point light, small tilted mirror, open floor: image-source caustic and its flux, projection off and on (arpa)",
+            needs: None,
+            run: CaseBody::Tracer(open_mirror::open_mirror),
         },
         Case {
             id: "analytic-furnace-arpa-direct",
