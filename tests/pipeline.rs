@@ -34,7 +34,7 @@ fn run_iteration(light: &Light, scene: &Aabb, iteration: u32, n: u32) -> Iterati
     let radii = ProgressiveConfig::default().radii(scene, iteration + 1);
     let (centre, radius) = (scene.centre(), 0.5 * scene.diagonal());
     let mut shift = Rng::new(3, iteration, 0, StreamDomain::Iteration);
-    let params = EmissionParams { photon_count: n, scale: 1.0, scene_sphere: (centre, radius), lattice_shift: shift.next_2d() };
+    let params = EmissionParams { photon_count: n, scale: 1.0, scene_sphere: (centre, radius), lattice_shift: shift.next_2d(), ..EmissionParams::new(n) };
     // A strict degenerate threshold turns the footprints stretched by oblique incidence
     // (ratio of the differentials ≈ cos θ) into progressive photons beyond ρ ≈ 0.9, so both
     // kinds of stored photon meet at the query rings.

@@ -317,6 +317,7 @@ fn build_pools() -> Pools {
         scale: 1.0,
         scene_sphere: (DVec3::ZERO, 5.0 * 3f64.sqrt()),
         lattice_shift: DVec2::new(0.37, 0.81),
+        ..EmissionParams::new(PHOTONS)
     };
     for e in &emits {
         for light in [&point_light, &quad_light] {

@@ -342,7 +342,7 @@ impl PhotonWalk {
                 // only where it is used: a hit that is not stored (direct lighting counts this
                 // first hit) draws its roulette first and skips the transfer if absorbed. The
                 // transfer draws no random numbers, so the stream is the same either way.
-                let stores = !(settings.direct_lighting && first_interaction) && !(map == PhotonMap::Caustic && self.caustic_weight == 0.0);
+                let stores = !(settings.direct_lighting && first_interaction || map == PhotonMap::Caustic && self.caustic_weight == 0.0);
                 if !stores && !(rng.next_f64() < survive) {
                     return false;
                 }

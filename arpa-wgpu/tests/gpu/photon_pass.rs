@@ -137,7 +137,7 @@ fn settings(method: Method, photons: u32, direct_lighting: bool) -> RenderSettin
 /// Runs the device photon pass of `iteration` with the given capacities.
 fn device_pass(ctx: &GpuContext, prepared: &PreparedScene, s: &RenderSettings, iteration: u32, caps: (u32, u32)) -> PhotonReadback {
     let scene = GpuScene::upload(ctx, prepared).expect("scene upload");
-    let pass = PhotonPass::new(ctx, &scene, &prepared, s).expect("photon pass");
+    let pass = PhotonPass::new(ctx, &scene, prepared, s).expect("photon pass");
     let out = PhotonOutputs::new(ctx, caps.0, caps.1).expect("outputs");
     let setup = PhotonPassSetup::new(prepared, s, iteration);
     let mut encoder = ctx.device.create_command_encoder(&Default::default());
