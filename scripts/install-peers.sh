@@ -11,8 +11,10 @@ else
     echo "[install-peers] pip install mitsuba==3.9.1 numpy"
     "$PY" -m pip install --quiet --disable-pip-version-check "mitsuba==3.9.1" numpy
 fi
-if ls /usr/lib/x86_64-linux-gnu/libLLVM*.so* >/dev/null 2>&1; then
-    echo "[install-peers] libLLVM present"
+# Dr.Jit's LLVM backend needs libLLVM 19 here: with Debian 12's own libLLVM 14 or 15 its
+# kernels fail to compile, so another version being present is not enough.
+if ls /usr/lib/x86_64-linux-gnu/libLLVM.so.19* >/dev/null 2>&1; then
+    echo "[install-peers] libLLVM 19 present"
 elif [ "${ARPA_NO_APT:-0}" = 1 ]; then
     echo "[install-peers] ARPA_NO_APT=1: not installing libllvm19 (Mitsuba runs scalar_rgb)"
 else

@@ -44,8 +44,9 @@ def main():
     args = ap.parse_args()
 
     if "DRJIT_LIBLLVM_PATH" not in os.environ:
-        # Debian's libllvm19 (scripts/setup-debian.sh --with-peers) for the LLVM variant.
-        for lib in sorted(glob.glob("/usr/lib/x86_64-linux-gnu/libLLVM*.so*"), reverse=True):
+        # Debian's libllvm19 (scripts/setup-debian.sh --with-peers) for the LLVM variant;
+        # Debian 12's libLLVM 14 and 15 fail to compile Dr.Jit's kernels.
+        for lib in sorted(glob.glob("/usr/lib/x86_64-linux-gnu/libLLVM.so.19*")):
             os.environ["DRJIT_LIBLLVM_PATH"] = lib
             break
     try:

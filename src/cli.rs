@@ -897,7 +897,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("sub/m.csv");
         let mut csv = MetricsCsv::create(&path).unwrap();
-        let row = |iteration, metrics| CheckpointRow { iteration, seconds: 1.5, times: Default::default(), metrics, candidates_per_query: [0.0; 2], contributions_per_query: [0.0; 2] };
+        let row = |iteration, metrics| CheckpointRow { iteration, seconds: 1.5, metrics, ..Default::default() };
         csv.write(&row(2, None)).unwrap();
         csv.write(&row(3, Some(Metrics { rel_mse: 0.0, ssim: 1.0, flip: 0.0 }))).unwrap();
         csv.finish().unwrap();

@@ -8,7 +8,8 @@
 //! writes them.
 //!
 //! * [`rel_mse`]: mean over pixels and the three channels of `(a − b)² / (b² + 0.01)`
-//!   (`a` test, `b` reference), computed on the linear radiance without clamping.
+//!   (`a` test, `b` reference), computed on the linear radiance without clamping;
+//!   [`rel_mse_in`] takes the same mean over a [`PixelRect`] only.
 //! * [`ssim`]: the mean SSIM (Wang et al. 2004) of the *luminance* only. Luminance is
 //!   `Y = 0.2126 R + 0.7152 G + 0.0722 B` of the linear values, clamped to `[0, 1]` and
 //!   sRGB-encoded ([`crate::image_io::srgb_encode`]), so it lies in `[0, 1]` (dynamic range
@@ -55,6 +56,16 @@ pub enum MetricsError {
         height: u32,
         /// `width · height`.
         expected: usize,
+    },
+    /// A pixel rectangle that is empty or does not lie within the film.
+    #[error("pixel rectangle {rect} does not lie within the {width}x{height} film")]
+    RegionOutside {
+        /// The rectangle, `[x0, y0, x1, y1]`.
+        rect: String,
+        /// Film width.
+        width: u32,
+        /// Film height.
+        height: u32,
     },
     /// An image without pixels.
     #[error("cannot compare empty images ({width}x{height})")]
@@ -140,6 +151,64 @@ pub fn rel_mse_per_pixel(test: &[Vec3], reference: &[Vec3], width: u32, height: 
                 / 3.0
         })
         .collect())
+}
+
+/// A rectangle of pixels, half-open: columns `x0..x1` (x right) and rows `y0..y1` (y down)
+/// of a film. `arpa bench` restricts relMSE to one ([`rel_mse_in`]), e.g. a scene's caustic.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct PixelRect {
+    /// First column.
+    pub x0: u32,
+    /// First row.
+    pub y0: u32,
+    /// One past the last column.
+    pub x1: u32,
+    /// One past the last row.
+    pub y1: u32,
+}
+
+impl PixelRect {
+    /// `[x0, y0, x1, y1]`, or why it is not a rectangle (`x1 <= x0` or `y1 <= y0`).
+    pub fn new([x0, y0, x1, y1]: [u32; 4]) -> Result<Self, String> {
+        if x1 <= x0 || y1 <= y0 {
+            return Err(format!("[{x0}, {y0}, {x1}, {y1}] is empty: it needs x0 < x1 and y0 < y1 (half-open pixel ranges)"));
+        }
+        Ok(Self { x0, y0, x1, y1 })
+    }
+
+    /// Whether it lies within a `width`×`height` film.
+    pub fn fits(&self, width: u32, height: u32) -> bool {
+        self.x1 <= width && self.y1 <= height
+    }
+
+    /// The rectangle on a film `k` times smaller in both axes: every pixel of the smaller
+    /// film that overlaps this one (`floor(x0 / k) .. ceil(x1 / k)`, the same in y).
+    pub fn downscaled(&self, k: u32) -> Self {
+        let k = k.max(1);
+        Self { x0: self.x0 / k, y0: self.y0 / k, x1: self.x1.div_ceil(k), y1: self.y1.div_ceil(k) }
+    }
+
+    /// Pixels inside.
+    pub fn area(&self) -> u64 {
+        (self.x1 - self.x0) as u64 * (self.y1 - self.y0) as u64
+    }
+}
+
+impl std::fmt::Display for PixelRect {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "[{}, {}, {}, {}]", self.x0, self.y0, self.x1, self.y1)
+    }
+}
+
+/// [`rel_mse`] restricted to the pixels of `rect`: the mean of [`rel_mse_per_pixel`] over
+/// them. A rectangle that does not fit the film is a [`MetricsError::RegionOutside`].
+pub fn rel_mse_in(test: &[Vec3], reference: &[Vec3], width: u32, height: u32, rect: PixelRect) -> Result<f64, MetricsError> {
+    if !rect.fits(width, height) || rect.area() == 0 {
+        return Err(MetricsError::RegionOutside { rect: rect.to_string(), width, height });
+    }
+    let per_pixel = rel_mse_per_pixel(test, reference, width, height)?;
+    let sum: f64 = (rect.y0..rect.y1).flat_map(|y| (rect.x0..rect.x1).map(move |x| (y * width + x) as usize)).map(|i| per_pixel[i]).sum();
+    Ok(sum / rect.area() as f64)
 }
 
 /// Mean over pixels and channels (non-finite values as 0): the whole-image mean whose ratio
@@ -348,6 +417,32 @@ mod tests {
             last_flip = f;
         }
         assert!(last < 0.5, "{last}");
+    }
+
+    #[test]
+    fn rel_mse_in_a_rectangle_is_the_mean_of_its_pixels() {
+        let (w, h) = (6, 4);
+        let reference = vec![Vec3::ONE; (w * h) as usize];
+        let mut test = reference.clone();
+        // Offset 1 in every channel of the pixels x 2..4, y 1..3: relMSE 1 / 1.01 there.
+        for y in 1..3 {
+            for x in 2..4 {
+                test[(y * w + x) as usize] = Vec3::splat(2.0);
+            }
+        }
+        let e = 1.0 / (1.0 + REL_MSE_EPSILON);
+        let inside = PixelRect::new([2, 1, 4, 3]).unwrap();
+        assert!((rel_mse_in(&test, &reference, w, h, inside).unwrap() - e).abs() < 1e-12);
+        let half = PixelRect::new([0, 0, 4, 4]).unwrap();
+        assert!((rel_mse_in(&test, &reference, w, h, half).unwrap() - e * 4.0 / 16.0).abs() < 1e-12);
+        let whole = PixelRect::new([0, 0, w, h]).unwrap();
+        assert_eq!(rel_mse_in(&test, &reference, w, h, whole).unwrap(), rel_mse(&test, &reference, w, h).unwrap());
+        let outside = PixelRect::new([4, 0, 7, 2]).unwrap();
+        assert!(matches!(rel_mse_in(&test, &reference, w, h, outside), Err(MetricsError::RegionOutside { .. })));
+        assert!(PixelRect::new([3, 0, 3, 2]).unwrap_err().contains("x0 < x1"));
+        // Downscaling keeps every pixel the rectangle overlaps.
+        assert_eq!(PixelRect::new([5, 2, 11, 8]).unwrap().downscaled(4), PixelRect { x0: 1, y0: 0, x1: 3, y1: 2 });
+        assert_eq!(PixelRect::new([4, 4, 8, 8]).unwrap().downscaled(4), PixelRect { x0: 1, y0: 1, x1: 2, y1: 2 });
     }
 
     #[test]

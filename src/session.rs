@@ -115,7 +115,7 @@ impl Reference {
 }
 
 /// The state of the render at one checkpoint.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct CheckpointRow {
     /// Iterations accumulated.
     pub iteration: u32,
@@ -130,6 +130,14 @@ pub struct CheckpointRow {
     pub candidates_per_query: [f64; 2],
     /// Gather contributions per valid query point so far, `[caustic, global]`.
     pub contributions_per_query: [f64; 2],
+    /// Records stored per photon emitted so far, `[caustic, global]` map
+    /// ([`IterationStats::records_per_photon`] of the sums).
+    pub records_per_photon: [f64; 2],
+    /// Mean photons emitted per iteration so far, `[caustic pass, global pass]`
+    /// ([`IterationStats::emitted`]).
+    pub emitted_per_iteration: [f64; 2],
+    /// Records stored so far (footprints and progressive photons), `[caustic, global]` map.
+    pub records: [u64; 2],
 }
 
 /// What a render produced.
@@ -320,6 +328,9 @@ pub fn render_with<T: Tracer, H: Hooks + ?Sized>(
             metrics,
             candidates_per_query: totals.sum.candidates_per_query(),
             contributions_per_query: totals.sum.contributions_per_query(),
+            records_per_photon: totals.sum.records_per_photon(),
+            emitted_per_iteration: totals.sum.emitted.map(|n| totals.mean(n)),
+            records: [0, 1].map(|m| totals.sum.footprints[m] + totals.sum.progressive[m]),
         };
         hooks.checkpoint(&row, &image)?;
         rows.push(row);

@@ -41,8 +41,9 @@ fn csv_rows(path: &Path) -> Vec<Vec<String>> {
     }
     let mut lines = text.lines().filter(|l| !l.starts_with('#'));
     let columns: Vec<&str> = lines.next().expect("no column line").split(',').collect();
-    assert_eq!(columns.len(), 21, "{columns:?}");
-    lines.map(|l| l.split(',').map(str::to_owned).collect::<Vec<_>>()).inspect(|f| assert_eq!(f.len(), 21, "{f:?}")).collect()
+    assert_eq!(columns.len(), 27, "{columns:?}");
+    assert_eq!(columns[21..], ["region_relmse", "caustic_records_per_photon", "global_records_per_photon", "caustic_pass_photons", "global_pass_photons", "caustic_records_per_second"]);
+    lines.map(|l| l.split(',').map(str::to_owned).collect::<Vec<_>>()).inspect(|f| assert_eq!(f.len(), 27, "{f:?}")).collect()
 }
 
 #[test]
@@ -82,6 +83,14 @@ fn smoke_config_writes_every_output() {
                 assert!((12..21).all(|i| num(i) >= 0.0));
                 // Gather candidates and contributions per query point (RTPM: photons only).
                 assert!(num(17) >= num(18) && num(19) >= num(20) && num(19) > 0.0, "gather counts {r:?}");
+                // The region relMSE only where the config sets a caustic region.
+                if scene == "cornell-caustic" {
+                    assert!(num(21) >= 0.0, "region relMSE {r:?}");
+                } else {
+                    assert_eq!(r[21], "", "no region: {r:?}");
+                }
+                // Records per photon, photons per pass and caustic records per second.
+                assert!((22..27).all(|i| num(i) >= 0.0), "photon rates {r:?}");
             }
             let stem = format!("{scene}-{}-cpu", run.replace(' ', "-").replace("-E-", "-E"));
             let exr = arpa::image_io::read_exr(&out.join("images").join(format!("{stem}.exr"))).unwrap();
@@ -99,6 +108,10 @@ fn smoke_config_writes_every_output() {
     assert!(table.contains("## Table 2 (cpu)") && table.contains("| E-20K SSIM | NI | ATI (ms) |"), "{table}");
     assert!(table.contains("| cornell-caustic | ARPA |") && table.contains("| cornell-caustic | ARPA auto |") && table.contains("| caustic-glass | RTPM |"), "{table}");
     assert!(table.contains("- config sha256:"), "{table}");
+    assert!(table.contains("| region relMSE |") && table.contains("Caustic regions") && table.contains("## Photon passes"), "{table}");
+    let region_plot = image::open(out.join("plots").join("cornell-caustic-region.png")).unwrap();
+    assert!(region_plot.width() > 100 && region_plot.height() > 100);
+    assert!(!out.join("plots").join("caustic-glass-region.png").exists());
 }
 
 #[test]
@@ -124,7 +137,28 @@ fn a_peer_that_cannot_run_is_a_skipped_row() {
     let peer: Vec<&Vec<String>> = rows.iter().filter(|r| r[1] == "mitsuba ptracer").collect();
     assert_eq!(peer.len(), 1);
     assert!(peer[0][5].starts_with("\"skipped: cannot run"), "{:?}", peer[0]);
+    assert!(peer[0][6..].iter().all(String::is_empty), "{:?}", peer[0]);
     assert!(std::fs::read_to_string(out.join("table.md")).unwrap().contains("| cornell-caustic | ptracer | skipped: cannot run"));
+}
+
+#[test]
+fn a_caustic_region_outside_the_film_names_the_file_and_the_field() {
+    let Some(scenes) = shared_scenes() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let config = dir.path().join("region.toml");
+    std::fs::write(
+        &config,
+        format!(
+            "name = \"region\"\nseconds = 0.2\nthreads = 1\nphotons = [2000]\nmethods = [\"rtpm\"]\nscenes_dir = {:?}\ndownscale = 8\n\
+             [[scene]]\nname = \"cornell-caustic\"\nfile = \"cornell-caustic/scene.xml\"\n\
+             reference = \"cornell-caustic/reference/cornell-caustic_mitsuba-path_256x256_4096spp_143s.exr\"\ncaustic_region = [200, 10, 257, 20]\n",
+            scenes.display().to_string()
+        ),
+    )
+    .unwrap();
+    let (ok, err) = bench(&config, &dir.path().join("out"), &[]);
+    assert!(!ok);
+    assert!(err.contains("region.toml") && err.contains("caustic_region [200, 10, 257, 20]") && err.contains("256x256"), "{err}");
 }
 
 #[test]

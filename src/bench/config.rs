@@ -1,5 +1,6 @@
 //! The TOML configuration of `arpa bench`: what to sweep and where the scenes are.
 
+use crate::metrics::PixelRect;
 use anyhow::{Context, bail};
 use arpa_core::tracer::{BackendKind, Method};
 use serde::Deserialize;
@@ -33,7 +34,7 @@ pub struct BenchConfig {
     #[serde(default)]
     pub peers: Vec<String>,
     /// Directory of the scenes, relative to the config file (env `ARPA_SHARED_SCENES`
-    /// overrides it).
+    /// overrides it; a scene's own `dir` overrides both).
     #[serde(default = "default_scenes_dir")]
     pub scenes_dir: PathBuf,
     /// Render at `1/downscale` of each scene's film size and compare with the reference
@@ -51,10 +52,20 @@ pub struct BenchConfig {
 pub struct SceneEntry {
     /// Short name (file names, table rows).
     pub name: String,
+    /// Directory of this scene's `file` and `reference`, relative to the config file (or
+    /// absolute), instead of the sweep's scenes directory; `ARPA_SHARED_SCENES` does not
+    /// change it. For scenes kept in the repository (`bench/scenes/`).
+    #[serde(default)]
+    pub dir: Option<PathBuf>,
     /// Mitsuba XML file, relative to the scenes directory.
     pub file: PathBuf,
     /// Independent reference (OpenEXR at the film size), relative to the scenes directory.
     pub reference: PathBuf,
+    /// Pixel rectangle `[x0, y0, x1, y1]` of the caustic on the film at full size (x right,
+    /// y down, half-open), where `region_relmse` is measured; with `downscale`, every
+    /// pixel of the smaller film that it overlaps ([`crate::metrics::PixelRect::downscaled`]).
+    #[serde(default)]
+    pub caustic_region: Option<[u32; 4]>,
     /// Smoothing factor `S_c`.
     #[serde(default)]
     pub smoothing_caustic: Option<f64>,
@@ -83,6 +94,13 @@ fn default_scenes_dir() -> PathBuf {
 }
 fn default_downscale() -> u32 {
     1
+}
+
+impl SceneEntry {
+    /// The caustic region at full size (checked at load: not empty).
+    pub fn region(&self) -> Option<PixelRect> {
+        self.caustic_region.and_then(|r| PixelRect::new(r).ok())
+    }
 }
 
 /// A config read from a file, checked, with its paths resolved.
@@ -190,6 +208,11 @@ impl LoadedConfig {
             }
         }
         for s in &config.scenes {
+            if let Some(r) = s.caustic_region
+                && let Err(e) = PixelRect::new(r)
+            {
+                return bad(format!("scene '{}': caustic_region {e}", s.name));
+            }
             for (name, v) in [("smoothing_caustic", s.smoothing_caustic), ("smoothing_global", s.smoothing_global), ("radius_caustic", s.radius_caustic), ("radius_global", s.radius_global)] {
                 if let Some(v) = v
                     && !(v.is_finite() && v > 0.0)
@@ -205,6 +228,15 @@ impl LoadedConfig {
         use sha2::Digest;
         let hash = sha2::Sha256::digest(text.as_bytes()).iter().map(|b| format!("{b:02x}")).collect();
         Ok(Self { config, path: path.to_path_buf(), hash, scenes_dir, backends, methods })
+    }
+
+    /// The directory of `entry`'s files: its own `dir` (relative to the config file), else
+    /// the sweep's scenes directory.
+    pub fn scene_dir(&self, entry: &SceneEntry) -> PathBuf {
+        match &entry.dir {
+            Some(d) => self.path.parent().unwrap_or(Path::new(".")).join(d),
+            None => self.scenes_dir.clone(),
+        }
     }
 }
 
@@ -236,6 +268,22 @@ smoothing_caustic = 0.5
         assert_eq!(c.methods, vec![BenchMethod::Arpa, BenchMethod::Rtpm]);
         assert_eq!(c.hash.len(), 64);
         assert_eq!(c.config.scenes[0].smoothing_caustic, Some(0.5));
+        assert_eq!(c.config.scenes[0].region(), None);
+    }
+
+    #[test]
+    fn a_scene_can_have_its_own_directory_and_a_caustic_region() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("sub").join("b.toml");
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        let text = OK.replace("smoothing_caustic = 0.5", "dir = \"../mine\"\ncaustic_region = [1, 2, 30, 40]");
+        std::fs::write(&path, format!("{text}[[scene]]\nname = \"d\"\nfile = \"d.xml\"\nreference = \"d.exr\"\n")).unwrap();
+        let c = LoadedConfig::load(&path).unwrap();
+        let [own, shared] = [&c.config.scenes[0], &c.config.scenes[1]];
+        assert_eq!(c.scene_dir(own), dir.path().join("sub").join("../mine"));
+        assert_eq!(c.scene_dir(shared), c.scenes_dir);
+        assert_eq!(own.region(), Some(PixelRect { x0: 1, y0: 2, x1: 30, y1: 40 }));
+        assert_eq!(shared.region(), None);
     }
 
     #[test]
@@ -248,6 +296,10 @@ smoothing_caustic = 0.5
             (OK.replace("name = \"t\"", "name = \"t\"\nbackends = [\"quantum\"]"), "unknown backend 'quantum'"),
             (OK.replace("smoothing_caustic = 0.5", "smoothing_caustic = 0.0"), "smoothing_caustic"),
             (OK.replace("name = \"t\"", "name = \"t\"\ncolour = 1"), "colour"),
+            (OK.replace("smoothing_caustic = 0.5", "caustic_region = [10, 0, 10, 5]"), "scene 'c': caustic_region [10, 0, 10, 5] is empty"),
+            (OK.replace("smoothing_caustic = 0.5", "caustic_region = [0, 9, 5, 3]"), "caustic_region [0, 9, 5, 3] is empty"),
+            (OK.replace("smoothing_caustic = 0.5", "caustic_region = [0, 1, 2]"), "caustic_region"),
+            (OK.replace("smoothing_caustic = 0.5", "caustic_region = [-1, 0, 2, 2]"), "caustic_region"),
         ] {
             let e = format!("{:#}", load(&text).unwrap_err());
             assert!(e.contains(needle) && e.contains("b.toml"), "{needle}: {e}");

@@ -4,13 +4,17 @@
 //!
 //! Every run goes through the render session ([`crate::session`]) with checkpoints at powers
 //! of two and at the end; each checkpoint is a CSV row (relMSE, SSIM, FLIP, the ratio of the
-//! whole-image means, the per-stage mean times). The outputs ([`report`]) are one directory:
+//! whole-image means, the per-stage mean times, the relMSE inside the scene's caustic region
+//! when its entry has one, and the photon passes' rates: records per photon per map, photons
+//! per pass, caustic records per second). The outputs ([`report`]) are one directory:
 //! `runs.csv`, `table.md` (the layout of the paper's Table 2: SSIM, NI, ATI per scene ×
-//! method × budget), `plots/SCENE.png` (log-log relMSE against time), and per run the final
+//! method × budget), `plots/SCENE.png` (log-log relMSE against time; `SCENE-region.png` the
+//! region relMSE), and per run the final
 //! image (EXR + PNG) and its relMSE heat map. Every output starts with the same header
 //! ([`Header`]: machine, CPU, threads, backends and devices, git commit, config hash).
 //!
-//! Metrics ([`crate::metrics`]): relMSE on linear radiance; SSIM of the sRGB-encoded
+//! Metrics ([`crate::metrics`]): relMSE on linear radiance (and the same mean over the
+//! caustic region's pixels, [`crate::metrics::rel_mse_in`], for ours and the peers); SSIM of the sRGB-encoded
 //! luminance clamped to `[0, 1]` (no tone mapping, exposure 1) with an 11×11 Gaussian window
 //! of σ = 1.5 px; LDR-FLIP of the clamped sRGB image at 67 pixels per degree.
 //!
@@ -21,7 +25,7 @@ pub mod config;
 pub mod report;
 
 use crate::backends::{self, BackendOptions};
-use crate::metrics;
+use crate::metrics::{self, PixelRect};
 use crate::scene_file::load_scene;
 use crate::session::{Budget, CheckpointRow, Checkpoints, Hooks, Reference, SessionOptions, auto_smoothing, render_with};
 use arpa_core::classify::AutoSmoothing;
@@ -102,6 +106,34 @@ pub struct BenchRow {
     pub candidates_per_query: [f64; 2],
     /// Gather contributions per valid query point, `[caustic, global]` (zero for peers).
     pub contributions_per_query: [f64; 2],
+    /// relMSE inside the scene's caustic region (`None` without one).
+    pub region_rel_mse: Option<f64>,
+    /// The photon passes' rates (`None` for peers).
+    pub photons: Option<PhotonRates>,
+}
+
+/// What the photon passes of an arpa run stored, summed from its first iteration to a
+/// checkpoint.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PhotonRates {
+    /// Records stored per photon emitted (both passes), `[caustic, global]` map.
+    pub records_per_photon: [f64; 2],
+    /// Mean photons emitted per iteration, `[caustic pass, global pass]`.
+    pub emitted_per_iteration: [f64; 2],
+    /// Caustic-map records (footprints and progressive photons) stored per second of render
+    /// time (the checkpoint's `seconds`).
+    pub caustic_records_per_second: f64,
+}
+
+impl PhotonRates {
+    /// The rates of a session checkpoint.
+    pub fn of(row: &CheckpointRow) -> Self {
+        Self {
+            records_per_photon: row.records_per_photon,
+            emitted_per_iteration: row.emitted_per_iteration,
+            caustic_records_per_second: if row.seconds > 0.0 { row.records[0] as f64 / row.seconds } else { 0.0 },
+        }
+    }
 }
 
 /// The outcome of one run.
@@ -187,6 +219,7 @@ pub struct BenchOptions {
 /// Sums what one arpa run's checkpoints need into [`BenchRow`]s.
 struct RowHooks<'a> {
     reference_mean: f64,
+    bench_scene: &'a PreparedBenchScene,
     scene: &'a str,
     kind: &'a RunKind,
     rows: Vec<BenchRow>,
@@ -207,6 +240,8 @@ impl Hooks for RowHooks<'_> {
             times: row.times,
             candidates_per_query: row.candidates_per_query,
             contributions_per_query: row.contributions_per_query,
+            region_rel_mse: self.bench_scene.region_rel_mse(image)?,
+            photons: Some(PhotonRates::of(row)),
         });
         Ok(())
     }
@@ -215,15 +250,31 @@ impl Hooks for RowHooks<'_> {
 /// A scene of the sweep, loaded at the sweep's resolution, with its reference at the same.
 struct PreparedBenchScene {
     entry: SceneEntry,
+    /// The scene file.
+    file: PathBuf,
     scene: arpa_core::scene::Scene,
     max_depth: Option<u32>,
     reference: Reference,
+    /// The caustic region at the sweep's resolution.
+    region: Option<PixelRect>,
+}
+
+impl PreparedBenchScene {
+    /// relMSE of `image` inside the caustic region, if the scene has one.
+    fn region_rel_mse(&self, image: &Image) -> anyhow::Result<Option<f64>> {
+        let Some(rect) = self.region else { return Ok(None) };
+        metrics::check_sizes(image.width, image.height, self.reference.image.width, self.reference.image.height)?;
+        let e = metrics::rel_mse_in(&image.pixels, &self.reference.image.pixels, image.width, image.height, rect)
+            .with_context(|| format!("caustic region of scene '{}' against reference '{}'", self.entry.name, self.reference.path.display()))?;
+        Ok(Some(e))
+    }
 }
 
 fn prepare_scene(cfg: &LoadedConfig, entry: &SceneEntry) -> anyhow::Result<PreparedBenchScene> {
-    let file = cfg.scenes_dir.join(&entry.file);
+    let dir = cfg.scene_dir(entry);
+    let file = dir.join(&entry.file);
     let mut loaded = load_scene(&file, &[]).with_context(|| format!("cannot load scene file '{}'", file.display()))?;
-    let ref_path = cfg.scenes_dir.join(&entry.reference);
+    let ref_path = dir.join(&entry.reference);
     let full = crate::image_io::read_exr(&ref_path).with_context(|| format!("cannot read reference image '{}'", ref_path.display()))?;
     let k = cfg.config.downscale;
     let image = metrics::downsample(&full, k).map_err(|e| anyhow::anyhow!("reference '{}': {e}", ref_path.display()))?;
@@ -233,7 +284,13 @@ fn prepare_scene(cfg: &LoadedConfig, entry: &SceneEntry) -> anyhow::Result<Prepa
         bail!("reference '{}' does not match the scene's film", ref_path.display());
     }
     loaded.scene.validate().with_context(|| format!("scene file '{}' is invalid", file.display()))?;
-    Ok(PreparedBenchScene { entry: entry.clone(), scene: loaded.scene, max_depth: loaded.max_depth, reference: Reference { image, path: ref_path } })
+    let region = match entry.region() {
+        Some(r) if !r.fits(full.width, full.height) => {
+            bail!("bench config '{}': scene '{}': caustic_region {r} does not lie within the {}x{} film (reference '{}')", cfg.path.display(), entry.name, full.width, full.height, ref_path.display())
+        }
+        r => r.map(|r| r.downscaled(k)),
+    };
+    Ok(PreparedBenchScene { entry: entry.clone(), file, scene: loaded.scene, max_depth: loaded.max_depth, reference: Reference { image, path: ref_path }, region })
 }
 
 fn settings_for(s: &PreparedBenchScene, method: Method, photons: u32, seed: u32) -> RenderSettings {
@@ -301,14 +358,16 @@ pub fn run_bench(cfg: &LoadedConfig, options: &BenchOptions) -> anyhow::Result<V
         let eta = elapsed / done as f64 * (total_runs - done) as f64;
         eprintln!("[{done}/{total_runs}] {label}: {note}  (elapsed {elapsed:.0} s, ETA {eta:.0} s)");
     };
-    for entry in &c.scenes {
-        let scene = prepare_scene(cfg, entry)?;
+    // Every scene, reference and caustic region is loaded and checked before the first run,
+    // so a mistake in the config costs no render time.
+    let scenes = c.scenes.iter().map(|entry| prepare_scene(cfg, entry)).collect::<anyhow::Result<Vec<_>>>()?;
+    for (entry, scene) in c.scenes.iter().zip(&scenes) {
         let reference_mean = metrics::mean(&scene.reference.image);
         for (kind_backend, tracer) in tracers.iter_mut() {
             for &method in &cfg.methods {
                 for &photons in &c.photons {
                     let kind = RunKind::Arpa { backend: kind_backend.name().to_string(), method, photons };
-                    let mut settings = settings_for(&scene, method.method(), photons, c.seed);
+                    let mut settings = settings_for(scene, method.method(), photons, c.seed);
                     let mut budget = Duration::from_secs_f64(seconds);
                     let mut pilot_note = String::new();
                     if method.auto_smoothing() {
@@ -318,7 +377,7 @@ pub fn run_bench(cfg: &LoadedConfig, options: &BenchOptions) -> anyhow::Result<V
                         budget = budget.saturating_sub(pilot.time);
                         pilot_note = format!(" (pilot: overlap {:.2}/{:.2} at S = 1, S_c {:.3}, S_g {:.3})", pilot.overlap_at_one[0], pilot.overlap_at_one[1], pilot.smoothing.caustic, pilot.smoothing.global);
                     }
-                    let mut hooks = RowHooks { reference_mean, scene: &entry.name, kind: &kind, rows: Vec::new() };
+                    let mut hooks = RowHooks { reference_mean, bench_scene: scene, scene: &entry.name, kind: &kind, rows: Vec::new() };
                     let session = SessionOptions { budget: Budget::Time(budget), checkpoints: Checkpoints::PowersOfTwo, reference: Some(&scene.reference), resume: None, save: None };
                     let rendered = render_with(tracer, &scene.scene, &settings, &session, &mut hooks).with_context(|| format!("{} {}", entry.name, kind.label()))?;
                     report::write_run_images(&options.out, &entry.name, &kind, &rendered.image, &scene.reference.image)?;
@@ -331,7 +390,7 @@ pub fn run_bench(cfg: &LoadedConfig, options: &BenchOptions) -> anyhow::Result<V
         }
         for integrator in &c.peers {
             let kind = RunKind::Peer { integrator: integrator.clone() };
-            let result = run_peer(cfg, &scene, &kind, integrator, seconds, threads, options, reference_mean)?;
+            let result = run_peer(cfg, scene, &kind, integrator, seconds, threads, options, reference_mean)?;
             let note = match (&result.skipped, result.last()) {
                 (Some(why), _) => format!("SKIPPED: {why}"),
                 (None, Some(r)) => format!("passes {} relMSE {:.4e} SSIM {:.3}", r.iteration, r.rel_mse, r.ssim),
@@ -379,7 +438,7 @@ fn run_peer(
     let camera = &scene.scene.camera;
     let out = std::process::Command::new(&options.python)
         .arg(&script)
-        .args(["--scene", &cfg.scenes_dir.join(&scene.entry.file).to_string_lossy()])
+        .args(["--scene", &scene.file.to_string_lossy()])
         .args(["--integrator", integrator, "--seconds", &seconds.to_string(), "--threads", &threads.to_string()])
         .args(["--res", &format!("{}x{}", camera.width, camera.height), "--seed", &cfg.config.seed.to_string()])
         .arg("--out-dir")
@@ -414,6 +473,8 @@ fn run_peer(
                     times: StageTimes::default(),
                     candidates_per_query: [0.0; 2],
                     contributions_per_query: [0.0; 2],
+                    region_rel_mse: scene.region_rel_mse(&image)?,
+                    photons: None,
                 });
                 last_image = Some(image);
             }

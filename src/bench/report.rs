@@ -43,7 +43,8 @@ pub fn write_run_images(out: &Path, scene: &str, kind: &RunKind, image: &Image, 
     image::save_buffer(&path, &rgb, image.width, image.height, image::ExtendedColorType::Rgb8).with_context(|| format!("cannot write '{}'", path.display()))
 }
 
-/// Writes `runs.csv`, `table.md` and `plots/SCENE.png` for `results`.
+/// Writes `runs.csv`, `table.md`, `plots/SCENE.png` and, for a scene with a caustic region,
+/// `plots/SCENE-region.png` for `results`.
 pub fn write_all(out: &Path, header: &Header, cfg: &LoadedConfig, results: &[RunResult]) -> anyhow::Result<()> {
     let csv = out.join("runs.csv");
     std::fs::write(&csv, csv_text(header, results)).with_context(|| format!("cannot write '{}'", csv.display()))?;
@@ -53,13 +54,25 @@ pub fn write_all(out: &Path, header: &Header, cfg: &LoadedConfig, results: &[Run
     std::fs::create_dir_all(&plots).with_context(|| format!("cannot create '{}'", plots.display()))?;
     for scene in &cfg.config.scenes {
         let runs: Vec<&RunResult> = results.iter().filter(|r| r.scene == scene.name).collect();
-        plot_scene(&plots.join(format!("{}.png", scene.name)), header, &scene.name, &runs)?;
+        plot_scene(&plots.join(format!("{}.png", scene.name)), header, &scene.name, &runs, "relMSE", |r| Some(r.rel_mse))?;
+        if scene.region().is_some() {
+            plot_scene(&plots.join(format!("{}-region.png", scene.name)), header, &scene.name, &runs, "caustic-region relMSE", |r| r.region_rel_mse)?;
+        }
     }
     Ok(())
 }
 
-/// The CSV columns.
-pub const CSV_COLUMNS: &str = "scene,run,backend,method,photons,status,iteration,seconds,relmse,ssim,flip,mean_ratio,camera_ms,photon_ms,build_ms,gather_ms,accumulate_ms,caustic_candidates_per_query,caustic_contributions_per_query,global_candidates_per_query,global_contributions_per_query";
+/// The CSV columns. `region_relmse` is the relMSE inside the scene's caustic region (empty
+/// without one). The last five are the photon passes' sums up to the checkpoint (empty for
+/// peers): records stored per photon emitted in the caustic and the global map, mean
+/// photons emitted per iteration by the caustic and the global pass, and caustic-map
+/// records stored per second of render time.
+pub const CSV_COLUMNS: &str = "scene,run,backend,method,photons,status,iteration,seconds,relmse,ssim,flip,mean_ratio,camera_ms,photon_ms,build_ms,gather_ms,accumulate_ms,caustic_candidates_per_query,caustic_contributions_per_query,global_candidates_per_query,global_contributions_per_query,region_relmse,caustic_records_per_photon,global_records_per_photon,caustic_pass_photons,global_pass_photons,caustic_records_per_second";
+
+/// `{:.9e}` of a value, or nothing.
+fn optional_sci(v: Option<f64>) -> String {
+    v.map_or(String::new(), |v| format!("{v:.9e}"))
+}
 
 /// `# header` lines, then one row per checkpoint (a skipped run is one `skipped: …` row).
 pub fn csv_text(header: &Header, results: &[RunResult]) -> String {
@@ -75,14 +88,24 @@ pub fn csv_text(header: &Header, results: &[RunResult]) -> String {
         };
         let run = r.kind.label();
         if let Some(why) = &r.skipped {
-            let _ = writeln!(s, "{},{run},{backend},{method},{photons},\"skipped: {}\",,,,,,,,,,,,,,,", r.scene, why.replace('"', "'"));
+            let empty = ",".repeat(CSV_COLUMNS.split(',').count() - 6);
+            let _ = writeln!(s, "{},{run},{backend},{method},{photons},\"skipped: {}\"{empty}", r.scene, why.replace('"', "'"));
             continue;
         }
         for row in &r.rows {
             let t = &row.times;
+            let rates = row.photons.map_or_else(
+                || ",,,,".to_string(),
+                |p| {
+                    format!(
+                        "{:.6},{:.6},{:.1},{:.1},{:.1}",
+                        p.records_per_photon[0], p.records_per_photon[1], p.emitted_per_iteration[0], p.emitted_per_iteration[1], p.caustic_records_per_second
+                    )
+                },
+            );
             let _ = writeln!(
                 s,
-                "{},{run},{backend},{method},{photons},ok,{},{:.6},{:.9e},{:.9},{:.9},{:.6},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3}",
+                "{},{run},{backend},{method},{photons},ok,{},{:.6},{:.9e},{:.9},{:.9},{:.6},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{rates}",
                 r.scene,
                 row.iteration,
                 row.seconds,
@@ -98,7 +121,8 @@ pub fn csv_text(header: &Header, results: &[RunResult]) -> String {
                 row.candidates_per_query[0],
                 row.contributions_per_query[0],
                 row.candidates_per_query[1],
-                row.contributions_per_query[1]
+                row.contributions_per_query[1],
+                optional_sci(row.region_rel_mse)
             );
         }
     }
@@ -116,8 +140,8 @@ fn ati_ms(row: &BenchRow) -> f64 {
 }
 
 /// The Markdown report: the header, Table 2 (SSIM, NI, ATI per scene × method × budget),
-/// the peers at equal time, the final relMSE/FLIP/mean ratio of every run, and the ATI
-/// split by stage.
+/// the peers at equal time, the final relMSE/region relMSE/FLIP/mean ratio of every run,
+/// the ATI split by stage, and the photon passes' rates.
 pub fn table_text(header: &Header, cfg: &LoadedConfig, results: &[RunResult]) -> String {
     let c = &cfg.config;
     let mut s = String::new();
@@ -158,21 +182,22 @@ pub fn table_text(header: &Header, cfg: &LoadedConfig, results: &[RunResult]) ->
     }
     if !c.peers.is_empty() {
         let _ = writeln!(s, "## Equal-time peers (Mitsuba 3, {} s, {} threads)\n", header.seconds, header.threads);
-        let _ = writeln!(s, "| scene | integrator | SSIM | relMSE | FLIP | mean / ref | passes | ms per pass |\n|---|---|---|---|---|---|---|---|");
+        let _ = writeln!(s, "| scene | integrator | SSIM | relMSE | region relMSE | FLIP | mean / ref | passes | ms per pass |\n|---|---|---|---|---|---|---|---|---|");
         for scene in &c.scenes {
             for (r, last) in final_of(results, &scene.name, |k| matches!(k, RunKind::Peer { .. })) {
                 let RunKind::Peer { integrator } = &r.kind else { continue };
                 match (&r.skipped, last) {
                     (Some(why), _) => {
-                        let _ = writeln!(s, "| {} | {integrator} | skipped: {why} | | | | | |", scene.name);
+                        let _ = writeln!(s, "| {} | {integrator} | skipped: {why} | | | | | | |", scene.name);
                     }
                     (None, Some(l)) => {
                         let _ = writeln!(
                             s,
-                            "| {} | {integrator} | {:.3} | {:.4e} | {:.4} | {:.3} | {} | {:.1} |",
+                            "| {} | {integrator} | {:.3} | {:.4e} | {} | {:.4} | {:.3} | {} | {:.1} |",
                             scene.name,
                             l.ssim,
                             l.rel_mse,
+                            region_cell(l),
                             l.flip,
                             l.mean_ratio,
                             l.iteration,
@@ -185,7 +210,11 @@ pub fn table_text(header: &Header, cfg: &LoadedConfig, results: &[RunResult]) ->
         }
         s += "\n";
     }
-    let _ = writeln!(s, "## Final errors of every run\n\n| scene | run | backend | relMSE | FLIP | SSIM | mean / ref | NI | seconds |\n|---|---|---|---|---|---|---|---|---|");
+    let regions: Vec<String> = c.scenes.iter().filter_map(|e| e.region().map(|r| format!("{} {r}", e.name))).collect();
+    if !regions.is_empty() {
+        let _ = writeln!(s, "Caustic regions (pixels [x0, y0, x1, y1] of the full-size film, half-open; region relMSE is relMSE over them): {}.\n", regions.join(", "));
+    }
+    let _ = writeln!(s, "## Final errors of every run\n\n| scene | run | backend | relMSE | region relMSE | FLIP | SSIM | mean / ref | NI | seconds |\n|---|---|---|---|---|---|---|---|---|---|");
     for r in results {
         let backend = match &r.kind {
             RunKind::Arpa { backend, .. } => backend.as_str(),
@@ -195,10 +224,11 @@ pub fn table_text(header: &Header, cfg: &LoadedConfig, results: &[RunResult]) ->
             Some(l) => {
                 let _ = writeln!(
                     s,
-                    "| {} | {} | {backend} | {:.4e} | {:.4} | {:.3} | {:.3} | {} | {:.2} |",
+                    "| {} | {} | {backend} | {:.4e} | {} | {:.4} | {:.3} | {:.3} | {} | {:.2} |",
                     r.scene,
                     r.kind.label(),
                     l.rel_mse,
+                    region_cell(l),
                     l.flip,
                     l.ssim,
                     l.mean_ratio,
@@ -207,7 +237,7 @@ pub fn table_text(header: &Header, cfg: &LoadedConfig, results: &[RunResult]) ->
                 );
             }
             None => {
-                let _ = writeln!(s, "| {} | {} | {backend} | {} | | | | | |", r.scene, r.kind.label(), r.skipped.as_deref().unwrap_or("no result"));
+                let _ = writeln!(s, "| {} | {} | {backend} | {} | | | | | | |", r.scene, r.kind.label(), r.skipped.as_deref().unwrap_or("no result"));
             }
         }
     }
@@ -228,7 +258,31 @@ pub fn table_text(header: &Header, cfg: &LoadedConfig, results: &[RunResult]) ->
             ati_ms(l)
         );
     }
+    let _ = writeln!(
+        s,
+        "\n## Photon passes (sums over each run)\n\n| scene | run | backend | caustic-pass photons / it | global-pass photons / it | caustic records / photon | global records / photon | caustic records / s |\n|---|---|---|---|---|---|---|---|"
+    );
+    for r in results {
+        let (RunKind::Arpa { backend, .. }, Some(l)) = (&r.kind, r.last()) else { continue };
+        let Some(p) = l.photons else { continue };
+        let _ = writeln!(
+            s,
+            "| {} | {} | {backend} | {:.0} | {:.0} | {:.4} | {:.4} | {:.4e} |",
+            r.scene,
+            r.kind.label(),
+            p.emitted_per_iteration[0],
+            p.emitted_per_iteration[1],
+            p.records_per_photon[0],
+            p.records_per_photon[1],
+            p.caustic_records_per_second
+        );
+    }
     s
+}
+
+/// A row's region relMSE as a table cell (`–` without a region).
+fn region_cell(row: &BenchRow) -> String {
+    row.region_rel_mse.map_or_else(|| "–".to_string(), |e| format!("{e:.4e}"))
 }
 
 /// `0.30000000000000004` -> `0.3`: three significant digits, trailing zeros dropped.
@@ -247,13 +301,14 @@ fn register_font() -> anyhow::Result<()> {
         .map_err(|e| anyhow!(e))
 }
 
-/// Log-log relMSE against render time of every run of one scene, one line each; the caption
-/// carries the header's commit and config hash.
-fn plot_scene(path: &Path, header: &Header, scene: &str, runs: &[&RunResult]) -> anyhow::Result<()> {
+/// Log-log error (`metric`, named `what`) against render time of every run of one scene,
+/// one line each; the caption carries the header's commit and config hash.
+fn plot_scene(path: &Path, header: &Header, scene: &str, runs: &[&RunResult], what: &str, metric: fn(&BenchRow) -> Option<f64>) -> anyhow::Result<()> {
     register_font()?;
     let (w, h) = PLOT_SIZE;
     let mut buf = vec![255u8; (w * h * 3) as usize];
-    let points: Vec<(f64, f64)> = runs.iter().flat_map(|r| r.rows.iter().map(|p| (p.seconds, p.rel_mse))).filter(|(t, e)| *t > 0.0 && *e > 0.0).collect();
+    let series_of = |r: &RunResult| -> Vec<(f64, f64)> { r.rows.iter().filter_map(|p| metric(p).map(|e| (p.seconds, e))).filter(|(t, e)| *t > 0.0 && *e > 0.0).collect() };
+    let points: Vec<(f64, f64)> = runs.iter().flat_map(|r| series_of(r)).collect();
     {
         let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
         let fail = |e: &dyn std::fmt::Display| anyhow!("cannot draw plot '{}': {e}", path.display());
@@ -264,7 +319,7 @@ fn plot_scene(path: &Path, header: &Header, scene: &str, runs: &[&RunResult]) ->
         if points.is_empty() {
             (x0, x1, y0, y1) = (0.1, 10.0, 1e-4, 1.0);
         }
-        let caption = format!("{scene}: relMSE against time ({}, {} threads)", header.name, header.threads);
+        let caption = format!("{scene}: {what} against time ({}, {} threads)", header.name, header.threads);
         let mut chart = ChartBuilder::on(&root)
             .caption(caption, ("sans-serif", 22))
             .margin(12)
@@ -275,7 +330,7 @@ fn plot_scene(path: &Path, header: &Header, scene: &str, runs: &[&RunResult]) ->
         chart
             .configure_mesh()
             .x_desc("render time (s)")
-            .y_desc("relMSE")
+            .y_desc(what)
             .x_label_formatter(&|v| short_number(*v))
             .y_label_formatter(&|v| format!("{v:.1e}"))
             .label_style(("sans-serif", 14))
@@ -283,7 +338,7 @@ fn plot_scene(path: &Path, header: &Header, scene: &str, runs: &[&RunResult]) ->
             .map_err(|e| fail(&e))?;
         for (i, r) in runs.iter().enumerate() {
             let colour = Palette99::pick(i).to_rgba();
-            let series: Vec<(f64, f64)> = r.rows.iter().map(|p| (p.seconds, p.rel_mse)).filter(|(t, e)| *t > 0.0 && *e > 0.0).collect();
+            let series = series_of(r);
             if series.is_empty() {
                 continue;
             }
