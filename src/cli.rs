@@ -96,6 +96,21 @@ pub struct BenchArgs {
     /// Python interpreter that runs the Mitsuba peers (`scripts/peer_mitsuba.py`).
     #[arg(long, value_name = "PYTHON", default_value = "python3")]
     pub python: String,
+
+    /// Projection maps and the caustic pass in every arpa run (`off`: one pass over every
+    /// light's whole domain, the emission before issue 22), as `render --projection`.
+    #[arg(long, value_enum, value_name = "MODE", default_value = "on")]
+    pub projection: OnOff,
+
+    /// Caustic-pass photons per iteration of every arpa run [default: automatic], as
+    /// `render --caustic-photons`.
+    #[arg(long, value_name = "N")]
+    pub caustic_photons: Option<u32>,
+
+    /// Skip the config's Mitsuba peers (e.g. for a second sweep that changes only our
+    /// emission).
+    #[arg(long)]
+    pub no_peers: bool,
 }
 
 /// How the smoothing factors are chosen (`--smoothing`).
@@ -624,7 +639,13 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 /// `arpa bench`.
 pub fn run_bench(args: &BenchArgs) -> anyhow::Result<()> {
     let cfg = crate::bench::config::LoadedConfig::load(&args.config)?;
-    let options = crate::bench::BenchOptions { out: args.out.clone(), seconds: args.seconds, python: args.python.clone() };
+    let options = crate::bench::BenchOptions {
+        out: args.out.clone(),
+        seconds: args.seconds,
+        python: args.python.clone(),
+        emission: EmissionStrategy { projection: args.projection == OnOff::On, caustic_photons: args.caustic_photons },
+        peers: !args.no_peers,
+    };
     let results = crate::bench::run_bench(&cfg, &options)?;
     let skipped = results.iter().filter(|r| r.skipped.is_some()).count();
     if skipped > 0 {

@@ -175,6 +175,8 @@ pub struct Header {
     pub config_hash: String,
     /// Wall-clock budget of each run (seconds).
     pub seconds: f64,
+    /// The photon emission of our runs ([`arpa_core::tracer::EmissionStrategy`]).
+    pub emission: arpa_core::tracer::EmissionStrategy,
 }
 
 impl Header {
@@ -189,6 +191,11 @@ impl Header {
             format!("commit: {}", self.commit),
             format!("config sha256: {}", self.config_hash),
             format!("budget per run: {} s", self.seconds),
+            format!(
+                "emission: projection {}, caustic photons {}",
+                if self.emission.projection { "on" } else { "off" },
+                self.emission.caustic_photons.map_or("auto".to_string(), |n| n.to_string())
+            ),
         ]
     }
 }
@@ -214,6 +221,11 @@ pub struct BenchOptions {
     pub seconds: Option<f64>,
     /// Python interpreter for the peers.
     pub python: String,
+    /// Photon emission of every arpa run (projection on by default).
+    pub emission: arpa_core::tracer::EmissionStrategy,
+    /// Run the config's peers (off: only our runs, e.g. a second sweep with other
+    /// emission settings).
+    pub peers: bool,
 }
 
 /// Sums what one arpa run's checkpoints need into [`BenchRow`]s.
@@ -345,9 +357,10 @@ pub fn run_bench(cfg: &LoadedConfig, options: &BenchOptions) -> anyhow::Result<V
         commit: command_output("git", &["-C", env!("CARGO_MANIFEST_DIR"), "describe", "--always", "--dirty", "--abbrev=12"]).unwrap_or_else(|| "unknown".into()),
         config_hash: cfg.hash.clone(),
         seconds,
+        emission: options.emission,
     };
 
-    let per_scene = cfg.backends.len() * cfg.methods.len() * c.photons.len() + c.peers.len();
+    let per_scene = cfg.backends.len() * cfg.methods.len() * c.photons.len() + if options.peers { c.peers.len() } else { 0 };
     let total_runs = per_scene * c.scenes.len();
     let started = Instant::now();
     let mut done = 0usize;
@@ -368,6 +381,7 @@ pub fn run_bench(cfg: &LoadedConfig, options: &BenchOptions) -> anyhow::Result<V
                 for &photons in &c.photons {
                     let kind = RunKind::Arpa { backend: kind_backend.name().to_string(), method, photons };
                     let mut settings = settings_for(scene, method.method(), photons, c.seed);
+                    settings.emission = options.emission;
                     let mut budget = Duration::from_secs_f64(seconds);
                     let mut pilot_note = String::new();
                     if method.auto_smoothing() {
@@ -388,7 +402,7 @@ pub fn run_bench(cfg: &LoadedConfig, options: &BenchOptions) -> anyhow::Result<V
                 }
             }
         }
-        for integrator in &c.peers {
+        for integrator in c.peers.iter().filter(|_| options.peers) {
             let kind = RunKind::Peer { integrator: integrator.clone() };
             let result = run_peer(cfg, scene, &kind, integrator, seconds, threads, options, reference_mean)?;
             let note = match (&result.skipped, result.last()) {
