@@ -607,7 +607,9 @@ impl PreparedLight {
     pub fn emit_in(&self, index: u32, rng: &mut Rng, cells: &[u32]) -> Result<EmittedPhoton, EmissionError> {
         let params = &self.params;
         let domain = params.cells;
-        if cells.len() != domain.count as usize || (domain.grid != 0 && cells.iter().any(|&c| c as u64 >= domain.grid as u64 * domain.grid as u64)) {
+        // Only the length here: a scan of the list would cost O(cells) per photon; the one
+        // cell a photon takes is checked where it is taken ([`cell_at`]).
+        if cells.len() != domain.count as usize {
             return Err(EmissionError::Params("cells: the list does not match the light's cell domain"));
         }
         let (centre, radius) = params.scene_sphere;
@@ -616,7 +618,7 @@ impl PreparedLight {
         let u = if domain.grid != 0 && !area {
             let (slot, j, n) = crate::sampling::round_robin(index, params.photon_count, domain.count, params.cell_offset);
             let local = crate::sampling::fibonacci_lattice(j, n, params.lattice_shift);
-            crate::sampling::cell_point(local, cells[slot as usize], domain.grid)
+            crate::sampling::cell_point(local, cell_at(cells, slot, domain)?, domain.grid)
         } else {
             crate::sampling::fibonacci_lattice(index, params.photon_count, params.lattice_shift)
         };
@@ -658,7 +660,7 @@ impl PreparedLight {
         let draw = if domain.grid != 0 {
             let (slot, fx) = crate::sampling::split_draw(rng.next_u32(), domain.count);
             let fy = rng.next_f64();
-            crate::sampling::cell_point(DVec2::new(fx, fy), cells[slot as usize], domain.grid)
+            crate::sampling::cell_point(DVec2::new(fx, fy), cell_at(cells, slot, domain)?, domain.grid)
         } else {
             rng.next_2d()
         };
@@ -671,6 +673,15 @@ impl PreparedLight {
         // positional ones need the finiteness check.
         let ray = RayDifferential::new_unit_with_finite_dd(p, d, light_frame.t * x, light_frame.b * x, dir_frame.t * w, dir_frame.b * w)?;
         Ok((ray, self.flux, Some(light_frame.n)))
+    }
+}
+
+/// Entry `slot` of a light's cell list, which must name a cell of its grid.
+#[inline(always)]
+fn cell_at(cells: &[u32], slot: u32, domain: CellDomain) -> Result<u32, EmissionError> {
+    match cells.get(slot as usize) {
+        Some(&c) if (c as u64) < domain.grid as u64 * domain.grid as u64 => Ok(c),
+        _ => Err(EmissionError::Params("cells: an entry lies outside the light's grid")),
     }
 }
 

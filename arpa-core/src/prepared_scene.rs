@@ -170,9 +170,12 @@ impl PreparedScene {
         let is_specular = |m: &crate::scene::TriangleMesh| matches!(scattering.get(m.material as usize), Some(Scattering::Mirror(_) | Scattering::Refractive(..)));
         let all: Vec<[DVec3; 3]> = scene.meshes.iter().flat_map(|m| m.indices.iter().map(move |&idx| vertices(m, idx))).collect();
         let specular: Vec<[DVec3; 3]> = scene.meshes.iter().filter(|m| is_specular(m)).flat_map(|m| m.indices.iter().map(move |&idx| vertices(m, idx))).collect();
+        let all_groups: Vec<usize> = scene.meshes.iter().map(|m| m.indices.len()).collect();
+        let specular_groups: Vec<usize> = scene.meshes.iter().filter(|m| is_specular(m)).map(|m| m.indices.len()).collect();
         let has_specular = !specular.is_empty();
         let coplanar_geometry = coplanar(&all);
-        let (all_targets, specular_targets) = (Targets::new(all), Targets::new(specular));
+        // Clusters within each mesh: a small mirror never shares a sphere with another object.
+        let (all_targets, specular_targets) = (Targets::grouped(all, &all_groups), Targets::grouped(specular, &specular_groups));
         let sphere = scene.bounding_sphere();
         let projections = emitters
             .iter()

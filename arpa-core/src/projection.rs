@@ -45,7 +45,7 @@ use alloc::vec::Vec;
 use glam::{DVec2, DVec3};
 
 /// Cells per side of the projection grid of point, spot and directional lights.
-pub const DELTA_GRID: u32 = 64;
+pub const DELTA_GRID: u32 = 128;
 /// Cells per side of the projection grid over an area light's directions.
 pub const AREA_GRID: u32 = 32;
 /// Triangles per bounding sphere of the targets.
@@ -82,30 +82,44 @@ pub struct Targets {
 }
 
 impl Targets {
-    /// Clusters `triangles` (vertices in metres).
+    /// Clusters `triangles` (vertices in metres) as one group.
     pub fn new(triangles: Vec<[DVec3; 3]>) -> Self {
-        if triangles.is_empty() {
-            return Self::default();
-        }
+        let n = triangles.len();
+        Self::grouped(triangles, &[n])
+    }
+
+    /// Clusters `triangles` (vertices in metres) within each group of consecutive
+    /// triangles of sizes `groups` (meshes: a cluster never spans two, so that a small
+    /// mirror does not share a sphere with a distant glass object).
+    pub fn grouped(triangles: Vec<[DVec3; 3]>, groups: &[usize]) -> Self {
         let centroid = |t: &[DVec3; 3]| (t[0] + t[1] + t[2]) / 3.0;
-        let bounds = crate::aabb::Aabb::from_points(triangles.iter().map(centroid));
-        let (lo, hi) = (bounds.min.as_vec3().to_array(), bounds.max.as_vec3().to_array());
-        let inv = crate::gpu::morton::inverse_extent(lo, hi);
-        let mut keyed: Vec<(u32, u32)> = triangles.iter().enumerate().map(|(i, t)| (crate::gpu::morton::morton_code(centroid(t).as_vec3().to_array(), lo, inv), i as u32)).collect();
-        keyed.sort_unstable();
-        let order: Vec<u32> = keyed.into_iter().map(|(_, i)| i).collect();
-        let clusters = (0..order.len())
-            .step_by(CLUSTER_SIZE)
-            .map(|start| {
-                let range = start..(start + CLUSTER_SIZE).min(order.len());
+        let mut order: Vec<u32> = Vec::with_capacity(triangles.len());
+        let mut clusters = Vec::new();
+        let mut first = 0usize;
+        for &len in groups {
+            let end = (first + len).min(triangles.len());
+            if end <= first {
+                continue;
+            }
+            let group = first..end;
+            first = end;
+            let bounds = crate::aabb::Aabb::from_points(triangles[group.clone()].iter().map(centroid));
+            let (lo, hi) = (bounds.min.as_vec3().to_array(), bounds.max.as_vec3().to_array());
+            let inv = crate::gpu::morton::inverse_extent(lo, hi);
+            let mut keyed: Vec<(u32, u32)> = group.map(|i| (crate::gpu::morton::morton_code(centroid(&triangles[i]).as_vec3().to_array(), lo, inv), i as u32)).collect();
+            keyed.sort_unstable();
+            let start = order.len();
+            order.extend(keyed.into_iter().map(|(_, i)| i));
+            for c in (start..order.len()).step_by(CLUSTER_SIZE) {
+                let range = c..(c + CLUSTER_SIZE).min(order.len());
                 let points = || order[range.clone()].iter().flat_map(|&i| triangles[i as usize]);
                 let b = crate::aabb::Aabb::from_points(points());
                 let centre = (b.min + b.max) * 0.5;
                 let r = points().map(|p| (p - centre).length()).fold(0.0, f64::max);
                 // f32 vertices in the ray casts: a relative margin covers their rounding.
-                (BoundingSphere { centre, radius: r * (1.0 + 1e-6) + 1e-6 * (1.0 + centre.abs().max_element()) }, range)
-            })
-            .collect();
+                clusters.push((BoundingSphere { centre, radius: r * (1.0 + 1e-6) + 1e-6 * (1.0 + centre.abs().max_element()) }, range));
+            }
+        }
         Self { triangles, clusters, order }
     }
 
