@@ -124,8 +124,10 @@ fn arpa_emit_in(light: ArpaLight, index: u32, rng: ptr<function, ArpaRng>, cell:
     let projected = light.cell_count != 0u;
     let area = light.kind == ARPA_LIGHT_TRIANGLE || light.kind == ARPA_LIGHT_QUAD;
     var u: vec2<f32>;
+    var cell_weight = 1.0;
     if projected && !area {
         let rr = arpa_round_robin(index, light.photon_count, light.cell_count, light.cell_offset);
+        cell_weight = arpa_round_robin_weight(light.photon_count, light.cell_count, rr.z);
         u = arpa_cell_point(arpa_fibonacci_lattice(rr.y, rr.z, light.lattice_shift), cell, light.cell_grid);
     } else {
         u = arpa_fibonacci_lattice(index, light.photon_count, light.lattice_shift);
@@ -179,6 +181,7 @@ fn arpa_emit_in(light: ArpaLight, index: u32, rng: ptr<function, ArpaRng>, cell:
             out.has_surface_normal = 1u;
         }
     }
+    out.flux *= cell_weight;
     out.ray = res.ray;
     out.status = res.status;
     return out;

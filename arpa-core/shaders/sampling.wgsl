@@ -130,6 +130,14 @@ fn arpa_round_robin(i: u32, n: u32, m_in: u32, offset: u32) -> vec3<u32> {
     return vec3<u32>((r + start) % m, j, max(count, 1u));
 }
 
+// sampling::round_robin_weight: (n/m)/n_j when every cell has a photon (n >= m), else 1.
+fn arpa_round_robin_weight(n: u32, m: u32, n_j: u32) -> f32 {
+    if n >= m && n_j > 0u {
+        return (f32(n) / f32(max(m, 1u))) / f32(n_j);
+    }
+    return 1.0;
+}
+
 // sampling::split_draw: slot floor(word m / 2^32) and the fraction within (24 bits).
 fn arpa_split_draw_slot(word: u32, m: u32) -> u32 {
     return arpa_mul_hi_u32(word, max(m, 1u));

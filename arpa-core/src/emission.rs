@@ -615,8 +615,10 @@ impl PreparedLight {
         let (centre, radius) = params.scene_sphere;
         let lengths = &self.lengths;
         let area = matches!(self.light, Light::Triangle(_) | Light::Quad(_));
+        let mut cell_weight = 1.0;
         let u = if domain.grid != 0 && !area {
             let (slot, j, n) = crate::sampling::round_robin(index, params.photon_count, domain.count, params.cell_offset);
+            cell_weight = crate::sampling::round_robin_weight(params.photon_count, domain.count, n);
             let local = crate::sampling::fibonacci_lattice(j, n, params.lattice_shift);
             crate::sampling::cell_point(local, cell_at(cells, slot, domain)?, domain.grid)
         } else {
@@ -650,7 +652,7 @@ impl PreparedLight {
             }
             Light::Quad(l) => self.area_photon(l.origin + l.edge_u * u.x + l.edge_v * u.y, rng, cells)?,
         };
-        Ok(EmittedPhoton { ray, flux, reemission_length: lengths.reemission, surface_normal })
+        Ok(EmittedPhoton { ray, flux: flux * cell_weight, reemission_length: lengths.reemission, surface_normal })
     }
 
     #[inline(always)]

@@ -58,6 +58,9 @@ const BLOCK: u32 = 8;
 pub const MIN_GLOBAL_CAUSTIC_WEIGHT: f64 = 0.2;
 /// The caustic pass's automatic share of the global pass's photons is at most this.
 pub const MAX_AUTO_CAUSTIC_SHARE: f64 = 0.5;
+/// Above this share `q` of the power (towards geometry) that already heads for specular
+/// objects, no automatic caustic pass runs ([`auto_caustic_photons`]).
+pub const MAX_AUTO_SPECULAR_SHARE: f64 = 0.25;
 
 /// A sphere bounding some triangles (metres).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -434,8 +437,11 @@ fn caustic_skip(scene: &PreparedScene) -> Option<PassSkip> {
 /// (about `1/√q` for small `q`) for a share of about `√q` more photons (short ones: they
 /// end at their first diffuse hit), never more than half the global photons, and none
 /// where every photon heads for a specular object anyway (`q = 1`: aiming gains nothing
-/// there). At least one photon when `0 < q < 1`; the caller takes `N_g` itself when the
-/// global pass does not run.
+/// there). None either above `q` = [`MAX_AUTO_SPECULAR_SHARE`]: the caustic density would
+/// grow at most `1 + share/q` ≈ 2.5-fold there for ≥ 37 % more photons, whose paths through
+/// the specular objects are the long ones, and measured at equal time (cornell-caustic,
+/// water-caustic, `q` ≈ 0.5 and 1) that did not pay. At least one photon when
+/// `0 < q ≤ 1/4`; the caller takes `N_g` itself when the global pass does not run.
 pub fn auto_caustic_photons(scene: &PreparedScene, global_photons: u32) -> u32 {
     let (mut caustic, mut global) = (0.0, 0.0);
     for (p, power) in scene.projections().iter().zip(scene.emitter_powers()) {
@@ -446,6 +452,9 @@ pub fn auto_caustic_photons(scene: &PreparedScene, global_photons: u32) -> u32 {
         return 0;
     }
     let q = (caustic / global).min(1.0);
+    if q > MAX_AUTO_SPECULAR_SHARE {
+        return 0;
+    }
     let share = libm::sqrt(q).min(MAX_AUTO_CAUSTIC_SHARE) * (1.0 - q);
     if !(share > 0.0) {
         return 0;
@@ -525,7 +534,7 @@ impl EmissionPlan {
             (None, None) => auto_caustic_photons(scene, global_total),
         };
         if skipped.caustic_pass.is_none() && caustic_total == 0 {
-            skipped.caustic_pass = Some(PassSkip::NoCausticPhotons);
+            skipped.caustic_pass = Some(if strategy.caustic_photons.is_some() { PassSkip::NoCausticPhotons } else { PassSkip::LittleToGain });
         }
         let caustic = allocate(&specular_power, caustic_total);
         let lights = (0..n)

@@ -38,6 +38,18 @@ pub fn round_robin(i: u32, n: u32, m: u32, offset: u32) -> (u32, u32, u32) {
     ((r + start) % m, j, count.max(1))
 }
 
+/// The flux weight of a photon of a cell that holds `n_j` of the `n` photons shared round
+/// robin over `m` cells ([`round_robin`]): `(n/m) / n_j` when every cell has a photon
+/// (`n ≥ m`), so that each cell carries exactly its share of the power whether it got
+/// `⌊n/m⌋` or one more photon (stratified: without it, the cells that get the extra
+/// photon, a contiguous run of the list, would be brighter by up to `1/⌊n/m⌋` each
+/// iteration); 1 when `n < m` (then the random start of the round robin alone keeps the
+/// estimate unbiased).
+#[inline]
+pub fn round_robin_weight(n: u32, m: u32, n_j: u32) -> f64 {
+    if n >= m && n_j > 0 { (n as f64 / m.max(1) as f64) / n_j as f64 } else { 1.0 }
+}
+
 /// A uniform `u32` draw split into a uniform slot among `m` and a uniform fraction within
 /// it: `(⌊word · m / 2³²⌋, frac(word · m / 2³²))`, exact in integers (the shaders take the
 /// fraction to 24 bits).

@@ -711,6 +711,9 @@ pub enum PassSkip {
     SpecularUnreached,
     /// Caustic pass: the settings ask for no caustic photons (`--caustic-photons 0`).
     NoCausticPhotons,
+    /// Caustic pass: so much of the light already heads for specular objects that aiming
+    /// at them gains little ([`crate::projection::MAX_AUTO_SPECULAR_SHARE`]).
+    LittleToGain,
     /// Global pass: direct lighting is on and no photon can reach a second surface after
     /// a diffuse one (`max_depth` below 2, all geometry in one plane, or every diffuse
     /// surface black), so no global record can be stored.
@@ -726,6 +729,7 @@ impl PassSkip {
             PassSkip::NoSpecularSurface => "no specular surface",
             PassSkip::SpecularUnreached => "no light reaches a specular surface",
             PassSkip::NoCausticPhotons => "no caustic photons requested",
+            PassSkip::LittleToGain => "a quarter or more of the light heads for specular objects already",
             PassSkip::NothingToBounceTo => "direct lighting on and nothing to bounce to",
             PassSkip::NoLightReachesGeometry => "no light reaches any geometry",
         }

@@ -82,6 +82,17 @@ fn kept_cells_hold_every_ray_that_hits_a_target() {
     let cells = project(&point, scene_sphere, &spheres);
     let (hits, f) = check_conservative(&cells, &targets, |u, _| (p0, uniform_sphere(u)), 1);
     assert!(hits > 200 && f < 0.2, "point: {hits} hits, kept fraction {f}");
+    // A point light inside the bounding sphere of large triangles (a floor and a ceiling
+    // around it): their exact spherical triangles decide.
+    let slabs = vec![
+        [DVec3::new(-4.0, 0.0, -4.0), DVec3::new(4.0, 0.0, 4.0), DVec3::new(4.0, 0.0, -4.0)],
+        [DVec3::new(-4.0, 0.0, -4.0), DVec3::new(-4.0, 0.0, 4.0), DVec3::new(4.0, 0.0, 4.0)],
+        [DVec3::new(-4.0, 2.0, -4.0), DVec3::new(4.0, 2.0, -4.0), DVec3::new(4.0, 2.0, 4.0)],
+    ];
+    let inside = Light::Point(PointLight { position: DVec3::new(0.3, 1.0, -0.2), intensity: DVec3::ONE });
+    let cells = project(&inside, scene_sphere, &Targets::new(slabs.clone()));
+    let (hits, f) = check_conservative(&cells, &slabs, |u, _| (DVec3::new(0.3, 1.0, -0.2), uniform_sphere(u)), 1);
+    assert!(hits > 100_000 && f < 0.95, "inside: {hits} hits, kept fraction {f}");
     // Spot light, 50° cone towards the targets.
     let axis = (DVec3::new(0.3, -0.5, 0.2) - p0).normalize();
     let spot = Light::Spot(SpotLight { position: p0, direction: axis, intensity: DVec3::ONE, cutoff: 50f64.to_radians(), beam_width: 40f64.to_radians(), falloff: SpotFalloff::LinearAngle });

@@ -130,6 +130,9 @@ fn settings(method: Method, photons: u32, direct_lighting: bool) -> RenderSettin
         max_depth: 8,
         direct_lighting,
         smoothing: Smoothing { caustic: 0.6, global: 0.9 },
+        // A caustic pass (aimed, weighted, ending at its first diffuse hit) besides the
+        // global one, so that the comparisons cover both.
+        emission: arpa_core::tracer::EmissionStrategy { projection: true, caustic_photons: Some(photons / 2) },
         ..RenderSettings::default()
     }
 }
