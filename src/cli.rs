@@ -567,7 +567,7 @@ pub fn skipped_lines(k: &arpa_core::tracer::Skipped) -> Vec<String> {
         out.push(format!("{} light(s) that reach no geometry", k.lights));
     }
     if k.power_fraction > 0.0 {
-        out.push(format!("{:.1} % of the emitted power, sent where no geometry is", 100.0 * k.power_fraction));
+        out.push(format!("{:.2} % of the emitted power, sent where no geometry is", 100.0 * k.power_fraction));
     }
     out
 }

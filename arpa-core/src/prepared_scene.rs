@@ -5,7 +5,7 @@
 use crate::aabb::Aabb;
 use crate::differential::{DifferentialError, NormalDifferential};
 use crate::emission::Light;
-use crate::projection::{project, DomainCells, LightProjection, Targets};
+use crate::projection::{project, project_on, DomainCells, LightProjection, Targets, SPECULAR_AREA_GRID, SPECULAR_DELTA_GRID};
 use crate::prefetch::prefetch;
 use crate::ray_cast::RayHit;
 use crate::scene::{CameraFrame, Scattering, Scene, SceneError};
@@ -179,7 +179,7 @@ impl PreparedScene {
         let sphere = scene.bounding_sphere();
         let projections = emitters
             .iter()
-            .map(|l| LightProjection { geometry: project(l, sphere, &all_targets), specular: if has_specular { project(l, sphere, &specular_targets) } else { DomainCells { grid: 1, cells: Vec::new() } } })
+            .map(|l| LightProjection { geometry: project(l, sphere, &all_targets), specular: if has_specular { project_on(l, sphere, &specular_targets, SPECULAR_DELTA_GRID, SPECULAR_AREA_GRID) } else { DomainCells { grid: 1, cells: Vec::new() } } })
             .collect();
         let scatters = scene.meshes.iter().any(|m| matches!(scattering.get(m.material as usize), Some(Scattering::Diffuse(a)) if a.max_element() > 0.0));
         let second_hit_possible = scatters && !coplanar_geometry;

@@ -46,6 +46,12 @@ use glam::{DVec2, DVec3};
 
 /// Cells per side of the projection grid of point, spot and directional lights.
 pub const DELTA_GRID: u32 = 128;
+/// Cells per side of the specular projection grid of point, spot and directional lights:
+/// finer, since specular objects are often small in a light's view and the caustic pass
+/// pays for every photon its cells send past them.
+pub const SPECULAR_DELTA_GRID: u32 = 256;
+/// Cells per side of the specular projection grid over an area light's directions.
+pub const SPECULAR_AREA_GRID: u32 = 64;
 /// Cells per side of the projection grid over an area light's directions.
 pub const AREA_GRID: u32 = 32;
 /// Triangles per bounding sphere of the targets.
@@ -54,6 +60,8 @@ pub const CLUSTER_SIZE: usize = 16;
 pub const EDGE_SAMPLES: u32 = 6;
 /// Cells per side of the blocks tested before their cells.
 const BLOCK: u32 = 8;
+/// A projection that keeps at least this fraction of the cells keeps the whole domain.
+pub const WHOLE_ABOVE: f64 = 0.98;
 /// Below this balance weight the global pass stores no caustic records.
 pub const MIN_GLOBAL_CAUSTIC_WEIGHT: f64 = 0.2;
 /// The caustic pass's automatic share of the global pass's photons is at most this.
@@ -219,18 +227,26 @@ enum Seen {
 }
 
 /// The projection of the light `light` in a scene with bounding sphere `scene_sphere`
-/// onto `targets`: the kept cells (all cells give [`DomainCells::whole`]).
+/// onto `targets` on the grids [`DELTA_GRID`] and [`AREA_GRID`]: the kept cells (nearly all
+/// cells give [`DomainCells::whole`]).
 pub fn project(light: &Light, scene_sphere: (DVec3, f64), targets: &Targets) -> DomainCells {
+    project_on(light, scene_sphere, targets, DELTA_GRID, AREA_GRID)
+}
+
+/// [`project`] with `delta_grid` cells per side for point, spot and directional lights and
+/// `area_grid` for area lights (at most 4096).
+pub fn project_on(light: &Light, scene_sphere: (DVec3, f64), targets: &Targets, delta_grid: u32, area_grid: u32) -> DomainCells {
+    let (delta_grid, area_grid) = (delta_grid.clamp(1, 4096), area_grid.clamp(1, 4096));
     match light {
         Light::Point(l) => {
             let o = l.position;
-            project_with(DELTA_GRID, Space::Directions, &|u| uniform_sphere(u), targets, |t| seen_from_point(o, t))
+            project_with(delta_grid, Space::Directions, &|u| uniform_sphere(u), targets, |t| seen_from_point(o, t))
         }
         Light::Spot(l) => {
             let frame = Frame::from_normal(l.direction);
             let cos_cutoff = libm::cos(l.cutoff);
             let o = l.position;
-            project_with(DELTA_GRID, Space::Directions, &move |u| frame.to_world(uniform_cone(u, cos_cutoff)), targets, |t| seen_from_point(o, t))
+            project_with(delta_grid, Space::Directions, &move |u| frame.to_world(uniform_cone(u, cos_cutoff)), targets, |t| seen_from_point(o, t))
         }
         Light::Directional(l) => {
             let frame = Frame::from_normal(l.direction.normalize());
@@ -239,7 +255,7 @@ pub fn project(light: &Light, scene_sphere: (DVec3, f64), targets: &Targets) -> 
                 let d = uniform_disc(u) * radius;
                 DVec3::new(d.x, d.y, 0.0)
             };
-            project_with(DELTA_GRID, Space::Aperture, &map, targets, |t: Target| match t {
+            project_with(delta_grid, Space::Aperture, &map, targets, |t: Target| match t {
                 Target::Sphere(s) => {
                     let rel = s.centre - centre;
                     Seen::Cap { centre: DVec3::new(rel.dot(frame.t), rel.dot(frame.b), 0.0), radius: s.radius }
@@ -258,7 +274,7 @@ pub fn project(light: &Light, scene_sphere: (DVec3, f64), targets: &Targets) -> 
             let r = corners.iter().map(|p| (*p - c).length()).fold(0.0, f64::max);
             // From any point of the emitter's bounding ball: the cone towards the sphere
             // grown by the ball's radius; a cluster that overlaps the ball sees everything.
-            project_with(AREA_GRID, Space::Directions, &move |u| frame.to_world(cosine_hemisphere(u)), targets, |t: Target| match t {
+            project_with(area_grid, Space::Directions, &move |u| frame.to_world(cosine_hemisphere(u)), targets, |t: Target| match t {
                 Target::Sphere(s) => cone(c, r, s).unwrap_or(Seen::All),
                 Target::Triangle(_) => Seen::All,
             })
@@ -412,7 +428,9 @@ fn project_with(grid: u32, space: Space, map: &dyn Fn(DVec2) -> DVec3, targets: 
             s => mark(&s, &mut kept),
         }
     }
-    if kept.iter().all(|&k| k) {
+    // Nearly every cell: the whole domain (the same photons as without projection; the
+    // few left out would save next to nothing).
+    if kept.iter().filter(|&&k| k).count() as f64 >= WHOLE_ABOVE * kept.len() as f64 {
         return DomainCells::whole();
     }
     DomainCells { grid, cells: (0..grid * grid).filter(|&i| kept[i as usize]).collect() }
