@@ -117,9 +117,14 @@ fn arpa_cell_point(local: vec2<f32>, cell: u32, grid: u32) -> vec2<f32> {
     return vec2<f32>((ix + arpa_unit(local.x)) / f32(g), (iy + arpa_unit(local.y)) / f32(g));
 }
 
-// sampling::round_robin: photon i of n over m cells from `offset`: (slot, j, n_j).
+// sampling::round_robin: photon i of n over m <= 256^2 cells from `offset`: (slot, j, n_j);
+// with n < m the evenly spaced slots (i m + s) / n (i m + s < n m <= 2^32: no overflow).
 fn arpa_round_robin(i: u32, n: u32, m_in: u32, offset: u32) -> vec3<u32> {
     let m = max(m_in, 1u);
+    if n < m {
+        let s = arpa_mul_hi_u32(offset, m);
+        return vec3<u32>(min((i * m + s) / max(n, 1u), m - 1u), 0u, 1u);
+    }
     let r = i % m;
     let j = i / m;
     var count = n / m;

@@ -274,8 +274,8 @@ impl EmissionParams {
             return Err(EmissionError::Params("lattice_shift must be finite"));
         }
         let c = self.cells;
-        if c.grid != 0 && !(c.grid <= 4096 && c.count >= 1 && c.count as u64 <= c.grid as u64 * c.grid as u64) {
-            return Err(EmissionError::Params("cells: count must lie in 1..=grid² and grid in 0..=4096"));
+        if c.grid != 0 && !(c.grid <= crate::sampling::MAX_CELL_GRID && c.count >= 1 && c.count as u64 <= c.grid as u64 * c.grid as u64) {
+            return Err(EmissionError::Params("cells: count must lie in 1..=grid² and grid in 0..=256"));
         }
         if matches!(light, Light::Directional(_)) && !self.scene_sphere.0.is_finite() {
             return Err(LightError::NoSceneBounds.into());

@@ -234,9 +234,9 @@ pub fn project(light: &Light, scene_sphere: (DVec3, f64), targets: &Targets) -> 
 }
 
 /// [`project`] with `delta_grid` cells per side for point, spot and directional lights and
-/// `area_grid` for area lights (at most 4096).
+/// `area_grid` for area lights (at most [`crate::sampling::MAX_CELL_GRID`]).
 pub fn project_on(light: &Light, scene_sphere: (DVec3, f64), targets: &Targets, delta_grid: u32, area_grid: u32) -> DomainCells {
-    let (delta_grid, area_grid) = (delta_grid.clamp(1, 4096), area_grid.clamp(1, 4096));
+    let (delta_grid, area_grid) = (delta_grid.clamp(1, crate::sampling::MAX_CELL_GRID), area_grid.clamp(1, crate::sampling::MAX_CELL_GRID));
     match light {
         Light::Point(l) => {
             let o = l.position;

@@ -23,18 +23,27 @@ pub fn cell_point(local: DVec2, cell: u32, grid: u32) -> DVec2 {
     DVec2::new((ix + unit(local.x)) / g as f64, (iy + unit(local.y)) / g as f64)
 }
 
-/// Photon `i` of `n` shared round robin over `m` cells, starting at a cell chosen by
-/// `offset` (a uniform `u32`: cell `⌊offset · m / 2³²⌋` takes photon 0): `(slot, j, n_j)`,
-/// the photon's slot in the cell list, its index among that cell's photons and their
-/// number (`⌊n/m⌋` or one more). All integer, so the core and the shaders agree exactly;
-/// with `offset` drawn anew each iteration every cell expects `n/m` photons, also when
-/// `n < m`.
+/// Largest projection grid (cells per side): `m ≤ 256²` cells keep [`round_robin`]'s
+/// products within `u32` on the device.
+pub const MAX_CELL_GRID: u32 = 256;
+
+/// Photon `i` of `n` shared over `m` cells (at most `256²`), from an offset `offset` (a
+/// uniform `u32`, `s = ⌊offset · m / 2³²⌋`): `(slot, j, n_j)`, the photon's slot in the cell
+/// list, its index among that cell's photons and their number. With `n ≥ m`, round robin
+/// from slot `s` (`⌊n/m⌋` or one more photons each, [`round_robin_weight`]); with `n < m`,
+/// the evenly spaced slots `⌊(i m + s) / n⌋`, one photon each, so that every cell is
+/// taken with probability `n/m` and the taken ones spread over the list. All integer, so
+/// the core and the shaders agree exactly; `offset` is drawn anew each iteration.
 #[inline]
 pub fn round_robin(i: u32, n: u32, m: u32, offset: u32) -> (u32, u32, u32) {
     let m = m.max(1);
+    let start = ((offset as u64 * m as u64) >> 32) as u32;
+    if n < m {
+        let slot = ((i as u64 * m as u64 + start as u64) / n.max(1) as u64) as u32;
+        return (slot.min(m - 1), 0, 1);
+    }
     let (r, j) = (i % m, i / m);
     let count = n / m + u32::from(r < n % m);
-    let start = ((offset as u64 * m as u64) >> 32) as u32;
     ((r + start) % m, j, count.max(1))
 }
 
