@@ -20,6 +20,14 @@ pub const PLANE_PHOTONS: u32 = 50_000;
 /// Iterations.
 pub const PLANE_ITERATIONS: u32 = 4;
 
+/// A grey scene's image: every pixel finite with equal channels (to 1e-5 relative).
+pub(crate) fn check_grey(image: &arpa_core::tracer::Image) -> Result<(), String> {
+    match image.pixels.iter().find(|p| !p.is_finite() || (p.x - p.y).abs() > 1e-5 * p.x.abs() || (p.x - p.z).abs() > 1e-5 * p.x.abs()) {
+        Some(p) => Err(format!("grey scene, coloured or non-finite pixel {p:?}")),
+        None => Ok(()),
+    }
+}
+
 /// `ρ/π · I cos θ / d²` at query point `r` of the plane scene.
 fn analytic(r: &QueryRecord) -> f64 {
     let light = DVec3::new(0.0, PLANE_LIGHT_HEIGHT, 0.0);
@@ -97,13 +105,7 @@ fn plane(t: &mut dyn DynTracer, method: Method) -> CaseResult {
             image.pixels.len()
         ));
     }
-    if let Some(p) = image.pixels.iter().find(|p| {
-        !p.is_finite()
-            || (p.x - p.y).abs() > 1e-5 * p.x.abs()
-            || (p.x - p.z).abs() > 1e-5 * p.x.abs()
-    }) {
-        return Err(format!("grey scene, coloured or non-finite pixel {p:?}"));
-    }
+    check_grey(&image)?;
     let mut errors = Vec::new();
     for k in 0..3 {
         let members: Vec<usize> = (0..pixels).filter(|&i| ring[i] == Some(k)).collect();

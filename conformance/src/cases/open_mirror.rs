@@ -311,13 +311,7 @@ fn render(
                 image.pixels.len()
             ));
         }
-        if let Some(p) = image.pixels.iter().find(|p| {
-            !p.is_finite()
-                || (p.x - p.y).abs() > 1e-5 * p.x.abs()
-                || (p.x - p.z).abs() > 1e-5 * p.x.abs()
-        }) {
-            return Err(format!("grey scene, coloured or non-finite pixel {p:?}"));
-        }
+        super::analytic::check_grey(&image)?;
         // This iteration's own image from the running means.
         let now: Vec<f64> = image.pixels.iter().map(|p| p.x as f64).collect();
         let this: Vec<f64> = now
