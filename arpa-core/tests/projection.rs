@@ -229,8 +229,11 @@ fn the_plan_skips_what_the_scene_does_not_need() {
     assert_eq!(plan.skipped.caustic_pass, Some(PassSkip::NoSpecularSurface));
     assert_eq!(plan.skipped.global_pass, Some(PassSkip::NothingToBounceTo));
     assert_eq!(plan.pass_photons(), [0, 0]);
-    // Half the point light's power goes up, into nothing.
-    assert!((plan.skipped.power_fraction - 0.5).abs() < 0.02, "{}", plan.skipped.power_fraction);
+    // Half the point light's power goes up, into nothing, and a band below the horizon
+    // past the floor's edge (sin(atan(1.5/20))/2 = 3.7 %): 53.7 % at most; the 32² cells
+    // along the horizon are kept conservatively.
+    let f = plan.skipped.power_fraction;
+    assert!(f > 0.42 && f <= 0.537, "{f}");
     let indirect = RenderSettings { direct_lighting: false, ..settings };
     let plan = EmissionPlan::new(&plane, &indirect);
     assert_eq!(plan.skipped.global_pass, None);
