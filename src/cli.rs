@@ -97,15 +97,9 @@ pub struct BenchArgs {
     #[arg(long, value_name = "PYTHON", default_value = "python3")]
     pub python: String,
 
-    /// Projection maps and the caustic pass in every arpa run (`off`: one pass over every
-    /// light's whole domain, the emission before issue 22), as `render --projection`.
-    #[arg(long, value_enum, value_name = "MODE", default_value = "on")]
-    pub projection: OnOff,
-
-    /// Caustic-pass photons per iteration of every arpa run [default: automatic], as
-    /// `render --caustic-photons`.
-    #[arg(long, value_name = "N")]
-    pub caustic_photons: Option<u32>,
+    /// Photon emission of every arpa run, as `render`'s.
+    #[command(flatten)]
+    pub emission: EmissionArgs,
 
     /// Skip the config's Mitsuba peers (e.g. for a second sweep that changes only our
     /// emission).
@@ -120,6 +114,29 @@ pub enum SmoothingMode {
     Auto,
     /// The given factors.
     Fixed,
+}
+
+/// How photons are emitted (`--projection`, `--caustic-photons`), for `render` and `bench`.
+#[derive(Debug, Args)]
+pub struct EmissionArgs {
+    /// Projection maps (arpa_core::projection): `on` sends global photons only where a
+    /// light sees geometry and runs a caustic pass aimed at mirror and glass objects;
+    /// `off` emits one pass over every light's whole domain.
+    #[arg(long, value_enum, value_name = "MODE", default_value = "on")]
+    pub projection: OnOff,
+
+    /// Photons of the caustic pass per iteration [default: chosen from the power the
+    /// lights send towards specular objects, arpa_core::projection::auto_caustic_photons;
+    /// 0 runs no caustic pass].
+    #[arg(long, value_name = "N")]
+    pub caustic_photons: Option<u32>,
+}
+
+impl EmissionArgs {
+    /// The core's emission strategy these arguments select.
+    pub fn strategy(&self) -> EmissionStrategy {
+        EmissionStrategy { projection: self.projection == OnOff::On, caustic_photons: self.caustic_photons }
+    }
 }
 
 /// A switch on the command line.
@@ -340,17 +357,9 @@ pub struct RenderArgs {
     #[arg(long)]
     pub no_direct: bool,
 
-    /// Projection maps (arpa_core::projection): `on` sends global photons only where a
-    /// light sees geometry and runs a caustic pass aimed at mirror and glass objects;
-    /// `off` emits one pass over every light's whole domain.
-    #[arg(long, value_enum, value_name = "MODE", default_value = "on")]
-    pub projection: OnOff,
-
-    /// Photons of the caustic pass per iteration [default: chosen from the power the
-    /// lights send towards specular objects, arpa_core::projection::auto_caustic_photons;
-    /// 0 runs no caustic pass].
-    #[arg(long, value_name = "N")]
-    pub caustic_photons: Option<u32>,
+    /// Photon emission: projection maps and the caustic pass.
+    #[command(flatten)]
+    pub emission: EmissionArgs,
 
     /// How ARPA's smoothing factors are chosen: `auto` (a pilot iteration at S = 1 picks
     /// S_c and S_g so that about 8 footprints of a map cover each point it lights,
@@ -444,7 +453,7 @@ impl RenderArgs {
             seed: self.seed,
             max_depth: self.max_depth.unwrap_or(DEFAULT_MAX_DEPTH),
             direct_lighting: !self.no_direct,
-            emission: EmissionStrategy { projection: self.projection == OnOff::On, caustic_photons: self.caustic_photons },
+            emission: self.emission.strategy(),
             smoothing: Smoothing { caustic: self.smoothing_caustic.unwrap_or(1.0), global: self.smoothing_global.unwrap_or(1.0) },
             radii: ProgressiveConfig {
                 caustic: self.radius_caustic.map_or(defaults.radii.caustic, RadiusSpec::Absolute),
@@ -643,7 +652,7 @@ pub fn run_bench(args: &BenchArgs) -> anyhow::Result<()> {
         out: args.out.clone(),
         seconds: args.seconds,
         python: args.python.clone(),
-        emission: EmissionStrategy { projection: args.projection == OnOff::On, caustic_photons: args.caustic_photons },
+        emission: args.emission.strategy(),
         peers: !args.no_peers,
     };
     let results = crate::bench::run_bench(&cfg, &options)?;

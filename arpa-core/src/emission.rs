@@ -481,7 +481,10 @@ impl Light {
     /// it (the directions of area lights: their hemisphere; their positions are sampled
     /// whole).
     pub fn emission_lengths_in(&self, n: u32, s: f64, scene_sphere_radius: f64, fraction: f64) -> EmissionLengths {
-        let n = n.max(1) as f64 / fraction;
+        let whole = n.max(1) as f64;
+        // The photons per unit of the sampled part's measure are those of `n / fraction`
+        // photons over the whole domain.
+        let n = whole / fraction;
         let tile = |measure: f64| 2.0 * s * libm::sqrt(measure / (PI * n));
         let hemisphere = tile(TAU);
         match self {
@@ -500,7 +503,7 @@ impl Light {
             },
             Light::Triangle(_) | Light::Quad(_) => {
                 // Every photon samples the whole emitter: its positional share is 1/N.
-                let positional = 2.0 * s * libm::sqrt(self.area() / (PI * n * fraction));
+                let positional = 2.0 * s * libm::sqrt(self.area() / (PI * whole));
                 EmissionLengths { positional, directional: hemisphere, reemission: hemisphere }
             }
         }
@@ -518,6 +521,21 @@ impl Light {
         self.prepare(params)?.emit(index, rng)
     }
 
+    /// The light's frame, the one [`Light::prepare`] keeps for emission and the projection
+    /// maps ([`crate::projection`]) map cells with: `+z` for a point light (whose
+    /// directions are drawn in world space), the spot's axis, the directional light's
+    /// direction of travel, the emitting side's normal of an area light (tangent `t` along
+    /// its first edge).
+    pub fn frame(&self) -> Frame {
+        match self {
+            Light::Point(_) => Frame::from_normal(DVec3::Z),
+            Light::Spot(l) => Frame::from_normal(l.direction),
+            Light::Directional(l) => Frame::from_normal(l.direction.normalize()),
+            Light::Triangle(l) => Frame::from_normal_and_hint((l.p[1] - l.p[0]).cross(l.p[2] - l.p[0]), l.p[1] - l.p[0]),
+            Light::Quad(l) => Frame::from_normal_and_hint(l.edge_u.cross(l.edge_v), l.edge_u),
+        }
+    }
+
     /// Validates the light and computes everything that does not depend on the photon:
     /// differential lengths, frames and flux per photon.
     pub fn prepare(&self, params: &EmissionParams) -> Result<PreparedLight, EmissionError> {
@@ -527,13 +545,14 @@ impl Light {
         let n = params.photon_count;
         let fraction = params.cells.fraction();
         let per_photon = fraction / n as f64;
-        let (flux, frame) = match self {
-            Light::Point(l) => (l.intensity * (4.0 * PI * per_photon), Frame::from_normal(DVec3::Z)),
-            Light::Spot(l) => (l.intensity * (cone_solid_angle_from_angle(l.cutoff) * per_photon), Frame::from_normal(l.direction)),
-            Light::Directional(l) => (l.irradiance * (PI * radius * radius * per_photon), Frame::from_normal(l.direction.normalize())),
-            Light::Triangle(l) => (l.radiance * (PI * self.area() * per_photon), Frame::from_normal_and_hint((l.p[1] - l.p[0]).cross(l.p[2] - l.p[0]), l.p[1] - l.p[0])),
-            Light::Quad(l) => (l.radiance * (PI * self.area() * per_photon), Frame::from_normal_and_hint(l.edge_u.cross(l.edge_v), l.edge_u)),
+        let flux = match self {
+            Light::Point(l) => l.intensity * (4.0 * PI * per_photon),
+            Light::Spot(l) => l.intensity * (cone_solid_angle_from_angle(l.cutoff) * per_photon),
+            Light::Directional(l) => l.irradiance * (PI * radius * radius * per_photon),
+            Light::Triangle(l) => l.radiance * (PI * self.area() * per_photon),
+            Light::Quad(l) => l.radiance * (PI * self.area() * per_photon),
         };
+        let frame = self.frame();
         let cos_cutoff = if let Light::Spot(l) = self { libm::cos(l.cutoff) } else { -1.0 };
         Ok(PreparedLight { light: *self, params: *params, lengths: self.emission_lengths_in(n, params.scale, radius, fraction), flux, frame, cos_cutoff })
     }
@@ -561,13 +580,6 @@ impl PreparedLight {
     /// The light.
     pub fn light(&self) -> &Light {
         &self.light
-    }
-
-    /// The same light with its flux per photon multiplied by `weight` (finite, ≥ 0): a
-    /// multiple-importance weight of the photons of one of several emission strategies
-    /// ([`crate::projection::EmissionPlan`]).
-    pub fn weighted(self, weight: f64) -> Self {
-        Self { flux: self.flux * weight, ..self }
     }
 
     /// The part of the emission domain this light's photons sample.
@@ -771,9 +783,10 @@ pub struct PackedLight {
     pub caustic_weight: f32,
     /// Cranley–Patterson shift of the Fibonacci lattice this iteration.
     pub lattice_shift: [f32; 2],
-    /// Index of the light's first projection cell in the cell table the shader reads
-    /// through `arpa_emission_cell` (set by whoever lays out that table, e.g.
-    /// [`crate::gpu::layout::emitter_tables`]; 0 from [`PreparedLight::pack`]).
+    /// Index of the light's first projection cell in the caller's cell table (the photon
+    /// pass's `photon_cells`, [`crate::gpu::layout::cell_table`]; set by
+    /// [`crate::gpu::layout::emitter_tables`], 0 from [`PreparedLight::pack`]); the
+    /// shader reads entry `cell_first + arpa_emission_slot(..)`.
     pub cell_first: u32,
     /// Projection cells sampled ([`CellDomain::count`]); 0: the whole domain.
     pub cell_count: u32,

@@ -48,9 +48,8 @@ pub struct PhotonPassSetup {
     pub caustic_weight: Vec<f64>,
     /// Emitters of the scene (`n`; the sources are `2n`).
     pub emitters: usize,
-    /// Where each source's projection cells start in the scene's cell table
-    /// ([`crate::gpu::layout::cell_table`]: every emitter's geometry cells, then every
-    /// emitter's specular cells).
+    /// Where each source's projection cells ([`source_cells`]) start in the scene's cell
+    /// table ([`crate::gpu::layout::cell_table`]: every source's cells in source order).
     pub cell_first: Vec<u32>,
     /// Photons of the `[caustic, global]` passes.
     pub pass_photons: [u32; 2],
@@ -93,26 +92,21 @@ impl PhotonPassSetup {
                 // shift (their lattices are over different cells or counts).
                 let mut params = EmissionParams::new(count.max(1)).with_scene_sphere(centre, radius).for_iteration(settings.seed, iteration, e as u32);
                 if plan.projected {
-                    let p = &scene.projections()[e];
-                    let cells = if caustic { &p.specular } else { &p.geometry };
-                    let d = cells.domain();
+                    let d = source_cells(scene, source).domain();
                     params = params.with_cells(d.grid, d.count);
                 }
                 scene.emitters()[e].prepare(&params).ok()
             })
             .collect();
         let radii = settings.radii.radii(&scene.bounds(), iteration.saturating_add(1));
-        let projections = scene.projections();
-        let mut cell_first = Vec::with_capacity(2 * n);
         let mut at = 0u32;
-        for p in projections {
-            cell_first.push(at);
-            at += p.geometry.cells.len() as u32;
-        }
-        for p in projections {
-            cell_first.push(at);
-            at += p.specular.cells.len() as u32;
-        }
+        let cell_first = (0..2 * n)
+            .map(|source| {
+                let first = at;
+                at += source_cells(scene, source).cells.len() as u32;
+                first
+            })
+            .collect();
         Self {
             cell_first,
             allocation,
@@ -143,10 +137,7 @@ impl PhotonPassSetup {
     /// The projection cells `source`'s light samples (empty for the whole domain).
     pub fn cells<'a>(&self, scene: &'a PreparedScene, source: usize) -> &'a [u32] {
         match self.lights.get(source).and_then(|l| l.as_ref()) {
-            Some(l) if l.cells().is_projected() => {
-                let p = &scene.projections()[self.emitter_of(source)];
-                if self.is_caustic_source(source) { &p.specular.cells } else { &p.geometry.cells }
-            }
+            Some(l) if l.cells().is_projected() => &source_cells(scene, source).cells,
             _ => &[],
         }
     }
@@ -169,6 +160,15 @@ impl PhotonPassSetup {
         let local = index - self.first_index[e];
         (local < self.allocation[e]).then_some((e, local))
     }
+}
+
+/// The projection of source `source` of `scene` ([`PhotonPassSetup`]'s numbering: the
+/// geometry cells of emitter `source` for `source < n`, the specular cells of emitter
+/// `source − n` after them).
+pub fn source_cells(scene: &PreparedScene, source: usize) -> &crate::projection::DomainCells {
+    let projections = scene.projections();
+    let n = projections.len();
+    if source < n { &projections[source].geometry } else { &projections[source - n].specular }
 }
 
 /// Counts of one photon's path.

@@ -131,7 +131,7 @@ impl PreparedScene {
         }
         let scattering: Vec<Scattering> = scene.materials.iter().map(|m| m.scattering(scene.roughness_cutoff)).collect();
         let vertices = |m: &crate::scene::TriangleMesh, idx: [u32; 3]| idx.map(|i| m.positions[i as usize].as_dvec3());
-        let triangles = scene
+        let triangles: Vec<Vec<TriangleGeometry>> = scene
             .meshes
             .iter()
             .map(|m| {
@@ -168,8 +168,8 @@ impl PreparedScene {
             })
             .collect();
         let is_specular = |m: &crate::scene::TriangleMesh| matches!(scattering.get(m.material as usize), Some(Scattering::Mirror(_) | Scattering::Refractive(..)));
-        let all: Vec<[DVec3; 3]> = scene.meshes.iter().flat_map(|m| m.indices.iter().map(move |&idx| vertices(m, idx))).collect();
-        let specular: Vec<[DVec3; 3]> = scene.meshes.iter().filter(|m| is_specular(m)).flat_map(|m| m.indices.iter().map(move |&idx| vertices(m, idx))).collect();
+        let all: Vec<[DVec3; 3]> = triangles.iter().flatten().map(TriangleGeometry::vertices).collect();
+        let specular: Vec<[DVec3; 3]> = scene.meshes.iter().zip(&triangles).filter(|(m, _)| is_specular(m)).flat_map(|(_, t)| t.iter().map(TriangleGeometry::vertices)).collect();
         let all_groups: Vec<usize> = scene.meshes.iter().map(|m| m.indices.len()).collect();
         let specular_groups: Vec<usize> = scene.meshes.iter().filter(|m| is_specular(m)).map(|m| m.indices.len()).collect();
         let has_specular = !specular.is_empty();
@@ -179,7 +179,7 @@ impl PreparedScene {
         let sphere = scene.bounding_sphere();
         let projections = emitters
             .iter()
-            .map(|l| LightProjection { geometry: project(l, sphere, &all_targets), specular: if has_specular { project_on(l, sphere, &specular_targets, SPECULAR_DELTA_GRID, SPECULAR_AREA_GRID) } else { DomainCells { grid: 1, cells: Vec::new() } } })
+            .map(|l| LightProjection { geometry: project(l, sphere, &all_targets), specular: if has_specular { project_on(l, sphere, &specular_targets, SPECULAR_DELTA_GRID, SPECULAR_AREA_GRID) } else { DomainCells::none() } })
             .collect();
         let scatters = scene.meshes.iter().any(|m| matches!(scattering.get(m.material as usize), Some(Scattering::Diffuse(a)) if a.max_element() > 0.0));
         let second_hit_possible = scatters && !coplanar_geometry;

@@ -37,7 +37,6 @@
 //! are small and the global pass's would add little but gather work.
 
 use crate::emission::{CellDomain, Light};
-use crate::frame::Frame;
 use crate::prepared_scene::PreparedScene;
 use crate::sampling::{cosine_hemisphere, uniform_cone, uniform_disc, uniform_sphere};
 use crate::tracer::{PassSkip, RenderSettings, Skipped};
@@ -129,8 +128,7 @@ impl Targets {
             for c in (start..order.len()).step_by(CLUSTER_SIZE) {
                 let range = c..(c + CLUSTER_SIZE).min(order.len());
                 let points = || order[range.clone()].iter().flat_map(|&i| triangles[i as usize]);
-                let b = crate::aabb::Aabb::from_points(points());
-                let centre = (b.min + b.max) * 0.5;
+                let centre = crate::aabb::Aabb::from_points(points()).centre();
                 let r = points().map(|p| (p - centre).length()).fold(0.0, f64::max);
                 // f32 vertices in the ray casts: a relative margin covers their rounding.
                 clusters.push((BoundingSphere { centre, radius: r * (1.0 + 1e-6) + 1e-6 * (1.0 + centre.abs().max_element()) }, range));
@@ -154,11 +152,6 @@ impl Targets {
     }
 }
 
-/// Bounding spheres of `triangles` ([`Targets::new`]'s clusters).
-pub fn cluster_spheres(triangles: &[[DVec3; 3]]) -> Vec<BoundingSphere> {
-    Targets::new(triangles.to_vec()).spheres().collect()
-}
-
 /// The cells of a light's emission domain that a projection keeps.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct DomainCells {
@@ -172,6 +165,11 @@ impl DomainCells {
     /// The whole domain.
     pub const fn whole() -> Self {
         Self { grid: 0, cells: Vec::new() }
+    }
+
+    /// No cell: the light reaches no target ([`DomainCells::is_empty`]).
+    pub const fn none() -> Self {
+        Self { grid: 1, cells: Vec::new() }
     }
 
     /// The domain the emission samples ([`CellDomain`]).
@@ -248,13 +246,13 @@ pub fn project_on(light: &Light, scene_sphere: (DVec3, f64), targets: &Targets, 
             project_with(delta_grid, Space::Directions, &|u| uniform_sphere(u), targets, |t| seen_from_point(o, t))
         }
         Light::Spot(l) => {
-            let frame = Frame::from_normal(l.direction);
+            let frame = light.frame();
             let cos_cutoff = libm::cos(l.cutoff);
             let o = l.position;
             project_with(delta_grid, Space::Directions, &move |u| frame.to_world(uniform_cone(u, cos_cutoff)), targets, |t| seen_from_point(o, t))
         }
-        Light::Directional(l) => {
-            let frame = Frame::from_normal(l.direction.normalize());
+        Light::Directional(_) => {
+            let frame = light.frame();
             let (centre, radius) = scene_sphere;
             let map = move |u: DVec2| {
                 let d = uniform_disc(u) * radius;
@@ -269,13 +267,13 @@ pub fn project_on(light: &Light, scene_sphere: (DVec3, f64), targets: &Targets, 
             })
         }
         Light::Triangle(_) | Light::Quad(_) => {
-            let (frame, corners): (Frame, Vec<DVec3>) = match light {
-                Light::Triangle(l) => (Frame::from_normal_and_hint((l.p[1] - l.p[0]).cross(l.p[2] - l.p[0]), l.p[1] - l.p[0]), l.p.to_vec()),
-                Light::Quad(l) => (Frame::from_normal_and_hint(l.edge_u.cross(l.edge_v), l.edge_u), alloc::vec![l.origin, l.origin + l.edge_u, l.origin + l.edge_v, l.origin + l.edge_u + l.edge_v]),
+            let frame = light.frame();
+            let corners: Vec<DVec3> = match light {
+                Light::Triangle(l) => l.p.to_vec(),
+                Light::Quad(l) => alloc::vec![l.origin, l.origin + l.edge_u, l.origin + l.edge_v, l.origin + l.edge_u + l.edge_v],
                 _ => unreachable!(),
             };
-            let b = crate::aabb::Aabb::from_points(corners.iter().copied());
-            let c = (b.min + b.max) * 0.5;
+            let c = crate::aabb::Aabb::from_points(corners.iter().copied()).centre();
             let r = corners.iter().map(|p| (*p - c).length()).fold(0.0, f64::max);
             // From any point of the emitter's bounding ball: the cone towards the sphere
             // grown by the ball's radius; a cluster that overlaps the ball sees everything.
@@ -374,24 +372,15 @@ fn project_with(grid: u32, space: Space, map: &dyn Fn(DVec2) -> DVec3, targets: 
         let (u0, v0) = (x0 as f64 / g, y0 as f64 / g);
         let side = size as f64 / g;
         let centre = map(DVec2::new(u0 + 0.5 * side, v0 + 0.5 * side));
+        // `n` points per edge, around the square from its corner (u0, v0).
         let n = EDGE_SAMPLES * size.min(4);
-        let mut boundary = Vec::with_capacity(4 * n as usize);
-        for k in 0..n {
-            let t = k as f64 / n as f64;
-            boundary.push(map(DVec2::new(u0 + t * side, v0)));
-        }
-        for k in 0..n {
-            let t = k as f64 / n as f64;
-            boundary.push(map(DVec2::new(u0 + side, v0 + t * side)));
-        }
-        for k in 0..n {
-            let t = k as f64 / n as f64;
-            boundary.push(map(DVec2::new(u0 + side - t * side, v0 + side)));
-        }
-        for k in 0..n {
-            let t = k as f64 / n as f64;
-            boundary.push(map(DVec2::new(u0, v0 + side - t * side)));
-        }
+        let edges = [
+            (DVec2::new(u0, v0), DVec2::new(side, 0.0)),
+            (DVec2::new(u0 + side, v0), DVec2::new(0.0, side)),
+            (DVec2::new(u0 + side, v0 + side), DVec2::new(-side, 0.0)),
+            (DVec2::new(u0, v0 + side), DVec2::new(0.0, -side)),
+        ];
+        let boundary: Vec<DVec3> = edges.iter().flat_map(|&(start, along)| (0..n).map(move |k| start + along * (k as f64 / n as f64))).map(map).collect();
         let far = boundary.iter().map(|&b| dist(centre, b)).fold(0.0, f64::max);
         let gap = (0..boundary.len()).map(|i| dist(boundary[i], boundary[(i + 1) % boundary.len()])).fold(0.0, f64::max);
         Cap { centre, radius: (far + gap) * 1.01 + 1e-9 }
@@ -466,11 +455,8 @@ fn caustic_skip(scene: &PreparedScene) -> Option<PassSkip> {
 /// water-caustic, `q` ≈ 0.5 and 1) that did not pay. At least one photon when
 /// `0 < q ≤ 1/4`; the caller takes `N_g` itself when the global pass does not run.
 pub fn auto_caustic_photons(scene: &PreparedScene, global_photons: u32) -> u32 {
-    let (mut caustic, mut global) = (0.0, 0.0);
-    for (p, power) in scene.projections().iter().zip(scene.emitter_powers()) {
-        caustic += power * if p.specular.is_empty() { 0.0 } else { p.specular.fraction() };
-        global += power * if p.geometry.is_empty() { 0.0 } else { p.geometry.fraction() };
-    }
+    let caustic: f64 = projected_powers(scene, |p| &p.specular).sum();
+    let global: f64 = projected_powers(scene, |p| &p.geometry).sum();
     if !(caustic > 0.0) || !(global > 0.0) {
         return 0;
     }
@@ -483,6 +469,12 @@ pub fn auto_caustic_photons(scene: &PreparedScene, global_photons: u32) -> u32 {
         return 0;
     }
     (libm::ceil(global_photons as f64 * share) as u32).max(1)
+}
+
+/// Each emitter's power (luminance, W) times the fraction of its domain that `cells`
+/// picks of its projections (0 for a projection that keeps no cell).
+fn projected_powers<'a>(scene: &'a PreparedScene, cells: impl Fn(&LightProjection) -> &DomainCells + 'a) -> impl Iterator<Item = f64> + 'a {
+    scene.projections().iter().zip(scene.emitter_powers()).map(move |(p, power)| power * cells(p).fraction())
 }
 
 /// Why the global pass cannot store anything (`None`: it can).
@@ -532,22 +524,16 @@ impl EmissionPlan {
             return Self { lights, projected: false, skipped: Skipped::default() };
         }
         let projections = scene.projections();
-        let powers = scene.emitter_powers();
-        let mut skipped = Skipped::default();
-        let total_power: f64 = powers.iter().sum();
-        let mut unreached = 0.0;
-        for (p, power) in projections.iter().zip(powers) {
-            if p.geometry.is_empty() {
-                skipped.lights += 1;
-            }
-            let f = if p.geometry.is_empty() { 0.0 } else { p.geometry.fraction() };
-            unreached += power * (1.0 - f);
-        }
-        skipped.power_fraction = if total_power > 0.0 { unreached / total_power } else { 0.0 };
-        skipped.global_pass = global_skip(scene, settings);
-        skipped.caustic_pass = caustic_skip(scene);
-        let geometry_power: Vec<f64> = projections.iter().zip(powers).map(|(p, w)| if p.geometry.is_empty() { 0.0 } else { w * p.geometry.fraction() }).collect();
-        let specular_power: Vec<f64> = projections.iter().zip(powers).map(|(p, w)| if p.specular.is_empty() { 0.0 } else { w * p.specular.fraction() }).collect();
+        let geometry_power: Vec<f64> = projected_powers(scene, |p| &p.geometry).collect();
+        let specular_power: Vec<f64> = projected_powers(scene, |p| &p.specular).collect();
+        let total_power: f64 = scene.emitter_powers().iter().sum();
+        let unreached = total_power - geometry_power.iter().sum::<f64>();
+        let mut skipped = Skipped {
+            lights: projections.iter().filter(|p| p.geometry.is_empty()).count() as u32,
+            power_fraction: if total_power > 0.0 { (unreached / total_power).max(0.0) } else { 0.0 },
+            global_pass: global_skip(scene, settings),
+            caustic_pass: caustic_skip(scene),
+        };
         let global_total = if skipped.global_pass.is_some() { 0 } else { settings.photons_per_iteration };
         let global = allocate(&geometry_power, global_total);
         let caustic_total = match (skipped.caustic_pass, strategy.caustic_photons) {

@@ -311,11 +311,10 @@ fn photon_trace(index: u32) -> u32 {
                     break;
                 }
             }
-            let weighted = map == 0u && caustic_weight != 1.0;
             if !(photon_params.direct_lighting != 0u && first_interaction) && !(map == 0u && caustic_weight == 0.0) {
                 let below = shaded && arpa_diffuse_below_shading_plane(shading);
                 var stored_flux = flux;
-                if weighted {
+                if map == 0u {
                     stored_flux = flux * caustic_weight;
                 }
                 photon_store(at, s.geometric_normal, stored_flux, map, valid, below, key);

@@ -243,15 +243,14 @@ pub fn emitter_tables(setup: &crate::photon_path::PhotonPassSetup) -> (alloc::ve
 }
 
 /// The photon pass's cell buffer of `scene` (`photon_cells`, the same every iteration):
-/// every emitter's geometry cells, then every emitter's specular cells
-/// ([`crate::projection::LightProjection`]), in the order of the sources
-/// ([`crate::photon_path::PhotonPassSetup::cell_first`]); one zero for a scene without
-/// any (storage bindings must not be empty).
+/// every source's projection cells ([`crate::photon_path::source_cells`]) in source order,
+/// where [`crate::photon_path::PhotonPassSetup::cell_first`] points; one zero for a scene
+/// without any (storage bindings must not be empty).
 #[cfg(feature = "alloc")]
 #[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 pub fn cell_table(scene: &crate::prepared_scene::PreparedScene) -> alloc::vec::Vec<u32> {
-    let p = scene.projections();
-    let mut cells: alloc::vec::Vec<u32> = p.iter().flat_map(|p| p.geometry.cells.iter().copied()).chain(p.iter().flat_map(|p| p.specular.cells.iter().copied())).collect();
+    let sources = 2 * scene.projections().len();
+    let mut cells: alloc::vec::Vec<u32> = (0..sources).flat_map(|s| crate::photon_path::source_cells(scene, s).cells.iter().copied()).collect();
     if cells.is_empty() {
         cells.push(0);
     }
