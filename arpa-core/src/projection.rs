@@ -46,9 +46,9 @@ use glam::{DVec2, DVec3};
 /// Cells per side of the geometry projection grid of point, spot and directional lights:
 /// coarse, because the global pass shares its photons over these cells and each cell
 /// should hold many of them (its own lattice then tiles it about as evenly as one lattice
-/// over the whole domain would: with a 128² grid and 20,000 photons, 2–3 photons a cell,
-/// the footprint overlap no longer followed the radius schedule), and the map mostly cuts
-/// away large regions (directions into the void).
+/// over the whole domain would; with a few photons a cell the footprints no longer tile
+/// the domain evenly and their overlap stops following the radius schedule), and the map
+/// mostly cuts away large regions (directions into the void).
 pub const DELTA_GRID: u32 = 32;
 /// Cells per side of the specular projection grid of point, spot and directional lights:
 /// finer, since specular objects are often small in a light's view and the caustic pass
@@ -451,8 +451,8 @@ fn caustic_skip(scene: &PreparedScene) -> Option<PassSkip> {
 /// where every photon heads for a specular object anyway (`q = 1`: aiming gains nothing
 /// there). None either above `q` = [`MAX_AUTO_SPECULAR_SHARE`]: the caustic density would
 /// grow at most `1 + share/q` ≈ 2.5-fold there for ≥ 37 % more photons, whose paths through
-/// the specular objects are the long ones, and measured at equal time (cornell-caustic,
-/// water-caustic, `q` ≈ 0.5 and 1) that did not pay. At least one photon when
+/// the specular objects are the long ones, a trade that does not pay at equal time. At
+/// least one photon when
 /// `0 < q ≤ 1/4`; the caller takes `N_g` itself when the global pass does not run.
 pub fn auto_caustic_photons(scene: &PreparedScene, global_photons: u32) -> u32 {
     let caustic: f64 = projected_powers(scene, |p| &p.specular).sum();
