@@ -139,6 +139,24 @@ impl EmissionArgs {
     }
 }
 
+/// The bandwidth on the command line (`--bandwidth`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum BandwidthArg {
+    /// Each pixel picks its footprint scale from five nested scales (arpa_core::bandwidth).
+    PerPixel,
+    /// One bandwidth for the whole image: the stored footprints as they are.
+    Global,
+}
+
+impl From<BandwidthArg> for arpa_core::bandwidth::Bandwidth {
+    fn from(b: BandwidthArg) -> Self {
+        match b {
+            BandwidthArg::PerPixel => arpa_core::bandwidth::Bandwidth::PerPixel,
+            BandwidthArg::Global => arpa_core::bandwidth::Bandwidth::Global,
+        }
+    }
+}
+
 /// A switch on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum OnOff {
@@ -361,8 +379,20 @@ pub struct RenderArgs {
     #[command(flatten)]
     pub emission: EmissionArgs,
 
+    /// Bandwidth: `per-pixel` (the gather evaluates five nested scales of every footprint
+    /// and photon, down to a quarter of its size, and each pixel picks its scale from their
+    /// bias and variance, arpa_core::bandwidth) or `global` (one bandwidth for the image).
+    #[arg(long, value_enum, value_name = "MODE", default_value = "per-pixel")]
+    pub bandwidth: BandwidthArg,
+
+    /// Also write OUT.scale.png: the footprint scale each pixel uses (per-pixel bandwidth),
+    /// as a colour map with a legend.
+    #[arg(long)]
+    pub scale_map: bool,
+
     /// How ARPA's smoothing factors are chosen: `auto` (a pilot iteration at S = 1 picks
-    /// S_c and S_g so that about 8 footprints of a map cover each point it lights,
+    /// S_c and S_g so that about 8 footprints of a map cover each point it lights, 16 at
+    /// the stored scale of a per-pixel bandwidth,
     /// arpa_core::classify::AutoSmoothing) or `fixed` (--smoothing-caustic and
     /// --smoothing-global, 1 when not given) [default: auto, or fixed when either factor
     /// is given].
@@ -454,6 +484,7 @@ impl RenderArgs {
             max_depth: self.max_depth.unwrap_or(DEFAULT_MAX_DEPTH),
             direct_lighting: !self.no_direct,
             emission: self.emission.strategy(),
+            bandwidth: self.bandwidth.into(),
             smoothing: Smoothing { caustic: self.smoothing_caustic.unwrap_or(1.0), global: self.smoothing_global.unwrap_or(1.0) },
             radii: ProgressiveConfig {
                 caustic: self.radius_caustic.map_or(defaults.radii.caustic, RadiusSpec::Absolute),
@@ -792,6 +823,13 @@ pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
         eprintln!("warning: {} non-finite channel values were written as 0", exr.non_finite_replaced.max(png.non_finite_replaced));
     }
     eprintln!("wrote {} and {}", exr_path.display(), png_path.display());
+    if args.scale_map {
+        let path = exr_path.with_extension("scale.png");
+        let selection = tracer.read_accumulation().map_err(|e| anyhow::anyhow!("cannot read the accumulation back for the scale map: {e}"))?.selection();
+        crate::scale_map::write_scale_map(&path, rendered.image.width, rendered.image.height, &selection.scale)?;
+        let share = crate::session::scale_share(&selection.scale);
+        eprintln!("wrote {} (share of pixels per scale: {})", path.display(), share.map(|s| format!("{:.1} %", 100.0 * s)).join(", "));
+    }
     if let Some(path) = &save_path {
         eprintln!("wrote state {}", path.display());
     }

@@ -28,6 +28,8 @@ pub mod cli;
 pub mod default_scene;
 pub mod image_io;
 pub mod metrics;
+#[cfg(feature = "cli")]
+pub mod scale_map;
 pub mod scene_file;
 pub mod session;
 pub mod state_file;

@@ -138,6 +138,26 @@ pub struct CheckpointRow {
     pub emitted_per_iteration: [f64; 2],
     /// Records stored so far (footprints and progressive photons), `[caustic, global]` map.
     pub records: [u64; 2],
+    /// With a per-pixel bandwidth ([`arpa_core::bandwidth`]): the share of the pixels
+    /// using each scale of the ladder (index 0 = the stored footprints), a pixel between
+    /// two scales split by its blend weights; `None` with a global bandwidth.
+    pub scale_share: Option<[f64; arpa_core::bandwidth::SCALES]>,
+}
+
+/// The share of pixels per scale of a per-pixel selection's fractional scale indices
+/// (each pixel split between the two scales it blends, by their weights).
+pub fn scale_share(scale: &[f32]) -> [f64; arpa_core::bandwidth::SCALES] {
+    let mut share = [0.0; arpa_core::bandwidth::SCALES];
+    let top = (arpa_core::bandwidth::SCALES - 1) as f64;
+    for &c in scale {
+        let c = f64::from(c).clamp(0.0, top);
+        let k = (c as usize).min(arpa_core::bandwidth::SCALES - 2);
+        let t = c - k as f64;
+        share[k] += 1.0 - t;
+        share[k + 1] += t;
+    }
+    let n = scale.len().max(1) as f64;
+    share.map(|s| s / n)
 }
 
 /// What a render produced.
@@ -265,12 +285,13 @@ pub fn auto_smoothing<T: Tracer>(tracer: &mut T, scene: &Scene, settings: &Rende
         return Ok(SmoothingPilot { smoothing: settings.smoothing, overlap_at_one: [0.0; 2], time: start.elapsed() });
     }
     let capabilities = tracer.capabilities();
-    let pilot = RenderSettings { smoothing: Smoothing { caustic: 1.0, global: 1.0 }, ..*settings };
+    // The pilot only measures the stored scale's overlap: one plane is enough.
+    let pilot = RenderSettings { smoothing: Smoothing { caustic: 1.0, global: 1.0 }, bandwidth: arpa_core::bandwidth::Bandwidth::Global, ..*settings };
     tracer.upload_scene(scene, &pilot).with_context(|| format!("backend '{}' could not load the scene for the smoothing pilot", capabilities.backend))?;
     tracer.iterate().with_context(|| format!("backend '{}' failed in the smoothing pilot", capabilities.backend))?;
     let stats = tracer.read_stats().context("cannot read the smoothing pilot's statistics")?;
     let overlap_at_one = stats.overlap();
-    let smoothing = auto.resolve(overlap_at_one, settings.heuristics.dampening.as_ref());
+    let smoothing = auto.for_bandwidth(settings.bandwidth).resolve(overlap_at_one, settings.heuristics.dampening.as_ref());
     Ok(SmoothingPilot { smoothing, overlap_at_one, time: start.elapsed() })
 }
 
@@ -321,7 +342,14 @@ pub fn render_with<T: Tracer, H: Hooks + ?Sized>(
     let checkpoint = |tracer: &T, hooks: &mut H, i: u32, at: Duration, totals: &StatTotals, rows: &mut Vec<CheckpointRow>| -> anyhow::Result<Image> {
         let image = read_checked(tracer, &capabilities)?;
         let metrics = options.reference.map(|r| r.compare(&image)).transpose()?;
+        let scale_share = if settings.bandwidth == arpa_core::bandwidth::Bandwidth::PerPixel {
+            let accumulation = tracer.read_accumulation().context("cannot read the accumulation back")?;
+            Some(scale_share(&accumulation.selection().scale))
+        } else {
+            None
+        };
         let row = CheckpointRow {
+            scale_share,
             iteration: i,
             seconds: at.as_secs_f64(),
             times: totals.mean_times(),

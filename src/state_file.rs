@@ -7,7 +7,7 @@
 //! the accumulated sums and their iteration range are the whole state of a render
 //! ([`Accumulation`]).
 //!
-//! # Format (version 1)
+//! # Format (version 2)
 //! All integers and floats little-endian.
 //!
 //! | bytes | content |
@@ -15,8 +15,10 @@
 //! | 8 | magic `ARPASTAT` |
 //! | 4 | format version |
 //! | 4 + n | header length, header (UTF-8 `key=value` lines: backend, seed, scene hash, settings) |
-//! | 4 × 4 | width, height, first iteration, iterations |
-//! | 64 × pixels | per pixel: sum (3 × f64), compensation (3 × f64), rejected (u64), 0 (u64) |
+//! | 5 × 4 | width, height, planes per pixel (1, or 8 for `--bandwidth per-pixel`), first iteration, iterations |
+//! | 64 × planes × pixels | plane after plane, per pixel: sum (3 × f64), compensation (3 × f64), rejected (u64), 0 (u64) |
+//!
+//! Version 1 (before per-pixel bandwidth) had no planes field and one plane.
 //! | 32 | SHA-256 of everything before it |
 //!
 //! # Writing
@@ -36,7 +38,7 @@ use std::path::{Path, PathBuf};
 pub const MAGIC: &[u8; 8] = b"ARPASTAT";
 
 /// The format version this build writes and reads.
-pub const VERSION: u32 = 1;
+pub const VERSION: u32 = 2;
 
 /// Bytes of one pixel's sums in the file.
 const PIXEL_BYTES: usize = 64;
@@ -176,7 +178,7 @@ impl StateFile {
         out.extend_from_slice(&VERSION.to_le_bytes());
         out.extend_from_slice(&(header.len() as u32).to_le_bytes());
         out.extend_from_slice(header.as_bytes());
-        for v in [a.width, a.height, a.first_iteration, a.iterations] {
+        for v in [a.width, a.height, a.planes, a.first_iteration, a.iterations] {
             out.extend_from_slice(&v.to_le_bytes());
         }
         for p in &a.pixels {
@@ -212,10 +214,13 @@ impl StateFile {
         let header_len = r.u32().ok_or_else(|| corrupt("truncated header"))? as usize;
         let header = r.take(header_len).and_then(|h| std::str::from_utf8(h).ok()).ok_or_else(|| corrupt("header is not UTF-8 text"))?;
         let identity = RenderIdentity::from_header(header).ok_or_else(|| corrupt("header lacks backend, seed, scene hash or settings"))?;
-        let [width, height, first_iteration, iterations] = [r.u32(), r.u32(), r.u32(), r.u32()].map(|v| v.unwrap_or(u32::MAX));
-        let pixels = width as u64 * height as u64;
+        let [width, height, planes, first_iteration, iterations] = [r.u32(), r.u32(), r.u32(), r.u32(), r.u32()].map(|v| v.unwrap_or(u32::MAX));
+        if planes != 1 && planes as usize != arpa_core::bandwidth::PLANES {
+            return Err(corrupt(&format!("{planes} planes per pixel (1 or {} expected)", arpa_core::bandwidth::PLANES)));
+        }
+        let pixels = width as u64 * height as u64 * u64::from(planes);
         if (r.bytes.len() - r.at) as u64 != pixels * PIXEL_BYTES as u64 {
-            return Err(corrupt(&format!("{} bytes of pixel sums for {width}x{height} pixels", r.bytes.len() - r.at)));
+            return Err(corrupt(&format!("{} bytes of pixel sums for {width}x{height} pixels of {planes} planes", r.bytes.len() - r.at)));
         }
         let pixels = (0..pixels)
             .map(|_| {
@@ -226,7 +231,7 @@ impl StateFile {
                 PixelSum { sum: [f[0], f[1], f[2]], compensation: [f[3], f[4], f[5]], rejected, pad: 0 }
             })
             .collect();
-        let accumulation = Accumulation { width, height, first_iteration, iterations, pixels };
+        let accumulation = Accumulation { width, height, planes, first_iteration, iterations, pixels };
         accumulation.validate().map_err(|e| corrupt(&e.to_string()))?;
         Ok(Self { identity, accumulation })
     }
@@ -311,6 +316,29 @@ mod tests {
         assert_eq!(StateFile::read(&path).unwrap(), s);
         // No temporary file is left behind.
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn per_pixel_planes_round_trip_and_a_wrong_plane_count_is_refused() {
+        let mut s = state();
+        let planes = arpa_core::bandwidth::PLANES as u32;
+        let mut a = Accumulation::empty_planes(3, 2, planes, 5);
+        a.iterations = 2;
+        for (i, p) in a.pixels.iter_mut().enumerate() {
+            p.sum = [i as f64, 0.5, 1e-30];
+        }
+        s.accumulation = a;
+        let bytes = s.to_bytes();
+        assert_eq!(StateFile::from_bytes(Path::new("p.state"), &bytes).unwrap(), s);
+        // Planes field (after magic, version, header) set to 3: refused, not misread.
+        let header = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+        let at = 16 + header + 8;
+        let mut b = bytes[..bytes.len() - 32].to_vec();
+        b[at..at + 4].copy_from_slice(&3u32.to_le_bytes());
+        let digest = Sha256::digest(&b);
+        b.extend_from_slice(&digest);
+        let e = StateFile::from_bytes(Path::new("p.state"), &b).unwrap_err();
+        assert!(e.to_string().contains("3 planes"), "{e}");
     }
 
     #[test]

@@ -142,6 +142,7 @@ impl RunningMean {
 pub struct ImageAccumulator {
     width: u32,
     height: u32,
+    planes: u32,
     pixels: alloc::vec::Vec<RunningMean>,
     iterations: u64,
 }
@@ -159,9 +160,15 @@ pub struct SizeMismatch {
 #[cfg(feature = "alloc")]
 #[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 impl ImageAccumulator {
-    /// An accumulator for `width × height` pixels, row-major.
+    /// An accumulator for `width × height` pixels, row-major, one plane.
     pub fn new(width: u32, height: u32) -> Self {
-        Self { width, height, pixels: alloc::vec![RunningMean::new(); width as usize * height as usize], iterations: 0 }
+        Self::with_planes(width, height, 1)
+    }
+
+    /// An accumulator for `planes` planes of `width × height` pixels each, plane-major
+    /// ([`crate::bandwidth::Bandwidth::planes`]).
+    pub fn with_planes(width: u32, height: u32, planes: u32) -> Self {
+        Self { width, height, planes, pixels: alloc::vec![RunningMean::new(); planes as usize * width as usize * height as usize], iterations: 0 }
     }
 
     /// Width and height in pixels.
@@ -174,7 +181,7 @@ impl ImageAccumulator {
         self.iterations
     }
 
-    /// Adds one iteration's image (radiance per pixel, row-major).
+    /// Adds one iteration's image (radiance per pixel, row-major; every plane, plane-major).
     pub fn add_iteration(&mut self, image: &[glam::Vec3]) -> Result<(), SizeMismatch> {
         if image.len() != self.pixels.len() {
             return Err(SizeMismatch { expected: self.pixels.len(), got: image.len() });
@@ -186,9 +193,9 @@ impl ImageAccumulator {
         Ok(())
     }
 
-    /// The current estimate, always finite ([`output_mean`]).
+    /// The current estimate, always finite: [`Accumulation::mean`] of the sums so far.
     pub fn mean(&self) -> alloc::vec::Vec<glam::Vec3> {
-        self.pixels.iter().map(|p| output_mean(p.sum + p.compensation, p.count)).collect()
+        self.to_accumulation(0).mean()
     }
 
     /// The sums of every pixel, exactly, as iterations `first_iteration ..
@@ -197,6 +204,7 @@ impl ImageAccumulator {
         Accumulation {
             width: self.width,
             height: self.height,
+            planes: self.planes,
             first_iteration,
             iterations: self.iterations as u32,
             pixels: self.pixels.iter().map(RunningMean::to_sum).collect(),
@@ -206,7 +214,7 @@ impl ImageAccumulator {
     /// The accumulator that continues `state` (its sums and iteration count).
     pub fn from_accumulation(state: &Accumulation) -> Self {
         let count = u64::from(state.iterations);
-        Self { width: state.width, height: state.height, pixels: state.pixels.iter().map(|p| RunningMean::from_sum(p, count)).collect(), iterations: count }
+        Self { width: state.width, height: state.height, planes: state.planes, pixels: state.pixels.iter().map(|p| RunningMean::from_sum(p, count)).collect(), iterations: count }
     }
 
     /// Total non-finite samples rejected.
@@ -231,11 +239,15 @@ pub struct Accumulation {
     pub width: u32,
     /// Image height (pixels).
     pub height: u32,
+    /// Planes per pixel: 1, or [`crate::bandwidth::PLANES`] for a per-pixel bandwidth
+    /// render (the radiance at every scale, then the moment planes).
+    pub planes: u32,
     /// Index of the first iteration the sums cover.
     pub first_iteration: u32,
     /// Iterations the sums cover.
     pub iterations: u32,
-    /// Per-pixel sums, row-major.
+    /// Per-pixel sums, row-major, plane after plane (plane `p` of pixel `i` at
+    /// `p · width · height + i`).
     pub pixels: alloc::vec::Vec<PixelSum>,
 }
 
@@ -283,11 +295,34 @@ pub enum AccumulationError {
 #[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 impl Accumulation {
     /// No iterations yet, starting at iteration `first_iteration` (the start of a partial
-    /// render).
+    /// render). One plane; a backend that accumulates more continues it with its own
+    /// planes ([`Accumulation::with_planes`]).
     pub fn empty(width: u32, height: u32, first_iteration: u32) -> Self {
-        Self { width, height, first_iteration, iterations: 0, pixels: alloc::vec![PixelSum::default(); width as usize * height as usize] }
+        Self::empty_planes(width, height, 1, first_iteration)
     }
 
+    /// [`Accumulation::empty`] with `planes` planes per pixel.
+    pub fn empty_planes(width: u32, height: u32, planes: u32, first_iteration: u32) -> Self {
+        Self { width, height, planes, first_iteration, iterations: 0, pixels: alloc::vec![PixelSum::default(); planes as usize * width as usize * height as usize] }
+    }
+
+    /// This accumulation as one with `planes` planes: itself when it has them, an empty
+    /// one of `planes` planes at the same first iteration when it covers no iteration yet;
+    /// otherwise an error (the sums of a render with another bandwidth cannot continue).
+    pub fn with_planes(&self, planes: u32) -> Result<alloc::borrow::Cow<'_, Accumulation>, AccumulationError> {
+        if self.planes == planes {
+            Ok(alloc::borrow::Cow::Borrowed(self))
+        } else if self.iterations == 0 {
+            Ok(alloc::borrow::Cow::Owned(Self::empty_planes(self.width, self.height, planes, self.first_iteration)))
+        } else {
+            Err(AccumulationError::Size(alloc::format!("sums of {} planes per pixel, the render accumulates {planes} (another --bandwidth)", self.planes)))
+        }
+    }
+
+    /// Pixels per plane (`width × height`).
+    pub fn pixel_count(&self) -> usize {
+        self.width as usize * self.height as usize
+    }
     /// The iteration after the last one covered (`first_iteration + iterations`).
     pub fn end(&self) -> u64 {
         u64::from(self.first_iteration) + u64::from(self.iterations)
@@ -296,9 +331,12 @@ impl Accumulation {
     /// Checks that the pixels match the size, the range fits `u32` and every sum is
     /// finite.
     pub fn validate(&self) -> Result<(), AccumulationError> {
-        let expected = self.width as u64 * self.height as u64;
+        if self.planes != 1 && self.planes as usize != crate::bandwidth::PLANES {
+            return Err(AccumulationError::Size(alloc::format!("{} planes per pixel (1 or {} expected)", self.planes, crate::bandwidth::PLANES)));
+        }
+        let expected = self.planes as u64 * self.width as u64 * self.height as u64;
         if self.pixels.len() as u64 != expected {
-            return Err(AccumulationError::Size(alloc::format!("{} pixel sums for {}x{} pixels", self.pixels.len(), self.width, self.height)));
+            return Err(AccumulationError::Size(alloc::format!("{} pixel sums for {}x{} pixels of {} planes", self.pixels.len(), self.width, self.height, self.planes)));
         }
         if self.end() > u64::from(u32::MAX) {
             return Err(AccumulationError::Range { first: self.first_iteration, iterations: self.iterations });
@@ -309,10 +347,32 @@ impl Accumulation {
         }
     }
 
-    /// The image: every pixel's mean over the covered iterations ([`output_mean`]), the
-    /// same values the backend that accumulated it reads back.
+    /// The image, the same values the backend that accumulated it reads back: with one
+    /// plane every pixel's mean over the covered iterations ([`output_mean`]); with the
+    /// planes of a per-pixel bandwidth render, the selection of [`crate::bandwidth::select`].
     pub fn mean(&self) -> alloc::vec::Vec<glam::Vec3> {
-        self.pixels.iter().map(|p| output_mean(p.total(), u64::from(self.iterations))).collect()
+        if self.planes == 1 {
+            self.pixels.iter().map(|p| output_mean(p.total(), u64::from(self.iterations))).collect()
+        } else {
+            self.selection().image
+        }
+    }
+
+    /// The per-pixel selection ([`crate::bandwidth::select`]) of these sums: the image and
+    /// the scale each pixel uses. With one plane, the mean and scale 0 everywhere.
+    pub fn selection(&self) -> crate::bandwidth::Selection {
+        if self.planes == 1 {
+            return crate::bandwidth::Selection { image: self.mean(), scale: alloc::vec![0.0; self.pixel_count()] };
+        }
+        let n = u64::from(self.iterations);
+        let means: alloc::vec::Vec<DVec3> = self.pixels.iter().map(|p| if n == 0 { DVec3::ZERO } else { p.total() / n as f64 }).collect();
+        crate::bandwidth::select(&means, self.width as usize, self.height as usize, n)
+    }
+
+    /// The mean of plane `plane` over the covered iterations ([`output_mean`] per pixel).
+    pub fn plane_mean(&self, plane: usize) -> alloc::vec::Vec<glam::Vec3> {
+        let px = self.pixel_count();
+        self.pixels[plane * px..(plane + 1) * px].iter().map(|p| output_mean(p.total(), u64::from(self.iterations))).collect()
     }
 
     /// The accumulation of all `parts` together. They may come in any order but must be
@@ -333,6 +393,9 @@ impl Accumulation {
             p.validate()?;
             if (p.width, p.height) != (out.width, out.height) {
                 return Err(AccumulationError::Size(alloc::format!("a part of {}x{} pixels and one of {}x{}", out.width, out.height, p.width, p.height)));
+            }
+            if p.planes != out.planes {
+                return Err(AccumulationError::Size(alloc::format!("a part of {} planes per pixel and one of {} (renders of another --bandwidth)", out.planes, p.planes)));
             }
             let end = out.end() as u32;
             if p.first_iteration < end {

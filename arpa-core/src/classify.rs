@@ -141,8 +141,13 @@ impl Smoothing {
 /// Without dampening the overlap does not shrink: fix `S` then, or keep dampening on.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AutoSmoothing {
-    /// Target footprints of a map per covered point per iteration (`k`).
+    /// Target footprints of a map per covered point per iteration (`k`) with a global
+    /// bandwidth.
     pub overlap: f64,
+    /// The same target for the stored (largest) scale of a per-pixel bandwidth render
+    /// ([`crate::bandwidth`]): 16, so that the ladder's second scale (half the area) has
+    /// the global target's overlap of 8.
+    pub per_pixel_overlap: f64,
     /// Smallest `S` chosen.
     pub min: f64,
     /// Largest `S` chosen.
@@ -151,11 +156,21 @@ pub struct AutoSmoothing {
 
 impl Default for AutoSmoothing {
     fn default() -> Self {
-        Self { overlap: 8.0, min: 1.0 / 16.0, max: 16.0 }
+        Self { overlap: 8.0, per_pixel_overlap: 16.0, min: 1.0 / 16.0, max: 16.0 }
     }
 }
 
 impl AutoSmoothing {
+    /// These parameters with the target overlap of `bandwidth`: [`AutoSmoothing::overlap`]
+    /// for a global one, [`AutoSmoothing::per_pixel_overlap`] for the stored scale of a
+    /// per-pixel one.
+    pub fn for_bandwidth(&self, bandwidth: crate::bandwidth::Bandwidth) -> Self {
+        match bandwidth {
+            crate::bandwidth::Bandwidth::Global => *self,
+            crate::bandwidth::Bandwidth::PerPixel => Self { overlap: self.per_pixel_overlap, ..*self },
+        }
+    }
+
     /// `S_c`, `S_g` for a pilot that measured `overlap_at_one` (`[caustic, global]`, at
     /// `S = 1`) with `dampening` (the heuristics' dampened adaptation, if on).
     pub fn resolve(&self, overlap_at_one: [f64; 2], dampening: Option<&crate::heuristics::Dampening>) -> Smoothing {

@@ -61,6 +61,29 @@ impl IrradianceEstimate {
         counted
     }
 
+    /// [`IrradianceEstimate::add_footprint`] that also returns the footprint's contribution
+    /// at every scale of the bandwidth ladder ([`PackedFootprint::irradiance_scales`];
+    /// element 0 is the one added here), evaluating the record once.
+    #[inline]
+    pub fn add_footprint_scales(&mut self, fp: &PackedFootprint, q: &QueryPoint, kernel: Kernel) -> [Vec3; crate::bandwidth::SCALES] {
+        let map = fp.photon_map();
+        self.candidates[map.index()] += 1;
+        let e = fp.irradiance_scales(q.position, q.normal, kernel);
+        self.footprints += self.add(map, e[0]) as u32;
+        e
+    }
+
+    /// [`IrradianceEstimate::add_photon`] that also returns the photon's contribution at
+    /// every scale ([`PackedPhoton::irradiance_scales`]; element 0 is the one added here).
+    #[inline]
+    pub fn add_photon_scales(&mut self, ph: &PackedPhoton, q: &QueryPoint, radii: [f32; 2]) -> [Vec3; crate::bandwidth::SCALES] {
+        let map = ph.photon_map();
+        self.candidates[map.index()] += 1;
+        let e = ph.irradiance_scales(q.position, q.normal, radii[map.index()]);
+        self.photons += self.add(map, e[0]) as u32;
+        e
+    }
+
     /// Adds a progressive photon's contribution for its map's radius `radii[map]`.
     #[inline]
     pub fn add_photon(&mut self, ph: &PackedPhoton, q: &QueryPoint, radii: [f32; 2]) -> bool {
@@ -106,6 +129,22 @@ pub fn gather_brute_force(q: &QueryPoint, footprints: &[PackedFootprint], photon
         e.add_photon(ph, q, radii);
     }
     e
+}
+
+/// [`gather_brute_force`] at every scale of the bandwidth ladder ([`crate::bandwidth`]):
+/// the per-scale irradiance of both maps, summed in the same record order (footprints,
+/// then photons). Scale 0 is `gather_brute_force(..).irradiance()`'s sum of the same
+/// contributions.
+pub fn gather_brute_force_scales(q: &QueryPoint, footprints: &[PackedFootprint], photons: &[PackedPhoton], radii: [f64; 2], kernel: Kernel) -> crate::bandwidth::ScaleSums {
+    let radii = radii.map(|r| r as f32);
+    let mut sums = crate::bandwidth::ScaleSums::default();
+    for fp in footprints {
+        sums.add(&fp.irradiance_scales(q.position, q.normal, kernel));
+    }
+    for ph in photons {
+        sums.add(&ph.irradiance_scales(q.position, q.normal, radii[ph.photon_map().index()]));
+    }
+    sums
 }
 
 /// The same estimate in `f64` over unpacked records: footprints as the heuristics leave

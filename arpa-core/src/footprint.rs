@@ -590,6 +590,32 @@ impl PackedFootprint {
             Vec3::ZERO
         }
     }
+
+    /// [`PackedFootprint::irradiance`] at every scale of the bandwidth ladder
+    /// ([`crate::bandwidth`]): scale `k` is the stored ellipse shrunk by `2^{−k/2}`, so its
+    /// weight is `2^k K(2^k r²)` times the stored density (exact scalings in `f32`); the slab
+    /// and side tests are the stored ones. Scale 0 equals [`PackedFootprint::irradiance`]
+    /// bit for bit.
+    #[inline]
+    pub fn irradiance_scales(&self, q: Vec3, query_normal: Vec3, kernel: Kernel) -> [Vec3; crate::bandwidth::SCALES] {
+        let y = self.filter_coords(q);
+        let r2 = y.x * y.x + y.y * y.y;
+        if r2 <= 1.0 && y.z.abs() <= 1.0 && self.faces(query_normal) {
+            let d = self.flux_density();
+            let mut e = [Vec3::ZERO; crate::bandwidth::SCALES];
+            for (k, e) in e.iter_mut().enumerate() {
+                let f = crate::bandwidth::inv_scale2(k);
+                // The discs are nested: once q is outside one, it is outside the smaller.
+                if !(r2 * f < 1.0) && k > 0 {
+                    break;
+                }
+                *e = d * (kernel.eval(r2 * f) * f);
+            }
+            e
+        } else {
+            [Vec3::ZERO; crate::bandwidth::SCALES]
+        }
+    }
 }
 
 #[cfg(test)]

@@ -14,8 +14,8 @@
 //! | propagate | [`differential`], [`shading_normal`], [`fresnel`], [`lambertian`], [`reemission`], [`classify`] |
 //! | store footprints | [`footprint`], [`heuristics`], [`progressive_photon`], [`store`], [`aabb`] |
 //! | build AS | (backends; [`aabb`] gives the boxes) |
-//! | gather | [`kernel`], [`estimate`] |
-//! | accumulate | [`radius`], [`accumulate`] |
+//! | gather | [`kernel`], [`estimate`], [`bandwidth`] (the scale ladder) |
+//! | accumulate | [`radius`], [`accumulate`], [`bandwidth`] (per-pixel scale selection) |
 //!
 //! With the `alloc` feature, the renderer-facing layer: the scene model ([`scene`],
 //! [`shapes`], [`prepared_scene`]), the backend trait ([`tracer`]) and the reference
@@ -100,6 +100,7 @@ extern crate std;
 
 pub mod aabb;
 pub mod accumulate;
+pub mod bandwidth;
 #[cfg(feature = "alloc")]
 #[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
 pub mod camera_path;

@@ -92,6 +92,31 @@ impl PackedPhoton {
         }
     }
 
+    /// [`PackedPhoton::irradiance`] at every scale of the bandwidth ladder
+    /// ([`crate::bandwidth`]): scale `k` has radius `r 2^{−k/2}`, tested as
+    /// `|q − x_p|² 2^k < r²`, and density `2^k/(π r²)` (exact scalings in `f32`). Scale 0
+    /// equals [`PackedPhoton::irradiance`] bit for bit.
+    #[inline]
+    pub fn irradiance_scales(&self, q: Vec3, query_normal: Vec3, radius: f32) -> [Vec3; crate::bandwidth::SCALES] {
+        let density = core::f32::consts::FRAC_1_PI / (radius * radius);
+        let d2 = (q - Vec3::from_array(self.position)).length_squared();
+        if density.is_finite() && Vec3::from_array(self.normal).dot(query_normal) > 0.0 {
+            let mut e = [Vec3::ZERO; crate::bandwidth::SCALES];
+            for (k, e) in e.iter_mut().enumerate() {
+                let f = crate::bandwidth::inv_scale2(k);
+                // The spheres are nested: once q is outside one, it is outside the smaller.
+                if !(d2 * f < radius * radius) {
+                    break;
+                }
+                let v = Vec3::from_array(self.flux) * (density * f);
+                *e = if v.is_finite() { v } else { Vec3::ZERO };
+            }
+            e
+        } else {
+            [Vec3::ZERO; crate::bandwidth::SCALES]
+        }
+    }
+
     /// Map of this photon.
     #[inline]
     pub fn photon_map(&self) -> PhotonMap {

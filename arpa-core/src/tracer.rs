@@ -72,6 +72,9 @@ pub struct RenderSettings {
     /// How the photons of an iteration are emitted: projection maps and the caustic pass
     /// ([`crate::projection`]).
     pub emission: EmissionStrategy,
+    /// Per-pixel or global bandwidth ([`crate::bandwidth`]): how many scales the gather
+    /// evaluates and how many planes the accumulation keeps.
+    pub bandwidth: crate::bandwidth::Bandwidth,
 }
 
 /// How the photon pass spends its photons ([`crate::projection`]).
@@ -116,6 +119,7 @@ impl Default for RenderSettings {
             radii: ProgressiveConfig::default(),
             kernel: Kernel::default(),
             emission: EmissionStrategy::default(),
+            bandwidth: crate::bandwidth::Bandwidth::default(),
         }
     }
 }

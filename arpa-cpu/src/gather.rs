@@ -3,6 +3,7 @@
 
 use core::sync::atomic::{AtomicU64, Ordering};
 
+use arpa_core::bandwidth::{ScaleSums, MOMENT_PLANES, SCALES};
 use arpa_core::estimate::{IrradianceEstimate, QueryPoint};
 use arpa_core::glam::{DVec3, Vec3};
 use arpa_core::kernel::Kernel;
@@ -21,6 +22,9 @@ pub(crate) struct GatherInput<'a> {
     pub kernel: Kernel,
     /// Progressive radii `[caustic, global]` of the photons in `store`.
     pub radii: [f32; 2],
+    /// Scales of the bandwidth ladder to evaluate: 1 (global bandwidth) or
+    /// [`SCALES`] (per-pixel; [`arpa_core::bandwidth`]).
+    pub scales: usize,
     /// Counts the point queries that failed (answered as "nothing found").
     pub errors: &'a AtomicU64,
 }
@@ -36,27 +40,53 @@ pub(crate) struct GatherCounts {
     pub covered: [u64; 2],
 }
 
-/// Writes the radiance of each query record's pixel to `image` (resized to
-/// `queries.len()`; one task per record, in parallel) and returns the candidates and
-/// contributions found.
+/// Writes the radiance of each query record's pixel to `image` (one task per record, in
+/// parallel) and returns the candidates and contributions found. With one scale `image`
+/// holds one radiance per record; with [`SCALES`] it holds the planes of
+/// [`arpa_core::bandwidth`], plane-major: the radiance at every scale, then the moment
+/// planes of [`arpa_core::bandwidth::moments`].
 pub(crate) fn gather(queries: &[QueryRecord], input: &GatherInput<'_>, image: &mut Vec<Vec3>) -> GatherCounts {
     let counts: [AtomicU64; 6] = Default::default();
-    queries
-        .par_iter()
-        .map_init(Vec::new, |scratch, rec| {
-            let (l, e) = gather_one(rec, input, scratch);
-            for m in 0..2 {
-                if e.candidates[m] > 0 {
-                    counts[m].fetch_add(e.candidates[m] as u64, Ordering::Relaxed);
-                }
-                if e.contributions[m] > 0 {
-                    counts[2 + m].fetch_add(e.contributions[m] as u64, Ordering::Relaxed);
-                    counts[4 + m].fetch_add(1, Ordering::Relaxed);
-                }
+    let count = |e: &IrradianceEstimate| {
+        for m in 0..2 {
+            if e.candidates[m] > 0 {
+                counts[m].fetch_add(e.candidates[m] as u64, Ordering::Relaxed);
             }
-            l
-        })
-        .collect_into_vec(image);
+            if e.contributions[m] > 0 {
+                counts[2 + m].fetch_add(e.contributions[m] as u64, Ordering::Relaxed);
+                counts[4 + m].fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    };
+    if input.scales <= 1 {
+        queries
+            .par_iter()
+            .map_init(Vec::new, |scratch, rec| {
+                let (l, e, _) = gather_one(rec, input, scratch, false);
+                count(&e);
+                l[0]
+            })
+            .collect_into_vec(image);
+    } else {
+        let mut planes: Vec<[Vec3; SCALES + MOMENT_PLANES]> = Vec::new();
+        queries
+            .par_iter()
+            .map_init(Vec::new, |scratch, rec| {
+                let (l, e, _) = gather_one(rec, input, scratch, true);
+                count(&e);
+                let m = arpa_core::bandwidth::moments(&l);
+                core::array::from_fn(|p| if p < SCALES { l[p] } else { m[p - SCALES] })
+            })
+            .collect_into_vec(&mut planes);
+        let n = queries.len();
+        image.clear();
+        image.resize(planes.len() * (SCALES + MOMENT_PLANES), Vec3::ZERO);
+        for (i, px) in planes.iter().enumerate() {
+            for (p, v) in px.iter().enumerate() {
+                image[p * n + i] = *v;
+            }
+        }
+    }
     let [c0, c1, n0, n1, v0, v1] = counts.map(AtomicU64::into_inner);
     GatherCounts { candidates: [c0, c1], contributions: [n0, n1], covered: [v0, v1] }
 }
@@ -70,8 +100,9 @@ fn finite_or_zero(v: DVec3) -> DVec3 {
 /// (`2³² + index`), the order [`arpa_core::estimate::gather_brute_force`] sums in.
 const PHOTON_KEY: u64 = 1 << 32;
 
-/// The gather of one query record: its pixel's radiance and its estimate (with the
-/// candidates and contributions per map).
+/// The gather of one query record: its pixel's radiance (at every scale when `scaled`,
+/// else at the stored scale in element 0), its estimate (with the candidates and
+/// contributions per map) and the irradiance at every scale (when `scaled`).
 ///
 /// Two phases. The Embree point query reports every box containing the query point (and
 /// possibly a few more); its callback only notes the candidate's key in `keys` and
@@ -81,12 +112,13 @@ const PHOTON_KEY: u64 = 1 << 32;
 /// [`IrradianceEstimate::add_photon`] (exact test and `f64` sum) in `(kind, index)` order,
 /// so the sum is bit-identical to [`arpa_core::estimate::gather_brute_force`] over the
 /// same records, whatever order the BVH reported them in.
-fn gather_one(rec: &QueryRecord, input: &GatherInput<'_>, keys: &mut Vec<u64>) -> (Vec3, IrradianceEstimate) {
+fn gather_one(rec: &QueryRecord, input: &GatherInput<'_>, keys: &mut Vec<u64>, scaled: bool) -> ([Vec3; SCALES], IrradianceEstimate, ScaleSums) {
     let known = Vec3::from_array(rec.radiance).as_dvec3();
     if rec.valid == 0 {
-        return (finite_or_zero(known).as_vec3(), IrradianceEstimate::default());
+        return ([finite_or_zero(known).as_vec3(); SCALES], IrradianceEstimate::default(), ScaleSums::default());
     }
     let mut estimate = IrradianceEstimate::default();
+    let mut sums = ScaleSums::default();
     if let Accel::Boxes {
         scene,
         footprints,
@@ -120,14 +152,27 @@ fn gather_one(rec: &QueryRecord, input: &GatherInput<'_>, keys: &mut Vec<u64>) -
         keys.dedup();
         for &key in keys.iter() {
             let i = (key & (PHOTON_KEY - 1)) as usize;
-            if key < PHOTON_KEY {
-                estimate.add_footprint(&store.footprints[i], &query, input.kernel);
-            } else {
-                estimate.add_photon(&store.photons[i], &query, input.radii);
+            match (key < PHOTON_KEY, scaled) {
+                (true, false) => {
+                    estimate.add_footprint(&store.footprints[i], &query, input.kernel);
+                }
+                (false, false) => {
+                    estimate.add_photon(&store.photons[i], &query, input.radii);
+                }
+                (true, true) => sums.add(&estimate.add_footprint_scales(&store.footprints[i], &query, input.kernel)),
+                (false, true) => sums.add(&estimate.add_photon_scales(&store.photons[i], &query, input.radii)),
             }
         }
     }
     let weight = Vec3::from_array(rec.weight).as_dvec3();
     let radiance = known + weight * estimate.irradiance();
-    (finite_or_zero(radiance).as_vec3(), estimate)
+    let mut out = [finite_or_zero(radiance).as_vec3(); SCALES];
+    if scaled {
+        // Scale 0 is the stored ellipse: the estimate's own sum (per map, then added), so
+        // a per-pixel render's plane 0 is the global render's image bit for bit.
+        for k in 1..SCALES {
+            out[k] = finite_or_zero(known + weight * sums.per_scale[k]).as_vec3();
+        }
+    }
+    (out, estimate, sums)
 }

@@ -191,7 +191,7 @@ impl Tracer for CpuTracer {
         // allocation failure).
         let mut probe: Vec<[u8; 64]> = Vec::new();
         probe
-            .try_reserve_exact(pixels as usize)
+            .try_reserve_exact(pixels as usize * settings.bandwidth.planes())
             .map_err(|_| CpuError::OutOfMemory("the image buffers"))?;
         drop(probe);
         let caster = EmbreeCaster::new(&self.device, &prepared)?;
@@ -201,7 +201,7 @@ impl Tracer for CpuTracer {
             caster,
             width,
             height,
-            accumulator: ImageAccumulator::new(width, height),
+            accumulator: ImageAccumulator::with_planes(width, height, settings.bandwidth.planes() as u32),
             clock: StageClock::new(),
             queries: Vec::new(),
             photons: PhotonBuffers::default(),
@@ -258,6 +258,7 @@ impl Tracer for CpuTracer {
                 store: &st.photons.store,
                 kernel: st.settings.kernel,
                 radii: st.photons.radii,
+                scales: st.settings.bandwidth.scales(),
                 errors: &st.gather_errors,
             };
             let counts = crate::gather::gather(&st.queries, &input, &mut st.image);
@@ -291,8 +292,9 @@ impl Tracer for CpuTracer {
 
     fn restore_accumulation(&mut self, state: &Accumulation) -> Result<(), CpuError> {
         let st = self.loaded_mut(Call::RestoreAccumulation)?;
-        st.clock = StageClock::for_restore(state, st.width, st.height)?;
-        st.accumulator = ImageAccumulator::from_accumulation(state);
+        let state = state.with_planes(st.settings.bandwidth.planes() as u32).map_err(|e| StageError::Accumulation(e.to_string()))?;
+        st.clock = StageClock::for_restore(&state, st.width, st.height)?;
+        st.accumulator = ImageAccumulator::from_accumulation(&state);
         Ok(())
     }
 

@@ -126,8 +126,11 @@ pub struct LoadedConfig {
 pub enum BenchMethod {
     /// ARPA with the scene entry's smoothing factors.
     Arpa,
-    /// ARPA with automatic smoothing.
+    /// ARPA with automatic smoothing and one bandwidth for the whole image.
     ArpaAuto,
+    /// ARPA with automatic smoothing of the stored scale and a per-pixel bandwidth
+    /// ([`arpa_core::bandwidth`]).
+    ArpaPerPixel,
     /// RTPM.
     Rtpm,
 }
@@ -136,21 +139,31 @@ impl BenchMethod {
     /// The core's method.
     pub fn method(self) -> Method {
         match self {
-            BenchMethod::Arpa | BenchMethod::ArpaAuto => Method::Arpa,
+            BenchMethod::Arpa | BenchMethod::ArpaAuto | BenchMethod::ArpaPerPixel => Method::Arpa,
             BenchMethod::Rtpm => Method::Rtpm,
         }
     }
 
     /// Whether the smoothing is chosen automatically.
     pub fn auto_smoothing(self) -> bool {
-        self == BenchMethod::ArpaAuto
+        matches!(self, BenchMethod::ArpaAuto | BenchMethod::ArpaPerPixel)
     }
 
-    /// The config and label name: `arpa`, `arpa-auto`, `rtpm`.
+    /// The bandwidth: per-pixel for `arpa-pp`, global for the others (the baselines it is
+    /// compared with).
+    pub fn bandwidth(self) -> arpa_core::bandwidth::Bandwidth {
+        match self {
+            BenchMethod::ArpaPerPixel => arpa_core::bandwidth::Bandwidth::PerPixel,
+            _ => arpa_core::bandwidth::Bandwidth::Global,
+        }
+    }
+
+    /// The config and label name: `arpa`, `arpa-auto`, `arpa-pp`, `rtpm`.
     pub fn name(self) -> &'static str {
         match self {
             BenchMethod::Arpa => "arpa",
             BenchMethod::ArpaAuto => "arpa-auto",
+            BenchMethod::ArpaPerPixel => "arpa-pp",
             BenchMethod::Rtpm => "rtpm",
         }
     }
@@ -160,6 +173,7 @@ impl BenchMethod {
         match self {
             BenchMethod::Arpa => "ARPA",
             BenchMethod::ArpaAuto => "ARPA auto",
+            BenchMethod::ArpaPerPixel => "ARPA per-pixel",
             BenchMethod::Rtpm => "RTPM",
         }
     }
@@ -198,8 +212,9 @@ impl LoadedConfig {
             match m.to_ascii_lowercase().as_str() {
                 "arpa" => methods.push(BenchMethod::Arpa),
                 "arpa-auto" => methods.push(BenchMethod::ArpaAuto),
+                "arpa-pp" => methods.push(BenchMethod::ArpaPerPixel),
                 "rtpm" => methods.push(BenchMethod::Rtpm),
-                _ => return bad(format!("unknown method '{m}' (arpa, arpa-auto, rtpm)")),
+                _ => return bad(format!("unknown method '{m}' (arpa, arpa-auto, arpa-pp, rtpm)")),
             }
         }
         for p in &config.peers {

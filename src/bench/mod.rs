@@ -108,6 +108,9 @@ pub struct BenchRow {
     pub contributions_per_query: [f64; 2],
     /// relMSE inside the scene's caustic region (`None` without one).
     pub region_rel_mse: Option<f64>,
+    /// Share of the pixels per scale of a per-pixel bandwidth run
+    /// ([`crate::session::CheckpointRow::scale_share`]; `None` otherwise).
+    pub scale_share: Option<[f64; arpa_core::bandwidth::SCALES]>,
     /// The photon passes' rates (`None` for peers).
     pub photons: Option<PhotonRates>,
 }
@@ -253,6 +256,7 @@ impl Hooks for RowHooks<'_> {
             candidates_per_query: row.candidates_per_query,
             contributions_per_query: row.contributions_per_query,
             region_rel_mse: self.bench_scene.region_rel_mse(image)?,
+            scale_share: row.scale_share,
             photons: Some(PhotonRates::of(row)),
         });
         Ok(())
@@ -382,6 +386,7 @@ pub fn run_bench(cfg: &LoadedConfig, options: &BenchOptions) -> anyhow::Result<V
                     let kind = RunKind::Arpa { backend: kind_backend.name().to_string(), method, photons };
                     let mut settings = settings_for(scene, method.method(), photons, c.seed);
                     settings.emission = options.emission;
+                    settings.bandwidth = method.bandwidth();
                     let mut budget = Duration::from_secs_f64(seconds);
                     let mut pilot_note = String::new();
                     if method.auto_smoothing() {
@@ -487,6 +492,7 @@ fn run_peer(
                     times: StageTimes::default(),
                     candidates_per_query: [0.0; 2],
                     contributions_per_query: [0.0; 2],
+                    scale_share: None,
                     region_rel_mse: scene.region_rel_mse(&image)?,
                     photons: None,
                 });

@@ -67,7 +67,7 @@ pub fn write_all(out: &Path, header: &Header, cfg: &LoadedConfig, results: &[Run
 /// peers): records stored per photon emitted in the caustic and the global map, mean
 /// photons emitted per iteration by the caustic and the global pass, and caustic-map
 /// records stored per second of render time.
-pub const CSV_COLUMNS: &str = "scene,run,backend,method,photons,status,iteration,seconds,relmse,ssim,flip,mean_ratio,camera_ms,photon_ms,build_ms,gather_ms,accumulate_ms,caustic_candidates_per_query,caustic_contributions_per_query,global_candidates_per_query,global_contributions_per_query,region_relmse,caustic_records_per_photon,global_records_per_photon,caustic_pass_photons,global_pass_photons,caustic_records_per_second";
+pub const CSV_COLUMNS: &str = "scene,run,backend,method,photons,status,iteration,seconds,relmse,ssim,flip,mean_ratio,camera_ms,photon_ms,build_ms,gather_ms,accumulate_ms,caustic_candidates_per_query,caustic_contributions_per_query,global_candidates_per_query,global_contributions_per_query,region_relmse,caustic_records_per_photon,global_records_per_photon,caustic_pass_photons,global_pass_photons,caustic_records_per_second,scale0_share,scale1_share,scale2_share,scale3_share,scale4_share";
 
 /// `{:.9e}` of a value, or nothing.
 fn optional_sci(v: Option<f64>) -> String {
@@ -103,9 +103,11 @@ pub fn csv_text(header: &Header, results: &[RunResult]) -> String {
                     )
                 },
             );
+            // Per-scale share of the pixels (per-pixel bandwidth runs; empty otherwise).
+            let shares = row.scale_share.map_or_else(|| ",".repeat(arpa_core::bandwidth::SCALES - 1), |sh| sh.map(|v| format!("{v:.4}")).join(","));
             let _ = writeln!(
                 s,
-                "{},{run},{backend},{method},{photons},ok,{},{:.6},{:.9e},{:.9},{:.9},{:.6},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{rates}",
+                "{},{run},{backend},{method},{photons},ok,{},{:.6},{:.9e},{:.9},{:.9},{:.6},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{rates},{shares}",
                 r.scene,
                 row.iteration,
                 row.seconds,
@@ -294,7 +296,7 @@ fn short_number(v: f64) -> String {
 
 
 /// Registers the embedded DejaVu Sans as the plots' font (once).
-fn register_font() -> anyhow::Result<()> {
+pub(crate) fn register_font() -> anyhow::Result<()> {
     static ONCE: std::sync::OnceLock<Result<(), String>> = std::sync::OnceLock::new();
     ONCE.get_or_init(|| plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular()).map_err(|_| "the embedded DejaVu Sans font is invalid".to_string()))
         .clone()

@@ -1,0 +1,395 @@
+//! Locally adaptive bandwidth: every pixel picks its own footprint scale from estimates
+//! gathered at several nested scales of the same footprints.
+//!
+//! # The scale ladder
+//! The gather evaluates every candidate footprint at [`SCALES`] nested scales of its final
+//! ellipse (after smoothing and the heuristics): scale `k` shrinks both semi-axes by
+//! `s_k = 2^{−k/2}` (`k = 0` is the stored ellipse and its box, so one traversal finds the
+//! candidates of every scale). In filter space the scaled ellipse is the disc `|y| ≤ s_k`,
+//! so its contribution is `Φ/A · 2^k K(2^k r²)` with the stored `r² = |y|²` and density
+//! `Φ/A`: `1/s_k² = 2^k` is a power of two, so the scaled weights are exact scalings of the
+//! stored ones in `f32` on every backend. Progressive photons use the same scales of their
+//! radius: `|q − x|² 2^k < r²`, density `2^k/(π r²)`. The slab test (distance from the
+//! surface) stays the stored one. Each scale integrates to the photon's flux, so each is a
+//! consistent estimator of its own, and each shrinks with the progressive radius as the
+//! footprints do.
+//!
+//! Five scales span a factor 4 in footprint size (16 in area and in overlap). With automatic
+//! smoothing ([`crate::classify::AutoSmoothing::per_pixel_overlap`]) the stored scale covers
+//! a lit point with about 16 footprints per iteration, so the ladder's overlaps are 16, 8,
+//! 4, 2, 1: scale 1 is the global automatic choice, one step larger and three smaller.
+//!
+//! # What is accumulated
+//! The iteration's image holds [`PLANES`] planes per pixel (`Bandwidth::planes`): the
+//! radiance at each scale, then [`MOMENT_PLANES`] planes of per-iteration second moments
+//! of the luminance ([`moments`]): `y_k²` for every scale and `(y_k − y_{k+1})²` between
+//! neighbouring scales. They are summed like the radiance
+//! (compensated, exact on resume and merge), so the per-iteration spread of every scale and
+//! of every difference to the smallest one is known at output time.
+//!
+//! # The selection rule (plug-in MSE, at output time)
+//! For each pixel, with `n` iterations and `Y_k` the mean luminance of scale `k`:
+//! * variance of the mean: `v_k = (⟨y_k²⟩ − Y_k²)/(n − 1)`;
+//! * bias from neighbouring scales: the difference `d_k = Y_k − Y_{k+1}` estimates the bias
+//!   the step from scale `k + 1` to `k` adds. For a second-order kernel the bias grows like
+//!   the kernel's area (`∝ s_k² ∇²E` where the light is smooth), so halving the area
+//!   halves it and `b_k ≈ 2 d_k`; the smallest scale's bias is half the next one's. The
+//!   variance of `d_k` comes from its own moments, `w_k = (⟨(y_k − y_{k+1})²⟩ − d_k²)/(n − 1)`:
+//!   neighbouring scales share most of their photons, so their difference is far less noisy
+//!   than either (about `v_{k+1} − v_k`), which is the noise that matters when choosing
+//!   between them; `d_k² − w_k` is an unbiased estimate of the squared difference of means;
+//! * relative terms: every term divided by `Y_0² + ε` (`ε`: 10⁻⁴ of the image's mean squared
+//!   luminance), so bright and dark neighbours weigh alike;
+//! * spatial pooling: `v_k` and `d_k² − w_k` are averaged over a `(2·[POOL_RADIUS] + 1)²`
+//!   window of pixels (bars below);
+//! * `MSE_k = 4 max(0, (d_k² − w_k)‾) + v̄_k` (`k < SCALES − 1`), `MSE_s = max(0, (d_{s−1}² − w_{s−1})‾) + v̄_s`
+//!   for the smallest scale `s`, and the chosen scale is the `argmin` (ties to the larger
+//!   scale);
+//! * smoothing: the chosen index is averaged over a `3 × 3` tent, and the output blends the
+//!   two scales around that fractional index linearly, so neighbouring pixels that choose
+//!   differently meet without a seam or speckle.
+//!
+//! With one iteration (no spread yet) every pixel takes scale 0. On a flat, evenly lit
+//! surface all scales agree, `b_k² ≈ 0`, and the variance picks the largest scale; near a
+//! shadow edge or in a sharp caustic the larger scales' bias grows faster than their
+//! variance falls and smaller scales win. As iterations accumulate the variances fall like
+//! `1/n` and the rule moves towards smaller scales where the light has structure.
+//!
+//! # Memory
+//! Per pixel, [`PLANES`] = 8 accumulated planes instead of 1: on the CPU 8 × 64 B
+//! (compensated `f64` sums, [`crate::accumulate::PixelSum`]) and 8 × 12 B of iteration
+//! image; on the GPU backends 8 × 32 B (compensated `f32` sums) and 8 × 16 B of iteration
+//! image plus [`SCALES`] × 16 B of per-batch irradiance.
+
+use glam::{DVec3, Vec3};
+
+/// Number of nested scales of the ladder.
+pub const SCALES: usize = 5;
+
+/// Planes of second moments per pixel: `2 SCALES − 1` values, three per RGB plane.
+pub const MOMENT_PLANES: usize = 3;
+
+/// Planes per pixel of a per-pixel render: [`SCALES`] radiance planes and
+/// [`MOMENT_PLANES`] moment planes.
+pub const PLANES: usize = SCALES + MOMENT_PLANES;
+
+/// Half-width (pixels) of the window the selection pools its bias and variance estimates
+/// over.
+pub const POOL_RADIUS: usize = 2;
+
+
+/// `1/s_k² = 2^k` (exact in `f32`): the factor by which scale `k` multiplies the stored
+/// squared filter radius and the density.
+#[inline(always)]
+pub const fn inv_scale2(k: usize) -> f32 {
+    (1u32 << k) as f32
+}
+
+/// `s_k = 2^{−k/2}`: the linear size of scale `k` relative to the stored ellipse.
+#[inline]
+pub fn scale(k: usize) -> f64 {
+    libm::exp2(-(k as f64) / 2.0)
+}
+
+/// How the image's bandwidth is chosen.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Bandwidth {
+    /// Each pixel picks its scale from multi-scale estimates (module docs; the default).
+    #[default]
+    PerPixel,
+    /// One bandwidth for the whole image: the stored footprints as they are (one plane).
+    Global,
+}
+
+impl Bandwidth {
+    /// Lower-case name, as on the command line.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Bandwidth::PerPixel => "per-pixel",
+            Bandwidth::Global => "global",
+        }
+    }
+
+    /// Planes per pixel of the iteration image and the accumulation.
+    pub const fn planes(self) -> usize {
+        match self {
+            Bandwidth::PerPixel => PLANES,
+            Bandwidth::Global => 1,
+        }
+    }
+
+    /// Scales the gather evaluates.
+    pub const fn scales(self) -> usize {
+        match self {
+            Bandwidth::PerPixel => SCALES,
+            Bandwidth::Global => 1,
+        }
+    }
+}
+
+/// Luminance (Rec. 709 weights) of a linear RGB radiance, in `f32`: what the moments and
+/// the selection compare.
+#[inline]
+pub fn luminance(c: Vec3) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
+/// The moment planes of one iteration's per-scale radiance `radiance` (index = scale):
+/// value `k < SCALES` is `y_k²`, value `SCALES + k` (`k < SCALES − 1`) is
+/// `(y_k − y_{k+1})²` with `y` the luminance, packed three to a plane in that order.
+#[inline]
+pub fn moments(radiance: &[Vec3; SCALES]) -> [Vec3; MOMENT_PLANES] {
+    let y = radiance.map(luminance);
+    let mut v = [0.0f32; 3 * MOMENT_PLANES];
+    for k in 0..SCALES {
+        v[k] = y[k] * y[k];
+    }
+    for k in 0..SCALES - 1 {
+        let d = y[k] - y[k + 1];
+        v[SCALES + k] = d * d;
+    }
+    core::array::from_fn(|p| Vec3::new(v[3 * p], v[3 * p + 1], v[3 * p + 2]))
+}
+
+/// Irradiance sums of one query point at every scale (W/m², RGB, both maps together),
+/// summed in `f64` in the order the records are added.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ScaleSums {
+    /// Indexed by scale.
+    pub per_scale: [DVec3; SCALES],
+}
+
+impl ScaleSums {
+    /// Adds the per-scale contributions `e` of one record, each when non-zero and finite
+    /// (as [`crate::estimate::IrradianceEstimate::add`] does for the stored scale).
+    #[inline]
+    pub fn add(&mut self, e: &[Vec3; SCALES]) {
+        for (s, e) in self.per_scale.iter_mut().zip(e) {
+            if *e != Vec3::ZERO && e.is_finite() {
+                *s += e.as_dvec3();
+            }
+        }
+    }
+}
+
+#[cfg(feature = "alloc")]
+pub use select::{select, Selection};
+
+#[cfg(feature = "alloc")]
+mod select {
+    use super::*;
+    use alloc::vec;
+    use alloc::vec::Vec;
+
+    /// The output of the selection: the image and, per pixel, the scale it uses.
+    #[derive(Clone, Debug, PartialEq)]
+    pub struct Selection {
+        /// Row-major radiance (W/(m²·sr), linear RGB), always finite.
+        pub image: Vec<Vec3>,
+        /// Fractional scale index per pixel (0 = stored ellipse, `SCALES − 1` = smallest).
+        pub scale: Vec<f32>,
+    }
+
+    /// Box sums of `v` (row-major `w × h`) over the `(2r + 1)²` window around each pixel
+    /// (clipped at the border), and the number of pixels each window holds.
+    fn box_mean(v: &[f64], w: usize, h: usize, r: usize) -> Vec<f64> {
+        let mut rows = vec![0.0; v.len()];
+        for y in 0..h {
+            let row = &v[y * w..(y + 1) * w];
+            for x in 0..w {
+                let (a, b) = (x.saturating_sub(r), (x + r).min(w - 1));
+                rows[y * w + x] = row[a..=b].iter().sum::<f64>() / (b - a + 1) as f64;
+            }
+        }
+        let mut out = vec![0.0; v.len()];
+        for y in 0..h {
+            let (a, b) = (y.saturating_sub(r), (y + r).min(h - 1));
+            for x in 0..w {
+                out[y * w + x] = (a..=b).map(|yy| rows[yy * w + x]).sum::<f64>() / (b - a + 1) as f64;
+            }
+        }
+        out
+    }
+
+    /// The image of a per-pixel accumulation: `planes` is the mean of every plane
+    /// (`PLANES × w × h` values, plane-major: plane `p` of pixel `i` at `p w h + i`, as
+    /// [`crate::accumulate::Accumulation`] keeps them) over `n` iterations. Applies the
+    /// rule of the module docs. Deterministic: a function of the means alone.
+    pub fn select(planes: &[DVec3], w: usize, h: usize, n: u64) -> Selection {
+        let px = w * h;
+        if px == 0 || planes.len() != PLANES * px {
+            return Selection { image: vec![Vec3::ZERO; px], scale: vec![0.0; px] };
+        }
+        let plane = |p: usize, i: usize| planes[p * px + i];
+        let finite = |v: DVec3| DVec3::select(v.is_finite_mask(), v, DVec3::ZERO);
+        let lum = |c: DVec3| 0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z;
+        let moment = |v: usize, i: usize| {
+            let c = plane(SCALES + v / 3, i);
+            [c.x, c.y, c.z][v % 3]
+        };
+        let mut choice = vec![0.0f64; px];
+        if n >= 2 {
+            let nf = n as f64;
+            let y0_mean_sq = (0..px).map(|i| lum(plane(0, i)).powi(2)).sum::<f64>() / px as f64;
+            let eps = (1e-4 * y0_mean_sq).max(f64::MIN_POSITIVE);
+            // Relative variance per scale, and the unbiased squared difference of means
+            // between neighbouring scales, per pixel.
+            let mut var = vec![vec![0.0; px]; SCALES];
+            let mut step2 = vec![vec![0.0; px]; SCALES - 1];
+            for i in 0..px {
+                let y: [f64; SCALES] = core::array::from_fn(|k| lum(plane(k, i)));
+                let norm = y[0] * y[0] + eps;
+                for k in 0..SCALES {
+                    let v = ((moment(k, i) - y[k] * y[k]) / (nf - 1.0)).max(0.0);
+                    var[k][i] = v / norm;
+                    if k + 1 < SCALES {
+                        let d = y[k] - y[k + 1];
+                        let wv = ((moment(SCALES + k, i) - d * d) / (nf - 1.0)).max(0.0);
+                        step2[k][i] = (d * d - wv) / norm;
+                    }
+                }
+            }
+            let var: Vec<Vec<f64>> = var.iter().map(|v| box_mean(v, w, h, POOL_RADIUS)).collect();
+            let step2: Vec<Vec<f64>> = step2.iter().map(|v| box_mean(v, w, h, POOL_RADIUS)).collect();
+            for (i, c) in choice.iter_mut().enumerate() {
+                let mut best = (f64::INFINITY, 0usize);
+                for (k, v) in var.iter().enumerate() {
+                    // b_k ≈ 2 d_k (bias ∝ kernel area); the smallest scale's is d_{s−1}.
+                    let bias2 = if k + 1 < SCALES { 4.0 * step2[k][i].max(0.0) } else { step2[k - 1][i].max(0.0) };
+                    let mse = bias2 + v[i];
+                    // Strictly smaller only: ties stay with the larger scale.
+                    if mse.is_finite() && mse < best.0 {
+                        best = (mse, k);
+                    }
+                }
+                *c = best.1 as f64;
+            }
+        }
+        // 3 × 3 tent (1 2 1 ⊗ 1 2 1) over the choices, clipped at the border.
+        let mut smooth = vec![0.0f32; px];
+        for y in 0..h {
+            for x in 0..w {
+                let (mut sum, mut weight) = (0.0, 0.0);
+                for dy in -1i64..=1 {
+                    for dx in -1i64..=1 {
+                        let (xx, yy) = (x as i64 + dx, y as i64 + dy);
+                        if xx < 0 || yy < 0 || xx >= w as i64 || yy >= h as i64 {
+                            continue;
+                        }
+                        let t = ((2 - dx.abs()) * (2 - dy.abs())) as f64;
+                        sum += t * choice[yy as usize * w + xx as usize];
+                        weight += t;
+                    }
+                }
+                smooth[y * w + x] = (sum / weight) as f32;
+            }
+        }
+        let image = (0..px)
+            .map(|i| {
+                let c = f64::from(smooth[i]).clamp(0.0, (SCALES - 1) as f64);
+                let k0 = (c as usize).min(SCALES - 2);
+                let t = c - k0 as f64;
+                let l = if t == 0.0 { plane(k0, i) } else { plane(k0, i) * (1.0 - t) + plane(k0 + 1, i) * t };
+                finite(l).as_vec3()
+            })
+            .map(|v| Vec3::select(v.is_finite_mask(), v, Vec3::ZERO))
+            .collect();
+        Selection { image, scale: smooth }
+    }
+
+    #[cfg(test)]
+    mod tests {
+        use super::*;
+
+        /// Planes of `n` iterations whose per-iteration luminance at scale `k` is
+        /// `truth + bias[k] ± sigma[k]` (alternating signs, so the spread is exact).
+        fn planes(px: usize, n: u64, truth: f64, bias: [f64; SCALES], sigma: [f64; SCALES]) -> Vec<DVec3> {
+            let mut sums = vec![DVec3::ZERO; PLANES * px];
+            for it in 0..n {
+                let sign = if it % 2 == 0 { 1.0 } else { -1.0 };
+                let l: [Vec3; SCALES] = core::array::from_fn(|k| Vec3::splat((truth + bias[k] + sign * sigma[k]) as f32));
+                let m = moments(&l);
+                for i in 0..px {
+                    for k in 0..SCALES {
+                        sums[k * px + i] += l[k].as_dvec3();
+                    }
+                    for p in 0..MOMENT_PLANES {
+                        sums[(SCALES + p) * px + i] += m[p].as_dvec3();
+                    }
+                }
+            }
+            sums.iter().map(|s| *s / n as f64).collect()
+        }
+
+        #[test]
+        fn unbiased_scales_pick_the_largest() {
+            let p = planes(64, 16, 1.0, [0.0; SCALES], [0.05, 0.07, 0.1, 0.14, 0.2]);
+            let s = select(&p, 8, 8, 16);
+            assert!(s.scale.iter().all(|&c| c == 0.0), "{:?}", s.scale);
+            assert!(s.image.iter().all(|l| (l.x - 1.0).abs() < 1e-6));
+        }
+
+        #[test]
+        fn biased_large_scales_are_left() {
+            // Large scales 20 % and 10 % off, noise small: scale 2 is the first unbiased one.
+            let p = planes(64, 64, 1.0, [0.2, 0.1, 0.0, 0.0, 0.0], [0.01, 0.014, 0.02, 0.028, 0.04]);
+            let s = select(&p, 8, 8, 64);
+            assert!(s.scale.iter().all(|&c| c == 2.0), "{:?}", s.scale);
+        }
+
+        #[test]
+        fn one_iteration_takes_the_stored_scale_and_nothing_is_nan() {
+            let mut p = planes(4, 1, 1.0, [0.3, 0.0, 0.0, 0.0, 0.0], [0.0; SCALES]);
+            p[1] = DVec3::NAN;
+            let s = select(&p, 2, 2, 1);
+            assert!(s.scale.iter().all(|&c| c == 0.0));
+            assert!(s.image.iter().all(|l| l.is_finite()));
+        }
+
+        #[test]
+        fn choices_blend_across_a_boundary() {
+            // Left half biased at the large scales, right half not: the fractional index
+            // changes over the tent's width, not in one step.
+            let (w, h) = (12, 4);
+            let left = planes(1, 64, 1.0, [0.3, 0.2, 0.1, 0.0, 0.0], [0.01; SCALES]);
+            let right = planes(1, 64, 1.0, [0.0; SCALES], [0.01, 0.014, 0.02, 0.028, 0.04]);
+            let mut p = vec![DVec3::ZERO; PLANES * w * h];
+            for pl in 0..PLANES {
+                for y in 0..h {
+                    for x in 0..w {
+                        p[pl * w * h + y * w + x] = if x < w / 2 { left[pl] } else { right[pl] };
+                    }
+                }
+            }
+            let s = select(&p, w, h, 64);
+            let row: Vec<f32> = (0..w).map(|x| s.scale[w + x]).collect();
+            assert!(row[0] >= 2.0 && row[w - 1] == 0.0, "{row:?}");
+            assert!(row.iter().any(|&c| c > 0.0 && c < 3.0 && c.fract() != 0.0), "no blend: {row:?}");
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ladder_is_powers_of_two_in_area() {
+        for k in 0..SCALES {
+            let exact = 1.0 / (scale(k) * scale(k));
+            assert!((f64::from(inv_scale2(k)) / exact - 1.0).abs() < 1e-14, "{k}: {exact}");
+        }
+        assert!((scale(SCALES - 1) - 0.25).abs() < 1e-15);
+        assert_eq!(Bandwidth::PerPixel.planes(), 8);
+        assert_eq!(Bandwidth::Global.planes(), 1);
+    }
+
+    #[test]
+    fn moments_pack_squares_then_differences() {
+        let l: [Vec3; SCALES] = core::array::from_fn(|k| Vec3::splat(k as f32 + 1.0));
+        let m = moments(&l);
+        let v: [f32; 9] = [m[0].x, m[0].y, m[0].z, m[1].x, m[1].y, m[1].z, m[2].x, m[2].y, m[2].z];
+        let expected = [1.0, 4.0, 9.0, 16.0, 25.0, 1.0, 1.0, 1.0, 1.0];
+        assert!(v.iter().zip(expected).all(|(a, b)| (a - b).abs() < 1e-5 * b), "{v:?}");
+    }
+}
