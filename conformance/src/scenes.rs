@@ -511,3 +511,44 @@ pub fn open_mirror(size: u32) -> Scene {
         ),
     )
 }
+
+/// Irradiance of the bandwidth scenes' directional light on a plane perpendicular to it
+/// (W/m²).
+pub const BANDWIDTH_IRRADIANCE: f64 = 2.0;
+/// Albedo of the bandwidth scenes' floor.
+pub const BANDWIDTH_ALBEDO: f64 = 0.5;
+/// Height of the bandwidth scene's black occluder (metres).
+pub const BANDWIDTH_OCCLUDER_HEIGHT: f32 = 0.5;
+
+/// A 2 × 2 diffuse floor (`y = 0`, albedo [`BANDWIDTH_ALBEDO`]) under a directional light
+/// travelling along `(1, −1, 0)/√2`, so the floor's irradiance is `E/√2` and, with direct
+/// lighting off, its radiance `ρ/π · E/√2` wherever the light reaches it; the camera looks
+/// straight down from height 3 at the square `|x|, |z| ≤ 0.5`. With `occluded`, a black
+/// (albedo 0) half-plane at height [`BANDWIDTH_OCCLUDER_HEIGHT`] over `x ≤ −0.5`, outside the
+/// camera's view, casts a hard shadow whose edge is the line `x = 0` of the floor: irradiance
+/// `E/√2` for `x > 0` and exactly 0 for `x < 0` (photons the floor reflects leave the scene
+/// or end on the occluder's black underside).
+pub fn bandwidth_plane(size: u32, occluded: bool) -> Scene {
+    let mut meshes = vec![quad("floor", Vec3::new(-1.0, 0.0, -1.0), Vec3::new(0.0, 0.0, 2.0), Vec3::new(2.0, 0.0, 0.0), 0)];
+    if occluded {
+        let y = BANDWIDTH_OCCLUDER_HEIGHT;
+        meshes.push(quad("occluder", Vec3::new(-2.5, y, -1.5), Vec3::new(0.0, 0.0, 3.0), Vec3::new(2.0, 0.0, 0.0), 1));
+    }
+    let light = Light::Directional(arpa_core::emission::DirectionalLight {
+        direction: DVec3::new(1.0, -1.0, 0.0).normalize(),
+        irradiance: DVec3::splat(BANDWIDTH_IRRADIANCE),
+    });
+    scene(
+        meshes,
+        vec![diffuse(BANDWIDTH_ALBEDO as f32), diffuse(0.0)],
+        vec![light],
+        Camera {
+            position: Vec3::new(0.0, 3.0, 0.0),
+            target: Vec3::ZERO,
+            up: Vec3::new(0.0, 0.0, -1.0),
+            vertical_fov: 2.0 * (0.5f32 / 3.0).atan(),
+            width: size,
+            height: size,
+        },
+    )
+}

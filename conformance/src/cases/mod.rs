@@ -5,6 +5,7 @@
 use crate::suite::{Case, CaseBody};
 
 pub mod analytic;
+pub mod bandwidth;
 pub mod bad_input;
 pub mod camera;
 pub mod determinism;
@@ -48,6 +49,18 @@ pub fn all() -> Vec<Case> {
             title: "point light over plane, photons only (arpa)",
             needs: None,
             run: CaseBody::Tracer(analytic::plane_arpa),
+        },
+        Case {
+            id: "bandwidth-flat-plane",
+            title: "per-pixel bandwidth: an evenly lit plane keeps the largest scale, unbiased",
+            needs: None,
+            run: CaseBody::Tracer(bandwidth::flat_plane),
+        },
+        Case {
+            id: "bandwidth-shadow-edge",
+            title: "per-pixel bandwidth: smaller scales at a hard shadow edge, sharper than global",
+            needs: None,
+            run: CaseBody::Tracer(bandwidth::shadow_edge_case),
         },
         Case {
             id: "analytic-plane-rtpm",
