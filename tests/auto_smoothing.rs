@@ -2,7 +2,8 @@
 //! on the cpu backend, for a point light over a large diffuse floor (every footprint a
 //! plain ellipse, no heuristic but dampening acting):
 //! - the pilot's `S` gives the target overlap: at the chosen `S`, a lit query point is
-//!   covered by 8 footprints within 25 % (the `S^{2γ}` growth the choice assumes);
+//!   covered by 8 footprints (16 at the stored scale of a per-pixel bandwidth, the default)
+//!   within 25 % (the `S^{2γ}` growth the choice assumes);
 //! - the overlap then shrinks with the iterations as documented, `∝ (r_i/r_1)^{2(1−γ)}`
 //!   (dampening pulls the axes towards twice the progressive radius `r_i`), within 10 %;
 //! - the choice is deterministic (the same pilot twice gives the same `S`).
@@ -46,6 +47,7 @@ fn the_pilot_reaches_the_target_overlap_and_it_shrinks_with_the_radius() {
     let mut settings = settings();
     let mut tracer = backends::create(BackendKind::Cpu, &BackendOptions::default()).expect("cpu backend");
     let auto = AutoSmoothing::default();
+    let target = auto.for_bandwidth(settings.bandwidth).overlap;
     let pilot = auto_smoothing(&mut tracer, &scene, &settings, &auto).expect("pilot");
     let again = auto_smoothing(&mut tracer, &scene, &settings, &auto).expect("pilot");
     assert_eq!(pilot.smoothing, again.smoothing, "the pilot is not deterministic");
@@ -61,7 +63,7 @@ fn the_pilot_reaches_the_target_overlap_and_it_shrinks_with_the_radius() {
         let (overlap, radius) = (stats.overlap()[1], stats.radii[1]);
         match first {
             None => {
-                assert!((overlap / auto.overlap - 1.0).abs() < 0.25, "iteration 1: overlap {overlap} at S_g {s}, target {} (pilot {:?} at S = 1)", auto.overlap, pilot.overlap_at_one);
+                assert!((overlap / target - 1.0).abs() < 0.25, "iteration 1: overlap {overlap} at S_g {s}, target {target} (pilot {:?} at S = 1)", pilot.overlap_at_one);
                 first = Some((overlap, radius));
             }
             Some((o1, r1)) if i.is_power_of_two() => {

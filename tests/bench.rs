@@ -41,9 +41,10 @@ fn csv_rows(path: &Path) -> Vec<Vec<String>> {
     }
     let mut lines = text.lines().filter(|l| !l.starts_with('#'));
     let columns: Vec<&str> = lines.next().expect("no column line").split(',').collect();
-    assert_eq!(columns.len(), 27, "{columns:?}");
-    assert_eq!(columns[21..], ["region_relmse", "caustic_records_per_photon", "global_records_per_photon", "caustic_pass_photons", "global_pass_photons", "caustic_records_per_second"]);
-    lines.map(|l| l.split(',').map(str::to_owned).collect::<Vec<_>>()).inspect(|f| assert_eq!(f.len(), 27, "{f:?}")).collect()
+    assert_eq!(columns.len(), 32, "{columns:?}");
+    assert_eq!(columns[21..27], ["region_relmse", "caustic_records_per_photon", "global_records_per_photon", "caustic_pass_photons", "global_pass_photons", "caustic_records_per_second"]);
+    assert_eq!(columns[27..], ["scale0_share", "scale1_share", "scale2_share", "scale3_share", "scale4_share"]);
+    lines.map(|l| l.split(',').map(str::to_owned).collect::<Vec<_>>()).inspect(|f| assert_eq!(f.len(), 32, "{f:?}")).collect()
 }
 
 #[test]
@@ -63,11 +64,11 @@ fn smoke_config_writes_every_output() {
     let err = String::from_utf8_lossy(&cmd.stderr);
     assert!(cmd.status.success(), "arpa bench failed: {err}");
     // One progress line per run, with the ETA of the sweep.
-    assert_eq!(err.lines().filter(|l| l.contains("ETA")).count(), 12, "{err}");
+    assert_eq!(err.lines().filter(|l| l.contains("ETA")).count(), 16, "{err}");
 
     let rows = csv_rows(&out.join("runs.csv"));
     for scene in ["cornell-caustic", "caustic-glass"] {
-        for run in ["arpa E-20K", "arpa E-50K", "arpa-auto E-20K", "arpa-auto E-50K", "rtpm E-20K", "rtpm E-50K"] {
+        for run in ["arpa E-20K", "arpa E-50K", "arpa-auto E-20K", "arpa-auto E-50K", "arpa-pp E-20K", "arpa-pp E-50K", "rtpm E-20K", "rtpm E-50K"] {
             let mine: Vec<&Vec<String>> = rows.iter().filter(|r| r[0] == scene && r[1] == run).collect();
             assert!(!mine.is_empty(), "no rows for {scene} {run}");
             let mut last_iteration = 0;
@@ -91,6 +92,13 @@ fn smoke_config_writes_every_output() {
                 }
                 // Records per photon, photons per pass and caustic records per second.
                 assert!((22..27).all(|i| num(i) >= 0.0), "photon rates {r:?}");
+                // The share of pixels per scale: for the per-pixel runs only, summing to 1.
+                if run.starts_with("arpa-pp") {
+                    let total: f64 = (27..32).map(num).sum();
+                    assert!((27..32).all(|i| num(i) >= 0.0) && (total - 1.0).abs() < 1e-3, "scale shares {r:?}");
+                } else {
+                    assert!(r[27..].iter().all(String::is_empty), "no scale shares: {r:?}");
+                }
             }
             let stem = format!("{scene}-{}-cpu", run.replace(' ', "-").replace("-E-", "-E"));
             let exr = arpa::image_io::read_exr(&out.join("images").join(format!("{stem}.exr"))).unwrap();
