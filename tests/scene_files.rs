@@ -38,6 +38,12 @@ const SHARED: &[(&str, usize, usize, usize)] = &[
     ("cornell-caustic", 5_144, 0, 1),
 ];
 
+/// Shared scenes the loader cannot read yet, with what the refusal must name (the file's
+/// line and the element). crytek-sponza needs bitmap textures, alpha masks and instancing
+/// (the real-Mitsuba-scenes and glTF issues); once it loads, this entry fails the test and
+/// goes.
+const REFUSED: &[(&str, &str)] = &[("crytek-sponza", "scene.xml:41: unsupported <texture type=\"bitmap\">")];
+
 #[test]
 fn every_shared_scene_loads_and_validates() {
     let Some(dir) = shared_scenes() else { return };
@@ -49,6 +55,14 @@ fn every_shared_scene_loads_and_validates() {
         }
         found += 1;
         let name = path.parent().unwrap().file_name().unwrap().to_string_lossy().into_owned();
+        if let Some((_, why)) = REFUSED.iter().find(|(n, _)| *n == name) {
+            match load_scene(&path, &[]) {
+                Err(e) => assert!(e.to_string().contains(why), "{name}: refused, but not naming '{why}': {e}"),
+                Ok(_) => panic!("{name} loads now: remove it from REFUSED and check it like the others"),
+            }
+            eprintln!("{name}: refused as expected ({why})");
+            continue;
+        }
         let s = load_scene(&path, &[]).unwrap_or_else(|e| panic!("{name}: {e}"));
         s.scene.validate().unwrap_or_else(|e| panic!("{name}: {e}"));
         let emissive = s.scene.meshes.iter().filter(|m| m.emission.is_some()).count();
