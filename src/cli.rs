@@ -93,6 +93,11 @@ pub struct BenchArgs {
     #[arg(long, allow_negative_numbers = true, value_name = "SECONDS", value_parser = parse_seconds)]
     pub seconds: Option<f64>,
 
+    /// Seed of every run [default: the config's] (repeat a sweep with other seeds for its
+    /// spread).
+    #[arg(long, value_name = "SEED")]
+    pub seed: Option<u32>,
+
     /// Python interpreter that runs the Mitsuba peers (`scripts/peer_mitsuba.py`).
     #[arg(long, value_name = "PYTHON", default_value = "python3")]
     pub python: String,
@@ -682,6 +687,7 @@ pub fn run_bench(args: &BenchArgs) -> anyhow::Result<()> {
     let options = crate::bench::BenchOptions {
         out: args.out.clone(),
         seconds: args.seconds,
+        seed: args.seed,
         python: args.python.clone(),
         emission: args.emission.strategy(),
         peers: !args.no_peers,

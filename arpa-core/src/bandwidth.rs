@@ -29,7 +29,13 @@
 //!
 //! # The selection rule (plug-in MSE, at output time)
 //! For each pixel, with `n` iterations and `Y_k` the mean luminance of scale `k`:
-//! * variance of the mean: `v_k = (⟨y_k²⟩ − Y_k²)/(n − 1)`;
+//! * variance of the mean: measured for the stored scale, `v_0 = (⟨y_0²⟩ − Y_0²)/(n − 1)`,
+//!   and scaled for the others, `v_k = 2^k v_0`: a density estimate's variance grows like
+//!   the inverse of its kernel's area (`∫K_s² = 2^k ∫K²`). Measuring `v_k` from the smaller
+//!   scales' own spread would tie the choice to their noise: where a small scale has few
+//!   photons by chance its estimate is low *and* its spread small, so it would be picked
+//!   exactly where it is low, and the image would come out several per cent dark; the
+//!   stored scale's spread is the least noisy and is the same for every choice;
 //! * bias from neighbouring scales: the difference `d_k = Y_k − Y_{k+1}` estimates the bias
 //!   the step from scale `k + 1` to `k` adds. For a second-order kernel the bias grows like
 //!   the kernel's area (`∝ s_k² ∇²E` where the light is smooth), so halving the area
@@ -75,7 +81,7 @@ pub const PLANES: usize = SCALES + MOMENT_PLANES;
 
 /// Half-width (pixels) of the window the selection pools its bias and variance estimates
 /// over.
-pub const POOL_RADIUS: usize = 2;
+pub const POOL_RADIUS: usize = 3;
 
 
 /// `1/s_k² = 2^k` (exact in `f32`): the factor by which scale `k` multiplies the stored
@@ -239,9 +245,9 @@ mod select {
             for i in 0..px {
                 let y: [f64; SCALES] = core::array::from_fn(|k| lum(plane(k, i)));
                 let norm = y[0] * y[0] + eps;
+                let v0 = ((moment(0, i) - y[0] * y[0]) / (nf - 1.0)).max(0.0) / norm;
                 for k in 0..SCALES {
-                    let v = ((moment(k, i) - y[k] * y[k]) / (nf - 1.0)).max(0.0);
-                    var[k][i] = v / norm;
+                    var[k][i] = v0 * f64::from(inv_scale2(k));
                     if k + 1 < SCALES {
                         let d = y[k] - y[k + 1];
                         let wv = ((moment(SCALES + k, i) - d * d) / (nf - 1.0)).max(0.0);

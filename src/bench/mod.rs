@@ -222,6 +222,8 @@ pub struct BenchOptions {
     pub out: PathBuf,
     /// Overrides the config's seconds per run.
     pub seconds: Option<f64>,
+    /// Overrides the config's seed.
+    pub seed: Option<u32>,
     /// Python interpreter for the peers.
     pub python: String,
     /// Photon emission of every arpa run (projection on by default).
@@ -384,7 +386,7 @@ pub fn run_bench(cfg: &LoadedConfig, options: &BenchOptions) -> anyhow::Result<V
             for &method in &cfg.methods {
                 for &photons in &c.photons {
                     let kind = RunKind::Arpa { backend: kind_backend.name().to_string(), method, photons };
-                    let mut settings = settings_for(scene, method.method(), photons, c.seed);
+                    let mut settings = settings_for(scene, method.method(), photons, options.seed.unwrap_or(c.seed));
                     settings.emission = options.emission;
                     settings.bandwidth = method.bandwidth();
                     let mut budget = Duration::from_secs_f64(seconds);
@@ -459,7 +461,7 @@ fn run_peer(
         .arg(&script)
         .args(["--scene", &scene.file.to_string_lossy()])
         .args(["--integrator", integrator, "--seconds", &seconds.to_string(), "--threads", &threads.to_string()])
-        .args(["--res", &format!("{}x{}", camera.width, camera.height), "--seed", &cfg.config.seed.to_string()])
+        .args(["--res", &format!("{}x{}", camera.width, camera.height), "--seed", &options.seed.unwrap_or(cfg.config.seed).to_string()])
         .arg("--out-dir")
         .arg(&work)
         .output();

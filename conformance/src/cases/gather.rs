@@ -1,6 +1,8 @@
 //! Gather exactness: the backend's per-pixel radiance equals
 //! [`gather_brute_force`] over the very records the backend stored and the query points
-//! it found, within [`GATHER_REL_TOL`].
+//! it found, within [`GATHER_REL_TOL`], at every scale of a per-pixel bandwidth render
+//! ([`gather_brute_force_scales`]), and so do its moment planes
+//! ([`arpa_core::bandwidth::moments`] of the expected radiances).
 //!
 //! The `Tracer` trait has no call to upload arbitrary footprints, so the footprints and
 //! query points come from one iteration of the backend on a scene built to produce the
@@ -13,7 +15,8 @@
 //! on a shelf's underside against footprints on its lit top), and fails if the scene
 //! produced none of any kind.
 
-use arpa_core::estimate::{QueryPoint, gather_brute_force};
+use arpa_core::bandwidth::{PLANES, SCALES};
+use arpa_core::estimate::{QueryPoint, gather_brute_force, gather_brute_force_scales};
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::glam::{DMat3, DVec3, Vec3};
 use arpa_core::kernel::Kernel;
@@ -79,8 +82,9 @@ fn check(
     };
     t.upload_scene(&scene, &settings).ctx("upload_scene")?;
     let pixels = (scene.camera.width * scene.camera.height) as usize;
-    // Sum over iterations of each pixel's expected value (f64).
-    let mut expected_sum = vec![DVec3::ZERO; pixels];
+    // Sum over iterations of each pixel's expected value (f64) in every plane of a
+    // per-pixel bandwidth render (plane 0 is the image of a global one).
+    let mut expected_sum = vec![[DVec3::ZERO; PLANES]; pixels];
     let mut cov = Coverage::default();
     let (mut found, mut reported, mut records) = ([0u64; 2], [0u64; 2], [0usize; 2]);
     let (mut candidates, mut query_points) = ([0u64; 2], 0u64);
@@ -122,6 +126,7 @@ fn check(
                 ));
             };
             let known = Vec3::from_array(rec.radiance).as_dvec3();
+            let mut scaled = [known; SCALES];
             let expected = if rec.valid == 0 {
                 known
             } else {
@@ -151,39 +156,62 @@ fn check(
                     let d = (q.position - Vec3::from_array(ph.position)).length();
                     cov.photon_near_sphere += ((d / r - 1.0).abs() <= 1e-3) as u64;
                 }
-                known + Vec3::from_array(rec.weight).as_dvec3() * e.irradiance()
+                let weight = Vec3::from_array(rec.weight).as_dvec3();
+                let per_scale = gather_brute_force_scales(&q, &fps, &phs, stats.radii, kernel);
+                for k in 1..SCALES {
+                    scaled[k] = known + weight * per_scale.per_scale[k];
+                }
+                known + weight * e.irradiance()
             };
+            scaled[0] = expected;
             // What the backend stores for the iteration: finite, in f32.
-            *sum += DVec3::select(expected.is_finite_mask(), expected, DVec3::ZERO)
-                .as_vec3()
-                .as_dvec3();
+            let stored = scaled.map(|v| DVec3::select(v.is_finite_mask(), v, DVec3::ZERO).as_vec3());
+            let moments = arpa_core::bandwidth::moments(&stored);
+            for (p, s) in sum.iter_mut().enumerate() {
+                *s += if p < SCALES { stored[p] } else { moments[p - SCALES] }.as_dvec3();
+            }
         }
     }
     let image = t.read_image().ctx("read_image")?;
-    if image.pixels.len() != pixels {
+    let accumulation = t.read_accumulation().ctx("read_accumulation")?;
+    if image.pixels.len() != pixels || accumulation.pixel_count() != pixels {
         return Err(format!(
-            "image has {} pixels, expected {pixels}",
-            image.pixels.len()
+            "image has {} pixels, the accumulation {}, expected {pixels}",
+            image.pixels.len(),
+            accumulation.pixel_count()
         ));
     }
+    if image.pixels != accumulation.mean() {
+        return Err("read_image differs from the accumulation's image".into());
+    }
+    let planes = accumulation.planes as usize;
     let (mut worst, mut nonzero) = (0.0f64, 0usize);
-    for (i, (got, sum)) in image.pixels.iter().zip(&expected_sum).enumerate() {
-        let expected = *sum / GATHER_ITERATIONS as f64;
-        let got = got.as_dvec3();
-        nonzero += (expected != DVec3::ZERO) as usize;
-        for k in 0..3 {
-            let (g, x) = (got[k], expected[k]);
-            let err = if x == 0.0 {
-                if g == 0.0 { 0.0 } else { f64::INFINITY }
-            } else {
-                (g - x).abs() / x.abs()
-            };
-            if err.is_nan() || err > GATHER_REL_TOL {
-                return Err(format!(
-                    "pixel {i} channel {k}: backend {g:e}, brute force {x:e} (rel {err:.1e} > {GATHER_REL_TOL:e})"
-                ));
+    for plane in 0..planes {
+        let got_plane = accumulation.plane_mean(plane);
+        for (i, (got, sum)) in got_plane.iter().zip(&expected_sum).enumerate() {
+            let expected = sum[plane] / GATHER_ITERATIONS as f64;
+            let got = got.as_dvec3();
+            if plane == 0 {
+                nonzero += (expected != DVec3::ZERO) as usize;
             }
-            worst = worst.max(err);
+            // Moment planes: squares and squared differences of f32 luminances, which
+            // cancel; held to the pixel's squared radiance, not to their own size.
+            let scale_of = |x: f64| if plane < SCALES { x.abs() } else { (sum[SCALES] / GATHER_ITERATIONS as f64).x.abs().max(x.abs()) };
+            for k in 0..3 {
+                let (g, x) = (got[k], expected[k]);
+                let tol = if plane < SCALES { GATHER_REL_TOL } else { 10.0 * GATHER_REL_TOL };
+                let err = if scale_of(x) == 0.0 {
+                    if g == 0.0 { 0.0 } else { f64::INFINITY }
+                } else {
+                    (g - x).abs() / scale_of(x)
+                };
+                if err.is_nan() || err > tol {
+                    return Err(format!(
+                        "pixel {i} plane {plane} channel {k}: backend {g:e}, brute force {x:e} (rel {err:.1e} > {tol:e})"
+                    ));
+                }
+                worst = worst.max(err);
+            }
         }
     }
     let per_query = |c: [u64; 2]| {
@@ -226,7 +254,7 @@ fn check(
         ));
     }
     Ok(format!(
-        "{pixels} px × {GATHER_ITERATIONS} it, max rel {worst:.1e}; {} footprints, {} photons; {} contributions {gathered}; pairs: {} near ellipse boundary, {} in box outside ellipse, {} back-facing, {} near sphere boundary",
+        "{pixels} px × {GATHER_ITERATIONS} it × {planes} planes, max rel {worst:.1e}; {} footprints, {} photons; {} contributions {gathered}; pairs: {} near ellipse boundary, {} in box outside ellipse, {} back-facing, {} near sphere boundary",
         records[0],
         records[1],
         found[0] + found[1],
