@@ -38,6 +38,7 @@
 //! | [`HEURISTICS`] | [`crate::heuristics`] | `ResolvedHeuristics::store` from a [`crate::heuristics::PackedHeuristics`]: dampening, H-max, degenerate removal, box, culling, record |
 //! | [`AABB`] | [`crate::aabb::Aabb::padded_f32`] | the padded acceleration-structure box of a record |
 //! | [`MORTON`] | [`crate::gpu::morton::morton_code`] | 30-bit Morton code (bit-exact) |
+//! | [`BANDWIDTH`] | [`crate::bandwidth`], `PackedFootprint::irradiance_scales`, `PackedPhoton::irradiance_scales` | the scale ladder: footprint and progressive-photon irradiance at every scale, luminance moments |
 //!
 //! The path-level files ([`PATH`]) are the GPU form of the pipeline, on the records of
 //! [`crate::gpu::layout`]:
@@ -50,7 +51,7 @@
 //! | [`PHOTON_PASS`] | [`crate::photon_path::trace_photon`] | one invocation per photon of a batch, keyed footprints and photons appended |
 //! | [`STORE`] | [`crate::store`] | heuristics, fallback photons, sort keys, compaction into sorted maps with padded boxes |
 //! | [`SORT`] | — | bitonic sort of the store's sort items ([`crate::gpu::sort`]) |
-//! | [`GATHER`] | [`crate::estimate::gather_brute_force`] | per-pixel radiance over the maps, summed over photon batches; box traversal by the backend |
+//! | [`GATHER`] | [`crate::estimate::gather_brute_force`], [`crate::estimate::gather_brute_force_scales`] | per-pixel radiance (every plane of [`crate::bandwidth`]) over the maps, summed over photon batches; box traversal by the backend |
 //! | [`ACCUMULATE`] | [`crate::accumulate::RunningMean`] | the running mean of the iteration images |
 //!
 //! ## Precision
@@ -141,6 +142,14 @@ pub const AABB: WgslFile = WgslFile { name: "aabb.wgsl", source: include_str!(".
 /// [`crate::gpu::morton::morton_code`] (bit-exact).
 pub const MORTON: WgslFile = WgslFile { name: "morton.wgsl", source: include_str!("../shaders/morton.wgsl"), deps: &[] };
 
+/// `bandwidth.wgsl`: `ARPA_SCALES`, `ARPA_MOMENT_PLANES`, `ARPA_PLANES`
+/// ([`crate::bandwidth::SCALES`], …), `arpa_inv_scale2`, `arpa_footprint_irradiance_scales`
+/// ([`crate::footprint::PackedFootprint::irradiance_scales`]),
+/// `arpa_photon_irradiance_scales`
+/// ([`crate::progressive_photon::PackedPhoton::irradiance_scales`], on the photon's fields),
+/// `arpa_luminance`, `arpa_moments` ([`crate::bandwidth::moments`]). W/m², metres.
+pub const BANDWIDTH: WgslFile = WgslFile { name: "bandwidth.wgsl", source: include_str!("../shaders/bandwidth.wgsl"), deps: &[&KERNEL, &FOOTPRINT] };
+
 /// `path/records.wgsl`: `ArpaKeyedFootprint`, `ArpaKeyedPhoton`, `ArpaPackedPhoton`,
 /// `ArpaQueryRecord`, `ArpaSortItem`: the records of [`crate::gpu::layout`] the path-level
 /// kernels exchange.
@@ -187,19 +196,20 @@ pub const STORE: WgslFile =
 pub const SORT: WgslFile = WgslFile { name: "path/sort.wgsl", source: include_str!("../shaders/path/sort.wgsl"), deps: &[&RECORDS] };
 
 /// `path/gather.wgsl`: per record `arpa_gather_pixel` (group 0, bindings 0 to 6;
-/// [`crate::gpu::layout::GatherImageParams`]; the backend's entry point calls it per record), per candidate
-/// `arpa_gather_candidate`, `ArpaGatherResult`. The backend's glue adds binding 7 (its
+/// [`crate::gpu::layout::GatherImageParams`]; the backend's entry point calls it per record;
+/// it writes every plane of [`crate::bandwidth`] the parameters ask for), per candidate
+/// `arpa_gather_candidate` (every scale asked for), `ArpaGatherResult`. The backend's glue adds binding 7 (its
 /// acceleration structure over the record boxes) and defines `arpa_gather_at` (the file
 /// states its contract).
-pub const GATHER: WgslFile = WgslFile { name: "path/gather.wgsl", source: include_str!("../shaders/path/gather.wgsl"), deps: &[&KERNEL, &FOOTPRINT, &RECORDS] };
+pub const GATHER: WgslFile = WgslFile { name: "path/gather.wgsl", source: include_str!("../shaders/path/gather.wgsl"), deps: &[&KERNEL, &FOOTPRINT, &BANDWIDTH, &RECORDS] };
 
 /// `path/accumulate.wgsl`: entry point `accumulate` ([`crate::gpu::layout::AccumPixel`]).
 pub const ACCUMULATE: WgslFile = WgslFile { name: "path/accumulate.wgsl", source: include_str!("../shaders/path/accumulate.wgsl"), deps: &[&MATH] };
 
 /// The twin files: every one is a function-level twin of the core, checked against it by
 /// the conformance suite's twin cases (which run them composed together).
-pub const TWIN: [&WgslFile; 15] =
-    [&MATH, &RNG, &KERNEL, &FOOTPRINT, &RADIUS, &DIFFERENTIAL, &FRESNEL, &FRAME, &SAMPLING, &EMISSION, &HEURISTICS, &REEMISSION, &LAMBERTIAN, &AABB, &MORTON];
+pub const TWIN: [&WgslFile; 16] =
+    [&MATH, &RNG, &KERNEL, &FOOTPRINT, &RADIUS, &DIFFERENTIAL, &FRESNEL, &FRAME, &SAMPLING, &EMISSION, &HEURISTICS, &REEMISSION, &LAMBERTIAN, &AABB, &MORTON, &BANDWIDTH];
 
 /// The path-level files.
 pub const PATH: [&WgslFile; 8] = [&RECORDS, &SCENE, &CAMERA_PASS, &PHOTON_PASS, &STORE, &SORT, &GATHER, &ACCUMULATE];

@@ -1,16 +1,20 @@
 // GLSL copy of the gather's exact tests and contributions, shared by gather.rint and
 // gather.rahit (the stages naga 30 cannot express). Each function mirrors one function of
 // arpa_core and of its WGSL twin, operation for operation:
-//   arpa_footprint_filter_coords  PackedFootprint::filter_coords  (footprint.wgsl)
-//   arpa_footprint_contains       PackedFootprint::contains       (footprint.wgsl)
-//   arpa_footprint_irradiance     PackedFootprint::irradiance     (footprint.wgsl)
-//   arpa_kernel_eval              Kernel::eval                    (kernel.wgsl)
-//   arpa_photon_contains          PackedPhoton::contains
-//   arpa_photon_irradiance        PackedPhoton::irradiance        (gather.wgsl's gather_photon_irradiance)
-// Dot products are written out in glam's order (x, then y, then z) and `precise` forbids
-// contracting them into fused multiply-adds, so on a conforming device the tests decide as
-// the core's f32 code does. Covered by arpa-vk/tests/gather_hit_group.rs (against
-// arpa_core::estimate::gather_brute_force); edit with the core and the WGSL twin.
+//   arpa_footprint_filter_coords      PackedFootprint::filter_coords      (footprint.wgsl)
+//   arpa_footprint_contains           PackedFootprint::contains           (footprint.wgsl)
+//   arpa_kernel_eval                  Kernel::eval                        (kernel.wgsl)
+//   arpa_inv_scale2                   bandwidth::inv_scale2               (bandwidth.wgsl)
+//   arpa_footprint_irradiance_scales  PackedFootprint::irradiance_scales  (bandwidth.wgsl)
+//   arpa_photon_contains              PackedPhoton::contains
+//   arpa_photon_irradiance_scales     PackedPhoton::irradiance_scales     (bandwidth.wgsl)
+// The *_scales functions give every scale of the bandwidth ladder the parameters ask for;
+// their scale 0 is PackedFootprint::irradiance and PackedPhoton::irradiance bit for bit
+// (scale 0 multiplies by 2^0 = 1, exact). Dot products are written out in glam's order (x,
+// then y, then z) and `precise` forbids contracting them into fused multiply-adds, so on a
+// conforming device the tests decide as the core's f32 code does. Covered by
+// arpa-vk/tests/gather_hit_group.rs (against arpa_core::estimate::gather_brute_force and
+// gather_brute_force_scales); edit with the core and the WGSL twin.
 //
 // Records: instance custom index = ARPA_INSTANCE_PHOTON_BIT for progressive photons, plus
 // the index of the instance's first record (ARPA_INSTANCE_INDEX_MASK); primitive i of the
@@ -61,16 +65,21 @@ struct ArpaPackedPhoton {
 //
 // The gather's parameters (arpa_core::gpu::layout::GatherImageParams, 32 bytes): progressive
 // radius per map (metres), the footprints' kernel id (ARPA_KERNEL_*: 0 constant,
-// 1 Epanechnikov, 2 Silverman), the number of query records, the batch flags (unused here).
+// 1 Epanechnikov, 2 Silverman), the number of query records, the batch flags (unused here),
+// the scales to evaluate (1, or ARPA_SCALES for a per-pixel bandwidth; clamped to
+// 1 ..= ARPA_SCALES).
 layout(set = 0, binding = 4, std430) readonly buffer ArpaGatherParams {
     vec2 radii;
     uint kernel;
     uint query_count;
     uint batch;
-    uint pad0;
+    uint scales;
     uint pad1;
     uint pad2;
 } arpa_params;
+
+// arpa_core::bandwidth::SCALES (bandwidth.wgsl's ARPA_SCALES).
+const uint ARPA_SCALES = 5u;
 
 layout(set = 0, binding = 0, std430) readonly buffer ArpaFootprints { ArpaPackedFootprint arpa_footprints[]; };
 layout(set = 0, binding = 1, std430) readonly buffer ArpaPhotons { ArpaPackedPhoton arpa_photons[]; };
@@ -127,14 +136,38 @@ float arpa_kernel_eval(uint kernel, float r2_in) {
     return k;
 }
 
-vec3 arpa_footprint_irradiance(ArpaPackedFootprint fp, vec3 q, vec3 query_normal, uint kernel) {
+// bandwidth::inv_scale2: 2^k (exact), the factor scale k multiplies r^2 and the density by.
+float arpa_inv_scale2(uint k) {
+    return float(1u << k);
+}
+
+// The scales actually evaluated: arpa_params.scales clamped to 1 ..= ARPA_SCALES.
+uint arpa_scales() {
+    return clamp(arpa_params.scales, 1u, ARPA_SCALES);
+}
+
+// PackedFootprint::irradiance_scales into e for scales 0 .. scales - 1 (later entries 0):
+// density 2^k K(2^k r^2) inside the stored ellipse and slab and on the lit side.
+void arpa_footprint_irradiance_scales(ArpaPackedFootprint fp, vec3 q, vec3 query_normal, uint kernel, uint scales,
+                                      out vec3 e[ARPA_SCALES]) {
+    for (uint k = 0u; k < ARPA_SCALES; k++) {
+        e[k] = vec3(0.0);
+    }
     vec3 y = arpa_footprint_filter_coords(fp, q);
     float r2 = arpa_r2(y);
     if (r2 <= 1.0 && abs(y.z) <= 1.0 && arpa_dot(fp.row_n, query_normal) > 0.0) {
-        precise vec3 e = vec3(fp.flux_density_r, fp.flux_density_g, fp.flux_density_b) * arpa_kernel_eval(kernel, r2);
-        return e;
+        vec3 density = vec3(fp.flux_density_r, fp.flux_density_g, fp.flux_density_b);
+        for (uint k = 0u; k < min(scales, ARPA_SCALES); k++) {
+            float f = arpa_inv_scale2(k);
+            precise float x = r2 * f;
+            // The discs are nested: once q is outside one, it is outside the smaller.
+            if (!(x < 1.0) && k > 0u) {
+                break;
+            }
+            precise vec3 s = density * (arpa_kernel_eval(kernel, x) * f);
+            e[k] = s;
+        }
     }
-    return vec3(0.0);
 }
 
 // Sphere test |q - x_p|^2 < radius^2.
@@ -144,13 +177,39 @@ bool arpa_photon_contains(ArpaPackedPhoton ph, vec3 q, float radius) {
     return arpa_dot(d, d) < r2;
 }
 
-vec3 arpa_photon_irradiance(ArpaPackedPhoton ph, vec3 q, vec3 query_normal, float radius) {
+// PackedPhoton::irradiance_scales into e for scales 0 .. scales - 1 (later entries 0):
+// flux 2^k / (pi r^2) where |q - x_p|^2 2^k < r^2 and on the lit side (0 where the density
+// or the result is not finite).
+void arpa_photon_irradiance_scales(ArpaPackedPhoton ph, vec3 q, vec3 query_normal, float radius, uint scales,
+                                   out vec3 e[ARPA_SCALES]) {
+    for (uint k = 0u; k < ARPA_SCALES; k++) {
+        e[k] = vec3(0.0);
+    }
     precise float density = ARPA_FRAC_1_PI / (radius * radius);
-    if (arpa_is_finite(density) && arpa_photon_contains(ph, q, radius) && arpa_dot(ph.normal, query_normal) > 0.0) {
-        precise vec3 e = ph.flux * density;
-        if (arpa_is_finite3(e)) {
-            return e;
+    precise vec3 d = q - ph.position;
+    float d2 = arpa_dot(d, d);
+    precise float r2 = radius * radius;
+    if (arpa_is_finite(density) && arpa_dot(ph.normal, query_normal) > 0.0) {
+        for (uint k = 0u; k < min(scales, ARPA_SCALES); k++) {
+            float f = arpa_inv_scale2(k);
+            precise float x = d2 * f;
+            // The spheres are nested: once q is outside one, it is outside the smaller.
+            if (!(x < r2)) {
+                break;
+            }
+            precise vec3 s = ph.flux * (density * f);
+            if (arpa_is_finite3(s)) {
+                e[k] = s;
+            }
         }
     }
-    return vec3(0.0);
+}
+
+// sum + (e, 0) when e is non-zero and finite (IrradianceEstimate::add), else sum: a scale's
+// total in the payload.
+vec4 arpa_add_scaled(vec4 sum, vec3 e) {
+    if (any(notEqual(e, vec3(0.0))) && arpa_is_finite3(e)) {
+        return vec4(sum.xyz + e, sum.w);
+    }
+    return sum;
 }

@@ -1,7 +1,9 @@
 //! The running mean of the iteration images on the device (the core's `accumulate.wgsl`,
-//! entry `accumulate`, as a compute pipeline): per pixel a compensated `f32` sum and a count
-//! of rejected non-finite samples ([`AccumPixel`]); [`AccumPixel::mean`] turns a read-back
-//! into the image, so the mean is the core's and arpa-wgpu's.
+//! entry `accumulate`, as a compute pipeline): per entry of the image (every plane of every
+//! pixel, plane-major) a compensated `f32` sum and a count of rejected non-finite samples
+//! ([`AccumPixel`]); the tracer turns a read-back into the core's
+//! [`arpa_core::accumulate::Accumulation`], whose mean is the image, so the mean is the
+//! core's and arpa-wgpu's.
 
 use std::sync::Arc;
 use crate::buffer::Buffer;
@@ -26,16 +28,18 @@ pub fn accumulate_pipeline(ctx: &VkContext) -> Result<ComputePipeline, VkError> 
     ComputePipeline::from_wgsl(ctx, "arpa accumulate", &source, "accumulate", &[&[Sb, Sb]])
 }
 
-/// The accumulation buffer of one image size, with the shared pipeline.
+/// The accumulation buffer of one image size (entries = planes × pixels), with the shared
+/// pipeline.
 pub struct DeviceAccumulator {
     pipeline: Arc<ComputePipeline>,
-    /// `pixels` × [`AccumPixel`] (exactly: the kernel bounds itself by its length).
+    /// `count` × [`AccumPixel`] (exactly: the kernel bounds itself by its length).
     pixels: Buffer,
     count: u32,
 }
 
 impl DeviceAccumulator {
-    /// A zeroed accumulator of `pixels` pixels (at least one; one submission waited for).
+    /// A zeroed accumulator of `pixels` entries (an image's planes × pixels; at least one;
+    /// one submission waited for).
     ///
     /// Errors: [`VkError::InvalidInput`] for 0 pixels; [`VkError::Shader`] if naga rejects
     /// the core's WGSL; device errors.
@@ -59,7 +63,7 @@ impl DeviceAccumulator {
         Ok(Self { pipeline, pixels: buffer, count: pixels })
     }
 
-    /// Pixels of the image.
+    /// Entries of the image (planes × pixels).
     pub fn pixel_count(&self) -> u32 {
         self.count
     }
@@ -104,7 +108,7 @@ impl DeviceAccumulator {
         Ok(())
     }
 
-    /// Replaces the per-pixel sums with `pixels` (one per pixel; a checkpoint resumed).
+    /// Replaces the sums with `pixels` (one per entry; a checkpoint resumed).
     ///
     /// Errors: [`VkError::InvalidInput`] for a wrong pixel count; device errors.
     pub fn write_pixels(&mut self, ctx: &VkContext, pixels: &[AccumPixel]) -> Result<(), VkError> {

@@ -3,13 +3,15 @@
 //! ray of negligible length from each valid query point through the top level over the
 //! photon maps' boxes; the AABB hit group is GLSL ([`GATHER_INTERSECTION`]: the exact
 //! filter-space or sphere test; [`GATHER_ANY_HIT`]: the contribution into the payload, then
-//! `ignoreIntersectionEXT`), the miss shader is WGSL. Writes
-//! `radiance + weight · (E_caustic + E_global)` per pixel and counts contributions and valid
-//! query points.
+//! `ignoreIntersectionEXT`), the miss shader is WGSL. Writes, per pixel and scale `k` of the
+//! bandwidth ([`arpa_core::bandwidth`]), `radiance + weight · E_k` (`E_0 = E_caustic +
+//! E_global`, the stored scale) and, for a per-pixel bandwidth, the moment planes, plane-major;
+//! counts contributions and valid query points.
 //!
 //! Descriptor set 0 as `gather.wgsl` declares it: 0 footprints, 1 photons, 2 query records,
-//! 3 image, 4 parameters ([`GatherImageParams`]), 5 the counts, 6 the per-pixel irradiance
-//! summed over the photon batches gathered so far, 7 the top level.
+//! 3 image (every plane), 4 parameters ([`GatherImageParams`]), 5 the counts, 6 the
+//! per-scale, per-pixel irradiance summed over the photon batches gathered so far, 7 the top
+//! level.
 //!
 //! # Order of the sum
 //! The any-hit shader adds contributions in the order the traversal visits the boxes. That
@@ -25,7 +27,8 @@ use crate::device::VkContext;
 use crate::error::VkError;
 use crate::pipeline::{BindingKind, HitGroup, Resource, RtPipeline, RtPipelineDesc, ShaderEntry};
 use crate::shaders::{GATHER_ANY_HIT, GATHER_INTERSECTION, GATHER_RAYGEN, GlslStage, compile_wgsl};
-use arpa_core::gpu::layout::{self, GatherBatch, GatherImageParams};
+use arpa_core::bandwidth::Bandwidth;
+use arpa_core::gpu::layout::{self, GatherBatch, GatherImageParams, ImageBufferSizes};
 use arpa_core::kernel::Kernel;
 use ash::vk;
 use std::sync::Arc;
@@ -72,13 +75,15 @@ pub fn gather_pipeline(ctx: &VkContext) -> Result<RtPipeline, VkError> {
     )
 }
 
-/// The gather of one render: pipeline and its parameter and count buffers.
+/// The gather of one render: pipeline and its parameter, count and batch-irradiance buffers.
 pub struct GatherPass {
     pipeline: Arc<RtPipeline>,
     params: Buffer,
     counts: Buffer,
+    /// Per scale and pixel (scale-major), the irradiance summed over the batches so far.
     batch_irradiance: Buffer,
     kernel: Kernel,
+    bandwidth: Bandwidth,
     pixels: u32,
 }
 
@@ -101,28 +106,30 @@ pub struct GatherCounts {
 }
 
 impl GatherPass {
-    /// The gather of `pixels` query records with footprint kernel `kernel` on `pipeline`
-    /// ([`gather_pipeline`]).
-    pub fn new(ctx: &VkContext, pipeline: &Arc<RtPipeline>, kernel: Kernel, pixels: u32) -> Result<Self, VkError> {
+    /// The gather of `pixels` query records with footprint kernel `kernel` into the planes
+    /// of `bandwidth` on `pipeline` ([`gather_pipeline`]).
+    pub fn new(ctx: &VkContext, pipeline: &Arc<RtPipeline>, kernel: Kernel, bandwidth: Bandwidth, pixels: u32) -> Result<Self, VkError> {
         let pipeline = Arc::clone(pipeline);
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
         Ok(Self {
             pipeline,
             params: ctx.create_buffer("gather parameters", size_of::<GatherImageParams>() as u64, storage, MemoryLocation::CpuToGpu)?,
             counts: ctx.create_buffer("gather counts", COUNTS_BYTES, storage, MemoryLocation::GpuToCpu)?,
-            batch_irradiance: ctx.create_buffer("gather batch irradiance", u64::from(pixels.max(1)) * 16, storage, MemoryLocation::GpuOnly)?,
+            batch_irradiance: ctx.create_buffer("gather batch irradiance", ImageBufferSizes::new(pixels.max(1), bandwidth).batch_irradiance, storage, MemoryLocation::GpuOnly)?,
             kernel,
+            bandwidth,
             pixels,
         })
     }
 
     /// Gathers every query record of `queries` from the photon batch `maps`, waits, and
     /// returns the counts (valid query points only for the iteration's first batch). The
-    /// first batch starts each pixel's irradiance sum, later ones add to it, the last writes
-    /// `radiance + weight · E` into `image` (one `vec4<f32>` per pixel); with one batch,
-    /// `batch` is both first and last.
+    /// first batch starts each pixel's irradiance sums (one per scale), later ones add to
+    /// them, the last writes `radiance + weight · E_k` per scale and the moments into
+    /// `image` (one `vec4<f32>` per plane and pixel, plane-major:
+    /// [`ImageBufferSizes::image`] bytes); with one batch, `batch` is both first and last.
     pub fn run(&mut self, ctx: &VkContext, queries: &Buffer, image: &Buffer, maps: &GatherInputs<'_>, batch: GatherBatch) -> Result<GatherCounts, VkError> {
-        let params = GatherImageParams::new(maps.radii, self.kernel, self.pixels, batch);
+        let params = GatherImageParams::new(maps.radii, self.kernel, self.pixels, batch, self.bandwidth);
         self.params.write(0, bytemuck::bytes_of(&params))?;
         self.counts.write(0, &[0u8; COUNTS_BYTES as usize])?;
         if self.pixels == 0 {

@@ -121,9 +121,11 @@ pub const GATHER_INTERSECTION: GlslStage = GlslStage {
     spirv: include_bytes!("../shaders/spv/gather.rint.spv"),
 };
 
-/// The gather's any-hit shader (`gather.rahit`): adds the accepted record's irradiance
-/// (`PackedFootprint::irradiance`, `PackedPhoton::irradiance`) and count to its map's sum in
-/// the payload (location 0) and ignores the intersection.
+/// The gather's any-hit shader (`gather.rahit`): evaluates the accepted record's irradiance
+/// at the scales the parameters ask for (`PackedFootprint::irradiance_scales`,
+/// `PackedPhoton::irradiance_scales`), adds the stored scale and its count to its map's sum
+/// and each smaller scale to that scale's total in the payload (location 0), and ignores the
+/// intersection.
 pub const GATHER_ANY_HIT: GlslStage = GlslStage {
     name: "gather.rahit",
     stage: ash::vk::ShaderStageFlags::ANY_HIT_KHR,

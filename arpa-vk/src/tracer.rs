@@ -16,7 +16,7 @@ use crate::scene::VkScene;
 use arpa_core::accumulate::Accumulation;
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::gpu::batch::{Overflow, RecordLimits, after_overflow, for_each_batch, initial_capacity, shrink};
-use arpa_core::gpu::layout::{CameraParams, GatherBatch, StoreCounts, StoreSettings, check_record_keys};
+use arpa_core::gpu::layout::{CameraParams, GatherBatch, ImageBufferSizes, StoreCounts, StoreSettings, check_record_keys};
 use arpa_core::photon_path::PhotonPassSetup;
 use arpa_core::prepared_scene::PreparedScene;
 use arpa_core::progressive_photon::PackedPhoton;
@@ -63,7 +63,7 @@ pub enum VkTracerError {
 /// | [`photon_pass`](Tracer::photon_pass) | per photon batch: ray generation per photon appending keyed footprints and photons ([`PhotonPass`]); keyed store, sort and compaction into the batch's sorted maps and boxes ([`MapStore`]) | per batch, the photon counters (48 bytes: overflow and the store's sizes) and the store counts (48 bytes: the sort's schedule and the build's sizes) |
 /// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | per batch, AABB bottom levels per (kind, map) over the sorted boxes and one top level ([`MapAccel`]) | the build |
 /// | [`gather`](Tracer::gather) | per batch, ray generation per query record, one point query through the AABB hit group (GLSL intersection: exact test; any-hit: contribution, ignore) ([`GatherPass`]) | per batch, contribution and query-point counts (16 bytes) |
-/// | [`accumulate`](Tracer::accumulate) | compensated running sum ([`DeviceAccumulator`]) | the dispatch |
+/// | [`accumulate`](Tracer::accumulate) | compensated running sum of every plane ([`DeviceAccumulator`]) | the dispatch |
 ///
 /// Each stage is one submission (or two, for the photon pass's store and sort) that the host
 /// waits for: the stage times of [`IterationStats`] are the device's. Both readbacks of the
@@ -83,6 +83,17 @@ pub enum VkTracerError {
 /// does not fit, B shrinks and the photon pass starts the iteration again; B then stays for
 /// the render. B is part of the determinism key (another B sums the same contributions in
 /// another `f32` order).
+///
+/// # Bandwidth
+/// The iteration image has [`arpa_core::bandwidth::Bandwidth::planes`] planes per pixel
+/// (`RenderSettings::bandwidth`: 1 for a global bandwidth; per pixel, the radiance at every
+/// scale and the moment planes, [`arpa_core::bandwidth`]), plane-major, and so have the
+/// accumulated sums: [`Tracer::read_accumulation`] returns every plane and
+/// [`Tracer::read_image`] is the core's [`Accumulation::mean`] of them (the per-pixel
+/// selection). The image, the batch irradiance and the sums must each fit one storage
+/// binding ([`ImageBufferSizes`]; lavapipe: 128 MiB, about 520 k pixels per image with a
+/// per-pixel bandwidth): [`Tracer::upload_scene`] refuses a larger image with
+/// [`VkTracerError::Size`].
 ///
 /// # Determinism
 /// Each photon's and pixel's random stream depends only on `(seed, iteration, index)`; the
@@ -217,6 +228,19 @@ impl VkTracer {
     fn size_error(&self, message: String) -> VkTracerError {
         VkTracerError::Size { adapter: self.ctx.info().name.clone(), message }
     }
+
+    /// The sums read back as the core's accumulation (every plane, exactly).
+    fn accumulation(&self, st: &Loaded) -> Result<Accumulation, VkTracerError> {
+        let pixels = st.accumulator.read_pixels(&self.ctx)?.iter().map(AccumPixel::to_sum).collect();
+        Ok(Accumulation {
+            width: st.width,
+            height: st.height,
+            planes: st.settings.bandwidth.planes() as u32,
+            first_iteration: st.clock.first_iteration(),
+            iterations: st.clock.accumulated(),
+            pixels,
+        })
+    }
 }
 
 /// The pipelines of a context, once made.
@@ -328,11 +352,15 @@ impl Tracer for VkTracer {
         let Some(pixels) = pixels else {
             return Err(self.size_error(format!("an image of {width}×{height} pixels exceeds one storage binding or one ray launch")));
         };
+        // Every plane of the image, the batch irradiance and the sums in one binding each.
+        let sizes = ImageBufferSizes::new(pixels, settings.bandwidth);
+        sizes.check(width, height, settings.bandwidth, binding).map_err(|m| self.size_error(m))?;
+        let entries = u32::try_from(settings.bandwidth.planes() as u64 * u64::from(pixels)).map_err(|_| self.size_error(format!("an image of {width}×{height} pixels has too many planes")))?;
         let pipelines = self.pass_pipelines()?;
         let vk_scene = VkScene::upload(ctx, &prepared)?;
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC;
         let queries = ctx.create_buffer("query records", (u64::from(pixels) * QUERY_RECORD_BYTES).max(QUERY_RECORD_BYTES), storage, MemoryLocation::GpuOnly)?;
-        let image = ctx.create_buffer("iteration image", (u64::from(pixels) * 16).max(16), storage, MemoryLocation::GpuOnly)?;
+        let image = ctx.create_buffer("iteration image", sizes.image.max(16), storage, MemoryLocation::GpuOnly)?;
         let camera = CameraPass::new(ctx, &pipelines.camera, &vk_scene, CameraParams::new(&scene.camera, settings, width)?, &queries)?;
         let mut photon = PhotonPass::new(ctx, &pipelines.photon, &prepared, settings)?;
         let batch_photons = self.batch_photons.unwrap_or(settings.photons_per_iteration).min(settings.photons_per_iteration);
@@ -340,8 +368,8 @@ impl Tracer for VkTracer {
         let ph_cap = initial_capacity(batch_photons, self.initial_capacity, limits.photons);
         let outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
         photon.bind(&vk_scene, &outputs)?;
-        let gather = GatherPass::new(ctx, &pipelines.gather, settings.kernel, pixels)?;
-        let accumulator = DeviceAccumulator::new(ctx, &pipelines.accumulate, pixels)?;
+        let gather = GatherPass::new(ctx, &pipelines.gather, settings.kernel, settings.bandwidth, pixels)?;
+        let accumulator = DeviceAccumulator::new(ctx, &pipelines.accumulate, entries)?;
         self.state = Some(Box::new(Loaded {
             batches: Vec::new(),
             batch_count: 0,
@@ -451,25 +479,29 @@ impl Tracer for VkTracer {
         self.state.as_ref().map_or(0, |s| s.clock.completed())
     }
 
+    /// Every plane's sums ([`Accumulation::planes`] = the bandwidth's planes), exactly.
     fn read_accumulation(&self) -> Result<Accumulation, VkTracerError> {
         let st = self.loaded(Call::ReadAccumulation)?;
-        let pixels = st.accumulator.read_pixels(&self.ctx)?.iter().map(AccumPixel::to_sum).collect();
-        Ok(Accumulation { width: st.width, height: st.height, first_iteration: st.clock.first_iteration(), iterations: st.clock.accumulated(), pixels })
+        self.accumulation(st)
     }
 
+    /// Continues `state`: sums of the bandwidth's planes, or an empty accumulation (which
+    /// takes them, [`Accumulation::with_planes`]).
     fn restore_accumulation(&mut self, state: &Accumulation) -> Result<(), VkTracerError> {
         let st = uploaded(self.state.as_deref_mut(), Call::RestoreAccumulation)?;
-        let clock = StageClock::for_restore(state, st.width, st.height)?;
-        let pixels = AccumPixel::from_accumulation(state)?;
+        let state = state.with_planes(st.settings.bandwidth.planes() as u32).map_err(|e| StageError::Accumulation(e.to_string()))?;
+        let clock = StageClock::for_restore(&state, st.width, st.height)?;
+        let pixels = AccumPixel::from_accumulation(&state)?;
         st.accumulator.write_pixels(&self.ctx, &pixels)?;
         st.clock = clock;
         Ok(())
     }
 
+    /// The core's [`Accumulation::mean`] of the sums read back: every pixel's mean with a
+    /// global bandwidth, the per-pixel selection over the planes otherwise.
     fn read_image(&self) -> Result<Image, VkTracerError> {
         let st = self.loaded(Call::ReadImage)?;
-        let pixels = st.accumulator.read_mean(&self.ctx, st.clock.accumulated())?;
-        Ok(Image { width: st.width, height: st.height, pixels: pixels.into_iter().map(arpa_core::glam::Vec3::from_array).collect() })
+        Ok(Image { width: st.width, height: st.height, pixels: self.accumulation(st)?.mean() })
     }
 
     fn read_query_points(&self) -> Result<Vec<QueryRecord>, VkTracerError> {

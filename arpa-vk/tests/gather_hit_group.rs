@@ -10,7 +10,9 @@
 //! (kind, map) over the padded boxes (`Aabb::padded_f32`), instance custom index = kind bit |
 //! first record, mask `1 << map` (gather.wgsl's convention). One short ray per query point,
 //! for each of the three kernels, against `arpa_core::estimate::gather_brute_force` over the
-//! same records. (A wrong rejection by the intersection shader shows as a missing count; a
+//! same records, and at every scale of the bandwidth ladder against
+//! `arpa_core::estimate::gather_brute_force_scales` (the any-hit shader's scale-1..4 totals of
+//! both maps). (A wrong rejection by the intersection shader shows as a missing count; a
 //! wrong acceptance is caught by the any-hit shader's own test, so only the any-hit's decision
 //! reaches the counts in that case.)
 //!
@@ -36,13 +38,19 @@
 //!   but no more. (Before the GLSL spelled out
 //!   `3 FRAC_1_PI` as the core's f32 product, glslang's double-precision constant folding
 //!   made every Silverman contribution one ulp off; see `gather_common.glsl`.)
+//! - **Scaled sums** (per query and scale `k ≥ 1`, both maps): the same bound with `n` the
+//!   scale's contributions (the scaled weights `2^k K(2^k r²)` and `2^k/(π r²)` are the
+//!   core's f32 operations, `precise`). A query may differ only where some record sits on a
+//!   scaled boundary within rounding (`|2^k r² − 1|` or `|2^k d²/r² − 1|` below 1e-5); such
+//!   queries must stay below 0.1 % too. A gather of one scale leaves the totals zero.
 //!
 //! Without a Vulkan loader, driver or validation layer, or without `glslc`/`spirv-val`, the
 //! test skips with a loud message, except in CI (env `CI` set), where it fails.
 
 use arpa_core::aabb::Aabb;
 use arpa_core::classify::Smoothing;
-use arpa_core::estimate::{QueryPoint, gather_brute_force};
+use arpa_core::bandwidth::{SCALES, inv_scale2};
+use arpa_core::estimate::{QueryPoint, gather_brute_force, gather_brute_force_scales};
 use arpa_core::footprint::{Footprint, PackedFootprint, PhotonMap};
 use arpa_core::gpu::codes::{INSTANCE_PHOTON_BIT, kernel_code};
 use arpa_core::heuristics::Heuristics;
@@ -90,13 +98,14 @@ struct GpuQuery {
     pad1: u32,
 }
 
-/// `ArpaGatherResult` of gather_test.rgen (arpa_core::gpu::layout::GatherResult, 48 bytes).
+/// `ArpaGatherResult` of gather_test.rgen (arpa_core::gpu::layout::GatherResult, 112 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 struct GpuResult {
     sum: [[f32; 4]; 2],
     candidates: [u32; 2],
     pad: [u32; 2],
+    scaled: [[f32; 4]; SCALES - 1],
 }
 const RESULT_BYTES: usize = size_of::<GpuResult>();
 const _: () = assert!(RESULT_BYTES == size_of::<arpa_core::gpu::layout::GatherResult>());
@@ -107,6 +116,10 @@ impl GpuResult {
     }
     fn count(&self, map: usize) -> u32 {
         self.sum[map][3].to_bits()
+    }
+    /// Both maps' total at scale `k ≥ 1`.
+    fn scaled(&self, k: usize) -> DVec3 {
+        Vec3::from_slice(&self.scaled[k - 1][..3]).as_dvec3()
     }
 }
 
@@ -237,6 +250,41 @@ fn near_boundary(q: &QueryPoint, r: &Records) -> bool {
     })
 }
 
+/// Whether any record sits on a scaled boundary (scale `k ≥ 1`) at `q` within rounding.
+fn near_scaled_boundary(q: &QueryPoint, r: &Records) -> bool {
+    let close = |x: f32| (x - 1.0).abs() < 1e-5;
+    (1..SCALES).any(|k| {
+        let f = inv_scale2(k);
+        r.footprints.iter().any(|fp| {
+            let y = fp.filter_coords(q.position);
+            close((y.x * y.x + y.y * y.y) * f)
+        }) || r.photons.iter().any(|ph| {
+            let radius = RADII[ph.photon_map().index()];
+            close((q.position - Vec3::from_array(ph.position)).length_squared() * f / (radius * radius))
+        })
+    })
+}
+
+/// Contributions of both maps per scale at `q` and the sum of their magnitudes.
+fn scale_counts(q: &QueryPoint, r: &Records, kernel: Kernel) -> ([u32; SCALES], [f64; SCALES]) {
+    let (mut c, mut abs) = ([0u32; SCALES], [0.0f64; SCALES]);
+    let mut add = |e: [Vec3; SCALES]| {
+        for k in 0..SCALES {
+            if e[k] != Vec3::ZERO && e[k].is_finite() {
+                c[k] += 1;
+                abs[k] += e[k].abs().max_element() as f64;
+            }
+        }
+    };
+    for fp in &r.footprints {
+        add(fp.irradiance_scales(q.position, q.normal, kernel));
+    }
+    for ph in &r.photons {
+        add(ph.irradiance_scales(q.position, q.normal, RADII[ph.photon_map().index()]));
+    }
+    (c, abs)
+}
+
 /// Boxes per map that contain `q` shrunk by `margin` (metres; negative: grown): the
 /// device's candidates lie between the counts for `margin = 1e-6` and `-1e-5` (its ray
 /// is 1e-6 long, and box tests may be conservative).
@@ -270,6 +318,22 @@ fn counts(q: &QueryPoint, r: &Records, kernel: Kernel) -> ([u32; 2], [DVec3; 2])
         add(ph.photon_map(), ph.irradiance(q.position, q.normal, RADII[ph.photon_map().index()]));
     }
     (c, abs)
+}
+
+/// The GLSL's ladder is the core's: `ARPA_SCALES` of `gather_common.glsl` is
+/// `arpa_core::bandwidth::SCALES`, and the payload holds a total for every smaller scale.
+#[test]
+fn glsl_scales_are_the_cores() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");
+    let common = std::fs::read_to_string(dir.join("gather_common.glsl")).expect("gather_common.glsl");
+    assert!(common.contains(&format!("const uint ARPA_SCALES = {SCALES}u;")), "gather_common.glsl's ARPA_SCALES is not {SCALES}");
+    let payload = std::fs::read_to_string(dir.join("gather_payload.glsl")).expect("gather_payload.glsl");
+    let raygen = std::fs::read_to_string(dir.join("gather_raygen.wgsl")).expect("gather_raygen.wgsl");
+    for k in 1..SCALES {
+        assert!(payload.contains(&format!("vec4 scale{k};")), "gather_payload.glsl has no scale{k}");
+        assert!(raygen.contains(&format!("scale{k}: vec4<f32>,")), "gather_raygen.wgsl's VkGatherPayload has no scale{k}");
+    }
+    assert!(!payload.contains(&format!("scale{SCALES};")), "a payload total beyond the ladder");
 }
 
 #[test]
@@ -355,14 +419,18 @@ fn gather_hit_group_matches_the_core() {
 
     let near: Vec<bool> = recs.queries.iter().map(|q| near_boundary(q, &recs)).collect();
     let near_count = near.iter().filter(|&&b| b).count();
+    let near_scaled: Vec<bool> = recs.queries.iter().map(|q| near_scaled_boundary(q, &recs)).collect();
     let width = 64u32;
-    for kernel in [Kernel::Silverman, Kernel::Epanechnikov, Kernel::Constant] {
-        // layout::GatherImageParams: radii, kernel, query count, batch flags, padding.
+    // Every scale for each kernel, then the stored scale alone (the totals stay zero).
+    for (kernel, scales) in [(Kernel::Silverman, SCALES), (Kernel::Epanechnikov, SCALES), (Kernel::Constant, SCALES), (Kernel::Silverman, 1)] {
+        // layout::GatherImageParams: radii, kernel, query count, batch flags, scales, padding.
         let mut params = Vec::with_capacity(32);
         params.extend_from_slice(bytemuck::cast_slice(&RADII));
         params.extend_from_slice(&kernel_code(kernel).to_le_bytes());
         params.extend_from_slice(&(n as u32).to_le_bytes());
-        params.extend_from_slice(&[0u8; 16]);
+        params.extend_from_slice(&0u32.to_le_bytes());
+        params.extend_from_slice(&(scales as u32).to_le_bytes());
+        params.extend_from_slice(&[0u8; 8]);
         params_buf.write(0, &params).expect("write params");
         let t0 = std::time::Instant::now();
         pipeline.trace_and_wait(&ctx, &bindings, &[], [width, (n as u32).div_ceil(width), 1]).expect("trace");
@@ -372,6 +440,7 @@ fn gather_hit_group_matches_the_core() {
 
         let (mut single, mut single_exact, mut candidates) = (0u32, 0u32, 0u64);
         let (mut total, mut max_count, mut empty, mut mismatched, mut worst_rel, mut worst_vs_bound) = (0u64, 0u32, 0, 0, 0.0f64, 0.0f64);
+        let (mut scaled_total, mut scaled_mismatched, mut scaled_worst) = (0u64, 0usize, 0.0f64);
         for (i, (q, g)) in recs.queries.iter().zip(&got).enumerate() {
             let want = gather_brute_force(q, &recs.footprints, &recs.photons, RADII.map(f64::from), kernel);
             let (c, abs) = counts(q, &recs, kernel);
@@ -411,6 +480,25 @@ fn gather_hit_group_matches_the_core() {
                     worst_rel = worst_rel.max(err / w.max_element());
                 }
             }
+            if scales == 1 {
+                assert!((1..SCALES).all(|k| g.scaled(k) == DVec3::ZERO), "{kernel:?} query {i}: one scale evaluated, totals {:?}", g.scaled);
+                continue;
+            }
+            let want_s = gather_brute_force_scales(q, &recs.footprints, &recs.photons, RADII.map(f64::from), kernel);
+            let (cs, abs_s) = scale_counts(q, &recs, kernel);
+            for k in 1..SCALES {
+                let (d, w) = (g.scaled(k), want_s.per_scale[k]);
+                let bound = f64::from(cs[k] + 5) * f64::from(f32::EPSILON / 2.0) * abs_s[k] + 1e-30;
+                let err = (d - w).abs().max_element();
+                if err > bound {
+                    assert!(near_scaled[i] || near[i], "{kernel:?} query {i} scale {k}: device {d:?}, core {w:?} ({} contributions; error {err:e} > {bound:e}), no record on a boundary", cs[k]);
+                    scaled_mismatched += 1;
+                    break;
+                }
+                assert_eq!(g.scaled[k - 1][3], 0.0);
+                scaled_worst = scaled_worst.max(err / bound);
+                scaled_total += u64::from(cs[k]);
+            }
         }
         eprintln!(
             "arpa-vk gather hit group, {kernel:?}: {n} queries, {} footprints, {} photons: {total} contributions agree exactly (max {max_count} per query, {empty} queries with none; {candidates} candidates within the boxes' bounds), {mismatched} differ ({near_count} queries have a record on a boundary within 1e-5); worst relative sum error {worst_rel:.3e} ({:.2} of the bound), {single_exact} of {single} single-contribution sums bit-identical; trace {trace_s:.3} s",
@@ -420,6 +508,15 @@ fn gather_hit_group_matches_the_core() {
         );
         assert!(mismatched * 1000 <= n, "{mismatched} queries of {n} differ on a boundary");
         assert!(total > 5 * n as u64 && empty * 20 < n as u32, "too few contributions to test anything: {total}, {empty} empty");
+        if scales > 1 {
+            eprintln!(
+                "  scales 1..{}: {scaled_total} contributions agree within the bound (worst {scaled_worst:.2} of it), {scaled_mismatched} queries differ ({} near a scaled boundary within 1e-5)",
+                SCALES - 1,
+                near_scaled.iter().filter(|&&b| b).count()
+            );
+            assert!(scaled_mismatched * 1000 <= n, "{scaled_mismatched} queries of {n} differ at a smaller scale");
+            assert!(scaled_total > 2 * n as u64, "too few scaled contributions to test anything: {scaled_total}");
+        }
     }
     eprintln!("arpa-vk gather hit group: setup {setup:.2} s, total {:.2} s", start.elapsed().as_secs_f64());
 

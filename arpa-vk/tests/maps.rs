@@ -430,15 +430,20 @@ fn trace_counts(
         queries.iter().map(|q| GpuQuery { position: q.position.to_array(), pad0: 0, normal: q.normal.to_array(), pad1: 0 }).collect();
     let q_buf = storage_upload(ctx, "queries", bytemuck::cast_slice(&gpu));
     let n = queries.len();
+    // gather_test.rgen writes one layout::GatherResult per query.
+    let stride = size_of::<arpa_core::gpu::layout::GatherResult>();
     let results = ctx
-        .create_buffer("results", (n * 48) as u64, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::GpuToCpu)
+        .create_buffer("results", (n * stride) as u64, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::GpuToCpu)
         .expect("results");
-    // layout::GatherImageParams: radii, kernel, query count, batch flags, padding.
+    // layout::GatherImageParams: radii, kernel, query count, batch flags, scales (the stored
+    // one), padding.
     let mut params = Vec::with_capacity(32);
     params.extend_from_slice(bytemuck::cast_slice(&RADII));
     params.extend_from_slice(&kernel_code(kernel).to_le_bytes());
     params.extend_from_slice(&(n as u32).to_le_bytes());
-    params.extend_from_slice(&[0u8; 16]);
+    params.extend_from_slice(&0u32.to_le_bytes());
+    params.extend_from_slice(&1u32.to_le_bytes());
+    params.extend_from_slice(&[0u8; 8]);
     let params = storage_upload(ctx, "gather params", &params);
     let unused = storage_upload(ctx, "unused binding", &[0u8; 16]);
     let set = [
@@ -453,8 +458,8 @@ fn trace_counts(
     ];
     let bindings = pipeline.bind(&[&set]).expect("bind");
     pipeline.trace_and_wait(ctx, &bindings, &[], [64, (n as u32).div_ceil(64), 1]).expect("trace");
-    let bytes = results.read(0, (n * 48) as u64).expect("read results");
-    bytes.chunks_exact(48).map(|r| [u32::from_le_bytes(r[12..16].try_into().unwrap()), u32::from_le_bytes(r[28..32].try_into().unwrap())]).collect()
+    let bytes = results.read(0, (n * stride) as u64).expect("read results");
+    bytes.chunks_exact(stride).map(|r| [u32::from_le_bytes(r[12..16].try_into().unwrap()), u32::from_le_bytes(r[28..32].try_into().unwrap())]).collect()
 }
 
 #[test]

@@ -3,12 +3,18 @@
 //! both record kinds), a few iterations of each method. The checks: every stage's counts
 //! are consistent, the image is finite and lit, the validation layer reports nothing, the
 //! same seed gives the same bits, and an overflowing photon buffer (tiny initial capacity)
-//! gives exactly the image of a large enough one. Radiometric agreement with the other
-//! backends and with analytic irradiance is the conformance suite's (`arpa-conformance`).
+//! gives exactly the image of a large enough one. The planes of a per-pixel bandwidth (the
+//! default): every plane accumulated, the image is the core's selection over them, the
+//! stored scale's plane is bit for bit a global-bandwidth render's image, the moment planes
+//! are the core's moments of the radiance planes, and a checkpoint of every plane resumes
+//! exactly. Radiometric agreement with the other backends and with analytic irradiance is
+//! the conformance suite's (`arpa-conformance`).
 
 use arpa_core::emission::{Light, PointLight};
 use arpa_core::scene::{Camera, Material, Scene};
 use arpa_core::shapes::{icosphere, parallelogram};
+use arpa_core::accumulate::Accumulation;
+use arpa_core::bandwidth::{Bandwidth, PLANES, SCALES, moments};
 use arpa_core::tracer::{Image, IterationStats, Method, RenderSettings, Tracer};
 use arpa_vk::VkTracer;
 use glam::{DVec3, Vec3};
@@ -61,6 +67,12 @@ fn render(t: &mut VkTracer, scene: &Scene, settings: &RenderSettings, iterations
 
 fn bits(image: &Image) -> Vec<u32> {
     image.pixels.iter().flat_map(|p| p.to_array().map(f32::to_bits)).collect()
+}
+
+/// The means of the radiance planes of the accumulation (every scale), plane after plane.
+fn radiance_planes(t: &VkTracer) -> Vec<Vec3> {
+    let acc = t.read_accumulation().expect("accumulation");
+    (0..(acc.planes as usize).min(SCALES)).flat_map(|p| acc.plane_mean(p)).collect()
 }
 
 #[test]
@@ -117,10 +129,13 @@ fn photon_batches_sum_to_the_single_pass_image() {
     let Some(mut t) = tracer() else { return };
     let scene = scene();
     let s = settings(Method::Arpa);
-    let (want, one) = render(&mut t, &scene, &s, 2);
+    let (_, one) = render(&mut t, &scene, &s, 2);
+    // Every radiance plane (the per-pixel selection may tip between scales on one ulp).
+    let want = radiance_planes(&t);
     let records = t.read_footprints().expect("footprints").len() + t.read_photons().expect("photons").len();
     t.set_batch_photons(Some(7_000));
-    let (got, three) = render(&mut t, &scene, &s, 2);
+    let (_, three) = render(&mut t, &scene, &s, 2);
+    let got = radiance_planes(&t);
     assert_eq!(t.batch_photons(), Some(7_000));
     // The same photons, records and contributions, in three batches.
     for (a, b) in one.iter().zip(&three) {
@@ -129,10 +144,61 @@ fn photon_batches_sum_to_the_single_pass_image() {
     assert_eq!(t.read_footprints().expect("footprints").len() + t.read_photons().expect("photons").len(), records);
     // Summed in another f32 order: equal to rounding.
     let mut worst = 0.0f32;
-    for (a, b) in want.pixels.iter().zip(&got.pixels) {
+    for (a, b) in want.iter().zip(&got) {
         let d = (*a - *b).abs().max_element() / a.max_element().max(1e-3);
         worst = worst.max(d);
     }
     assert!(worst < 1e-4, "batched image differs from the single-pass one by {worst:e} (relative)");
     assert_clean(&t.context().validation_log(), "while rendering in batches");
+}
+
+#[test]
+fn per_pixel_planes_are_accumulated_and_resume_exactly() {
+    let Some(mut t) = tracer() else { return };
+    let log = t.context().validation_log();
+    let scene = scene();
+    let s = settings(Method::Arpa);
+    let px = (scene.camera.width * scene.camera.height) as usize;
+    // One iteration: the stored scale's plane is a global render's image bit for bit, the
+    // selection takes it everywhere, the moments are the core's of the radiance planes.
+    let (global, _) = render(&mut t, &scene, &RenderSettings { bandwidth: Bandwidth::Global, ..s }, 1);
+    assert_eq!(t.read_accumulation().expect("accumulation").planes, 1);
+    let (image, _) = render(&mut t, &scene, &s, 1);
+    let acc = t.read_accumulation().expect("accumulation");
+    assert_eq!((acc.planes as usize, acc.pixels.len()), (PLANES, PLANES * px));
+    assert_eq!(acc.mean(), image.pixels, "read_image is the core's mean of the accumulation");
+    let planes: Vec<Vec<Vec3>> = (0..PLANES).map(|p| acc.plane_mean(p)).collect();
+    assert!(bits(&global) == bits(&Image { width: 48, height: 40, pixels: planes[0].clone() }), "the stored scale differs from a global render");
+    assert_eq!(image.pixels, planes[0]);
+    let mut differ = 0;
+    let ladders: Vec<[Vec3; SCALES]> = (0..px).map(|i| std::array::from_fn(|k| planes[k][i])).collect();
+    for (i, l) in ladders.iter().enumerate() {
+        differ += (l[0] != l[SCALES - 1]) as usize;
+        let want = moments(l);
+        let peak = l.iter().map(|c| c.max_element()).fold(0.0, f32::max);
+        for (p, &w) in want.iter().enumerate() {
+            let g = planes[SCALES + p][i];
+            assert!((g - w).abs().max_element() <= 16.0 * f32::EPSILON * peak * peak, "pixel {i} moment plane {p}: {g:?} vs {w:?}");
+        }
+    }
+    assert!(differ > px / 4, "the smallest scale equals the stored one in {} of {px} pixels", px - differ);
+    // Three iterations straight, and two, a checkpoint, a new upload and one more.
+    let (whole, _) = render(&mut t, &scene, &s, 3);
+    render(&mut t, &scene, &s, 2);
+    let checkpoint = t.read_accumulation().expect("checkpoint");
+    t.upload_scene(&scene, &s).expect("upload");
+    t.restore_accumulation(&checkpoint).expect("restore");
+    t.iterate().expect("iteration");
+    assert!(bits(&t.read_image().expect("image")) == bits(&whole), "the resumed per-pixel render differs");
+    // An empty one-plane accumulation starts a part with every plane; a checkpoint of
+    // another bandwidth is refused.
+    t.upload_scene(&scene, &s).expect("upload");
+    t.restore_accumulation(&Accumulation::empty(48, 40, 3)).expect("restore an empty part");
+    t.iterate().expect("iteration");
+    let part = t.read_accumulation().expect("part");
+    assert_eq!((part.planes as usize, part.first_iteration, part.iterations), (PLANES, 3, 1));
+    t.upload_scene(&scene, &RenderSettings { bandwidth: Bandwidth::Global, ..s }).expect("upload");
+    let e = t.restore_accumulation(&checkpoint).expect_err("a per-pixel checkpoint into a global render").to_string();
+    assert!(e.contains("planes"), "{e}");
+    assert_clean(&log, "while rendering per-pixel planes");
 }

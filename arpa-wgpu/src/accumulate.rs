@@ -1,19 +1,21 @@
 //! The running mean of the iteration images on the device (the core's `accumulate.wgsl`):
-//! per pixel a compensated `f32` sum and a count of rejected non-finite samples
-//! ([`AccumPixel`]); [`AccumPixel::mean`] turns a read-back into the image.
+//! per plane and pixel a compensated `f32` sum and a count of rejected non-finite samples
+//! ([`AccumPixel`]); the read-back sums form an [`arpa_core::accumulate::Accumulation`],
+//! whose [`mean`](arpa_core::accumulate::Accumulation::mean) is the image.
 
 pub use arpa_core::gpu::layout::AccumPixel;
 
-/// The accumulation buffer and pipeline of one image size.
+/// The accumulation buffer and pipeline of one image size: one sum per entry of the
+/// iteration image (planes × pixels, plane-major, [`arpa_core::bandwidth::Bandwidth::planes`]).
 pub struct DeviceAccumulator {
     pipeline: wgpu::ComputePipeline,
-    /// `pixels` × [`AccumPixel`] (`COPY_SRC` for read-back).
+    /// `entries` × [`AccumPixel`] (`COPY_SRC` for read-back).
     pub pixels: wgpu::Buffer,
     count: u32,
 }
 
 impl DeviceAccumulator {
-    /// A zeroed accumulator of `pixels` pixels.
+    /// A zeroed accumulator of `pixels` entries (an image's planes × pixels).
     pub fn new(device: &wgpu::Device, pixels: u32) -> Self {
         let label = Some("arpa accumulate");
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label, source: wgpu::ShaderSource::Wgsl(crate::shaders::accumulate().into()) });
@@ -36,13 +38,13 @@ impl DeviceAccumulator {
         Self { pipeline, pixels: pixels_buf, count: pixels }
     }
 
-    /// Replaces the per-pixel sums with `pixels` (one per pixel; a checkpoint resumed),
-    /// through the queue; `None` for a wrong pixel count.
+    /// Replaces the sums with `pixels` (one per entry; a checkpoint resumed), through the
+    /// queue; `None` for a wrong count.
     pub fn write_pixels(&self, queue: &wgpu::Queue, pixels: &[AccumPixel]) -> Option<()> {
         (pixels.len() == self.count as usize).then(|| queue.write_buffer(&self.pixels, 0, bytemuck::cast_slice(pixels)))
     }
 
-    /// Records the addition of `image` (`vec4<f32>` per pixel, RGB used) to the sums.
+    /// Records the addition of `image` (`vec4<f32>` per entry, RGB used) to the sums.
     pub fn encode(&self, device: &wgpu::Device, encoder: &mut wgpu::CommandEncoder, image: &wgpu::Buffer) {
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("arpa accumulate"),

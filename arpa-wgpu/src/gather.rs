@@ -1,16 +1,19 @@
 //! The image gather on ray queries (the core's `gather.wgsl` with this backend's box
 //! traversal, [`crate::shaders::gather`]): per query record of the camera pass, every
 //! footprint and progressive photon of a batch's maps whose box contains the query point
-//! ([`crate::accel`]), tested exactly and summed per map; the iteration's radiance per pixel
-//! out.
+//! ([`crate::accel`]), tested exactly and summed per map at every scale of the bandwidth
+//! ([`arpa_core::bandwidth`]); the iteration's image planes per pixel out.
 
+use arpa_core::bandwidth::Bandwidth;
 use arpa_core::gpu::layout::{GatherBatch, GatherCounts, GatherImageParams};
 use arpa_core::kernel::Kernel;
 
-/// The tracer's gather: per query record (one per pixel, [`arpa_core::tracer::QueryRecord`]),
-/// `radiance + weight · (E_caustic + E_global)` with non-finite components set to 0 (as
-/// arpa-cpu's gather), written as `vec4<f32>` (RGB, 0) per pixel; the contributions and
-/// candidates per map summed into 64-bit counters and the valid records counted
+/// The tracer's gather: per query record (one per pixel, [`arpa_core::tracer::QueryRecord`])
+/// and scale `k` of the bandwidth, `radiance + weight · E_k` with non-finite components set
+/// to 0 (as arpa-cpu's gather; `E_0 = E_caustic + E_global`, the stored scale), written as
+/// `vec4<f32>` (RGB, 0) per plane and pixel, plane-major, then (per-pixel bandwidth) the
+/// moment planes ([`arpa_core::bandwidth::moments`]); the contributions and candidates per
+/// map at the stored scale summed into 64-bit counters and the valid records counted
 /// ([`ImageGather::total_buffer`]).
 pub struct ImageGather {
     pipeline: wgpu::ComputePipeline,
@@ -44,13 +47,15 @@ impl ImageGather {
 
     /// Records the gather of `pixels` query records `records` against one batch's sorted
     /// `footprints` and `photons` ([`crate::maps::BatchMaps`]) in `tlas` ([`crate::accel`])
-    /// with progressive `radii` (metres) and footprint `kernel`, into `image` (`pixels` ×
-    /// 16 bytes).
+    /// with progressive `radii` (metres) and footprint `kernel`, into `image`
+    /// ([`Bandwidth::planes`] × `pixels` × 16 bytes, plane-major: plane `p` of pixel `i` at
+    /// `p · pixels + i`; [`arpa_core::gpu::layout::ImageBufferSizes::image`]).
     ///
     /// Photon batches: an iteration traced in several batches gathers each batch's maps in
-    /// turn, into `irradiance` (`pixels` × 16 bytes: per pixel the irradiance summed over
-    /// the batches so far, W/m², RGB); `batch` says which: the first starts the sum (and
-    /// clears the counters), the last writes `image` = `radiance + weight · (sum)` and not
+    /// turn, into `irradiance` ([`Bandwidth::scales`] × `pixels` × 16 bytes, scale-major:
+    /// per scale and pixel the irradiance summed over the batches so far, W/m², RGB);
+    /// `batch` says which: the first starts the sums (and clears the counters), the last
+    /// writes `image` = `radiance + weight · (sum)` per scale (and the moments) and not
     /// `irradiance`. [`GatherBatch::WHOLE`] is the single-pass gather, bit for bit. The
     /// contribution count then sums over the batches; the valid records are counted once.
     #[allow(clippy::too_many_arguments)]
@@ -67,10 +72,11 @@ impl ImageGather {
         irradiance: &wgpu::Buffer,
         radii: [f32; 2],
         kernel: Kernel,
+        bandwidth: Bandwidth,
         pixels: u32,
         batch: GatherBatch,
     ) {
-        let params = GatherImageParams::new(radii, kernel, pixels, batch);
+        let params = GatherImageParams::new(radii, kernel, pixels, batch, bandwidth);
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         if batch.first {
             encoder.clear_buffer(&self.total, 0, None);

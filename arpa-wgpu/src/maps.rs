@@ -11,6 +11,7 @@ use crate::device::GpuContext;
 use crate::gather::ImageGather;
 use crate::store::{BOX_BYTES, FOOTPRINT_BYTES, MapStore, PHOTON_BYTES, StorePipelines};
 use crate::tracer::WgpuError;
+use arpa_core::bandwidth::Bandwidth;
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::gpu::layout::{GatherBatch, StoreCounts, StoreSettings};
 use arpa_core::kernel::Kernel;
@@ -224,9 +225,9 @@ impl PhotonMaps {
     }
 
     /// Records the gather of batch `k` of the [`PhotonMaps::batch_count`] batches for
-    /// `pixels` query records into `image`, with the per-pixel batch sum in `irradiance`
-    /// ([`crate::gather::ImageGather::encode`]). Each batch's gather needs a submission of
-    /// its own (its parameters are written through the queue).
+    /// `pixels` query records into `image` (every plane of `bandwidth`), with the per-pixel
+    /// batch sums in `irradiance` ([`crate::gather::ImageGather::encode`]). Each batch's
+    /// gather needs a submission of its own (its parameters are written through the queue).
     #[allow(clippy::too_many_arguments)]
     pub fn encode_gather(
         &self,
@@ -237,12 +238,13 @@ impl PhotonMaps {
         image: &wgpu::Buffer,
         irradiance: &wgpu::Buffer,
         kernel: Kernel,
+        bandwidth: Bandwidth,
         pixels: u32,
     ) -> Result<(), WgpuError> {
         let b = self.batches.get(k as usize).ok_or_else(|| StageError::order(Stage::Gather, Stage::PhotonPass))?;
         let accel = b.accel.as_ref().ok_or_else(|| StageError::order(Stage::Gather, Stage::BuildAccelerationStructure))?;
         let batch = GatherBatch::of(k, self.batch_count());
-        self.gather.encode(&ctx.device, &ctx.queue, encoder, &b.footprints, &b.photons, &accel.tlas, records, image, irradiance, b.radii, kernel, pixels, batch);
+        self.gather.encode(&ctx.device, &ctx.queue, encoder, &b.footprints, &b.photons, &accel.tlas, records, image, irradiance, b.radii, kernel, bandwidth, pixels, batch);
         Ok(())
     }
 

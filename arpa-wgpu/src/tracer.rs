@@ -9,7 +9,7 @@ use crate::scene::GpuScene;
 use arpa_core::accumulate::Accumulation;
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::gpu::batch::{Overflow, RecordLimits, after_overflow, for_each_batch, initial_capacity, shrink};
-use arpa_core::gpu::layout::{GatherCounts, PhotonCounters, StoreSettings, check_record_keys};
+use arpa_core::gpu::layout::{GatherCounts, ImageBufferSizes, PhotonCounters, StoreSettings, check_record_keys};
 use arpa_core::gpu::sort::{MAX_SORT_ITEMS, sorted_len};
 use arpa_core::photon_path::PhotonPassSetup;
 use arpa_core::prepared_scene::PreparedScene;
@@ -77,8 +77,19 @@ const QUERY_BYTES: u64 = std::mem::size_of::<QueryRecord>() as u64;
 /// | [`camera_pass`](Tracer::camera_pass) | one query record per pixel ([`CameraPass`]) | — |
 /// | [`photon_pass`](Tracer::photon_pass) | every photon batch of the iteration: photons traced into append buffers ([`PhotonPass`]), keyed store, sort and compaction into the batch's maps ([`crate::store::MapStore`], [`crate::maps::BatchMaps`]) | per batch, the pass's and the store's counters (overflow check, sizes for the sort and the build) |
 /// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | per batch, AABB BLAS per (kind, map) and one TLAS ([`crate::accel`]) | — |
-/// | [`gather`](Tracer::gather) | per pixel `radiance + weight · E`, `E` summed over the batches in batch order ([`crate::gather::ImageGather`]) | contribution and query-point counts (16 bytes) |
-/// | [`accumulate`](Tracer::accumulate) | compensated running sum | — |
+/// | [`gather`](Tracer::gather) | per pixel and scale `radiance + weight · E_k`, `E_k` summed over the batches in batch order, and the moment planes ([`crate::gather::ImageGather`]) | contribution and query-point counts (16 bytes) |
+/// | [`accumulate`](Tracer::accumulate) | compensated running sum of every plane | — |
+///
+/// # Bandwidth
+/// The iteration image has [`arpa_core::bandwidth::Bandwidth::planes`] planes per pixel
+/// (`RenderSettings::bandwidth`: 1 for a global bandwidth; per pixel, the radiance at every
+/// scale and the moment planes, [`arpa_core::bandwidth`]), plane-major, and so have the
+/// accumulated sums: [`Tracer::read_accumulation`] returns every plane and
+/// [`Tracer::read_image`] is the core's [`Accumulation::mean`] of them (the per-pixel
+/// selection). The image, the batch irradiance and the sums must each fit one storage
+/// binding ([`ImageBufferSizes`]; lavapipe: 128 MiB, about 520 k pixels per image with a
+/// per-pixel bandwidth): [`Tracer::upload_scene`] refuses a larger image with
+/// [`WgpuError::Size`].
 ///
 /// # Photon batches
 /// An iteration's records can need more than one storage binding holds (lavapipe: 128 MiB,
@@ -149,8 +160,9 @@ struct Loaded {
     height: u32,
     pixels: u32,
     queries: wgpu::Buffer,
+    /// The iteration image: every plane of the bandwidth, plane-major.
     image: wgpu::Buffer,
-    /// Per pixel, the irradiance summed over the photon batches gathered so far.
+    /// Per scale and pixel, the irradiance summed over the photon batches gathered so far.
     irradiance: wgpu::Buffer,
     accumulator: DeviceAccumulator,
     /// Photons per batch (B): the iteration's photons `[k·B, (k+1)·B)` form batch `k`.
@@ -207,10 +219,23 @@ impl WgpuTracer {
         &self.ctx
     }
 
-    /// The device's per-pixel sums, read back.
+    /// The device's sums (every plane of every pixel, plane-major), read back.
     fn read_sums(&self, st: &Loaded) -> Result<Vec<AccumPixel>, WgpuError> {
-        let bytes = read_buffer(&self.ctx, "the accumulation", &st.accumulator.pixels, st.pixels as u64 * std::mem::size_of::<AccumPixel>() as u64)?;
+        let bytes = read_buffer(&self.ctx, "the accumulation", &st.accumulator.pixels, ImageBufferSizes::new(st.pixels, st.settings.bandwidth).accumulator)?;
         Ok(bytemuck::pod_collect_to_vec(&bytes))
+    }
+
+    /// The sums read back as the core's accumulation (every plane, exactly).
+    fn accumulation(&self, st: &Loaded) -> Result<Accumulation, WgpuError> {
+        let pixels = self.read_sums(st)?.iter().map(AccumPixel::to_sum).collect();
+        Ok(Accumulation {
+            width: st.width,
+            height: st.height,
+            planes: st.settings.bandwidth.planes() as u32,
+            first_iteration: st.clock.first_iteration(),
+            iterations: st.clock.accumulated(),
+            pixels,
+        })
     }
 
     fn loaded(&self, call: impl Into<Call>) -> Result<&Loaded, StageError> {
@@ -314,6 +339,11 @@ impl Tracer for WgpuTracer {
         let Some(pixels) = pixels else {
             return Err(WgpuError::Size(format!("image of {width}×{height} pixels exceeds one storage buffer")));
         };
+        // Every plane of the image, the batch irradiance and the sums in one binding each.
+        let sizes = ImageBufferSizes::new(pixels, settings.bandwidth);
+        let device_limits = self.ctx.device.limits();
+        sizes.check(width, height, settings.bandwidth, device_limits.max_storage_buffer_binding_size.min(device_limits.max_buffer_size)).map_err(WgpuError::Size)?;
+        let entries = u32::try_from(settings.bandwidth.planes() as u64 * u64::from(pixels)).map_err(|_| WgpuError::Size(format!("image of {width}×{height} pixels: too many planes")))?;
         let gpu_scene = GpuScene::upload(&self.ctx, &prepared).map_err(|e| WgpuError::SceneUpload(e.to_string()))?;
         let ctx = &self.ctx;
         let camera = CameraPass::new(ctx, &gpu_scene, &prepared, settings)?;
@@ -334,7 +364,7 @@ impl Tracer for WgpuTracer {
                     mapped_at_creation: false,
                 })
             };
-            Ok((buffer(pixels as u64 * QUERY_BYTES), buffer(pixels as u64 * 16), buffer(pixels as u64 * 16), DeviceAccumulator::new(&ctx.device, pixels)))
+            Ok((buffer(pixels as u64 * QUERY_BYTES), buffer(sizes.image), buffer(sizes.batch_irradiance), DeviceAccumulator::new(&ctx.device, entries)))
         })?;
         self.state = Some(Box::new(Loaded {
             prepared,
@@ -416,7 +446,7 @@ impl Tracer for WgpuTracer {
             for k in 0..maps.batch_count() {
                 scoped(ctx, "gather", || {
                     let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa gather") });
-                    maps.encode_gather(ctx, &mut encoder, k, &st.queries, &st.image, &st.irradiance, st.settings.kernel, st.pixels)?;
+                    maps.encode_gather(ctx, &mut encoder, k, &st.queries, &st.image, &st.irradiance, st.settings.kernel, st.settings.bandwidth, st.pixels)?;
                     ctx.queue.submit([encoder.finish()]);
                     Ok(())
                 })?;
@@ -450,22 +480,26 @@ impl Tracer for WgpuTracer {
         self.state.as_ref().map_or(0, |s| s.clock.completed())
     }
 
+    /// The core's [`Accumulation::mean`] of the sums read back: every pixel's mean with a
+    /// global bandwidth, the per-pixel selection over the planes otherwise.
     fn read_image(&self) -> Result<Image, WgpuError> {
         let st = self.loaded(Call::ReadImage)?;
-        let n = st.clock.accumulated();
-        Ok(Image { width: st.width, height: st.height, pixels: self.read_sums(st)?.iter().map(|p| p.mean(n)).collect() })
+        Ok(Image { width: st.width, height: st.height, pixels: self.accumulation(st)?.mean() })
     }
 
+    /// Every plane's sums ([`Accumulation::planes`] = the bandwidth's planes), exactly.
     fn read_accumulation(&self) -> Result<Accumulation, WgpuError> {
         let st = self.loaded(Call::ReadAccumulation)?;
-        let pixels = self.read_sums(st)?.iter().map(AccumPixel::to_sum).collect();
-        Ok(Accumulation { width: st.width, height: st.height, first_iteration: st.clock.first_iteration(), iterations: st.clock.accumulated(), pixels })
+        self.accumulation(st)
     }
 
+    /// Continues `state`: sums of the bandwidth's planes, or an empty accumulation (which
+    /// takes them, [`Accumulation::with_planes`]).
     fn restore_accumulation(&mut self, state: &Accumulation) -> Result<(), WgpuError> {
         let st = uploaded(self.state.as_deref_mut(), Call::RestoreAccumulation)?;
-        let clock = StageClock::for_restore(state, st.width, st.height)?;
-        let pixels = AccumPixel::from_accumulation(state)?;
+        let state = state.with_planes(st.settings.bandwidth.planes() as u32).map_err(|e| StageError::Accumulation(e.to_string()))?;
+        let clock = StageClock::for_restore(&state, st.width, st.height)?;
+        let pixels = AccumPixel::from_accumulation(&state)?;
         st.accumulator.write_pixels(&self.ctx.queue, &pixels).ok_or_else(|| StageError::Accumulation("pixel count".into()))?;
         wait(&self.ctx, "restore_accumulation")?;
         st.clock = clock;

@@ -11,6 +11,7 @@
 
 use core::mem::{offset_of, size_of};
 
+use crate::bandwidth::Bandwidth;
 use crate::heuristics::PackedHeuristics;
 use crate::progressive_photon::PackedPhoton;
 
@@ -401,8 +402,9 @@ impl SortStep {
     }
 }
 
-/// Irradiance gathered at one query point (`ArpaGatherResult` of `gather.wgsl`, 48 bytes;
-/// W/m², RGB, summed in `f32` on the device).
+/// Irradiance gathered at one query point (`ArpaGatherResult` of `gather.wgsl`, 112 bytes;
+/// W/m², RGB, summed in `f32` on the device): per map at the stored scale, and both maps
+/// together at the smaller scales of the bandwidth ladder ([`crate::bandwidth`]).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct GatherResult {
@@ -419,8 +421,25 @@ pub struct GatherResult {
     pub candidates: [u32; 2],
     /// Padding.
     pub pad: [u32; 2],
+    /// Irradiance at scales `1 .. SCALES` (entry `k − 1` is scale `k`), both maps summed
+    /// together in traversal order, RGB in the first three words, the fourth zero; zero at
+    /// the scales the gather did not evaluate ([`GatherImageParams::scales`]).
+    pub scaled: [[f32; 4]; crate::bandwidth::SCALES - 1],
 }
-layout!(GatherResult, 48, { caustic: 0, caustic_count: 12, global: 16, global_count: 28, candidates: 32, pad: 40 });
+layout!(GatherResult, 112, { caustic: 0, caustic_count: 12, global: 16, global_count: 28, candidates: 32, pad: 40, scaled: 48 });
+
+impl GatherResult {
+    /// The irradiance of both maps at scale `k` (`k < SCALES`): `caustic + global` in
+    /// `f32` for the stored scale (the gather's own expression), the device's sum for the
+    /// others.
+    pub fn scale(&self, k: usize) -> glam::Vec3 {
+        if k == 0 {
+            glam::Vec3::from_array(self.caustic) + glam::Vec3::from_array(self.global)
+        } else {
+            glam::Vec3::from_slice(&self.scaled[k - 1][..3])
+        }
+    }
+}
 
 /// The gather's counters of one iteration (`gathered_total` of `gather.wgsl`, 48 bytes):
 /// 64-bit totals kept as `[low, high]` words (the device adds to the low word and carries
@@ -493,15 +512,60 @@ pub struct GatherImageParams {
     pub pixels: u32,
     /// [`GatherBatch::bits`].
     pub batch: u32,
+    /// Scales the gather evaluates ([`Bandwidth::scales`]): 1 (one image plane per pixel)
+    /// or [`crate::bandwidth::SCALES`] (every plane of [`crate::bandwidth::PLANES`]).
+    /// The device clamps it to `1 ..= SCALES` and writes the moment planes only for `SCALES`.
+    pub scales: u32,
     /// Padding.
-    pub pad: [u32; 3],
+    pub pad: [u32; 2],
 }
-layout!(GatherImageParams, 32, { radii: 0, kernel: 8, pixels: 12, batch: 16 });
+layout!(GatherImageParams, 32, { radii: 0, kernel: 8, pixels: 12, batch: 16, scales: 20 });
 
 impl GatherImageParams {
-    /// The parameters of gathering `pixels` query records as `batch`.
-    pub fn new(radii: [f32; 2], kernel: crate::kernel::Kernel, pixels: u32, batch: GatherBatch) -> Self {
-        Self { radii, kernel: crate::gpu::codes::kernel_code(kernel), pixels, batch: batch.bits(), pad: [0; 3] }
+    /// The parameters of gathering `pixels` query records as `batch` for an image of
+    /// `bandwidth`'s planes.
+    pub fn new(radii: [f32; 2], kernel: crate::kernel::Kernel, pixels: u32, batch: GatherBatch, bandwidth: Bandwidth) -> Self {
+        Self { radii, kernel: crate::gpu::codes::kernel_code(kernel), pixels, batch: batch.bits(), scales: bandwidth.scales() as u32, pad: [0; 2] }
+    }
+}
+
+/// Bytes of the per-image device buffers of a GPU backend for `pixels` pixels and a
+/// bandwidth ([`Bandwidth::planes`] planes per pixel, plane-major: plane `p` of pixel `i`
+/// at `p · pixels + i`). Each must fit one storage binding.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ImageBufferSizes {
+    /// The iteration image the gather writes and the accumulation reads: one `vec4<f32>`
+    /// (16 bytes) per plane and pixel.
+    pub image: u64,
+    /// The per-pixel irradiance summed over photon batches: one `vec4<f32>` per scale
+    /// ([`Bandwidth::scales`]) and pixel, scale-major.
+    pub batch_irradiance: u64,
+    /// The running sums: one [`AccumPixel`] (32 bytes) per plane and pixel.
+    pub accumulator: u64,
+}
+
+impl ImageBufferSizes {
+    /// The sizes for `pixels` pixels under `bandwidth`.
+    pub fn new(pixels: u32, bandwidth: Bandwidth) -> Self {
+        let (px, planes, scales) = (u64::from(pixels), bandwidth.planes() as u64, bandwidth.scales() as u64);
+        Self { image: planes * px * 16, batch_irradiance: scales * px * 16, accumulator: planes * px * size_of::<AccumPixel>() as u64 }
+    }
+
+    /// `Err(message)` when a buffer exceeds `binding_bytes` (a storage binding of the
+    /// device): the message names the buffer, the image's planes and the bandwidth.
+    #[cfg(feature = "alloc")]
+    #[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
+    pub fn check(&self, width: u32, height: u32, bandwidth: Bandwidth, binding_bytes: u64) -> Result<(), alloc::string::String> {
+        let largest = [("accumulation", self.accumulator), ("iteration image", self.image), ("batch irradiance", self.batch_irradiance)].into_iter().max_by_key(|(_, b)| *b);
+        match largest {
+            Some((what, bytes)) if bytes > binding_bytes => Err(alloc::format!(
+                "an image of {width}×{height} pixels with {} plane(s) per pixel (--bandwidth {}) needs {bytes} bytes for its {what}, above one storage binding ({binding_bytes} bytes){}",
+                bandwidth.planes(),
+                bandwidth.name(),
+                if bandwidth.planes() > 1 { "; render it with --bandwidth global or fewer pixels" } else { "" }
+            )),
+            _ => Ok(()),
+        }
     }
 }
 
@@ -756,6 +820,19 @@ mod tests {
         assert_eq!(p.mean(0), glam::Vec3::ZERO);
         assert_eq!(p.mean(1), glam::Vec3::new(3.0, 0.0, 1.0), "MAX + MAX overflows f32: 0");
         assert_eq!(p.mean(2), glam::Vec3::new(1.5, f32::MAX, 0.5), "the sum is taken in f64");
+    }
+
+    #[cfg(feature = "alloc")]
+    #[test]
+    fn image_buffers_hold_every_plane() {
+        let g = ImageBufferSizes::new(100, Bandwidth::Global);
+        assert_eq!((g.image, g.batch_irradiance, g.accumulator), (1600, 1600, 3200));
+        let p = ImageBufferSizes::new(100, Bandwidth::PerPixel);
+        assert_eq!((p.image, p.batch_irradiance, p.accumulator), (8 * 1600, 5 * 1600, 8 * 3200));
+        assert!(p.check(10, 10, Bandwidth::PerPixel, 8 * 3200).is_ok());
+        let e = p.check(10, 10, Bandwidth::PerPixel, 8 * 3200 - 1).unwrap_err();
+        assert!(e.contains("accumulation") && e.contains("per-pixel") && e.contains("8 plane"), "{e}");
+        assert_eq!(GatherImageParams::new([0.1; 2], crate::kernel::Kernel::Constant, 100, GatherBatch::WHOLE, Bandwidth::PerPixel).scales, 5);
     }
 
     #[test]

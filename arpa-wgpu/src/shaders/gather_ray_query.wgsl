@@ -11,14 +11,14 @@ enable wgpu_ray_query;
 // candidate whatever the length; the exact test decides.
 const ARPA_GATHER_RAY_LENGTH: f32 = 1e-6;
 
-fn arpa_gather_at(q: vec3<f32>, n: vec3<f32>, kernel: u32, radii: vec2<f32>) -> ArpaGatherResult {
+fn arpa_gather_at(q: vec3<f32>, n: vec3<f32>, kernel: u32, radii: vec2<f32>, scales: u32) -> ArpaGatherResult {
     var acc: ArpaGatherSum;
     var rq: ray_query;
     rayQueryInitialize(&rq, arpa_gather_boxes, RayDesc(RAY_FLAG_NONE, 0xffu, 0.0, ARPA_GATHER_RAY_LENGTH, q, vec3<f32>(0.0, 0.0, 1.0)));
     while rayQueryProceed(&rq) {
         let c = rayQueryGetCandidateIntersection(&rq);
         if c.kind == RAY_QUERY_INTERSECTION_AABB {
-            arpa_gather_candidate(&acc, c.instance_custom_data, c.primitive_index, q, n, kernel, radii);
+            arpa_gather_candidate(&acc, c.instance_custom_data, c.primitive_index, q, n, kernel, radii, scales);
         }
     }
     return arpa_gather_result(acc);

@@ -8,17 +8,23 @@
 //!   as the core's record or photon of the unflipped one with the orientation flipped
 //!   (`orient_to_shading_side`); photons pass through unchanged;
 //! * the outputs are sorted by map, photons by Morton code within a map;
-//! * each pixel is `radiance + weight · E` with `E` the brute-force gather
-//!   (`gather_brute_force`, f64) over the device's own records, within the `gather` test's
-//!   bound (64 ε Σ|contributions| plus the contributions of records whose boundary the
-//!   query lies within 1e-4 of); invalid records give their radiance, non-finite ones 0;
+//! * each pixel's plane `k` (per-pixel bandwidth: every scale of the ladder) is
+//!   `radiance + weight · E_k` with `E_k` the brute-force gather (`gather_brute_force`,
+//!   `gather_brute_force_scales`, f64) over the device's own records, within the `gather`
+//!   test's bound (64 ε Σ|contributions| plus the contributions of records whose boundary
+//!   at that scale the query lies within 1e-4 of); invalid records give their radiance,
+//!   non-finite ones 0; the moment planes are `bandwidth::moments` of the device's own
+//!   radiance planes (f32 on both sides: within 16 ε of the squared sum of the luminance
+//!   terms, FMA contraction); a global bandwidth writes the stored scale's plane only, bit
+//!   for bit the per-pixel render's plane 0;
 //! * the running mean of n equal images is the image (compensated sum, within 2 ε);
 //! * appending in another order gives bit-identical records, photons and image.
 
 use crate::common::*;
 use crate::store::{core_footprint, near_threshold, raw, scene_bounds};
 use arpa_core::classify::Smoothing;
-use arpa_core::estimate::{QueryPoint, gather_brute_force};
+use arpa_core::bandwidth::{Bandwidth, PLANES, SCALES, moments};
+use arpa_core::estimate::{QueryPoint, gather_brute_force, gather_brute_force_scales};
 use arpa_core::footprint::PhotonMap;
 use arpa_core::heuristics::Heuristics;
 use arpa_core::kernel::Kernel;
@@ -106,8 +112,8 @@ fn settings(input: &Input) -> StoreSettings {
     }
 }
 
-fn run(ctx: &arpa_wgpu::GpuContext, input: &Input, kernel: Kernel) -> HostRun {
-    run_from_host(ctx, &input.raw, &input.photons, &settings(input), &input.records, kernel, 3)
+fn run(ctx: &arpa_wgpu::GpuContext, input: &Input, kernel: Kernel, bandwidth: Bandwidth) -> HostRun {
+    run_from_host(ctx, &input.raw, &input.photons, &settings(input), &input.records, kernel, bandwidth, 3)
 }
 
 #[test]
@@ -115,7 +121,7 @@ fn chain_matches_core() {
     let Some(ctx) = gpu() else { return };
     let kernel = Kernel::Epanechnikov;
     let input = input(11);
-    let out = run(ctx, &input, kernel);
+    let out = run(ctx, &input, kernel, Bandwidth::PerPixel);
     let c = out.counts;
     assert_eq!(c.total_footprints() as usize, out.footprints.len());
     assert_eq!(c.total_photons() as usize, out.photons.len());
@@ -172,49 +178,63 @@ fn chain_matches_core() {
     let key = |p: &PackedPhoton| (p.map, morton_code(p.position, lo.to_array(), inv));
     assert!(out.photons.windows(2).all(|w| key(&w[0]) <= key(&w[1])), "photons not in (map, Morton) order");
 
-    // Gather against the brute-force gather over the device's records.
+    // Gather against the brute-force gather over the device's records, every scale.
+    let px = input.records.len();
+    assert_eq!(out.image.len(), PLANES * px);
+    let plane = |p: usize, i: usize| Vec3::from_array(out.image[p * px + i]);
     let mut lit = 0;
     let mut gathered = 0u64;
-    for (rec, got) in input.records.iter().zip(&out.image) {
-        let got = Vec3::from_array(*got).as_dvec3();
+    let mut scales_differ = 0;
+    for (i, rec) in input.records.iter().enumerate() {
         let radiance = Vec3::from_array(rec.radiance).as_dvec3();
+        let finite = |v: DVec3| DVec3::select(v.is_finite_mask(), v, DVec3::ZERO);
+        let l: [Vec3; SCALES] = std::array::from_fn(|k| plane(k, i));
         if rec.valid == 0 {
-            let want = DVec3::select(radiance.is_finite_mask(), radiance, DVec3::ZERO);
-            assert_eq!(got, want, "invalid record {rec:?}");
-            continue;
+            for (k, got) in l.iter().enumerate() {
+                assert_eq!(got.as_dvec3(), finite(radiance), "invalid record {rec:?}, scale {k}");
+            }
+        } else {
+            let q = QueryPoint { position: Vec3::from_array(rec.position), normal: Vec3::from_array(rec.normal) };
+            let e = gather_brute_force(&q, &out.footprints, &out.photons, RADII.map(f64::from), kernel);
+            let es = gather_brute_force_scales(&q, &out.footprints, &out.photons, RADII.map(f64::from), kernel);
+            let bounds = crate::gather::scale_bounds(&q, &out.footprints, &out.photons, RADII, kernel);
+            gathered += (e.footprints + e.photons) as u64;
+            let weight = Vec3::from_array(rec.weight).as_dvec3();
+            for k in 0..SCALES {
+                let (abs, slack) = bounds[k];
+                let ek = if k == 0 { e.irradiance() } else { es.per_scale[k] };
+                let want = finite(radiance + weight * ek);
+                let tol = weight.max_element() * (64.0 * EPS * abs + slack) + 4.0 * EPS * radiance.abs().max_element() + 1e-30;
+                let got = l[k].as_dvec3();
+                let diff = (got - want).abs().max_element();
+                assert!(diff <= tol, "pixel {} scale {k}: device {got:?} core {want:?} (diff {diff:e} > {tol:e})", rec.pixel);
+            }
+            lit += (e.footprints + e.photons > 0) as usize;
+            scales_differ += (l[0] != l[SCALES - 1]) as usize;
         }
-        let q = QueryPoint { position: Vec3::from_array(rec.position), normal: Vec3::from_array(rec.normal) };
-        let e = gather_brute_force(&q, &out.footprints, &out.photons, RADII.map(f64::from), kernel);
-        gathered += (e.footprints + e.photons) as u64;
-        let (mut abs, mut slack) = (0.0f64, 0.0f64);
-        for fp in &out.footprints {
-            abs += fp.irradiance(q.position, q.normal, kernel).abs().max_element() as f64;
-            let y = fp.filter_coords(q.position);
-            let r2 = (y.x * y.x + y.y * y.y) as f64;
-            if fp.faces(q.normal) && ((r2 - 1.0).abs() < 1e-4 || (y.z.abs() as f64 - 1.0).abs() < 1e-4) {
-                slack += fp.flux_density().abs().max_element() as f64 * kernel.eval_f64((r2.min(1.0) - 1e-4).max(0.0));
+        // Moments of the device's own radiance planes, in f32.
+        let want = moments(&l);
+        let y_abs: [f64; SCALES] = std::array::from_fn(|k| (0.2126 * l[k].x.abs() + 0.7152 * l[k].y.abs() + 0.0722 * l[k].z.abs()) as f64);
+        for (p, w) in want.iter().enumerate() {
+            let got = plane(SCALES + p, i);
+            for c in 0..3 {
+                let v = 3 * p + c;
+                let scale = if v < SCALES { y_abs[v] * y_abs[v] } else { (y_abs[v - SCALES] + y_abs[v - SCALES + 1]).powi(2) };
+                let diff = (got[c] as f64 - w[c] as f64).abs();
+                assert!(diff <= 16.0 * EPS * scale + 1e-37, "pixel {} moment {v}: device {} core {} (diff {diff:e})", rec.pixel, got[c], w[c]);
             }
         }
-        for ph in &out.photons {
-            let r = RADII[ph.map as usize];
-            let e = ph.irradiance(q.position, q.normal, r).abs().max_element() as f64;
-            abs += e;
-            let d2 = (q.position - Vec3::from_array(ph.position)).length_squared() as f64 / (r as f64 * r as f64);
-            if (d2 - 1.0).abs() < 1e-4 && Vec3::from_array(ph.normal).dot(q.normal) > 0.0 {
-                slack += Vec3::from_array(ph.flux).abs().max_element() as f64 / (std::f64::consts::PI * (r as f64).powi(2));
-            }
-        }
-        let weight = Vec3::from_array(rec.weight).as_dvec3();
-        let want = radiance + weight * e.irradiance();
-        let want = DVec3::select(want.is_finite_mask(), want, DVec3::ZERO);
-        let tol = weight.max_element() * (64.0 * EPS * abs + slack) + 4.0 * EPS * radiance.abs().max_element() + 1e-30;
-        let diff = (got - want).abs().max_element();
-        assert!(diff <= tol, "pixel {}: device {got:?} core {want:?} (diff {diff:e} > {tol:e})", rec.pixel);
-        lit += (e.footprints + e.photons > 0) as usize;
     }
     assert!(lit > 1500, "{lit} lit pixels");
+    assert!(scales_differ > lit / 2, "the smallest scale equals the stored one in {} of {lit} lit pixels", lit - scales_differ);
     let rel = (out.gathered as f64 - gathered as f64).abs() / gathered as f64;
     assert!(rel < 1e-3, "contributions: device {} core {gathered}", out.gathered);
+
+    // A global bandwidth: one plane, the per-pixel render's stored scale bit for bit.
+    let global = run(ctx, &input, kernel, Bandwidth::Global);
+    assert_eq!(global.image.len(), px);
+    let bits = |img: &[[f32; 3]]| img.iter().flat_map(|p| p.map(f32::to_bits)).collect::<Vec<_>>();
+    assert!(bits(&global.image) == bits(&out.image[..px]), "the global image differs from the per-pixel plane 0");
 
     // Running mean of three equal images.
     for (m, p) in out.mean.iter().zip(&out.image) {
@@ -228,13 +248,13 @@ fn chain_matches_core() {
 fn chain_is_independent_of_append_order() {
     let Some(ctx) = gpu() else { return };
     let input = input(12);
-    let a = run(ctx, &input, Kernel::Silverman);
+    let a = run(ctx, &input, Kernel::Silverman, Bandwidth::PerPixel);
     let mut permuted = Input { unsmoothed: Vec::new(), raw: input.raw.clone(), photons: input.photons.clone(), records: input.records.clone() };
     permuted.raw.reverse();
     permuted.raw.rotate_left(777);
     permuted.photons.rotate_left(123);
     permuted.photons.reverse();
-    let b = run(ctx, &permuted, Kernel::Silverman);
+    let b = run(ctx, &permuted, Kernel::Silverman, Bandwidth::PerPixel);
     assert_eq!(a.counts, b.counts);
     assert!(a.footprints == b.footprints, "footprints differ");
     assert!(a.photons == b.photons, "photons differ");
@@ -250,11 +270,16 @@ fn empty_maps_give_the_known_radiance() {
     let mut input = input(13);
     input.raw.clear();
     input.photons.clear();
-    let out = run(ctx, &input, Kernel::Constant);
+    let out = run(ctx, &input, Kernel::Constant, Bandwidth::PerPixel);
     assert_eq!(out.counts, Default::default());
-    for (rec, got) in input.records.iter().zip(&out.image) {
+    let px = input.records.len();
+    for (i, rec) in input.records.iter().enumerate() {
         let want = rec.radiance.map(|x| if x.is_finite() { x } else { 0.0 });
-        assert_eq!(*got, want);
+        for k in 0..SCALES {
+            assert_eq!(out.image[k * px + i], want, "scale {k}");
+        }
+        // Equal scales: the difference moments are zero.
+        assert_eq!(out.image[(PLANES - 1) * px + i], [0.0; 3]);
     }
     let _ = PhotonMap::Caustic;
 }

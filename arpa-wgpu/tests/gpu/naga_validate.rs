@@ -126,8 +126,8 @@ fn records_have_the_layouts_of_their_rust_twins() {
         ("ArpaLight", size_of::<PackedLight>(), vec![]),
         ("ArpaHeuristics", size_of::<PackedHeuristics>(), vec![]),
         ("StoreParams", size_of::<StoreParams>(), vec![("radii", offset_of!(StoreParams, radii)), ("scene_lo", offset_of!(StoreParams, scene_lo)), ("raw_count", offset_of!(StoreParams, raw_count)), ("scene_inv", offset_of!(StoreParams, scene_inv)), ("photon_count", offset_of!(StoreParams, photon_count)), ("fp_sorted", offset_of!(StoreParams, fp_sorted)), ("ph_count", offset_of!(StoreParams, ph_count))]),
-        ("ArpaGatherResult", size_of::<GatherResult>(), vec![("caustic", 0), ("caustic_count", 12), ("global", 16), ("global_count", 28), ("candidates", 32), ("pad", 40)]),
-        ("GatherImageParams", size_of::<GatherImageParams>(), vec![("radii", 0), ("kernel", 8), ("pixels", 12), ("batch", 16)]),
+        ("ArpaGatherResult", size_of::<GatherResult>(), vec![("caustic", 0), ("caustic_count", 12), ("global", 16), ("global_count", 28), ("candidates", 32), ("pad", 40), ("scaled", offset_of!(GatherResult, scaled))]),
+        ("GatherImageParams", size_of::<GatherImageParams>(), vec![("radii", 0), ("kernel", 8), ("pixels", 12), ("batch", 16), ("scales", offset_of!(GatherImageParams, scales))]),
         ("AccumPixel", size_of::<AccumPixel>(), vec![("sum", 0), ("rejected", 12), ("compensation", 16)]),
         ("ArpaCameraParams", size_of::<CameraParams>(), vec![("position", 0), ("width", 12), ("forward", 16), ("height", 28), ("right", 32), ("tan_half_fov", 44), ("up", 48), ("aspect", 60), ("seed", 64), ("iteration", 68), ("max_depth", 72), ("direct_lighting", 76), ("pixel_count", 80), ("row_invocations", 84)]),
         ("ArpaSceneInfo", size_of::<SceneInfo>(), vec![("mesh_count", 0), ("delta_count", 4), ("area_count", 8), ("sphere_centre", 16), ("sphere_radius", 28)]),
@@ -142,6 +142,20 @@ fn records_have_the_layouts_of_their_rust_twins() {
         for (member, offset) in members {
             let got = offsets.iter().find(|(n, _)| n == member).unwrap_or_else(|| panic!("{name} has no member {member}")).1;
             assert_eq!(got as usize, offset, "{name}.{member}");
+        }
+    }
+}
+
+/// `bandwidth.wgsl`'s ladder constants are the core's (`arpa_core::bandwidth`).
+#[test]
+fn bandwidth_constants_are_the_cores() {
+    use arpa_core::bandwidth::{MOMENT_PLANES, PLANES, SCALES};
+    let module = parse("bandwidth", &compose(&[&shaders::BANDWIDTH]));
+    for (name, want) in [("ARPA_SCALES", SCALES), ("ARPA_MOMENT_PLANES", MOMENT_PLANES), ("ARPA_PLANES", PLANES)] {
+        let (_, c) = module.constants.iter().find(|(_, c)| c.name.as_deref() == Some(name)).unwrap_or_else(|| panic!("no constant {name}"));
+        match module.global_expressions[c.init] {
+            naga::Expression::Literal(naga::Literal::U32(v)) => assert_eq!(v as usize, want, "{name}"),
+            ref other => panic!("{name} = {other:?}"),
         }
     }
 }

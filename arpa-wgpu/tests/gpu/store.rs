@@ -95,7 +95,7 @@ proptest! {
         }
         prop_assert!(counts[0] > 500 && counts[1] > 50 && counts[2] > 50, "outcomes {:?}", counts);
         let stored: Vec<PackedFootprint> = out.records.iter().zip(&out.status).filter(|(_, s)| **s == 0).map(|(r, _)| *r).collect();
-        check(&stored, &qs, &out.gathered, Kernel::Silverman)?;
+        check(&stored, &qs, &out.gathered, Kernel::Silverman, 1)?;
         let again = store_and_gather(ctx, &raws, resolved.pack(), RADII, &qs, Kernel::Silverman);
         prop_assert_eq!(&again.status, &out.status);
         prop_assert!(again.records == out.records && again.gathered == out.gathered, "second run differs");

@@ -9,7 +9,8 @@ use arpa_core::estimate::QueryPoint;
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::glam::Vec3;
 use arpa_core::gpu::codes::kernel_code;
-use arpa_core::gpu::layout::{AccumPixel, GatherCounts, GatherResult, KeyedFootprint, KeyedPhoton, PhotonCounters, RawFootprint, SortItem, StoreCounts, StoreParams, StoreSettings};
+use arpa_core::bandwidth::Bandwidth;
+use arpa_core::gpu::layout::{AccumPixel, GatherCounts, GatherResult, ImageBufferSizes, KeyedFootprint, KeyedPhoton, PhotonCounters, RawFootprint, SortItem, StoreCounts, StoreParams, StoreSettings};
 use arpa_core::gpu::sort::sorted_len;
 use arpa_core::heuristics::PackedHeuristics;
 use arpa_core::kernel::Kernel;
@@ -200,13 +201,13 @@ pub fn sort_items(ctx: &GpuContext, items: &[SortItem]) -> Vec<SortItem> {
 }
 
 /// The test entry point of the gather module: `arpa_gather_at` (the box traversal) for
-/// each query, no photons, results per map.
+/// each query, no photons, results per map and scale.
 const TEST_GATHER: &str = r#"
 struct TestQuery {
     position: vec3<f32>,
     kernel: u32,
     normal: vec3<f32>,
-    pad: u32,
+    scales: u32,
 }
 @group(0) @binding(8) var<storage, read> test_queries: array<TestQuery>;
 @group(0) @binding(9) var<storage, read_write> test_results: array<ArpaGatherResult>;
@@ -218,25 +219,26 @@ fn test_gather(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let q = test_queries[i];
-    test_results[i] = arpa_gather_at(q.position, q.normal, q.kernel, vec2<f32>(0.0));
+    test_results[i] = arpa_gather_at(q.position, q.normal, q.kernel, vec2<f32>(0.0), q.scales);
 }
 "#;
 
-fn gather_queries(queries: &[QueryPoint], kernel: Kernel) -> Vec<[u32; 8]> {
+fn gather_queries(queries: &[QueryPoint], kernel: Kernel, scales: u32) -> Vec<[u32; 8]> {
     queries
         .iter()
         .map(|q| {
             let (p, n) = (q.position.to_array(), q.normal.to_array());
-            [p[0].to_bits(), p[1].to_bits(), p[2].to_bits(), kernel_code(kernel), n[0].to_bits(), n[1].to_bits(), n[2].to_bits(), 0]
+            [p[0].to_bits(), p[1].to_bits(), p[2].to_bits(), kernel_code(kernel), n[0].to_bits(), n[1].to_bits(), n[2].to_bits(), scales]
         })
         .collect()
 }
 
-/// Records the gather at `queries` over `footprints` (sorted by map) in `tlas`.
-fn encode_gather(ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, footprints: &wgpu::Buffer, tlas: &wgpu::Tlas, queries: &[QueryPoint], kernel: Kernel) -> wgpu::Buffer {
+/// Records the gather at `queries` over `footprints` (sorted by map) in `tlas`, evaluating
+/// `scales` scales of the bandwidth ladder.
+fn encode_gather(ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, footprints: &wgpu::Buffer, tlas: &wgpu::Tlas, queries: &[QueryPoint], kernel: Kernel, scales: u32) -> wgpu::Buffer {
     let source = format!("{}\n{TEST_GATHER}", arpa_wgpu::shaders::gather());
     let pipeline = pipeline(ctx, "test gather", &source, "test_gather");
-    let q = upload(ctx, bytemuck::cast_slice(&gather_queries(queries, kernel)), wgpu::BufferUsages::empty());
+    let q = upload(ctx, bytemuck::cast_slice(&gather_queries(queries, kernel, scales)), wgpu::BufferUsages::empty());
     let results = output(ctx, (queries.len() * size_of::<GatherResult>()) as u64, wgpu::BufferUsages::empty());
     let no_photons = upload(ctx, bytemuck::bytes_of(&PackedPhoton::default()), wgpu::BufferUsages::empty());
     let bindings = [
@@ -255,10 +257,11 @@ fn identity() -> [f32; 12] {
 }
 
 /// Gathers the footprints `footprints` (with their acceleration-structure boxes `boxes`,
-/// one per footprint, rounded outwards to `f32`) at every query point with `kernel`:
-/// one BLAS per map, instance masks `1 << map`, the device's box traversal and exact test.
+/// one per footprint, rounded outwards to `f32`) at every query point with `kernel` at the
+/// first `scales` scales of the bandwidth ladder (1: the stored footprints only): one BLAS
+/// per map, instance masks `1 << map`, the device's box traversal and exact test.
 /// Footprints may come in any order and either map.
-pub fn gather(ctx: &GpuContext, footprints: &[PackedFootprint], boxes: &[Aabb], queries: &[QueryPoint], kernel: Kernel) -> Vec<GatherResult> {
+pub fn gather(ctx: &GpuContext, footprints: &[PackedFootprint], boxes: &[Aabb], queries: &[QueryPoint], kernel: Kernel, scales: u32) -> Vec<GatherResult> {
     assert_eq!(footprints.len(), boxes.len(), "one box per footprint");
     if queries.is_empty() {
         return Vec::new();
@@ -311,7 +314,7 @@ pub fn gather(ctx: &GpuContext, footprints: &[PackedFootprint], boxes: &[Aabb], 
             })
             .collect();
         encoder.build_acceleration_structures(entries.iter(), [&tlas]);
-        let results = encode_gather(ctx, &mut encoder, &fp_buf, &tlas, queries, kernel);
+        let results = encode_gather(ctx, &mut encoder, &fp_buf, &tlas, queries, kernel, scales);
         ctx.queue.submit([encoder.finish()]);
         let [out] = read(ctx, &[(&results, (queries.len() * size_of::<GatherResult>()) as u64)]).try_into().unwrap();
         bytemuck::pod_collect_to_vec(&out)
@@ -423,7 +426,7 @@ pub fn store_and_gather(ctx: &GpuContext, raw: &[RawFootprint], heuristics: Pack
             geometry: wgpu::BlasGeometries::AabbGeometries(vec![wgpu::BlasAabbGeometry { size: &size, stride: wgpu::AABB_GEOMETRY_MIN_STRIDE, aabb_buffer: &boxes, primitive_offset: 0 }]),
         };
         encoder.build_acceleration_structures([&entry], [&tlas]);
-        let results = encode_gather(ctx, &mut encoder, &records, &tlas, queries, kernel);
+        let results = encode_gather(ctx, &mut encoder, &records, &tlas, queries, kernel, 1);
         ctx.queue.submit([encoder.finish()]);
         let [status, records, gathered] =
             read(ctx, &[(&status, (n * 4) as u64), (&records, (n * 64) as u64), (&results, (queries.len() * size_of::<GatherResult>()) as u64)]).try_into().unwrap();
@@ -440,17 +443,20 @@ pub struct HostRun {
     pub footprints: Vec<PackedFootprint>,
     /// Sorted progressive photons.
     pub photons: Vec<PackedPhoton>,
-    /// The iteration image (radiance per pixel, RGB).
+    /// The iteration image: every plane of the bandwidth, plane-major (plane `p` of pixel
+    /// `i` at `p · pixels + i`; radiance or moments, RGB).
     pub image: Vec<[f32; 3]>,
     /// Contributions the gather found.
     pub gathered: u64,
-    /// The running mean after accumulating `image` `iterations` times.
+    /// The running mean of every plane after accumulating `image` `iterations` times.
     pub mean: Vec<Vec3>,
 }
 
 /// Uploads `raw` and `photons` as a photon pass would leave them, runs the tracer's store,
-/// sort, build and gather ([`PhotonMaps`], one batch) for `records`, and accumulates the
-/// iteration image `iterations` times (to exercise the running mean).
+/// sort, build and gather ([`PhotonMaps`], one batch) for `records` with the planes of
+/// `bandwidth`, and accumulates the iteration image `iterations` times (to exercise the
+/// running mean).
+#[allow(clippy::too_many_arguments)]
 pub fn run_from_host(
     ctx: &GpuContext,
     raw: &[KeyedFootprint],
@@ -458,6 +464,7 @@ pub fn run_from_host(
     settings: &StoreSettings,
     records: &[QueryRecord],
     kernel: Kernel,
+    bandwidth: Bandwidth,
     iterations: u32,
 ) -> HostRun {
     let device = &ctx.device;
@@ -471,19 +478,21 @@ pub fn run_from_host(
     let counts = stored.counts;
     maps.sort(ctx, stored, true).unwrap();
     maps.build(ctx).unwrap();
-    let image = output(ctx, pixels as u64 * 16, wgpu::BufferUsages::empty());
-    let irradiance = output(ctx, pixels as u64 * 16, wgpu::BufferUsages::empty());
-    let acc = checked(ctx, "accumulator", || DeviceAccumulator::new(device, pixels));
+    let sizes = ImageBufferSizes::new(pixels, bandwidth);
+    let entries = bandwidth.planes() as u32 * pixels;
+    let image = output(ctx, sizes.image, wgpu::BufferUsages::empty());
+    let irradiance = output(ctx, sizes.batch_irradiance, wgpu::BufferUsages::empty());
+    let acc = checked(ctx, "accumulator", || DeviceAccumulator::new(device, entries));
     checked(ctx, "gather", || {
         let mut encoder = device.create_command_encoder(&Default::default());
-        maps.encode_gather(ctx, &mut encoder, 0, &rec_buf, &image, &irradiance, kernel, pixels).unwrap();
+        maps.encode_gather(ctx, &mut encoder, 0, &rec_buf, &image, &irradiance, kernel, bandwidth, pixels).unwrap();
         for _ in 0..iterations {
             acc.encode(device, &mut encoder, &image);
         }
         ctx.queue.submit([encoder.finish()]);
     });
     let [img, total, acc_pixels] =
-        read(ctx, &[(&image, pixels as u64 * 16), (maps.gathered_buffer(), size_of::<GatherCounts>() as u64), (&acc.pixels, pixels as u64 * size_of::<AccumPixel>() as u64)]).try_into().unwrap();
+        read(ctx, &[(&image, sizes.image), (maps.gathered_buffer(), size_of::<GatherCounts>() as u64), (&acc.pixels, sizes.accumulator)]).try_into().unwrap();
     let img: Vec<[f32; 4]> = bytemuck::pod_collect_to_vec(&img);
     let total: GatherCounts = bytemuck::pod_read_unaligned(&total);
     let acc_pixels: Vec<AccumPixel> = bytemuck::pod_collect_to_vec(&acc_pixels);

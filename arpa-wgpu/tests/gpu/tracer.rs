@@ -1,7 +1,9 @@
 //! `WgpuTracer` (the whole iteration on the device) against the core's reference pipeline
 //! run on the host with the brute-force caster (`trace_camera_path`, `trace_photon`,
 //! `gather_brute_force`, f64), on the Cornell box with a glass sphere and a mirror block,
-//! both methods; determinism; the overflow path; photon batches; stage order and bad input.
+//! both methods; determinism; the overflow path; photon batches; the planes of a per-pixel
+//! bandwidth (every scale against `gather_brute_force_scales` over the tracer's own records,
+//! the moments, checkpoints); stage order and bad input.
 //!
 //! The device traces in f32: a path whose decision (Fresnel choice, Russian roulette, a
 //! grazing hit) sits within f32 rounding of its threshold can go the other way, and then
@@ -9,12 +11,15 @@
 //! mean radiance to 1e-3, and at least 97 % of the pixels agree within 1e-3 relative (the
 //! rest may see a diverged photon: a margin for the few such paths of a 4000-photon
 //! iteration); the image's mean equals the brute-force gather over the tracer's own
-//! read-back query points and records within 1e-5 (f32 sums on the device).
+//! read-back query points and records within 1e-5 (f32 sums on the device), and so does
+//! every scale's plane of the accumulation (per-pixel bandwidth, the default).
 
 use crate::common::*;
 use crate::scenes::cornell;
 use arpa_core::camera_path::trace_camera_path;
-use arpa_core::estimate::{QueryPoint, gather_brute_force};
+use arpa_core::accumulate::Accumulation;
+use arpa_core::bandwidth::{Bandwidth, PLANES, SCALES, moments};
+use arpa_core::estimate::{QueryPoint, gather_brute_force, gather_brute_force_scales};
 use arpa_core::footprint::PackedFootprint;
 use arpa_core::photon_path::{PhotonPassSetup, trace_photon};
 use arpa_core::prepared_scene::PreparedScene;
@@ -114,6 +119,39 @@ fn compare_with_core(method: Method) {
     let (mg, mw) = (mean(&got), mean(&want));
     let mo = mean(&own);
     assert!(((mg - mo).abs() / mo).max_element() < 1e-5, "mean radiance: device {mg:?}, gather over its own records {mo:?}");
+    // Every plane of the per-pixel bandwidth: the scales against the brute-force gather
+    // over the same records, the moments against the core's of the device's radiance
+    // planes; one iteration selects the stored scale, so the image is plane 0.
+    let acc = t.read_accumulation().unwrap();
+    assert_eq!((acc.planes as usize, acc.pixels.len(), acc.iterations), (PLANES, PLANES * qs.len(), 1));
+    assert_eq!(acc.mean(), image.pixels, "read_image is the core's mean of the accumulation");
+    assert_eq!(acc.plane_mean(0), image.pixels, "one iteration: the stored scale everywhere");
+    let planes: Vec<Vec<Vec3>> = (0..PLANES).map(|p| acc.plane_mean(p)).collect();
+    for (k, plane) in planes.iter().enumerate().take(SCALES).skip(1) {
+        let own_k: Vec<DVec3> = qs
+            .iter()
+            .map(|rec| {
+                let known = Vec3::from_array(rec.radiance).as_dvec3();
+                if rec.valid == 0 {
+                    return known;
+                }
+                let q = QueryPoint { position: Vec3::from_array(rec.position), normal: Vec3::from_array(rec.normal) };
+                known + Vec3::from_array(rec.weight).as_dvec3() * gather_brute_force_scales(&q, &fps, &phs, radii, s.kernel).per_scale[k]
+            })
+            .collect();
+        let got_k: Vec<DVec3> = plane.iter().map(|p| p.as_dvec3()).collect();
+        let (mk, mo) = (mean(&got_k), mean(&own_k));
+        assert!(((mk - mo).abs() / mo).max_element() < 1e-5, "scale {k}: mean radiance: device {mk:?}, gather over its own records {mo:?}");
+        eprintln!("{}: scale {k} mean {mk:?} (stored scale {mg:?})", method.name());
+    }
+    let ladders: Vec<[Vec3; SCALES]> = (0..qs.len()).map(|i| std::array::from_fn(|k| planes[k][i])).collect();
+    for (i, l) in ladders.iter().enumerate() {
+        let want = moments(l);
+        for (p, &w) in want.iter().enumerate() {
+            let g = planes[SCALES + p][i];
+            assert!((g - w).abs().max_element() <= 16.0 * f32::EPSILON * l.iter().map(|c| c.max_element()).fold(0.0, f32::max).powi(2), "pixel {i} moment plane {p}: {g:?} vs {w:?}");
+        }
+    }
     assert!(((mg - mw).abs() / mw).max_element() < 1e-3, "mean radiance: device {mg:?} core {mw:?}");
     let agree = got.iter().zip(&want).filter(|(g, w)| (**g - **w).abs().max_element() <= 1e-3 * w.abs().max_element().max(1e-6)).count();
     let share = agree as f64 / got.len() as f64;
@@ -133,6 +171,12 @@ fn rtpm_iteration_matches_core() {
 
 fn bits(img: &Image) -> Vec<u32> {
     img.pixels.iter().flat_map(|p| p.to_array().map(f32::to_bits)).collect()
+}
+
+/// The mean of every plane of the accumulation, plane after plane.
+fn every_plane(t: &WgpuTracer) -> Vec<Vec3> {
+    let acc = t.read_accumulation().unwrap();
+    (0..acc.planes as usize).flat_map(|p| acc.plane_mean(p)).collect()
 }
 
 #[test]
@@ -215,24 +259,29 @@ fn photon_batches_match_one_pass_and_split_automatically() {
     let scene = cornell(16);
     for (method, iterations) in [(Method::Arpa, 2), (Method::Rtpm, 1)] {
         let s = settings(method, 9);
-        let one = render(&mut t, &scene, &s, iterations);
+        render(&mut t, &scene, &s, iterations);
+        let one = every_plane(&t);
         let one_stats = t.read_stats().unwrap();
         assert_eq!(t.batch_photons(), Some(4000));
         let one_records = records_after_each_stage(&mut t);
         t.set_batch_photons(Some(700));
-        let batched = render(&mut t, &scene, &s, iterations);
+        let batched_image = render(&mut t, &scene, &s, iterations);
+        let batched = every_plane(&t);
         let stats = t.read_stats().unwrap();
         assert_eq!(t.batch_photons(), Some(700));
         assert!(records_after_each_stage(&mut t) == one_records, "{}: the batches' records differ from one pass's", method.name());
         let repeat = render(&mut t, &scene, &s, iterations);
         t.set_batch_photons(None);
-        assert!(bits(&batched) == bits(&repeat), "{}: batched render not bit-identical on repeat", method.name());
+        assert!(bits(&batched_image) == bits(&repeat), "{}: batched render not bit-identical on repeat", method.name());
         assert_eq!(counts(&stats), counts(&one_stats), "{}: batched counts differ from one pass", method.name());
         assert_eq!(stats.overflowed, 0);
         let records = (stats.footprints[0] + stats.footprints[1] + stats.progressive[0] + stats.progressive[1]) as f64;
         let bound = (2.0 * (records - 1.0) + 8.0) * f32::EPSILON as f64 / 2.0;
         let mut worst = 0.0f64;
-        for (a, b) in one.pixels.iter().zip(&batched.pixels) {
+        // Global bandwidth: the image; per pixel (the selection may tip between scales on a
+        // difference of one ulp), every radiance plane of the accumulation.
+        let (one, batched) = (&one[..SCALES * 16 * 16], &batched[..SCALES * 16 * 16]);
+        for (a, b) in one.iter().zip(batched) {
             for c in 0..3 {
                 let (a, b) = (a[c] as f64, b[c] as f64);
                 assert!(a.is_finite() && b.is_finite());
@@ -300,4 +349,59 @@ fn stage_order_and_bad_input_are_errors() {
     t.accumulate().unwrap();
     assert_eq!(t.iterations(), 1);
     assert_eq!(t.read_query_points().unwrap().len(), 64);
+}
+
+/// A per-pixel render continued from its checkpoint (every plane's sums) is the render that
+/// never stopped, bit for bit; an empty one-plane accumulation starts a part; a checkpoint of
+/// the other bandwidth is refused; a global render keeps one plane and its image is that
+/// plane's mean.
+#[test]
+fn checkpoints_keep_every_plane() {
+    let Some(mut t) = tracer() else { return };
+    let scene = cornell(16);
+    let s = settings(Method::Arpa, 21);
+    let whole = render(&mut t, &scene, &s, 3);
+    t.upload_scene(&scene, &s).unwrap();
+    t.iterate().unwrap();
+    t.iterate().unwrap();
+    let checkpoint = t.read_accumulation().unwrap();
+    assert_eq!((checkpoint.planes as usize, checkpoint.iterations), (PLANES, 2));
+    t.upload_scene(&scene, &s).unwrap();
+    t.restore_accumulation(&checkpoint).unwrap();
+    assert_eq!(t.iterations(), 2);
+    t.iterate().unwrap();
+    assert!(bits(&t.read_image().unwrap()) == bits(&whole), "resumed per-pixel render differs");
+    assert_eq!(t.read_accumulation().unwrap().mean(), whole.pixels, "the image is the core's selection over the planes");
+    // A part from an empty one-plane accumulation, and a checkpoint of another bandwidth.
+    t.upload_scene(&scene, &s).unwrap();
+    t.restore_accumulation(&Accumulation::empty(16, 16, 2)).unwrap();
+    t.iterate().unwrap();
+    let part = t.read_accumulation().unwrap();
+    assert_eq!((part.planes as usize, part.first_iteration, part.iterations), (PLANES, 2, 1));
+    let global = RenderSettings { bandwidth: Bandwidth::Global, ..s };
+    t.upload_scene(&scene, &global).unwrap();
+    let e = t.restore_accumulation(&checkpoint).unwrap_err().to_string();
+    assert!(e.contains("planes"), "{e}");
+    let image = render(&mut t, &scene, &global, 2);
+    let acc = t.read_accumulation().unwrap();
+    assert_eq!((acc.planes, acc.pixels.len()), (1, 256));
+    assert_eq!(acc.plane_mean(0), image.pixels);
+}
+
+/// A per-pixel image whose planes exceed one storage binding is refused at upload, naming
+/// the bandwidth (lavapipe: 128 MiB bindings; an adapter with larger bindings skips).
+#[test]
+fn planes_beyond_one_binding_are_refused() {
+    let Some(mut t) = tracer() else { return };
+    let limits = t.context().device.limits();
+    let binding = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
+    let side = 1024u32;
+    let needed = arpa_core::gpu::layout::ImageBufferSizes::new(side * side, Bandwidth::PerPixel).accumulator;
+    if needed <= binding || u64::from(side * side) * 64 > binding {
+        eprintln!("planes_beyond_one_binding_are_refused: bindings of {binding} bytes; nothing to refuse at {side}x{side}");
+        return;
+    }
+    let e = t.upload_scene(&cornell(side), &settings(Method::Arpa, 0)).unwrap_err();
+    assert!(matches!(e, WgpuError::Size(_)) && e.to_string().contains("--bandwidth global"), "{e}");
+    t.upload_scene(&cornell(side), &RenderSettings { bandwidth: Bandwidth::Global, ..settings(Method::Arpa, 0) }).unwrap();
 }
