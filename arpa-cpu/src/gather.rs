@@ -170,8 +170,8 @@ fn gather_one(rec: &QueryRecord, input: &GatherInput<'_>, keys: &mut Vec<u64>, s
     if scaled {
         // Scale 0 is the stored ellipse: the estimate's own sum (per map, then added), so
         // a per-pixel render's plane 0 is the global render's image bit for bit.
-        for k in 1..SCALES {
-            out[k] = finite_or_zero(known + weight * sums.per_scale[k]).as_vec3();
+        for (o, e) in out.iter_mut().zip(&sums.per_scale).skip(1) {
+            *o = finite_or_zero(known + weight * *e).as_vec3();
         }
     }
     (out, estimate, sums)

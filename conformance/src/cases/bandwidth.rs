@@ -109,7 +109,8 @@ const NEAR: f32 = 0.06;
 const FAR: f32 = 0.2;
 
 /// The hard shadow edge: within [`NEAR`] of it the mean scale index is at least 1 (the
-/// larger scales are left), on the lit floor beyond [`FAR`] at most 0.5; the squared error
+/// larger scales are left), on the lit floor beyond [`FAR`] at most 0.75 and at least one
+/// scale below the edge's; the squared error
 /// against the exact step over the band `|x| < 2 NEAR` is below 0.8 times the global
 /// bandwidth's at the same iterations and seed; and the lit floor beyond [`FAR`] is within
 /// [`TOL_PERCENT`] of `ρ/π · E/√2`.
@@ -128,7 +129,8 @@ fn shadow_edge(t: &mut dyn DynTracer) -> CaseResult {
         "scale index near the edge {near:.2} ({n_near} px), far on the lit side {far:.2} ({n_far} px); band relative MSE per-pixel {e_pp:.4e} against global {e_global:.4e} ({:.2}x); lit floor {err:+.2} %",
         e_pp / e_global
     );
-    if n_near == 0 || n_far == 0 || near < 1.0 || far > 0.5 || !(e_pp < 0.8 * e_global) || err.abs() > TOL_PERCENT {
+    let failed = n_near == 0 || n_far == 0 || near < 1.0 || far > 0.75 || near < far + 1.0 || e_pp >= 0.8 * e_global || !e_pp.is_finite() || err.abs() > TOL_PERCENT;
+    if failed {
         return Err(msg);
     }
     Ok(msg)

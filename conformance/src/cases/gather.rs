@@ -158,8 +158,8 @@ fn check(
                 }
                 let weight = Vec3::from_array(rec.weight).as_dvec3();
                 let per_scale = gather_brute_force_scales(&q, &fps, &phs, stats.radii, kernel);
-                for k in 1..SCALES {
-                    scaled[k] = known + weight * per_scale.per_scale[k];
+                for (s, e) in scaled.iter_mut().zip(&per_scale.per_scale).skip(1) {
+                    *s = known + weight * *e;
                 }
                 known + weight * e.irradiance()
             };

@@ -244,7 +244,7 @@ pub fn all() -> Vec<Case> {
         },
         Case {
             id: "twin-footprint",
-            title: "WGSL twin footprint.wgsl + kernel.wgsl = arpa_core::footprint, kernel (record, M_p^-1, gather test)",
+            title: "WGSL twin footprint.wgsl + kernel.wgsl + bandwidth.wgsl = arpa_core::footprint, kernel, bandwidth (record, M_p^-1, gather test, scale ladder, moments)",
             needs: None,
             run: CaseBody::Kernels(twin::footprint::matches_core),
         },
