@@ -236,7 +236,7 @@ mod select {
         let mut choice = vec![0.0f64; px];
         if n >= 2 {
             let nf = n as f64;
-            let y0_mean_sq = (0..px).map(|i| lum(plane(0, i)).powi(2)).sum::<f64>() / px as f64;
+            let y0_mean_sq: f64 = (0..px).map(|i| { let y = lum(plane(0, i)); y * y }).sum::<f64>() / px as f64;
             let eps = (1e-4 * y0_mean_sq).max(f64::MIN_POSITIVE);
             // Relative variance per scale, and the unbiased squared difference of means
             // between neighbouring scales, per pixel.

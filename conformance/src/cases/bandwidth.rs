@@ -104,9 +104,9 @@ fn flat(t: &mut dyn DynTracer) -> CaseResult {
 
 /// Half-width of the band around the edge in which the scales must shrink (metres: about
 /// three footprints of the stored scale at these settings).
-const NEAR: f32 = 0.06;
+pub const NEAR: f32 = 0.06;
 /// Distance from the edge beyond which the lit floor counts as flat (metres).
-const FAR: f32 = 0.2;
+pub const FAR: f32 = 0.2;
 
 /// The hard shadow edge: within [`NEAR`] of it the mean scale index is at least 1 (the
 /// larger scales are left), on the lit floor beyond [`FAR`] at most 0.75 and at least one
@@ -136,12 +136,14 @@ fn shadow_edge(t: &mut dyn DynTracer) -> CaseResult {
     Ok(msg)
 }
 
-/// [`flat`] with projection on and off.
+/// The evenly lit plane (mean within [`TOL_PERCENT`], mean scale index at most 0.25, at
+/// least 90 % of the pixels at scale 0) with projection on and off.
 pub fn flat_plane(t: &mut dyn DynTracer) -> CaseResult {
     super::with_and_without_projection(t, flat)
 }
 
-/// [`shadow_edge`] with projection on and off.
+/// The hard shadow edge (smaller scales within [`NEAR`] of the edge, larger beyond
+/// [`FAR`], band error below 0.8 times the global bandwidth's) with projection on and off.
 pub fn shadow_edge_case(t: &mut dyn DynTracer) -> CaseResult {
     super::with_and_without_projection(t, shadow_edge)
 }
