@@ -17,7 +17,6 @@
 set -euo pipefail
 
 MESA_MIN_VERSION="25"
-BACKPORTS_LINE="deb http://deb.debian.org/debian bookworm-backports main"
 
 log() { printf '[install-lavapipe] %s\n' "$*" >&2; }
 die() { printf '[install-lavapipe] ERROR: %s\n' "$*" >&2; exit 1; }
@@ -47,12 +46,40 @@ command -v apt-get >/dev/null 2>&1 || die "apt-get not found; install $missing b
 codename="$(. /etc/os-release 2>/dev/null && echo "${VERSION_CODENAME:-}")"
 [[ "$codename" == bookworm ]] || log "WARNING: this is '$codename', not Debian 12 (bookworm); trying bookworm-backports anyway"
 
+# The URI of the machine's own Debian source for bookworm (a one-line `deb URI bookworm ...`
+# entry or a deb822 stanza with `Suites: bookworm`): backports come from the same mirror the
+# machine already uses, whatever it is; no host name is written here.
+debian_uri() {
+    local f
+    for f in /etc/apt/sources.list /etc/apt/sources.list.d/*.list; do
+        [[ -f "$f" ]] || continue
+        awk '$1 == "deb" { i = 2; if ($2 ~ /^\[/) { while (i <= NF && $i !~ /\]$/) i++; i++ }
+             if ($(i + 1) == "bookworm") { print $i; exit } }' "$f"
+    done
+    for f in /etc/apt/sources.list.d/*.sources; do
+        [[ -f "$f" ]] || continue
+        # deb822: stanzas separated by blank lines; the first URI of a stanza of type deb
+        # whose suites include bookworm.
+        awk 'BEGIN { RS = ""; FS = "\n" }
+             { uri = ""; deb = 0; suite = 0
+               for (k = 1; k <= NF; k++) {
+                 if ($k ~ /^Types:/ && $k ~ /(^|[ \t])deb([ \t]|$)/) deb = 1
+                 if ($k ~ /^URIs:/) { split($k, u, /[ \t]+/); uri = u[2] }
+                 if ($k ~ /^Suites:/ && $k ~ /(^|[ \t])bookworm([ \t]|$)/) suite = 1
+               }
+               if (deb && suite && uri != "") { print uri; exit } }' "$f"
+    done
+}
+
 # bookworm-backports in the apt sources (one-line or deb822 format), unless already there.
 if grep -rqs 'bookworm-backports' /etc/apt/sources.list /etc/apt/sources.list.d/; then
     log "bookworm-backports already in the apt sources"
 else
-    log "adding '$BACKPORTS_LINE' to /etc/apt/sources.list.d/bookworm-backports.list"
-    printf '%s\n' "$BACKPORTS_LINE" | as_root tee /etc/apt/sources.list.d/bookworm-backports.list >/dev/null
+    uri="$(debian_uri | head -n 1)"
+    [[ -n "$uri" ]] || die "no Debian source for bookworm in /etc/apt/sources.list or /etc/apt/sources.list.d/ to take the backports mirror from; add 'deb <your mirror> bookworm-backports main' by hand"
+    line="deb $uri bookworm-backports main"
+    log "adding '$line' (the URI of the configured bookworm source) to /etc/apt/sources.list.d/bookworm-backports.list"
+    printf '%s\n' "$line" | as_root tee /etc/apt/sources.list.d/bookworm-backports.list >/dev/null
 fi
 
 log "apt-get update"
