@@ -46,9 +46,10 @@ fn arpa_footprint_irradiance_scales(fp: ArpaPackedFootprint, q: vec3<f32>, query
         let d = vec3<f32>(fp.flux_density_r, fp.flux_density_g, fp.flux_density_b);
         for (var k = 0u; k < min(scales, ARPA_SCALES); k++) {
             let f = arpa_inv_scale2(k);
-            // The discs are nested: once q is outside one, it is outside the smaller (the
-            // core stops there too; the entries left are 0 either way).
-            if !(r2 * f < 1.0) && k > 0u {
+            // Scale k shrinks the ellipse and the slab by 2^(-k/2): |y.xy|^2 2^k < 1 and
+            // y.z^2 2^k <= 1. The regions are nested: once q is outside one, it is outside the
+            // smaller (the core stops there too; the entries left are 0 either way).
+            if k > 0u && !(r2 * f < 1.0 && y.z * y.z * f <= 1.0) {
                 break;
             }
             e[k] = d * (arpa_kernel_eval(kernel, r2 * f) * f);

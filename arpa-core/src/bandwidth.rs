@@ -8,9 +8,9 @@
 //! candidates of every scale). In filter space the scaled ellipse is the disc `|y| ≤ s_k`,
 //! so its contribution is `Φ/A · 2^k K(2^k r²)` with the stored `r² = |y|²` and density
 //! `Φ/A`: `1/s_k² = 2^k` is a power of two, so the scaled weights are exact scalings of the
-//! stored ones in `f32` on every backend. Progressive photons use the same scales of their
-//! radius: `|q − x|² 2^k < r²`, density `2^k/(π r²)`. The slab test (distance from the
-//! surface) stays the stored one. Each scale integrates to the photon's flux, so each is a
+//! stored ones in `f32` on every backend. The slab (distance from the surface) shrinks with
+//! the ellipse, `2^k y_z² ≤ 1`. Progressive photons use the same scales of their radius:
+//! `|q − x|² 2^k < r²`, density `2^k/(π r²)`. Each scale integrates to the photon's flux, so each is a
 //! consistent estimator of its own, and each shrinks with the progressive radius as the
 //! footprints do.
 //!
@@ -28,29 +28,30 @@
 //! of every difference to the smallest one is known at output time.
 //!
 //! # The selection rule (plug-in MSE, at output time)
-//! For each pixel, with `n` iterations and `Y_k` the mean luminance of scale `k`:
-//! * variance of the mean: measured for the stored scale, `v_0 = (⟨y_0²⟩ − Y_0²)/(n − 1)`,
-//!   and scaled for the others, `v_k = 2^k v_0`: a density estimate's variance grows like
-//!   the inverse of its kernel's area (`∫K_s² = 2^k ∫K²`). Measuring `v_k` from the smaller
-//!   scales' own spread would tie the choice to their noise: where a small scale has few
-//!   photons by chance its estimate is low *and* its spread small, so it would be picked
-//!   exactly where it is low, and the image would come out several per cent dark; the
-//!   stored scale's spread is the least noisy and is the same for every choice;
-//! * bias from neighbouring scales: the difference `d_k = Y_k − Y_{k+1}` estimates the bias
-//!   the step from scale `k + 1` to `k` adds. For a second-order kernel the bias grows like
-//!   the kernel's area (`∝ s_k² ∇²E` where the light is smooth), so halving the area
-//!   halves it and `b_k ≈ 2 d_k`; the smallest scale's bias is half the next one's. The
-//!   variance of `d_k` comes from its own moments, `w_k = (⟨(y_k − y_{k+1})²⟩ − d_k²)/(n − 1)`:
-//!   neighbouring scales share most of their photons, so their difference is far less noisy
-//!   than either (about `v_{k+1} − v_k`), which is the noise that matters when choosing
-//!   between them; `d_k² − w_k` is an unbiased estimate of the squared difference of means;
-//! * relative terms: every term divided by `Y_0² + ε` (`ε`: 10⁻⁴ of the image's mean squared
-//!   luminance), so bright and dark neighbours weigh alike;
-//! * spatial pooling: `v_k` and `d_k² − w_k` are averaged over a `(2·[POOL_RADIUS] + 1)²`
-//!   window of pixels (bars below);
-//! * `MSE_k = 4 max(0, (d_k² − w_k)‾) + v̄_k` (`k < SCALES − 1`), `MSE_s = max(0, (d_{s−1}² − w_{s−1})‾) + v̄_s`
-//!   for the smallest scale `s`, and the chosen scale is the `argmin` (ties to the larger
-//!   scale);
+//! For each pixel, with `n` iterations and `Y_k` the mean luminance of scale `k`, every term
+//! relative (divided by `Y_0² + ε`, `ε` 10⁻⁴ of the image's mean squared luminance, so bright
+//! and dark neighbours weigh alike):
+//! * variance of the mean, `v_k = (⟨y_k²⟩ − Y_k²)/(n − 1)`, averaged over a wide
+//!   `(2·[VARIANCE_POOL_RADIUS] + 1)²` window. Wide, because a pixel whose small scale caught
+//!   few photons by chance has a low estimate *and* a small spread: pooled over a few pixels
+//!   (which share those photons) the rule would pick it exactly where it is low and the image
+//!   came out several per cent dark; over 225 pixels its own draw no longer matters. Measured
+//!   rather than modelled (`2^k v_0`), because where large footprints leak light onto a
+//!   nearby surface the stored scale's spread holds that leakage too and the smaller scales
+//!   are far less noisy than the model says;
+//! * squared bias, the larger of two unbiased estimates, both averaged over a
+//!   `(2·[POOL_RADIUS] + 1)²` window:
+//!   - local, from neighbouring scales: `d_k = Y_k − Y_{k+1}` with its own variance `w_k`
+//!     from the difference moments (neighbouring scales share most of their photons, so
+//!     `w_k` is far below either scale's variance); for a second-order kernel in smooth
+//!     light the bias grows like the kernel's area, so `b_k ≈ 2 d_k`, `b_k² ≈ 4 (d_k² − w_k)`
+//!     (the smallest scale's: `d_{s−1}² − w_{s−1}`);
+//!   - cumulative, against the smallest scale `s`: the window's mean of the signed
+//!     `Y_k − Y_s`, squared, less the variance of that mean (`(v_s − v_k)` over the
+//!     window's independent pixels, taken as a quarter of its pixels). It sees bias that
+//!     builds up over several steps (leakage, a blurred edge) where each step alone is small;
+//! * `MSE_k = max(b_k², 0) + v_k`; going from the largest scale down, a smaller scale is
+//!   chosen only where its `MSE` is below [`PREFER_LARGER`] times the best so far;
 //! * smoothing: the chosen index is averaged over a `3 × 3` tent, and the output blends the
 //!   two scales around that fractional index linearly, so neighbouring pixels that choose
 //!   differently meet without a seam or speckle.
@@ -82,6 +83,14 @@ pub const PLANES: usize = SCALES + MOMENT_PLANES;
 /// Half-width (pixels) of the window the selection pools its bias and variance estimates
 /// over.
 pub const POOL_RADIUS: usize = 3;
+
+/// Half-width (pixels) of the window the selection pools its variance estimates over.
+pub const VARIANCE_POOL_RADIUS: usize = 7;
+
+/// A smaller scale is chosen only when its estimated error is below this fraction of the
+/// best larger one's: the estimates are noisy, and a noisy choice costs more where it goes
+/// smaller (more variance) than where it stays larger.
+pub const PREFER_LARGER: f64 = 0.8;
 
 
 /// `1/s_k² = 2^k` (exact in `f32`): the factor by which scale `k` multiplies the stored
@@ -242,12 +251,13 @@ mod select {
             // between neighbouring scales, per pixel.
             let mut var = vec![vec![0.0; px]; SCALES];
             let mut step2 = vec![vec![0.0; px]; SCALES - 1];
+            let mut to_smallest = vec![vec![0.0; px]; SCALES];
             for i in 0..px {
                 let y: [f64; SCALES] = core::array::from_fn(|k| lum(plane(k, i)));
                 let norm = y[0] * y[0] + eps;
-                let v0 = ((moment(0, i) - y[0] * y[0]) / (nf - 1.0)).max(0.0) / norm;
                 for k in 0..SCALES {
-                    var[k][i] = v0 * f64::from(inv_scale2(k));
+                    to_smallest[k][i] = (y[k] - y[SCALES - 1]) / libm::sqrt(norm);
+                    var[k][i] = ((moment(k, i) - y[k] * y[k]) / (nf - 1.0)).max(0.0) / norm;
                     if k + 1 < SCALES {
                         let d = y[k] - y[k + 1];
                         let wv = ((moment(SCALES + k, i) - d * d) / (nf - 1.0)).max(0.0);
@@ -255,16 +265,24 @@ mod select {
                     }
                 }
             }
-            let var: Vec<Vec<f64>> = var.iter().map(|v| box_mean(v, w, h, POOL_RADIUS)).collect();
+            let var: Vec<Vec<f64>> = var.iter().map(|v| box_mean(v, w, h, VARIANCE_POOL_RADIUS)).collect();
             let step2: Vec<Vec<f64>> = step2.iter().map(|v| box_mean(v, w, h, POOL_RADIUS)).collect();
+            let to_smallest: Vec<Vec<f64>> = to_smallest.iter().map(|v| box_mean(v, w, h, POOL_RADIUS)).collect();
+            // Independent pixels in a pooling window: neighbouring pixels share footprints.
+            let independent = ((2 * POOL_RADIUS + 1) * (2 * POOL_RADIUS + 1)) as f64 / 4.0;
             for (i, c) in choice.iter_mut().enumerate() {
                 let mut best = (f64::INFINITY, 0usize);
                 for (k, v) in var.iter().enumerate() {
-                    // b_k ≈ 2 d_k (bias ∝ kernel area); the smallest scale's is d_{s−1}.
-                    let bias2 = if k + 1 < SCALES { 4.0 * step2[k][i].max(0.0) } else { step2[k - 1][i].max(0.0) };
+                    // Local: b_k ≈ 2 d_k (bias ∝ kernel area); the smallest scale's is d_{s−1}.
+                    let local = if k + 1 < SCALES { 4.0 * step2[k][i] } else { step2[k - 1][i] };
+                    // Cumulative: the pooled signed difference to the smallest scale, less
+                    // the variance of that pooled mean (v_s − v_k over the window).
+                    let m = to_smallest[k][i];
+                    let cumulative = m * m - (var[SCALES - 1][i] - v[i]) / independent;
+                    let bias2 = local.max(cumulative).max(0.0);
                     let mse = bias2 + v[i];
                     // Strictly smaller only: ties stay with the larger scale.
-                    if mse.is_finite() && mse < best.0 {
+                    if mse.is_finite() && mse < PREFER_LARGER * best.0 {
                         best = (mse, k);
                     }
                 }

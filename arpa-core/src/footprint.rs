@@ -592,10 +592,13 @@ impl PackedFootprint {
     }
 
     /// [`PackedFootprint::irradiance`] at every scale of the bandwidth ladder
-    /// ([`crate::bandwidth`]): scale `k` is the stored ellipse shrunk by `2^{−k/2}`, so its
-    /// weight is `2^k K(2^k r²)` times the stored density (exact scalings in `f32`); the slab
-    /// and side tests are the stored ones. Scale 0 equals [`PackedFootprint::irradiance`]
-    /// bit for bit.
+    /// ([`crate::bandwidth`]): scale `k` is the stored ellipse and its slab shrunk by
+    /// `2^{−k/2}` (`2^k |y_xy|² < 1`, `2^k y_z² ≤ 1` in filter space), so its weight is
+    /// `2^k K(2^k r²)` times the stored density (exact scalings in `f32`); the side test is
+    /// the stored one. Scale 0 equals [`PackedFootprint::irradiance`] bit for bit. The slab
+    /// shrinks with the ellipse because a thick slab lets a large footprint light a nearby
+    /// parallel surface (a table top under a lamp, the two sides of a thin object), a bias
+    /// that no smaller ellipse over the stored slab would remove.
     #[inline]
     pub fn irradiance_scales(&self, q: Vec3, query_normal: Vec3, kernel: Kernel) -> [Vec3; crate::bandwidth::SCALES] {
         let y = self.filter_coords(q);
@@ -606,7 +609,7 @@ impl PackedFootprint {
             for (k, e) in e.iter_mut().enumerate() {
                 let f = crate::bandwidth::inv_scale2(k);
                 // The discs are nested: once q is outside one, it is outside the smaller.
-                if !(r2 * f < 1.0) && k > 0 {
+                if k > 0 && !(r2 * f < 1.0 && y.z * y.z * f <= 1.0) {
                     break;
                 }
                 *e = d * (kernel.eval(r2 * f) * f);

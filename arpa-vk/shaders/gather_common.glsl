@@ -147,7 +147,7 @@ uint arpa_scales() {
 }
 
 // PackedFootprint::irradiance_scales into e for scales 0 .. scales - 1 (later entries 0):
-// density 2^k K(2^k r^2) inside the stored ellipse and slab and on the lit side.
+// density 2^k K(2^k r^2) inside the ellipse and slab shrunk by 2^(-k/2) and on the lit side.
 void arpa_footprint_irradiance_scales(ArpaPackedFootprint fp, vec3 q, vec3 query_normal, uint kernel, uint scales,
                                       out vec3 e[ARPA_SCALES]) {
     for (uint k = 0u; k < ARPA_SCALES; k++) {
@@ -160,8 +160,10 @@ void arpa_footprint_irradiance_scales(ArpaPackedFootprint fp, vec3 q, vec3 query
         for (uint k = 0u; k < min(scales, ARPA_SCALES); k++) {
             float f = arpa_inv_scale2(k);
             precise float x = r2 * f;
-            // The discs are nested: once q is outside one, it is outside the smaller.
-            if (!(x < 1.0) && k > 0u) {
+            precise float z = y.z * y.z * f;
+            // Scale k shrinks the ellipse and the slab by 2^(-k/2); the regions are nested:
+            // once q is outside one, it is outside the smaller.
+            if (k > 0u && !(x < 1.0 && z <= 1.0)) {
                 break;
             }
             precise vec3 s = density * (arpa_kernel_eval(kernel, x) * f);
