@@ -396,8 +396,7 @@ pub struct RenderArgs {
     pub scale_map: bool,
 
     /// How ARPA's smoothing factors are chosen: `auto` (a pilot iteration at S = 1 picks
-    /// S_c and S_g so that about 8 footprints of a map cover each point it lights, 16 at
-    /// the stored scale of a per-pixel bandwidth,
+    /// S_c and S_g so that about 8 footprints of a map cover each point it lights,
     /// arpa_core::classify::AutoSmoothing) or `fixed` (--smoothing-caustic and
     /// --smoothing-global, 1 when not given) [default: auto, or fixed when either factor
     /// is given].

@@ -2,7 +2,7 @@
 //! on the cpu backend, for a point light over a large diffuse floor (every footprint a
 //! plain ellipse, no heuristic but dampening acting):
 //! - the pilot's `S` gives the target overlap: at the chosen `S`, a lit query point is
-//!   covered by 8 footprints (16 at the stored scale of a per-pixel bandwidth, the default)
+//!   covered by the bandwidth's target (8 footprints, `AutoSmoothing::for_bandwidth`)
 //!   within 25 % (the `S^{2γ}` growth the choice assumes);
 //! - the overlap then shrinks with the iterations as documented, `∝ (r_i/r_1)^{2(1−γ)}`
 //!   (dampening pulls the axes towards twice the progressive radius `r_i`), within 10 %;

@@ -45,7 +45,10 @@ pub(crate) struct GatherCounts {
 /// holds one radiance per record; with [`SCALES`] it holds the planes of
 /// [`arpa_core::bandwidth`], plane-major: the radiance at every scale, then the moment
 /// planes of [`arpa_core::bandwidth::moments`].
-pub(crate) fn gather(queries: &[QueryRecord], input: &GatherInput<'_>, image: &mut Vec<Vec3>) -> GatherCounts {
+///
+/// `planes` is the per-pixel scratch of a per-pixel gather (its capacity is kept from one
+/// iteration to the next, so the planes are not allocated again each time).
+pub(crate) fn gather(queries: &[QueryRecord], input: &GatherInput<'_>, image: &mut Vec<Vec3>, planes: &mut Vec<[Vec3; SCALES + MOMENT_PLANES]>) -> GatherCounts {
     let counts: [AtomicU64; 6] = Default::default();
     let count = |e: &IrradianceEstimate| {
         for m in 0..2 {
@@ -68,7 +71,6 @@ pub(crate) fn gather(queries: &[QueryRecord], input: &GatherInput<'_>, image: &m
             })
             .collect_into_vec(image);
     } else {
-        let mut planes: Vec<[Vec3; SCALES + MOMENT_PLANES]> = Vec::new();
         queries
             .par_iter()
             .map_init(Vec::new, |scratch, rec| {
@@ -77,7 +79,7 @@ pub(crate) fn gather(queries: &[QueryRecord], input: &GatherInput<'_>, image: &m
                 let m = arpa_core::bandwidth::moments(&l);
                 core::array::from_fn(|p| if p < SCALES { l[p] } else { m[p - SCALES] })
             })
-            .collect_into_vec(&mut planes);
+            .collect_into_vec(planes);
         let n = queries.len();
         image.clear();
         image.resize(planes.len() * (SCALES + MOMENT_PLANES), Vec3::ZERO);

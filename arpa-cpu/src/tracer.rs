@@ -104,6 +104,8 @@ struct Loaded {
     accel: Accel,
     /// Output of the gather: the iteration's image.
     image: Vec<Vec3>,
+    /// Per-pixel scratch of a per-pixel bandwidth gather (kept between iterations).
+    planes: Vec<[Vec3; arpa_core::bandwidth::PLANES]>,
     /// Failed point queries of the gather (answered as "nothing found").
     gather_errors: AtomicU64,
 }
@@ -207,6 +209,7 @@ impl Tracer for CpuTracer {
             photons: PhotonBuffers::default(),
             accel: Accel::Empty,
             image: Vec::new(),
+            planes: Vec::new(),
             gather_errors: AtomicU64::new(0),
         }));
         Ok(())
@@ -261,7 +264,7 @@ impl Tracer for CpuTracer {
                 scales: st.settings.bandwidth.scales(),
                 errors: &st.gather_errors,
             };
-            let counts = crate::gather::gather(&st.queries, &input, &mut st.image);
+            let counts = crate::gather::gather(&st.queries, &input, &mut st.image, &mut st.planes);
             let stats = clock.stats_mut();
             stats.candidates = counts.candidates;
             stats.contributions = counts.contributions;
