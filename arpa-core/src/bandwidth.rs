@@ -18,12 +18,9 @@
 //! smoothing ([`crate::classify::AutoSmoothing::per_pixel_overlap`]) the stored scale is the
 //! global automatic choice (about 8 footprints per lit point per iteration), so the ladder's
 //! overlaps are about 8, 4, 2, 1, ½: the stored footprints keep the gather's candidates
-//! those of a global render, and the smaller scales reach the hand-tuned footprints of the
-//! shared scenes where those are smaller (2–2.8 times smaller than the automatic ones on
-//! their caustic maps and on most global maps: the smoothing factors' `S^γ` with
-//! dampening's `γ = 1/4`). Where a hand-tuned global map is larger than the automatic one
-//! (cornell-caustic, and water-caustic at 250K photons, by 1.3–2 times) the ladder does
-//! not reach it.
+//! those of a global render, and the smaller scales reach footprints up to four times
+//! smaller (a smoothing factor `4^{1/γ} = 256` times smaller under dampening's `γ = 1/4`).
+//! Footprints larger than the stored ones are out of the ladder's reach.
 //!
 //! # What is accumulated
 //! The iteration's image holds [`PLANES`] planes per pixel (`Bandwidth::planes`): the
@@ -40,8 +37,8 @@
 //! * variance of the mean, `v_k = (⟨y_k²⟩ − Y_k²)/(n − 1)`, averaged over a wide
 //!   `(2·[VARIANCE_POOL_RADIUS] + 1)²` window. Wide, because a pixel whose small scale caught
 //!   few photons by chance has a low estimate *and* a small spread: pooled over a few pixels
-//!   (which share those photons) the rule would pick it exactly where it is low and the image
-//!   came out several per cent dark; over 225 pixels its own draw no longer matters. Measured
+//!   (which share those photons) the rule would pick it exactly where it is low and darken
+//!   the image; over 225 pixels its own draw hardly matters. Measured
 //!   rather than modelled (`2^k v_0`), because where large footprints leak light onto a
 //!   nearby surface the stored scale's spread holds that leakage too and the smaller scales
 //!   are far less noisy than the model says;

@@ -146,9 +146,9 @@ pub struct AutoSmoothing {
     pub overlap: f64,
     /// The same target for the stored (largest) scale of a per-pixel bandwidth render
     /// ([`crate::bandwidth`]): 8, the global target, so the stored footprints are the global
-    /// choice and the ladder's smaller scales refine it where the light has structure. (16,
-    /// a stored scale one step larger, was measured too: the larger boxes cost 10–20 % of
-    /// the iterations at equal time and lost more rows than they won.)
+    /// choice and the ladder's smaller scales refine it where the light has structure, with
+    /// the gather's candidates those of a global render (a larger stored scale costs gather
+    /// time in every pixel, also where the stored one is chosen).
     pub per_pixel_overlap: f64,
     /// Smallest `S` chosen.
     pub min: f64,

@@ -65,7 +65,7 @@ pub(crate) fn gather(queries: &[QueryRecord], input: &GatherInput<'_>, image: &m
         queries
             .par_iter()
             .map_init(Vec::new, |scratch, rec| {
-                let (l, e, _) = gather_one(rec, input, scratch, false);
+                let (l, e) = gather_one(rec, input, scratch, false);
                 count(&e);
                 l[0]
             })
@@ -74,7 +74,7 @@ pub(crate) fn gather(queries: &[QueryRecord], input: &GatherInput<'_>, image: &m
         queries
             .par_iter()
             .map_init(Vec::new, |scratch, rec| {
-                let (l, e, _) = gather_one(rec, input, scratch, true);
+                let (l, e) = gather_one(rec, input, scratch, true);
                 count(&e);
                 let m = arpa_core::bandwidth::moments(&l);
                 core::array::from_fn(|p| if p < SCALES { l[p] } else { m[p - SCALES] })
@@ -104,7 +104,7 @@ const PHOTON_KEY: u64 = 1 << 32;
 
 /// The gather of one query record: its pixel's radiance (at every scale when `scaled`,
 /// else at the stored scale in element 0), its estimate (with the candidates and
-/// contributions per map) and the irradiance at every scale (when `scaled`).
+/// contributions per map).
 ///
 /// Two phases. The Embree point query reports every box containing the query point (and
 /// possibly a few more); its callback only notes the candidate's key in `keys` and
@@ -114,10 +114,10 @@ const PHOTON_KEY: u64 = 1 << 32;
 /// [`IrradianceEstimate::add_photon`] (exact test and `f64` sum) in `(kind, index)` order,
 /// so the sum is bit-identical to [`arpa_core::estimate::gather_brute_force`] over the
 /// same records, whatever order the BVH reported them in.
-fn gather_one(rec: &QueryRecord, input: &GatherInput<'_>, keys: &mut Vec<u64>, scaled: bool) -> ([Vec3; SCALES], IrradianceEstimate, ScaleSums) {
+fn gather_one(rec: &QueryRecord, input: &GatherInput<'_>, keys: &mut Vec<u64>, scaled: bool) -> ([Vec3; SCALES], IrradianceEstimate) {
     let known = Vec3::from_array(rec.radiance).as_dvec3();
     if rec.valid == 0 {
-        return ([finite_or_zero(known).as_vec3(); SCALES], IrradianceEstimate::default(), ScaleSums::default());
+        return ([finite_or_zero(known).as_vec3(); SCALES], IrradianceEstimate::default());
     }
     let mut estimate = IrradianceEstimate::default();
     let mut sums = ScaleSums::default();
@@ -176,5 +176,5 @@ fn gather_one(rec: &QueryRecord, input: &GatherInput<'_>, keys: &mut Vec<u64>, s
             *o = finite_or_zero(known + weight * *e).as_vec3();
         }
     }
-    (out, estimate, sums)
+    (out, estimate)
 }
