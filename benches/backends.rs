@@ -1,6 +1,6 @@
 //! Iteration time per stage of the GPU backends side by side: each backend compiled in
 //! (default `wgpu,vk`; `ARPA_BENCH_BACKENDS=cpu,wgpu,vk` picks others) renders
-//! `arpa_core::shapes::glass_room` (a closed Cornell-like room with a glass sphere, a mirror
+//! `arpa_core::render::shapes::glass_room` (a closed Cornell-like room with a glass sphere, a mirror
 //! block and a quad light) at E-50K, E-250K and E-1000K photons per iteration, both methods,
 //! on the adapter each backend picks (lavapipe where there is no GPU).
 //!
@@ -21,8 +21,8 @@
 use std::time::Instant;
 
 use arpa::backends::{BackendOptions, REGISTRY, create};
-use arpa_core::shapes::glass_room;
-use arpa_core::tracer::{BackendKind, IterationStats, Method, RenderSettings, StageTimes};
+use arpa_core::render::shapes::glass_room;
+use arpa_core::render::tracer::{BackendKind, IterationStats, Method, RenderSettings, StageTimes};
 
 fn load() -> String {
     std::fs::read_to_string("/proc/loadavg").map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" ")).unwrap_or_else(|_| "?".into())

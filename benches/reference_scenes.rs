@@ -31,10 +31,10 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use arpa::core::glam::Vec3;
-use arpa::core::photon_path::{PhotonPassSetup, trace_photon};
-use arpa::core::prepared_scene::PreparedScene;
-use arpa::core::ray_cast::{LEAVE_RECASTS, RayCaster, RayHit};
-use arpa::core::tracer::{Method, RenderSettings, Tracer};
+use arpa::core::render::photon_path::{PhotonPassSetup, trace_photon};
+use arpa::core::render::prepared_scene::PreparedScene;
+use arpa::core::render::ray_cast::{LEAVE_RECASTS, RayCaster, RayHit};
+use arpa::core::render::tracer::{Method, RenderSettings, Tracer};
 use arpa::cpu::{CpuTracer, Device, EmbreeCaster};
 
 #[path = "../tests/common/mod.rs"]
@@ -122,7 +122,7 @@ fn measure(cfg: &Config, name: &str, path: &Path, method: Method) -> Row {
         pool.install(|| tracer.photon_pass()).expect("photon pass");
         let stats = tracer.read_stats().expect("stats");
         // Each segment is one cast, plus a re-cast where a ray leaving a surface first met
-        // the triangle it leaves (arpa_core::ray_cast::RayStart).
+        // the triangle it leaves (arpa_core::render::ray_cast::RayStart).
         let casts = segments.len() as u64;
         assert!(
             stats.photon_segments <= casts && casts <= stats.photon_segments * (1 + u64::from(LEAVE_RECASTS)),
@@ -144,7 +144,7 @@ fn measure(cfg: &Config, name: &str, path: &Path, method: Method) -> Row {
     }
 }
 
-fn loaded_triangles(scene: &arpa::core::scene::Scene) -> usize {
+fn loaded_triangles(scene: &arpa::core::render::scene::Scene) -> usize {
     scene.meshes.iter().map(|m| m.indices.len()).sum()
 }
 

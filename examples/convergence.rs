@@ -8,7 +8,7 @@
 //! ```
 //! Defaults: 128 (square), 100000 photons per iteration, 256 iterations.
 
-use arpa::core::tracer::{Image, Method, RenderSettings, Tracer};
+use arpa::core::render::tracer::{Image, Method, RenderSettings, Tracer};
 use arpa::cpu::CpuTracer;
 use arpa::default_scene::default_scene;
 use std::time::Instant;

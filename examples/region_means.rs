@@ -21,7 +21,7 @@ fn parse_range(s: &str) -> anyhow::Result<(usize, usize)> {
     Ok((a.trim().parse()?, b.trim().parse()?))
 }
 
-fn mean(img: &arpa::core::tracer::Image, rows: (usize, usize), cols: (usize, usize)) -> [f64; 3] {
+fn mean(img: &arpa::core::render::tracer::Image, rows: (usize, usize), cols: (usize, usize)) -> [f64; 3] {
     let mut s = [0.0f64; 3];
     let mut n = 0usize;
     for r in rows.0..rows.1.min(img.height as usize) {

@@ -5,11 +5,11 @@
 //! here; [`BackendKind`] (in the core) is the one list of backend names. Adding a backend
 //! is its crate, one cargo feature of this crate, and one entry in [`REGISTRY`].
 
-use arpa_core::accumulate::Accumulation;
-use arpa_core::footprint::PackedFootprint;
-use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::scene::Scene;
-use arpa_core::tracer::{BackendKind, Capabilities, Image, IterationStats, QueryRecord, RenderSettings, Tracer};
+use arpa_core::accumulate::image::Accumulation;
+use arpa_core::store::footprint::PackedFootprint;
+use arpa_core::store::progressive_photon::PackedPhoton;
+use arpa_core::render::scene::Scene;
+use arpa_core::render::tracer::{BackendKind, Capabilities, Image, IterationStats, QueryRecord, RenderSettings, Tracer};
 
 pub mod kernel_runner;
 

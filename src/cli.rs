@@ -32,14 +32,14 @@
 use crate::default_scene::default_scene;
 use crate::image_io;
 use anyhow::{Context, bail};
-use arpa_core::classify::Smoothing;
-use arpa_core::radius::{ProgressiveConfig, RadiusSpec};
+use arpa_core::propagate::classify::Smoothing;
+use arpa_core::accumulate::radius::{ProgressiveConfig, RadiusSpec};
 use crate::backends::{self, BackendOptions};
 use crate::session::{Budget, CheckpointRow, Checkpoints, Hooks, Reference, Rendered, SaveEvery, SaveState, SessionOptions, StatTotals, auto_smoothing, render_with};
-use arpa_core::classify::AutoSmoothing;
+use arpa_core::propagate::classify::AutoSmoothing;
 use crate::state_file::{RenderIdentity, StateFile};
-use arpa_core::accumulate::Accumulation;
-use arpa_core::tracer::{BackendKind, EmissionStrategy, Image, Method, RenderSettings};
+use arpa_core::accumulate::image::Accumulation;
+use arpa_core::render::tracer::{BackendKind, EmissionStrategy, Image, Method, RenderSettings};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
@@ -115,7 +115,7 @@ pub struct BenchArgs {
 /// How the smoothing factors are chosen (`--smoothing`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum SmoothingMode {
-    /// From a pilot iteration ([`arpa_core::classify::AutoSmoothing`]).
+    /// From a pilot iteration ([`arpa_core::propagate::classify::AutoSmoothing`]).
     Auto,
     /// The given factors.
     Fixed,
@@ -124,14 +124,14 @@ pub enum SmoothingMode {
 /// How photons are emitted (`--projection`, `--caustic-photons`), for `render` and `bench`.
 #[derive(Debug, Args)]
 pub struct EmissionArgs {
-    /// Projection maps (arpa_core::projection): `on` sends global photons only where a
+    /// Projection maps (arpa_core::render::projection): `on` sends global photons only where a
     /// light sees geometry and runs a caustic pass aimed at mirror and glass objects;
     /// `off` emits one pass over every light's whole domain.
     #[arg(long, value_enum, value_name = "MODE", default_value = "on")]
     pub projection: OnOff,
 
     /// Photons of the caustic pass per iteration [default: chosen from the power the
-    /// lights send towards specular objects, arpa_core::projection::auto_caustic_photons;
+    /// lights send towards specular objects, arpa_core::render::emission_plan::auto_caustic_photons;
     /// 0 runs no caustic pass].
     #[arg(long, value_name = "N")]
     pub caustic_photons: Option<u32>,
@@ -147,17 +147,17 @@ impl EmissionArgs {
 /// The bandwidth on the command line (`--bandwidth`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum BandwidthArg {
-    /// Each pixel picks its footprint scale from five nested scales (arpa_core::bandwidth).
+    /// Each pixel picks its footprint scale from five nested scales (arpa_core::accumulate::bandwidth).
     PerPixel,
     /// One bandwidth for the whole image: the stored footprints as they are.
     Global,
 }
 
-impl From<BandwidthArg> for arpa_core::bandwidth::Bandwidth {
+impl From<BandwidthArg> for arpa_core::gather::scales::Bandwidth {
     fn from(b: BandwidthArg) -> Self {
         match b {
-            BandwidthArg::PerPixel => arpa_core::bandwidth::Bandwidth::PerPixel,
-            BandwidthArg::Global => arpa_core::bandwidth::Bandwidth::Global,
+            BandwidthArg::PerPixel => arpa_core::gather::scales::Bandwidth::PerPixel,
+            BandwidthArg::Global => arpa_core::gather::scales::Bandwidth::Global,
         }
     }
 }
@@ -386,7 +386,7 @@ pub struct RenderArgs {
 
     /// Bandwidth: `per-pixel` (the gather evaluates five nested scales of every footprint
     /// and photon, down to a quarter of its size, and each pixel picks its scale from their
-    /// bias and variance, arpa_core::bandwidth) or `global` (one bandwidth for the image).
+    /// bias and variance, arpa_core::accumulate::bandwidth) or `global` (one bandwidth for the image).
     #[arg(long, value_enum, value_name = "MODE", default_value = "per-pixel")]
     pub bandwidth: BandwidthArg,
 
@@ -397,7 +397,7 @@ pub struct RenderArgs {
 
     /// How ARPA's smoothing factors are chosen: `auto` (a pilot iteration at S = 1 picks
     /// S_c and S_g so that about 8 footprints of a map cover each point it lights,
-    /// arpa_core::classify::AutoSmoothing) or `fixed` (--smoothing-caustic and
+    /// arpa_core::propagate::classify::AutoSmoothing) or `fixed` (--smoothing-caustic and
     /// --smoothing-global, 1 when not given) [default: auto, or fixed when either factor
     /// is given].
     #[arg(long, value_enum, value_name = "MODE")]
@@ -599,7 +599,7 @@ fn si(v: f64) -> String {
 }
 
 /// What the photon pass skipped, one line each ("caustic pass (no specular surface)").
-pub fn skipped_lines(k: &arpa_core::tracer::Skipped) -> Vec<String> {
+pub fn skipped_lines(k: &arpa_core::render::tracer::Skipped) -> Vec<String> {
     let mut out = Vec::new();
     if let Some(why) = k.caustic_pass {
         out.push(format!("caustic pass ({})", why.reason()));
@@ -942,7 +942,7 @@ mod tests {
     #[test]
     fn summary_reports_counts_and_stage_times() {
         use crate::session::{Rendered, StatTotals};
-        use arpa_core::tracer::{Capabilities, IterationStats};
+        use arpa_core::render::tracer::{Capabilities, IterationStats};
         let mut totals = StatTotals::default();
         let mut it = IterationStats { photons_emitted: 1000, footprints: [10, 20], progressive: [1, 2], degenerate: 3, ..Default::default() };
         it.times.gather = 0.002;

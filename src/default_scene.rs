@@ -20,9 +20,9 @@
 //! so light refracted by the sphere focuses on the floor just in front of the sphere's
 //! contact point, inside its shadow: a caustic the camera sees.
 
-use arpa_core::emission::Light;
+use arpa_core::emit::emission::Light;
 use arpa_core::glam::Vec3;
-use arpa_core::scene::{Camera, Material, MaterialId, Scene, TriangleMesh};
+use arpa_core::render::scene::{Camera, Material, MaterialId, Scene, TriangleMesh};
 
 /// Centre of the glass sphere (metres).
 pub const SPHERE_CENTRE: Vec3 = Vec3::new(0.4, -1.0 + SPHERE_RADIUS + 1e-3, 0.3);

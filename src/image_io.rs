@@ -9,7 +9,7 @@
 //! returned [`WriteReport`]. Every error names the file.
 
 use arpa_core::glam::Vec3;
-use arpa_core::tracer::Image;
+use arpa_core::render::tracer::Image;
 use std::path::{Path, PathBuf};
 
 /// Why an image could not be written or read. Every variant names the file.

@@ -117,8 +117,8 @@ pub fn check_sizes(test_width: u32, test_height: u32, reference_width: u32, refe
     Ok(())
 }
 
-/// Compares two [`arpa_core::tracer::Image`]s (test, reference): all three metrics.
-pub fn compare_images(test: &arpa_core::tracer::Image, reference: &arpa_core::tracer::Image) -> Result<Metrics, MetricsError> {
+/// Compares two [`arpa_core::render::tracer::Image`]s (test, reference): all three metrics.
+pub fn compare_images(test: &arpa_core::render::tracer::Image, reference: &arpa_core::render::tracer::Image) -> Result<Metrics, MetricsError> {
     check_sizes(test.width, test.height, reference.width, reference.height)?;
     compare(&test.pixels, &reference.pixels, test.width, test.height)
 }
@@ -213,14 +213,14 @@ pub fn rel_mse_in(test: &[Vec3], reference: &[Vec3], width: u32, height: u32, re
 
 /// Mean over pixels and channels (non-finite values as 0): the whole-image mean whose ratio
 /// to the reference's tells bias from noise.
-pub fn mean(image: &arpa_core::tracer::Image) -> f64 {
+pub fn mean(image: &arpa_core::render::tracer::Image) -> f64 {
     image.pixels.iter().map(|p| (finite(p.x) + finite(p.y) + finite(p.z)) / 3.0).sum::<f64>() / image.pixels.len().max(1) as f64
 }
 
 /// Box-averages `image` by `k` in both axes (its size must be a multiple of `k`;
 /// non-finite values count as 0): a reference at the resolution of a render `k` times
 /// smaller, with `k²` times less of the reference's own noise.
-pub fn downsample(image: &arpa_core::tracer::Image, k: u32) -> Result<arpa_core::tracer::Image, String> {
+pub fn downsample(image: &arpa_core::render::tracer::Image, k: u32) -> Result<arpa_core::render::tracer::Image, String> {
     if k == 0 || !image.width.is_multiple_of(k) || !image.height.is_multiple_of(k) {
         return Err(format!("cannot downsample {}x{} by {k}", image.width, image.height));
     }
@@ -235,7 +235,7 @@ pub fn downsample(image: &arpa_core::tracer::Image, k: u32) -> Result<arpa_core:
     }
     let inv = 1.0 / (k * k) as f32;
     pixels.iter_mut().for_each(|p| *p *= inv);
-    Ok(arpa_core::tracer::Image { width: w, height: h, pixels })
+    Ok(arpa_core::render::tracer::Image { width: w, height: h, pixels })
 }
 
 /// sRGB-encoded, clamped luminance of a linear pixel.
@@ -329,7 +329,7 @@ mod tests {
 
     #[test]
     fn downsample_is_a_box_average() {
-        let img = arpa_core::tracer::Image {
+        let img = arpa_core::render::tracer::Image {
             width: 4,
             height: 2,
             pixels: (0..8).map(|i| Vec3::splat(i as f32)).collect(),
@@ -454,8 +454,8 @@ mod tests {
         assert!(matches!(compare(&[], &[], 0, 3), Err(MetricsError::Empty { .. })));
         let e = check_sizes(32, 32, 256, 128).unwrap_err();
         assert_eq!(e.to_string(), "image sizes differ: test image is 32x32, reference is 256x128");
-        let ti = arpa_core::tracer::Image { width: 4, height: 3, pixels: a.clone() };
-        let ri = arpa_core::tracer::Image { width: 3, height: 4, pixels: a };
+        let ti = arpa_core::render::tracer::Image { width: 4, height: 3, pixels: a.clone() };
+        let ri = arpa_core::render::tracer::Image { width: 3, height: 4, pixels: a };
         assert!(matches!(compare_images(&ti, &ri), Err(MetricsError::SizeMismatch { .. })));
     }
 

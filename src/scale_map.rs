@@ -1,9 +1,9 @@
 //! The picture of a per-pixel bandwidth choice (`arpa render --scale-map`): the scale of
-//! the footprint ladder each pixel uses ([`arpa_core::bandwidth`]), as a colour map with a
+//! the footprint ladder each pixel uses ([`arpa_core::accumulate::bandwidth`]), as a colour map with a
 //! legend under it.
 
 use anyhow::{anyhow, Context as _};
-use arpa_core::bandwidth::{scale, SCALES};
+use arpa_core::gather::scales::{scale, SCALES};
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -20,7 +20,7 @@ pub fn colour(c: f32) -> [u8; 3] {
 }
 
 /// Writes `path` (PNG): the `width × height` map of `scale` (fractional scale index per
-/// pixel, row-major, as [`arpa_core::bandwidth::Selection::scale`]) enlarged to at least
+/// pixel, row-major, as [`arpa_core::accumulate::bandwidth::Selection::scale`]) enlarged to at least
 /// 512 pixels across, and a legend naming each scale's size relative to the stored
 /// footprints.
 pub fn write_scale_map(path: &Path, width: u32, height: u32, scale_index: &[f32]) -> anyhow::Result<()> {

@@ -13,10 +13,10 @@ use crate::image_io;
 use crate::metrics::{Metrics, compare_images};
 use crate::state_file::{RenderIdentity, StateFile};
 use anyhow::{Context, bail};
-use arpa_core::accumulate::Accumulation;
-use arpa_core::classify::{AutoSmoothing, Smoothing};
-use arpa_core::scene::Scene;
-use arpa_core::tracer::{Capabilities, Image, IterationStats, RenderSettings, StageTimes, Tracer};
+use arpa_core::accumulate::image::Accumulation;
+use arpa_core::propagate::classify::{AutoSmoothing, Smoothing};
+use arpa_core::render::scene::Scene;
+use arpa_core::render::tracer::{Capabilities, Image, IterationStats, RenderSettings, StageTimes, Tracer};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -138,20 +138,20 @@ pub struct CheckpointRow {
     pub emitted_per_iteration: [f64; 2],
     /// Records stored so far (footprints and progressive photons), `[caustic, global]` map.
     pub records: [u64; 2],
-    /// With a per-pixel bandwidth ([`arpa_core::bandwidth`]): the share of the pixels
+    /// With a per-pixel bandwidth ([`arpa_core::accumulate::bandwidth`]): the share of the pixels
     /// using each scale of the ladder (index 0 = the stored footprints), a pixel between
     /// two scales split by its blend weights; `None` with a global bandwidth.
-    pub scale_share: Option<[f64; arpa_core::bandwidth::SCALES]>,
+    pub scale_share: Option<[f64; arpa_core::gather::scales::SCALES]>,
 }
 
 /// The share of pixels per scale of a per-pixel selection's fractional scale indices
 /// (each pixel split between the two scales it blends, by their weights).
-pub fn scale_share(scale: &[f32]) -> [f64; arpa_core::bandwidth::SCALES] {
-    let mut share = [0.0; arpa_core::bandwidth::SCALES];
-    let top = (arpa_core::bandwidth::SCALES - 1) as f64;
+pub fn scale_share(scale: &[f32]) -> [f64; arpa_core::gather::scales::SCALES] {
+    let mut share = [0.0; arpa_core::gather::scales::SCALES];
+    let top = (arpa_core::gather::scales::SCALES - 1) as f64;
     for &c in scale {
         let c = f64::from(c).clamp(0.0, top);
-        let k = (c as usize).min(arpa_core::bandwidth::SCALES - 2);
+        let k = (c as usize).min(arpa_core::gather::scales::SCALES - 2);
         let t = c - k as f64;
         share[k] += 1.0 - t;
         share[k + 1] += t;
@@ -281,12 +281,12 @@ pub struct SmoothingPilot {
 /// and starts afresh). RTPM has no footprints: its settings come back unchanged.
 pub fn auto_smoothing<T: Tracer>(tracer: &mut T, scene: &Scene, settings: &RenderSettings, auto: &AutoSmoothing) -> anyhow::Result<SmoothingPilot> {
     let start = Instant::now();
-    if settings.method != arpa_core::tracer::Method::Arpa {
+    if settings.method != arpa_core::render::tracer::Method::Arpa {
         return Ok(SmoothingPilot { smoothing: settings.smoothing, overlap_at_one: [0.0; 2], time: start.elapsed() });
     }
     let capabilities = tracer.capabilities();
     // The pilot only measures the stored scale's overlap: one plane is enough.
-    let pilot = RenderSettings { smoothing: Smoothing { caustic: 1.0, global: 1.0 }, bandwidth: arpa_core::bandwidth::Bandwidth::Global, ..*settings };
+    let pilot = RenderSettings { smoothing: Smoothing { caustic: 1.0, global: 1.0 }, bandwidth: arpa_core::gather::scales::Bandwidth::Global, ..*settings };
     tracer.upload_scene(scene, &pilot).with_context(|| format!("backend '{}' could not load the scene for the smoothing pilot", capabilities.backend))?;
     tracer.iterate().with_context(|| format!("backend '{}' failed in the smoothing pilot", capabilities.backend))?;
     let stats = tracer.read_stats().context("cannot read the smoothing pilot's statistics")?;
@@ -342,7 +342,7 @@ pub fn render_with<T: Tracer, H: Hooks + ?Sized>(
     let checkpoint = |tracer: &T, hooks: &mut H, i: u32, at: Duration, totals: &StatTotals, rows: &mut Vec<CheckpointRow>| -> anyhow::Result<Image> {
         let image = read_checked(tracer, &capabilities)?;
         let metrics = options.reference.map(|r| r.compare(&image)).transpose()?;
-        let scale_share = if settings.bandwidth == arpa_core::bandwidth::Bandwidth::PerPixel {
+        let scale_share = if settings.bandwidth == arpa_core::gather::scales::Bandwidth::PerPixel {
             let accumulation = tracer.read_accumulation().context("cannot read the accumulation back")?;
             Some(scale_share(&accumulation.selection().scale))
         } else {
@@ -422,11 +422,11 @@ pub fn render_with<T: Tracer, H: Hooks + ?Sized>(
 mod tests {
     use super::*;
     use crate::default_scene::default_scene;
-    use arpa_core::accumulate::Accumulation;
-    use arpa_core::footprint::PackedFootprint;
+    use arpa_core::accumulate::image::Accumulation;
+    use arpa_core::store::footprint::PackedFootprint;
     use arpa_core::glam::Vec3;
-    use arpa_core::progressive_photon::PackedPhoton;
-    use arpa_core::tracer::{BackendKind, Method, QueryRecord};
+    use arpa_core::store::progressive_photon::PackedPhoton;
+    use arpa_core::render::tracer::{BackendKind, Method, QueryRecord};
 
     #[derive(Debug, thiserror::Error)]
     #[error("mock failure")]

@@ -27,9 +27,9 @@
 //! moment leaves either the previous file or the new one, never a mixture, and a file that
 //! is damaged later fails its checksum.
 
-use arpa_core::accumulate::{Accumulation, PixelSum};
-use arpa_core::scene::Scene;
-use arpa_core::tracer::RenderSettings;
+use arpa_core::accumulate::image::{Accumulation, PixelSum};
+use arpa_core::render::scene::Scene;
+use arpa_core::render::tracer::RenderSettings;
 use sha2::{Digest, Sha256};
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -215,8 +215,8 @@ impl StateFile {
         let header = r.take(header_len).and_then(|h| std::str::from_utf8(h).ok()).ok_or_else(|| corrupt("header is not UTF-8 text"))?;
         let identity = RenderIdentity::from_header(header).ok_or_else(|| corrupt("header lacks backend, seed, scene hash or settings"))?;
         let [width, height, planes, first_iteration, iterations] = [r.u32(), r.u32(), r.u32(), r.u32(), r.u32()].map(|v| v.unwrap_or(u32::MAX));
-        if planes != 1 && planes as usize != arpa_core::bandwidth::PLANES {
-            return Err(corrupt(&format!("{planes} planes per pixel (1 or {} expected)", arpa_core::bandwidth::PLANES)));
+        if planes != 1 && planes as usize != arpa_core::gather::scales::PLANES {
+            return Err(corrupt(&format!("{planes} planes per pixel (1 or {} expected)", arpa_core::gather::scales::PLANES)));
         }
         let pixels = width as u64 * height as u64 * u64::from(planes);
         if (r.bytes.len() - r.at) as u64 != pixels * PIXEL_BYTES as u64 {
@@ -321,7 +321,7 @@ mod tests {
     #[test]
     fn per_pixel_planes_round_trip_and_a_wrong_plane_count_is_refused() {
         let mut s = state();
-        let planes = arpa_core::bandwidth::PLANES as u32;
+        let planes = arpa_core::gather::scales::PLANES as u32;
         let mut a = Accumulation::empty_planes(3, 2, planes, 5);
         a.iterations = 2;
         for (i, p) in a.pixels.iter_mut().enumerate() {

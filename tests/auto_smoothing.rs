@@ -1,4 +1,4 @@
-//! Automatic smoothing (`arpa::session::auto_smoothing`, `arpa_core::classify::AutoSmoothing`)
+//! Automatic smoothing (`arpa::session::auto_smoothing`, `arpa_core::propagate::classify::AutoSmoothing`)
 //! on the cpu backend, for a point light over a large diffuse floor (every footprint a
 //! plain ellipse, no heuristic but dampening acting):
 //! - the pilot's `S` gives the target overlap: at the chosen `S`, a lit query point is
@@ -10,13 +10,13 @@
 
 use arpa::backends::{self, BackendOptions};
 use arpa::session::auto_smoothing;
-use arpa_core::classify::AutoSmoothing;
-use arpa_core::emission::{Light, PointLight};
+use arpa_core::propagate::classify::AutoSmoothing;
+use arpa_core::emit::emission::{Light, PointLight};
 use arpa_core::glam::{DVec3, Vec3};
-use arpa_core::heuristics::{DampenReference, Dampening, Heuristics};
-use arpa_core::scene::{Camera, Material, Scene};
-use arpa_core::shapes::parallelogram;
-use arpa_core::tracer::{BackendKind, Method, RenderSettings, Tracer};
+use arpa_core::store::heuristics::{DampenReference, Dampening, Heuristics};
+use arpa_core::render::scene::{Camera, Material, Scene};
+use arpa_core::render::shapes::parallelogram;
+use arpa_core::render::tracer::{BackendKind, Method, RenderSettings, Tracer};
 
 fn scene() -> Scene {
     Scene {

@@ -2,7 +2,7 @@
 //! that shines down, and a camera that sees the sphere and the floor under it.
 
 use arpa::core::glam::Vec3;
-use arpa::core::scene::{Material, Scene, TriangleMesh};
+use arpa::core::render::scene::{Material, Scene, TriangleMesh};
 use arpa::default_scene::*;
 
 fn mesh<'a>(scene: &'a Scene, name: &str) -> &'a TriangleMesh {

@@ -5,18 +5,18 @@
 //! iterations. The result must match `I cos θ / r²` and the stored flux must equal the
 //! light's flux that reaches the plane.
 
-use arpa::core::aabb::Aabb;
-use arpa::core::accumulate::RunningMean;
-use arpa::core::classify::{PathClassifier, Smoothing, SurfaceInteraction};
-use arpa::core::emission::{EmissionParams, Light, PointLight};
-use arpa::core::estimate::{gather_brute_force, QueryPoint};
-use arpa::core::footprint::{Footprint, PackedFootprint, PhotonMap};
-use arpa::core::heuristics::{DegenerateRemoval, HeuristicContext, Heuristics};
-use arpa::core::kernel::Kernel;
-use arpa::core::progressive_photon::PackedPhoton;
-use arpa::core::radius::ProgressiveConfig;
-use arpa::core::rng::{Rng, StreamDomain};
-use arpa::core::store::{store_footprint, StoredPhoton};
+use arpa::core::base::aabb::Aabb;
+use arpa::core::accumulate::image::RunningMean;
+use arpa::core::propagate::classify::{PathClassifier, Smoothing, SurfaceInteraction};
+use arpa::core::emit::emission::{EmissionParams, Light, PointLight};
+use arpa::core::gather::estimate::{gather_brute_force, QueryPoint};
+use arpa::core::store::footprint::{Footprint, PackedFootprint, PhotonMap};
+use arpa::core::store::heuristics::{DegenerateRemoval, HeuristicContext, Heuristics};
+use arpa::core::gather::kernel::Kernel;
+use arpa::core::store::progressive_photon::PackedPhoton;
+use arpa::core::accumulate::radius::ProgressiveConfig;
+use arpa::core::base::rng::{Rng, StreamDomain};
+use arpa::core::store::decision::{store_footprint, StoredPhoton};
 use glam::{DVec3, Vec3};
 
 const HEIGHT: f64 = 1.0;

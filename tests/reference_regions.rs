@@ -11,7 +11,7 @@
 #![cfg(feature = "cpu")]
 
 use arpa::session::{Budget, render};
-use arpa::core::tracer::{Image, Method, RenderSettings};
+use arpa::core::render::tracer::{Image, Method, RenderSettings};
 use arpa::scene_file::load_scene;
 use std::path::Path;
 

@@ -2,8 +2,8 @@
 //! validates and matches the numbers in `shared/scenes/README.md`; every kind of bad input
 //! is an error naming the file (and line) and the problem, never a panic.
 
-use arpa::core::emission::{Light, SpotFalloff};
-use arpa::core::scene::{Material, Scattering, TriangleMesh};
+use arpa::core::emit::emission::{Light, SpotFalloff};
+use arpa::core::render::scene::{Material, Scattering, TriangleMesh};
 use arpa::scene_file::{FovAxis, LoadedScene, SceneFileError, load_scene};
 use glam::{Vec3, vec3};
 
@@ -175,7 +175,7 @@ fn veach_bidir_matches_the_readme() {
     // RTPM's rule (linear roughness sqrt(alpha) = 0.5 at the cut-off) makes the lamp
     // diffuse, as in the scene RTPM and the paper rendered (Falcor roughness 0.51); its
     // albedo is the hemispherical average of the copper-like Fresnel reflectance.
-    let want = |eta: f64, k: f64| arpa::core::fresnel::conductor_albedo(eta, k) as f32;
+    let want = |eta: f64, k: f64| arpa::core::propagate::fresnel::conductor_albedo(eta, k) as f32;
     let albedo = vec3(want(2.865601, 3.032326), want(2.119182, 2.056108), want(1.940077, 1.616293));
     assert_eq!(lamp.scattering(s.scene.roughness_cutoff), Scattering::Diffuse(albedo), "{lamp:?}");
     // Values from an independent complex-arithmetic Fresnel integrated by the midpoint rule
@@ -464,7 +464,7 @@ fn conductor_eta_k_uses_the_fresnel_albedo() {
     let s = load_in_tempdir(&scene_xml(body), &[]).unwrap();
     let Material::Conductor { reflectance, roughness } = s.scene.materials[s.scene.meshes[0].material as usize] else { panic!() };
     assert_eq!(roughness, 0.0);
-    let a = |eta: f64, k: f64| arpa::core::fresnel::conductor_albedo(eta, k) as f32;
+    let a = |eta: f64, k: f64| arpa::core::propagate::fresnel::conductor_albedo(eta, k) as f32;
     assert_eq!(reflectance, vec3(a(0.2, 3.6), a(0.5, 2.3), a(1.4, 1.8)));
     assert!(s.warnings.iter().any(|w| w.message.contains("hemispherical average")), "{:?}", s.warnings);
 }

@@ -17,9 +17,9 @@
 //! iteration's image; the host sums those in `f64` (Neumaier) and divides.
 
 use arpa::backends::{BackendOptions, create};
-use arpa::core::accumulate::{Accumulation, RunningMean};
+use arpa::core::accumulate::image::{Accumulation, RunningMean};
 use arpa::core::glam::DVec3;
-use arpa::core::tracer::{BackendKind, RenderSettings, Tracer};
+use arpa::core::render::tracer::{BackendKind, RenderSettings, Tracer};
 use arpa::default_scene::default_scene;
 use std::time::Instant;
 

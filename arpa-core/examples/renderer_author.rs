@@ -47,20 +47,20 @@
 //! Run: `cargo run -p arpa-core --example renderer_author` (exit status 1 on a failed
 //! comparison).
 
-use arpa_core::aabb::Aabb;
-use arpa_core::classify::{PathClassifier, Smoothing, SurfaceInteraction};
-use arpa_core::differential::{NormalDifferential, RayDifferential};
-use arpa_core::emission::{EmissionParams, Light, PointLight};
-use arpa_core::estimate::{gather_brute_force, QueryPoint};
-use arpa_core::footprint::{Footprint, PackedFootprint, PhotonMap};
-use arpa_core::fresnel::dielectric_reflectance;
+use arpa_core::base::aabb::Aabb;
+use arpa_core::propagate::classify::{PathClassifier, Smoothing, SurfaceInteraction};
+use arpa_core::propagate::differential::{NormalDifferential, RayDifferential};
+use arpa_core::emit::emission::{EmissionParams, Light, PointLight};
+use arpa_core::gather::estimate::{gather_brute_force, QueryPoint};
+use arpa_core::store::footprint::{Footprint, PackedFootprint, PhotonMap};
+use arpa_core::propagate::fresnel::dielectric_reflectance;
 use arpa_core::glam::{DVec3, Vec3};
-use arpa_core::heuristics::Heuristics;
-use arpa_core::kernel::Kernel;
-use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::radius::{ProgressiveConfig, RadiusSpec};
-use arpa_core::rng::{Rng, StreamDomain};
-use arpa_core::store::{store_footprint, StoredPhoton};
+use arpa_core::store::heuristics::Heuristics;
+use arpa_core::gather::kernel::Kernel;
+use arpa_core::store::progressive_photon::PackedPhoton;
+use arpa_core::accumulate::radius::{ProgressiveConfig, RadiusSpec};
+use arpa_core::base::rng::{Rng, StreamDomain};
+use arpa_core::store::decision::{store_footprint, StoredPhoton};
 
 const I: f64 = 1.0; // light intensity (W/sr)
 const H: f64 = 1.0; // light height (m)
@@ -79,7 +79,7 @@ const TOLERANCE: f64 = 0.03;
 /// Where a photon goes: its ray on the floor, its flux (W, one channel: the light is grey)
 /// and its path so far. `None` when it leaves the scene.
 fn trace(mut ray: RayDifferential, mut flux: f64) -> Result<Option<(RayDifferential, f64, PathClassifier)>, String> {
-    let err = |what: &str, e: arpa_core::differential::DifferentialError| format!("{what}: {e}");
+    let err = |what: &str, e: arpa_core::propagate::differential::DifferentialError| format!("{what}: {e}");
     let mut path = PathClassifier::new();
     if ray.d.y >= 0.0 && ray.d.x > 0.0 {
         // The mirror plane x = M: t = (M − p.x)/d.x; it is hit if the point lies on the

@@ -1,6 +1,6 @@
 //! The core's WGSL twin in one's own wgpu compute shader: emit photons from a point light,
 //! move them onto a floor and build their footprint records on the GPU, with the core's
-//! WGSL files composed by [`arpa_core::shaders::compose_with`] under a small user kernel, and
+//! WGSL files composed by [`arpa_core::gpu::shaders::compose_with`] under a small user kernel, and
 //! check every photon against the Rust core.
 //!
 //! The host prepares the light once per iteration (`Light::prepare`) and uploads its
@@ -21,19 +21,19 @@
 //! the flux density to `TOL` relative, the irradiance at the query point to `TOL` times the
 //! footprint's flux density, and the status (heads up, or stored) exactly. `TOL` is some
 //! hundred `f32` ulps: far above the twin's rounding (a few ulps times the step's
-//! condition, see `arpa_core::shaders`), far below any real mismatch (a wrong layout field,
+//! condition, see `arpa_core::gpu::shaders`), far below any real mismatch (a wrong layout field,
 //! differential or lattice index moves results by whole percent).
 //!
 //! Without a wgpu adapter (no Vulkan driver) it prints that it skipped and exits 0, or 1
 //! when the environment variable `CI` is set (CI must run it). Lavapipe is enough.
 //! Run: `cargo run -p arpa-core --example wgsl_twin`.
 
-use arpa_core::emission::{EmissionParams, Light, PointLight};
-use arpa_core::footprint::{Footprint, FootprintError, PhotonMap};
+use arpa_core::emit::emission::{EmissionParams, Light, PointLight};
+use arpa_core::store::footprint::{Footprint, FootprintError, PhotonMap};
 use arpa_core::glam::{DVec3, Vec3};
-use arpa_core::kernel::Kernel;
-use arpa_core::rng::{Rng, StreamDomain};
-use arpa_core::shaders::{compose_with, EMISSION, FOOTPRINT};
+use arpa_core::gather::kernel::Kernel;
+use arpa_core::base::rng::{Rng, StreamDomain};
+use arpa_core::gpu::shaders::{compose_with, EMISSION, FOOTPRINT};
 
 const PHOTONS: u32 = 4096;
 const SEED: u32 = 7;
@@ -110,7 +110,7 @@ fn user_main(@builtin(global_invocation_id) gid: vec3<u32>) {
 "#;
 
 /// The same photon by the Rust core, with the kernel's status codes.
-fn core_result(light: &arpa_core::emission::PreparedLight, i: u32) -> UserResult {
+fn core_result(light: &arpa_core::emit::emission::PreparedLight, i: u32) -> UserResult {
     let mut rng = Rng::new(SEED, ITERATION, i, StreamDomain::Photon);
     let e = light.emit(i, &mut rng).expect("a point light always emits");
     if e.ray.d.z >= 0.0 {
@@ -138,7 +138,7 @@ fn core_result(light: &arpa_core::emission::PreparedLight, i: u32) -> UserResult
 }
 
 /// Runs the composed module on the first adapter wgpu finds; `None` when there is none.
-fn run_on_gpu(source: &str, light: &arpa_core::emission::PackedLight) -> Option<(String, Vec<UserResult>)> {
+fn run_on_gpu(source: &str, light: &arpa_core::emit::emission::PackedLight) -> Option<(String, Vec<UserResult>)> {
     use wgpu::util::DeviceExt;
     let instance = wgpu::Instance::new(wgpu::InstanceDescriptor {
         backends: wgpu::Backends::PRIMARY,

@@ -5,36 +5,49 @@
 //! filter-space transform, Fabianowski's absorb-and-re-emit trick and Knaus & Zwicker's
 //! progressive radius schedule.
 //!
-//! The modules follow the pipeline of one photon-mapping iteration:
+//! The crate is in four layers, each a set of folders, and every import points down
+//! (`tests/layering.rs` at the workspace root checks it, and that no module imports
+//! another in a circle):
+//!
+//! | layer | folders | needs |
+//! |---|---|---|
+//! | base | [`base`]: counter-based random numbers, sampling, frames, boxes, Morton codes | `no_std` |
+//! | per-photon stages | [`emit`], [`propagate`], [`store`], [`gather`], [`accumulate`] | `no_std` (a few items `alloc`) |
+//! | renderer layer | [`render`]: scene model, preparation, projection maps, the `Tracer` trait, reference paths, ray casting | `alloc` |
+//! | GPU layer | [`gpu`]: device record layouts, codes, sort and batch policy, the WGSL sources | `no_std` (scene tables and composition `alloc`) |
+//!
+//! The per-photon stages follow one photon-mapping iteration:
 //!
 //! | stage | modules |
 //! |---|---|
-//! | random numbers | [`rng`], [`sampling`], [`frame`] |
-//! | emit | [`emission`] |
-//! | propagate | [`differential`], [`shading_normal`], [`fresnel`], [`lambertian`], [`reemission`], [`classify`] |
-//! | store footprints | [`footprint`], [`heuristics`], [`progressive_photon`], [`store`], [`aabb`] |
-//! | build AS | (backends; [`aabb`] gives the boxes) |
-//! | gather | [`kernel`], [`estimate`], [`bandwidth`] (the scale ladder) |
-//! | accumulate | [`radius`], [`accumulate`], [`bandwidth`] (per-pixel scale selection) |
+//! | emit | [`emit::emission`] |
+//! | propagate | [`propagate::differential`], [`propagate::shading_normal`], [`propagate::fresnel`], [`propagate::lambertian`], [`propagate::reemission`], [`propagate::classify`] |
+//! | store footprints | [`store::footprint`], [`store::heuristics`], [`store::progressive_photon`], [`store::decision`] |
+//! | build AS | (backends; [`base::aabb`] gives the boxes, [`base::morton`] the order) |
+//! | gather | [`gather::kernel`], [`gather::estimate`], [`gather::scales`] (the scale ladder) |
+//! | accumulate | [`accumulate::radius`], [`accumulate::image`], [`accumulate::bandwidth`] (per-pixel scale selection) |
 //!
-//! With the `alloc` feature, the renderer-facing layer: the scene model ([`scene`],
-//! [`shapes`], [`prepared_scene`]), the backend trait ([`tracer`]) and the reference
-//! per-photon and per-pixel paths every backend must reproduce ([`photon_path`],
-//! [`camera_path`], over a [`ray_cast::RayCaster`]).
+//! With the `alloc` feature, the renderer-facing layer [`render`]: the scene model
+//! ([`render::scene`], [`render::shapes`], [`render::prepared_scene`], with the projection
+//! maps of [`render::projection`]), the backend trait ([`render::tracer`]) and the
+//! reference per-photon and per-pixel paths every backend must reproduce
+//! ([`render::photon_path`] under a [`render::emission_plan`], [`render::camera_path`],
+//! over a [`render::ray_cast::RayCaster`]).
 //!
-//! [`shaders`] holds the WGSL twin of the per-photon maths (rng, kernel, footprint,
-//! radius, differentials) and the path-level WGSL of the GPU stages (camera pass, photon
-//! pass, store, sort, gather, accumulate) as source strings, composed in dependency order
-//! by [`shaders::compose`]. [`gpu`] is the host side both GPU backends share: the record
-//! layouts those shaders read and write, their codes, Morton codes and the photon batch
-//! policy. No backend depends on another backend; both depend on these two modules.
+//! [`gpu::shaders`] holds the WGSL twin of the per-photon maths (its files in
+//! `arpa-core/shaders/` follow the same folders) and the path-level WGSL of the GPU stages
+//! (camera pass, photon pass, store, sort, gather, accumulate) as source strings, composed
+//! in dependency order by [`gpu::shaders::compose`]. The rest of [`gpu`] is the host side
+//! both GPU backends share: the record layouts those shaders read and write, their codes
+//! and the photon batch policy. No backend depends on another backend; both depend on
+//! this layer.
 //!
 //! ## Conventions
 //! * World space is right-handed, units are *scene units* (the scene's length unit, called
 //!   metres in doc comments for brevity). Directions are unit vectors.
 //! * Propagation math is done in `f64` ([`glam::DVec3`]) so that extreme differential
 //!   magnitudes (1e-30 … 1e30) neither overflow nor underflow; what is stored for the
-//!   gather ([`footprint::PackedFootprint`], [`progressive_photon::PackedPhoton`]) is `f32`,
+//!   gather ([`store::footprint::PackedFootprint`], [`store::progressive_photon::PackedPhoton`]) is `f32`,
 //!   laid out for GPU storage buffers.
 //! * Colours are linear RGB triples. Flux is in watts (W), irradiance in W/m²,
 //!   radiance in W/(m²·sr), intensity in W/sr.
@@ -45,13 +58,14 @@
 //! * neither (`default-features = false`): pure `no_std` without a heap, maths through
 //!   [`libm`] (re-exported, as is [`glam`]): everything a renderer needs per photon and
 //!   per query point, from emission to the estimate.
-//! * `alloc`: adds the renderer-facing layer that needs a heap: the scene model
-//!   ([`scene`], [`shapes`], [`prepared_scene`]), the backend trait ([`tracer`]), the
-//!   reference paths ([`photon_path`], [`camera_path`], [`ray_cast`]), the image
-//!   accumulator ([`accumulate::ImageAccumulator`]), [`shaders::compose`] and the GPU
-//!   layer's scene tables ([`gpu::scene`]). Items that need it are marked in the docs.
+//! * `alloc`: adds the renderer-facing layer that needs a heap: [`render`] (scene model,
+//!   preparation, projection maps, the backend trait, the reference paths, ray casting),
+//!   the image accumulator ([`accumulate::image::ImageAccumulator`]) and the per-pixel
+//!   selection ([`accumulate::bandwidth::select`]), [`gpu::shaders::compose`] and the GPU
+//!   layer's scene tables ([`gpu::scene`], [`gpu::fill`]). Items that need it are marked
+//!   in the docs.
 //! * `std` (default): implies `alloc`; adds what needs the standard library (stage
-//!   timing in [`tracer::StageClock::run`]).
+//!   timing in [`render::tracer::StageClock::run`]).
 //!
 //! ## A first photon
 //! One photon of a point light one metre above the floor `z = 0`, its footprint where it
@@ -59,12 +73,12 @@
 //! example in its module):
 //!
 //! ```
-//! use arpa_core::differential::NormalDifferential;
-//! use arpa_core::emission::{EmissionParams, Light, PointLight};
-//! use arpa_core::footprint::{Footprint, PhotonMap};
+//! use arpa_core::propagate::differential::NormalDifferential;
+//! use arpa_core::emit::emission::{EmissionParams, Light, PointLight};
+//! use arpa_core::store::footprint::{Footprint, PhotonMap};
 //! use arpa_core::glam::DVec3;
-//! use arpa_core::kernel::Kernel;
-//! use arpa_core::rng::{Rng, StreamDomain};
+//! use arpa_core::gather::kernel::Kernel;
+//! use arpa_core::base::rng::{Rng, StreamDomain};
 //!
 //! let light = Light::Point(PointLight { position: DVec3::new(0.0, 0.0, 1.0), intensity: DVec3::ONE });
 //! let n = 10_000;
@@ -98,53 +112,19 @@ extern crate alloc;
 #[cfg(feature = "std")]
 extern crate std;
 
-pub mod aabb;
-pub mod accumulate;
-pub mod bandwidth;
-#[cfg(feature = "alloc")]
-#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
-pub mod camera_path;
-pub mod classify;
-pub mod differential;
-pub mod emission;
-pub mod estimate;
-pub mod footprint;
-pub mod frame;
-pub mod gpu;
-pub mod fresnel;
-pub mod heuristics;
-pub mod kernel;
-pub mod lambertian;
-#[cfg(feature = "alloc")]
-#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
-pub mod prepared_scene;
-#[cfg(feature = "alloc")]
-#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
-pub mod photon_path;
-pub mod prefetch;
-#[cfg(feature = "alloc")]
-#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
-pub mod projection;
-pub mod progressive_photon;
-pub mod radius;
-#[cfg(feature = "alloc")]
-#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
-pub mod ray_cast;
-pub mod reemission;
-pub mod rng;
-pub mod sampling;
-#[cfg(feature = "alloc")]
-#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
-pub mod scene;
-pub mod shading_normal;
-pub mod shaders;
-#[cfg(feature = "alloc")]
-#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
-pub mod shapes;
+pub mod base;
+
+pub mod emit;
+pub mod propagate;
 pub mod store;
+pub mod gather;
+pub mod accumulate;
+
 #[cfg(feature = "alloc")]
 #[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
-pub mod tracer;
+pub mod render;
+
+pub mod gpu;
 
 pub use glam;
 pub use libm;

@@ -1,11 +1,11 @@
 //! Emission: fluxes sum to the light's power, point-light footprints tile the sphere, and
 //! footprint density estimates reproduce analytic irradiance.
 
-use arpa_core::emission::*;
+use arpa_core::emit::emission::*;
 use std::collections::HashMap;
-use arpa_core::footprint::{Footprint, PackedFootprint, PhotonMap};
-use arpa_core::kernel::Kernel;
-use arpa_core::rng::{Rng, StreamDomain};
+use arpa_core::store::footprint::{Footprint, PackedFootprint, PhotonMap};
+use arpa_core::gather::kernel::Kernel;
+use arpa_core::base::rng::{Rng, StreamDomain};
 use glam::{DVec2, DVec3, Vec3};
 use std::f64::consts::PI;
 

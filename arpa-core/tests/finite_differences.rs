@@ -7,8 +7,8 @@
 //! reflection and refraction (including near the critical angle, and under total internal
 //! reflection) to 1e-3 relative.
 
-use arpa_core::differential::{NormalDifferential, RayDifferential, RefractionEvent};
-use arpa_core::rng::{Rng, StreamDomain};
+use arpa_core::propagate::differential::{NormalDifferential, RayDifferential, RefractionEvent};
+use arpa_core::base::rng::{Rng, StreamDomain};
 use glam::DVec3;
 
 const REL_TOL: f64 = 1e-3;

@@ -2,12 +2,12 @@
 //! an independent parametric ellipse test, the AABB, kernel normalisation over the
 //! ellipse, and re-emission with the virtual distance `v`.
 
-use arpa_core::differential::RayDifferential;
-use arpa_core::footprint::{Footprint, PhotonMap};
-use arpa_core::kernel::Kernel;
-use arpa_core::reemission::{reemit, virtual_distance};
-use arpa_core::rng::{Rng, StreamDomain};
-use arpa_core::sampling::uniform_sphere;
+use arpa_core::propagate::differential::RayDifferential;
+use arpa_core::store::footprint::{Footprint, PhotonMap};
+use arpa_core::gather::kernel::Kernel;
+use arpa_core::propagate::reemission::{reemit, virtual_distance};
+use arpa_core::base::rng::{Rng, StreamDomain};
+use arpa_core::base::sampling::uniform_sphere;
 use glam::{DMat2, DVec2, DVec3, Vec3};
 use proptest::prelude::*;
 
@@ -19,7 +19,7 @@ fn unit() -> impl Strategy<Value = DVec3> {
 fn footprint() -> impl Strategy<Value = Footprint> {
     (unit(), -1e3f64..1e3, -1e3f64..1e3, -1e3f64..1e3, 1e-3f64..10.0, 1e-3f64..10.0, 0.05f64..3.09, 0.0f64..std::f64::consts::TAU).prop_map(
         |(n, x, y, z, la, lb, angle, rot)| {
-            let f = arpa_core::frame::Frame::from_normal(n);
+            let f = arpa_core::base::frame::Frame::from_normal(n);
             let dir = |t: f64| f.t * t.cos() + f.b * t.sin();
             Footprint {
                 center: DVec3::new(x, y, z),
@@ -84,9 +84,9 @@ proptest! {
                 }
             }
             Err(e) => {
-                prop_assert_eq!(e, arpa_core::footprint::FootprintError::Unrepresentable);
-                prop_assert!(fp.minor_semi_axis_bound() < arpa_core::footprint::MIN_RELATIVE_SEMI_AXIS * scale);
-                prop_assert!(s2 < std::f64::consts::SQRT_2 * arpa_core::footprint::MIN_RELATIVE_SEMI_AXIS * scale);
+                prop_assert_eq!(e, arpa_core::store::footprint::FootprintError::Unrepresentable);
+                prop_assert!(fp.minor_semi_axis_bound() < arpa_core::store::footprint::MIN_RELATIVE_SEMI_AXIS * scale);
+                prop_assert!(s2 < std::f64::consts::SQRT_2 * arpa_core::store::footprint::MIN_RELATIVE_SEMI_AXIS * scale);
             }
         }
     }
@@ -96,7 +96,7 @@ proptest! {
         let bb = fp.aabb(radius);
         let h = fp.half_thickness(radius);
         let eps = 1e-9 * (1.0 + fp.center.abs().max_element());
-        let grown = arpa_core::aabb::Aabb { min: bb.min - DVec3::splat(eps), max: bb.max + DVec3::splat(eps) };
+        let grown = arpa_core::base::aabb::Aabb { min: bb.min - DVec3::splat(eps), max: bb.max + DVec3::splat(eps) };
         // Everything the point-in-footprint test accepts: the ellipse extruded by ±h n
         // (rim points on both faces of the slab).
         for k in 0..256 {

@@ -1,11 +1,11 @@
 //! Each heuristic converts exactly what its definition says, in the documented order, and
 //! storing never creates or destroys flux.
 
-use arpa_core::aabb::Aabb;
-use arpa_core::classify::Smoothing;
-use arpa_core::footprint::{Footprint, PhotonMap};
-use arpa_core::heuristics::*;
-use arpa_core::store::{store_footprint, ProgressiveReason, StoredPhoton};
+use arpa_core::base::aabb::Aabb;
+use arpa_core::propagate::classify::Smoothing;
+use arpa_core::store::footprint::{Footprint, PhotonMap};
+use arpa_core::store::heuristics::*;
+use arpa_core::{store::decision::{store_footprint, StoredPhoton}, store::heuristics::ProgressiveReason};
 use glam::{DMat3, DVec3};
 
 fn scene() -> Aabb {
@@ -188,7 +188,7 @@ fn storing_conserves_flux_and_map() {
 
 mod fused_path {
     use super::*;
-    use arpa_core::footprint::FootprintError;
+    use arpa_core::store::footprint::FootprintError;
     use proptest::prelude::*;
 
     fn heuristics() -> impl Strategy<Value = Heuristics> {
@@ -245,8 +245,8 @@ mod fused_path {
 /// record for every such `Q` (rotations and reflections).
 mod remixing {
     use super::*;
-    use arpa_core::footprint::{principal_axes, MIN_RELATIVE_SEMI_AXIS};
-    use arpa_core::store::StoredPhoton;
+    use arpa_core::store::footprint::{principal_axes, MIN_RELATIVE_SEMI_AXIS};
+    use arpa_core::store::decision::StoredPhoton;
     use proptest::prelude::*;
     use proptest::strategy::ValueTree;
 
@@ -313,7 +313,7 @@ mod remixing {
 
     /// The filter's quadratic form `row_uᵀrow_u + row_vᵀrow_v` (1/m²) of a record: the same
     /// for every pair spanning the ellipse (the rows themselves rotate in filter space).
-    fn filter_form(p: &arpa_core::footprint::PackedFootprint) -> DMat3 {
+    fn filter_form(p: &arpa_core::store::footprint::PackedFootprint) -> DMat3 {
         let outer = |a: [f32; 3]| {
             let v = glam::Vec3::from_array(a).as_dvec3();
             DMat3::from_cols(v * v.x, v * v.y, v * v.z)

@@ -1,18 +1,18 @@
 //! The reference camera and photon paths on analytic scenes, with the brute-force ray
 //! caster and a brute-force gather: what every backend must reproduce.
 
-use arpa_core::camera_path::trace_camera_path;
-use arpa_core::emission::{Light, PointLight};
-use arpa_core::estimate::{gather_brute_force, QueryPoint};
-use arpa_core::footprint::PackedFootprint;
-use arpa_core::kernel::Kernel;
-use arpa_core::photon_path::{trace_photon, PhotonPassSetup};
-use arpa_core::prepared_scene::PreparedScene;
-use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::ray_cast::BruteForceCaster;
-use arpa_core::scene::{Camera, Material, Scene, TriangleMesh};
-use arpa_core::store::StoredPhoton;
-use arpa_core::tracer::{Method, QueryRecord, RenderSettings};
+use arpa_core::render::camera_path::trace_camera_path;
+use arpa_core::emit::emission::{Light, PointLight};
+use arpa_core::gather::estimate::{gather_brute_force, QueryPoint};
+use arpa_core::store::footprint::PackedFootprint;
+use arpa_core::gather::kernel::Kernel;
+use arpa_core::render::photon_path::{trace_photon, PhotonPassSetup};
+use arpa_core::render::prepared_scene::PreparedScene;
+use arpa_core::store::progressive_photon::PackedPhoton;
+use arpa_core::render::brute_force::BruteForceCaster;
+use arpa_core::render::scene::{Camera, Material, Scene, TriangleMesh};
+use arpa_core::store::decision::StoredPhoton;
+use arpa_core::render::tracer::{Method, QueryRecord, RenderSettings};
 use glam::{DVec3, Vec3};
 use std::f64::consts::PI;
 
@@ -136,7 +136,7 @@ fn slab_irradiance(rho: f64, h: f64, d: f64, n: f64) -> f64 {
         if x(mid) < rho { lo = mid } else { hi = mid }
     }
     let theta = 0.5 * (lo + hi);
-    let t = 1.0 - arpa_core::fresnel::dielectric_reflectance(-theta.cos(), n);
+    let t = 1.0 - arpa_core::propagate::fresnel::dielectric_reflectance(-theta.cos(), n);
     if rho < 1e-9 {
         return t * t * INTENSITY / (h - d + d / n).powi(2);
     }
@@ -190,11 +190,11 @@ fn glass_slab_caustic_matches_optics() {
         let mut caustic_footprints = 0usize;
         for iteration in 0..iterations {
             let (setup, fps, phs) = photon_pass(&scene, &caster, &settings, iteration);
-            caustic_footprints += fps.iter().filter(|f| f.photon_map() == arpa_core::footprint::PhotonMap::Caustic).count();
+            caustic_footprints += fps.iter().filter(|f| f.photon_map() == arpa_core::store::footprint::PhotonMap::Caustic).count();
             let r = setup.radii;
             for (ring, sum) in rings.iter().zip(&mut sums) {
                 for q in ring {
-                    *sum += gather_brute_force(q, &fps, &phs, r, Kernel::Silverman).map(arpa_core::footprint::PhotonMap::Caustic).x;
+                    *sum += gather_brute_force(q, &fps, &phs, r, Kernel::Silverman).map(arpa_core::store::footprint::PhotonMap::Caustic).x;
                 }
             }
         }
@@ -322,7 +322,7 @@ fn tilted_vertex_normals_reflect_photons_by_the_adjoint() {
     // Direct photons are not stored: with two interactions the ceiling holds exactly the
     // light → floor → ceiling photons.
     // A wide progressive radius (0.3) for a low-noise estimate of this smooth irradiance.
-    let radii = arpa_core::radius::ProgressiveConfig { global: arpa_core::radius::RadiusSpec::Absolute(0.3), ..Default::default() };
+    let radii = arpa_core::accumulate::radius::ProgressiveConfig { global: arpa_core::accumulate::radius::RadiusSpec::Absolute(0.3), ..Default::default() };
     let points: Vec<QueryPoint> = (0..400)
         .map(|i| QueryPoint { position: Vec3::new(-1.0 + 0.1 * (i % 20) as f32, 2.0, -1.0 + 0.1 * (i / 20) as f32), normal: -Vec3::Y })
         .collect();
@@ -376,7 +376,7 @@ fn tilted_vertex_normals_reflect_photons_by_the_adjoint() {
 fn only_triangles_with_distinct_vertex_normals_are_shaded() {
     let hit = |scene: &PreparedScene| {
         let caster = BruteForceCaster::new(scene);
-        let h = arpa_core::ray_cast::RayCaster::intersect(&caster, Vec3::new(0.3, 2.0, 0.2), Vec3::NEG_Y, 0.0, f32::INFINITY).unwrap();
+        let h = arpa_core::render::ray_cast::RayCaster::intersect(&caster, Vec3::new(0.3, 2.0, 0.2), Vec3::NEG_Y, 0.0, f32::INFINITY).unwrap();
         scene.surface(&h)
     };
     let tilted = tilted_plane_scene(4);

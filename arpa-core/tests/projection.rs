@@ -1,19 +1,19 @@
-//! Projection maps and the two photon passes (arpa_core::projection): the kept cells are
+//! Projection maps and the two photon passes (arpa_core::render::projection): the kept cells are
 //! conservative (every ray that hits a target starts in one), projected emission carries
 //! the kept part of the power and shares it evenly over the cells, the plan's skips and
 //! weights, and the caustic power of the two passes against the exact mirror caustic.
 
-use arpa_core::emission::{DirectionalLight, EmissionParams, Light, PointLight, QuadLight, SpotFalloff, SpotLight, TriangleLight};
-use arpa_core::frame::Frame;
-use arpa_core::photon_path::{trace_photon, PhotonPassSetup};
-use arpa_core::prepared_scene::PreparedScene;
-use arpa_core::projection::{project, DomainCells, EmissionPlan, Targets, DELTA_GRID};
-use arpa_core::ray_cast::BruteForceCaster;
-use arpa_core::rng::{Rng, StreamDomain};
-use arpa_core::sampling::{cosine_hemisphere, uniform_cone, uniform_disc, uniform_sphere};
-use arpa_core::scene::{Camera, Material, Scene, TriangleMesh};
-use arpa_core::store::StoredPhoton;
-use arpa_core::tracer::{EmissionStrategy, PassSkip, RenderSettings};
+use arpa_core::emit::emission::{DirectionalLight, EmissionParams, Light, PointLight, QuadLight, SpotFalloff, SpotLight, TriangleLight};
+use arpa_core::base::frame::Frame;
+use arpa_core::render::photon_path::{trace_photon, PhotonPassSetup};
+use arpa_core::render::prepared_scene::PreparedScene;
+use arpa_core::{render::projection::{project, DomainCells, Targets, DELTA_GRID}, render::emission_plan::EmissionPlan};
+use arpa_core::render::brute_force::BruteForceCaster;
+use arpa_core::base::rng::{Rng, StreamDomain};
+use arpa_core::base::sampling::{cosine_hemisphere, uniform_cone, uniform_disc, uniform_sphere};
+use arpa_core::render::scene::{Camera, Material, Scene, TriangleMesh};
+use arpa_core::store::decision::StoredPhoton;
+use arpa_core::render::tracer::{EmissionStrategy, PassSkip, RenderSettings};
 use glam::{DVec2, DVec3, Vec3};
 use std::f64::consts::PI;
 
@@ -293,7 +293,7 @@ fn both_passes_together_carry_the_exact_caustic_power() {
         (EmissionStrategy { projection: true, caustic_photons: Some(200) }, 12),
         (EmissionStrategy { projection: true, caustic_photons: Some(20_000) }, 4),
     ] {
-        let settings = RenderSettings { method: arpa_core::tracer::Method::Rtpm, photons_per_iteration: 40_000, max_depth: 3, emission: strategy, ..RenderSettings::default() };
+        let settings = RenderSettings { method: arpa_core::render::tracer::Method::Rtpm, photons_per_iteration: 40_000, max_depth: 3, emission: strategy, ..RenderSettings::default() };
         let mut power = 0.0;
         let mut records = 0;
         for it in 0..iterations {
@@ -303,7 +303,7 @@ fn both_passes_together_carry_the_exact_caustic_power() {
                     // RTPM stores every record as a progressive photon with its flux.
                     let StoredPhoton::Progressive { photon, .. } = s else { panic!("RTPM stored a footprint") };
                     let (flux, map) = (photon.flux, photon.photon_map());
-                    if map == arpa_core::footprint::PhotonMap::Caustic {
+                    if map == arpa_core::store::footprint::PhotonMap::Caustic {
                         power += flux[0] as f64;
                         records += 1;
                     }

@@ -34,34 +34,34 @@
 use std::collections::BTreeMap;
 use std::f64::consts::{FRAC_1_PI, PI, TAU};
 
-use arpa_core::aabb::Aabb;
-use arpa_core::accumulate::RunningMean;
-use arpa_core::classify::Smoothing;
-use arpa_core::differential::{
+use arpa_core::base::aabb::Aabb;
+use arpa_core::accumulate::image::RunningMean;
+use arpa_core::propagate::classify::Smoothing;
+use arpa_core::propagate::differential::{
     refract_direction, reflect_direction, DifferentialError, NormalDifferential, RayDifferential, RefractionEvent, MIN_ABS_COS,
     MIN_REFRACTION_K,
 };
-use arpa_core::emission::{
+use arpa_core::emit::emission::{
     DirectionalLight, EmissionError, EmissionParams, Light, LightError, PointLight, QuadLight, SpotFalloff, SpotLight, TriangleLight,
 };
-use arpa_core::estimate::{gather_brute_force, IrradianceEstimate, QueryPoint};
-use arpa_core::footprint::{Footprint, FootprintError, PackedFootprint, PhotonMap, MIN_RELATIVE_SEMI_AXIS};
-use arpa_core::frame::Frame;
-use arpa_core::fresnel::dielectric_reflectance;
-use arpa_core::heuristics::{
+use arpa_core::gather::estimate::{gather_brute_force, IrradianceEstimate, QueryPoint};
+use arpa_core::store::footprint::{Footprint, FootprintError, PackedFootprint, PhotonMap, MIN_RELATIVE_SEMI_AXIS};
+use arpa_core::base::frame::Frame;
+use arpa_core::propagate::fresnel::dielectric_reflectance;
+use arpa_core::store::heuristics::{
     BoundingBoxCulling, CullMetric, DampenReference, Dampening, DegenerateRemoval, HMax, HMaxMode, HeuristicContext, Heuristics, LengthSpec,
 
 };
-use arpa_core::kernel::Kernel;
-use arpa_core::progressive_photon::{PackedPhoton, ProgressivePhoton};
-use arpa_core::radius::{ProgressiveConfig, RadiusSchedule, RadiusSpec, MIN_RADIUS};
-use arpa_core::reemission::{diffuse_direction, reemit, virtual_distance};
-use arpa_core::rng::{Rng, StreamDomain};
-use arpa_core::sampling::{cone_solid_angle_from_angle, 
+use arpa_core::gather::kernel::Kernel;
+use arpa_core::store::progressive_photon::{PackedPhoton, ProgressivePhoton};
+use arpa_core::accumulate::radius::{ProgressiveConfig, RadiusSchedule, RadiusSpec, MIN_RADIUS};
+use arpa_core::propagate::reemission::{diffuse_direction, reemit, virtual_distance};
+use arpa_core::base::rng::{Rng, StreamDomain};
+use arpa_core::base::sampling::{cone_solid_angle_from_angle, 
     cone_solid_angle, cosine_hemisphere, fibonacci_lattice, uniform_cone, uniform_disc, uniform_sphere, uniform_triangle,
 };
-use arpa_core::shading_normal::ShadedTriangle;
-use arpa_core::store::{store_footprint, store_progressive, ProgressiveReason, StoredPhoton};
+use arpa_core::propagate::shading_normal::ShadedTriangle;
+use arpa_core::{store::decision::{store_footprint, store_progressive, StoredPhoton}, store::heuristics::ProgressiveReason};
 use glam::{DVec2, DVec3, Vec3};
 use proptest::prelude::*;
 use proptest::strategy::ValueTree;
@@ -635,7 +635,7 @@ fn check_reflect(((p, d, (g, _)), (n, dnu, dnv)): ReflectIn) -> Outcome {
     prop_assert!(all_finite(&ray_fields(&out)), "{:?}", out);
     prop_assert!((out.d.length() - 1.0).abs() <= 1e-14);
     prop_assert!(out.p == ray.p && out.dp_du == ray.dp_du && out.dp_dv == ray.dp_dv);
-    prop_assert_eq!(out.d, arpa_core::frame::unit_or(reflect_direction(ray.d, n / n.length()), ray.d));
+    prop_assert_eq!(out.d, arpa_core::base::frame::unit_or(reflect_direction(ray.d, n / n.length()), ray.d));
     // Invariant under N → −N (documented), bit for bit.
     let flipped = NormalDifferential { n: -n, dn_du: -dnu, dn_dv: -dnv };
     prop_assert_eq!(ray.reflect(&flipped), Ok(out));
@@ -2493,7 +2493,7 @@ fn shading_input() -> BoxedStrategy<ShadingIn> {
 }
 
 fn check_diffuse_shading((ng, ns, toward, w, w_in, u): ShadingIn) -> Outcome {
-    use arpa_core::lambertian::{DiffuseShading, MAX_ADJOINT_RATIO};
+    use arpa_core::propagate::lambertian::{DiffuseShading, MAX_ADJOINT_RATIO};
     let Some(s) = DiffuseShading::new(ng, ns, toward) else {
         prop_assert!(toward.dot(ns) == 0.0, "no frame for toward·n_s = {:e}", toward.dot(ns));
         return Ok("in_shading_plane");
@@ -2653,8 +2653,8 @@ fn scene_input() -> BoxedStrategy<(usize, Poison)> {
 }
 
 fn check_scene_input((material, poison): (usize, Poison)) -> Outcome {
-    use arpa_core::prepared_scene::PreparedScene;
-    use arpa_core::scene::{Camera, Material, Scene, SceneError, TriangleMesh};
+    use arpa_core::render::prepared_scene::PreparedScene;
+    use arpa_core::render::scene::{Camera, Material, Scene, SceneError, TriangleMesh};
     let materials = [
         Material::Diffuse { albedo: Vec3::splat(0.5) },
         Material::Conductor { reflectance: Vec3::splat(0.9), roughness: 0.1 },

@@ -60,17 +60,17 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
-use arpa_core::emission::{Light, QuadLight};
-use arpa_core::footprint::PackedFootprint;
+use arpa_core::emit::emission::{Light, QuadLight};
+use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::glam::{DVec3, Vec3};
-use arpa_core::photon_path::{PhotonPassSetup, trace_photon};
-use arpa_core::prepared_scene::PreparedScene;
-use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::ray_cast::{LEAVE_RECASTS, RayCaster, RayHit};
-use arpa_core::scene::{Camera, Material, Scene, TriangleMesh};
-use arpa_core::shapes::parallelogram as quad;
-use arpa_core::store::StoredPhoton;
-use arpa_core::tracer::{IterationStats, Method, RenderSettings, StageTimes, Tracer};
+use arpa_core::render::photon_path::{PhotonPassSetup, trace_photon};
+use arpa_core::render::prepared_scene::PreparedScene;
+use arpa_core::store::progressive_photon::PackedPhoton;
+use arpa_core::render::ray_cast::{LEAVE_RECASTS, RayCaster, RayHit};
+use arpa_core::render::scene::{Camera, Material, Scene, TriangleMesh};
+use arpa_core::render::shapes::parallelogram as quad;
+use arpa_core::store::decision::StoredPhoton;
+use arpa_core::render::tracer::{IterationStats, Method, RenderSettings, StageTimes, Tracer};
 use arpa_cpu::{BuildQuality, CpuTracer, Device, EmbreeBox, EmbreeCaster, EmbreeSceneBuilder};
 use rayon::prelude::*;
 
@@ -145,9 +145,9 @@ fn mesh(name: &str, positions: Vec<Vec3>, indices: Vec<[u32; 3]>, material: u32)
 }
 
 
-/// The glass sphere: an icosphere with smooth normals ([`arpa_core::shapes::icosphere`]).
+/// The glass sphere: an icosphere with smooth normals ([`arpa_core::render::shapes::icosphere`]).
 fn icosphere(centre: Vec3, radius: f32, subdivisions: u32, material: u32) -> TriangleMesh {
-    arpa_core::shapes::icosphere("glass sphere", centre, radius, subdivisions, true, material)
+    arpa_core::render::shapes::icosphere("glass sphere", centre, radius, subdivisions, true, material)
 }
 
 /// A box of half-extents `half` around `centre`, rotated by `angle` about +y, outward

@@ -1,7 +1,7 @@
 //! The acceleration-structure build: an Embree box BVH over the photon pass's footprints
 //! and progressive photons, which the gather's point queries traverse.
 
-use arpa_core::tracer::{Stage, StageError};
+use arpa_core::render::tracer::{Stage, StageError};
 use rayon::prelude::*;
 
 use crate::embree::{BuildQuality, Device, EmbreeBox, EmbreeScene, EmbreeSceneBuilder};

@@ -1,9 +1,9 @@
 //! The camera pass: one camera path per pixel, through specular chains to its first
 //! diffuse query point.
 
-use arpa_core::camera_path::trace_camera_path;
-use arpa_core::prepared_scene::PreparedScene;
-use arpa_core::tracer::{QueryRecord, RenderSettings};
+use arpa_core::render::camera_path::trace_camera_path;
+use arpa_core::render::prepared_scene::PreparedScene;
+use arpa_core::render::tracer::{QueryRecord, RenderSettings};
 use rayon::prelude::*;
 
 use crate::caster::EmbreeCaster;

@@ -3,8 +3,8 @@
 use core::sync::atomic::{AtomicU64, Ordering};
 
 use arpa_core::glam::Vec3;
-use arpa_core::prepared_scene::PreparedScene;
-use arpa_core::ray_cast::{RayCaster, RayHit};
+use arpa_core::render::prepared_scene::PreparedScene;
+use arpa_core::render::ray_cast::{RayCaster, RayHit};
 
 use crate::embree::{BuildQuality, Device, EmbreeScene, EmbreeSceneBuilder, Result};
 
@@ -12,7 +12,7 @@ use crate::embree::{BuildQuality, Device, EmbreeScene, EmbreeSceneBuilder, Resul
 /// triangles, on an Embree BVH.
 ///
 /// Every mesh with at least one triangle becomes one Embree triangle geometry, added in
-/// mesh order; [`RayHit::mesh`] is the index in [`arpa_core::scene::Scene::meshes`] (meshes
+/// mesh order; [`RayHit::mesh`] is the index in [`arpa_core::render::scene::Scene::meshes`] (meshes
 /// without triangles get no geometry and are mapped around) and [`RayHit::triangle`] the
 /// triangle index within it. The BVH is built with [`BuildQuality::High`] and Embree's
 /// robust (watertight) mode, so rays do not leak through shared edges of closed meshes.
@@ -20,10 +20,10 @@ use crate::embree::{BuildQuality, Device, EmbreeScene, EmbreeSceneBuilder, Resul
 /// The core's rays are open segments `t ∈ (t_min, t_max)` ([`RayCaster`]); Embree's are
 /// closed (`tnear ≤ t ≤ tfar`), so a segment starts at `tnear = max(t_min,
 /// f32::MIN_POSITIVE)`: a ray whose origin lies exactly on a triangle does not hit it at
-/// `t = 0`, as with [`arpa_core::ray_cast::BruteForceCaster`].
+/// `t = 0`, as with [`arpa_core::render::brute_force::BruteForceCaster`].
 ///
 /// Rays leaving a surface start on it and skip the triangle they leave: that rule is the
-/// core's ([`arpa_core::ray_cast::RayStart`]), on top of these queries, so none is needed
+/// core's ([`arpa_core::render::ray_cast::RayStart`]), on top of these queries, so none is needed
 /// here.
 ///
 /// Embree reports errors per query; a failed query (an invalid ray, which the core's paths

@@ -3,12 +3,12 @@
 
 use core::sync::atomic::{AtomicU64, Ordering};
 
-use arpa_core::bandwidth::{ScaleSums, MOMENT_PLANES, SCALES};
-use arpa_core::estimate::{IrradianceEstimate, QueryPoint};
+use arpa_core::gather::scales::{ScaleSums, MOMENT_PLANES, SCALES};
+use arpa_core::gather::estimate::{IrradianceEstimate, QueryPoint};
 use arpa_core::glam::{DVec3, Vec3};
-use arpa_core::kernel::Kernel;
-use arpa_core::prefetch::prefetch;
-use arpa_core::tracer::QueryRecord;
+use arpa_core::gather::kernel::Kernel;
+use arpa_core::base::prefetch::prefetch;
+use arpa_core::render::tracer::QueryRecord;
 use rayon::prelude::*;
 
 use crate::accel::Accel;
@@ -23,7 +23,7 @@ pub(crate) struct GatherInput<'a> {
     /// Progressive radii `[caustic, global]` of the photons in `store`.
     pub radii: [f32; 2],
     /// Scales of the bandwidth ladder to evaluate: 1 (global bandwidth) or
-    /// [`SCALES`] (per-pixel; [`arpa_core::bandwidth`]).
+    /// [`SCALES`] (per-pixel; [`arpa_core::gather::scales`]).
     pub scales: usize,
     /// Counts the point queries that failed (answered as "nothing found").
     pub errors: &'a AtomicU64,
@@ -43,8 +43,8 @@ pub(crate) struct GatherCounts {
 /// Writes the radiance of each query record's pixel to `image` (one task per record, in
 /// parallel) and returns the candidates and contributions found. With one scale `image`
 /// holds one radiance per record; with [`SCALES`] it holds the planes of
-/// [`arpa_core::bandwidth`], plane-major: the radiance at every scale, then the moment
-/// planes of [`arpa_core::bandwidth::moments`].
+/// [`arpa_core::gather::scales`], plane-major: the radiance at every scale, then the moment
+/// planes of [`arpa_core::gather::scales::moments`].
 ///
 /// `planes` is the per-pixel scratch of a per-pixel gather (its capacity is kept from one
 /// iteration to the next, so the planes are not allocated again each time).
@@ -76,7 +76,7 @@ pub(crate) fn gather(queries: &[QueryRecord], input: &GatherInput<'_>, image: &m
             .map_init(Vec::new, |scratch, rec| {
                 let (l, e) = gather_one(rec, input, scratch, true);
                 count(&e);
-                let m = arpa_core::bandwidth::moments(&l);
+                let m = arpa_core::gather::scales::moments(&l);
                 core::array::from_fn(|p| if p < SCALES { l[p] } else { m[p - SCALES] })
             })
             .collect_into_vec(planes);
@@ -99,7 +99,7 @@ fn finite_or_zero(v: DVec3) -> DVec3 {
 }
 
 /// Candidate key of the gather: footprints (`index`) before progressive photons
-/// (`2³² + index`), the order [`arpa_core::estimate::gather_brute_force`] sums in.
+/// (`2³² + index`), the order [`arpa_core::gather::estimate::gather_brute_force`] sums in.
 const PHOTON_KEY: u64 = 1 << 32;
 
 /// The gather of one query record: its pixel's radiance (at every scale when `scaled`,
@@ -112,7 +112,7 @@ const PHOTON_KEY: u64 = 1 << 32;
 /// traversal one by one. Then the candidates are sorted and deduplicated by key and each
 /// is added with the core's [`IrradianceEstimate::add_footprint`] /
 /// [`IrradianceEstimate::add_photon`] (exact test and `f64` sum) in `(kind, index)` order,
-/// so the sum is bit-identical to [`arpa_core::estimate::gather_brute_force`] over the
+/// so the sum is bit-identical to [`arpa_core::gather::estimate::gather_brute_force`] over the
 /// same records, whatever order the BVH reported them in.
 fn gather_one(rec: &QueryRecord, input: &GatherInput<'_>, keys: &mut Vec<u64>, scaled: bool) -> ([Vec3; SCALES], IrradianceEstimate) {
     let known = Vec3::from_array(rec.radiance).as_dvec3();

@@ -1,7 +1,7 @@
 //! `arpa-cpu`: ARPA's CPU backend, [`CpuTracer`], on Embree 4 and rayon, over a minimal,
 //! safe Embree layer.
 //!
-//! [`CpuTracer`] implements [`arpa_core::tracer::Tracer`]: the whole photon-mapping
+//! [`CpuTracer`] implements [`arpa_core::render::tracer::Tracer`]: the whole photon-mapping
 //! iteration on Embree (rays through [`EmbreeCaster`], footprint and photon boxes through
 //! point queries) and rayon, deterministic for any thread count. The modules follow the
 //! pipeline:

@@ -1,12 +1,12 @@
 //! The photon buffers of one iteration: footprints with their acceleration-structure
 //! boxes, progressive photons, and the counts of the photon pass.
 
-use arpa_core::aabb::Aabb;
-use arpa_core::footprint::PackedFootprint;
+use arpa_core::base::aabb::Aabb;
+use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::glam::{DVec3, Vec3};
-use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::store::StoredPhoton;
-use arpa_core::tracer::IterationStats;
+use arpa_core::store::progressive_photon::PackedPhoton;
+use arpa_core::store::decision::StoredPhoton;
+use arpa_core::render::tracer::IterationStats;
 
 use crate::embree::EmbreeBox;
 
@@ -133,10 +133,10 @@ mod tests {
     /// origin and far from it; and it is tight there.
     #[test]
     fn core_box_covers_the_packed_test() {
-        use arpa_core::classify::Smoothing;
-        use arpa_core::footprint::{Footprint, PhotonMap};
-        use arpa_core::heuristics::Heuristics;
-        use arpa_core::store::store_footprint;
+        use arpa_core::propagate::classify::Smoothing;
+        use arpa_core::store::footprint::{Footprint, PhotonMap};
+        use arpa_core::store::heuristics::Heuristics;
+        use arpa_core::store::decision::store_footprint;
         let heuristics = Heuristics::NONE.resolve(&Aabb {
             min: DVec3::splat(-1e3),
             max: DVec3::splat(1e3),

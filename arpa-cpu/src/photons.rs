@@ -20,7 +20,7 @@
 //! on the interleaving.
 //!
 //! The records come out in photon-index order, as a sequential loop over
-//! [`arpa_core::photon_path::trace_photon`] gives them: the photon with the lower index
+//! [`arpa_core::render::photon_path::trace_photon`] gives them: the photon with the lower index
 //! in flight writes straight to the chunk's store; the other one's records (packed and
 //! boxed already) wait in its slot's small side buffer, which moves to the store when
 //! that photon becomes the lower-indexed one in flight.
@@ -29,10 +29,10 @@ use core::sync::atomic::{AtomicU32, Ordering};
 use std::ops::Range;
 use std::sync::Mutex;
 
-use arpa_core::photon_path::{PhotonPassSetup, PhotonWalk};
-use arpa_core::prepared_scene::PreparedScene;
-use arpa_core::ray_cast::{RayCaster, RayHit};
-use arpa_core::tracer::{IterationStats, RenderSettings};
+use arpa_core::render::photon_path::{PhotonPassSetup, PhotonWalk};
+use arpa_core::render::prepared_scene::PreparedScene;
+use arpa_core::render::ray_cast::{RayCaster, RayHit};
+use arpa_core::render::tracer::{IterationStats, RenderSettings};
 use rayon::prelude::*;
 
 use crate::caster::EmbreeCaster;
@@ -261,13 +261,13 @@ pub(crate) fn trace_chunk(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use arpa_core::emission::{Light, QuadLight};
+    use arpa_core::emit::emission::{Light, QuadLight};
     use arpa_core::glam::{DVec3, Vec3};
-    use arpa_core::photon_path::trace_photon;
-    use arpa_core::ray_cast::BruteForceCaster;
-    use arpa_core::scene::{Camera, Material, Scene};
-    use arpa_core::shapes::{cuboid, icosphere, parallelogram};
-    use arpa_core::tracer::Method;
+    use arpa_core::render::photon_path::trace_photon;
+    use arpa_core::render::brute_force::BruteForceCaster;
+    use arpa_core::render::scene::{Camera, Material, Scene};
+    use arpa_core::render::shapes::{cuboid, icosphere, parallelogram};
+    use arpa_core::render::tracer::Method;
 
     /// A closed 2 m room (diffuse walls), a smooth glass sphere, a smooth diffuse sphere
     /// (shading normals on a diffuse surface), a mirror block and a quad light.

@@ -1,4 +1,4 @@
-//! [`CpuTracer`]: the CPU backend of [`arpa_core::tracer::Tracer`] on Embree 4 and rayon.
+//! [`CpuTracer`]: the CPU backend of [`arpa_core::render::tracer::Tracer`] on Embree 4 and rayon.
 //!
 //! This module holds the tracer's state and the stage bookkeeping (the core's
 //! [`StageClock`]); each stage's work is in its own module ([`camera`](crate::camera),
@@ -7,13 +7,13 @@
 
 use core::sync::atomic::{AtomicU64, Ordering};
 
-use arpa_core::accumulate::{Accumulation, ImageAccumulator};
-use arpa_core::footprint::PackedFootprint;
+use arpa_core::accumulate::image::{Accumulation, ImageAccumulator};
+use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::glam::Vec3;
-use arpa_core::prepared_scene::PreparedScene;
-use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::scene::Scene;
-use arpa_core::tracer::{
+use arpa_core::render::prepared_scene::PreparedScene;
+use arpa_core::store::progressive_photon::PackedPhoton;
+use arpa_core::render::scene::Scene;
+use arpa_core::render::tracer::{
     BackendKind, Call, Capabilities, Image, IterationStats, QueryRecord, RenderSettings,
     Stage, StageClock, StageError, Tracer, prepare_upload, uploaded,
 };
@@ -61,7 +61,7 @@ pub enum CpuError {
 /// | [`camera_pass`](Tracer::camera_pass) | the core's `trace_camera_path` for every pixel, in parallel |
 /// | [`photon_pass`](Tracer::photon_pass) | frees the previous box BVH, then the core's `PhotonWalk` for every photon (two in flight per thread, interleaved segment by segment; the records are those of `trace_photon`, in photon order), in chunks of [`PHOTON_CHUNK`](crate::PHOTON_CHUNK) photon indices taken in order by one loop per thread; each finished chunk is appended to the buffers (reused from the last iteration, sized from its store rate) as soon as the chunks before it are |
 /// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | one Embree box geometry for the footprints (the core's box of each footprint's elliptic slab, made in the photon pass), one for the progressive photons' cubes `x ± r_map` (`BuildQuality::Low`); boxes padded a little beyond `f32` rounding, handed to Embree without a copy and freed once the BVH is built |
-/// | [`gather`](Tracer::gather) | per query point: the boxes containing it (Embree point query, whose callback only notes and prefetches each candidate), then the core's estimator (`IrradianceEstimate::add_footprint` / `add_photon`) over the candidates in `(kind, index)` order: bit for bit what [`arpa_core::estimate::gather_brute_force`] gives over the same records |
+/// | [`gather`](Tracer::gather) | per query point: the boxes containing it (Embree point query, whose callback only notes and prefetches each candidate), then the core's estimator (`IrradianceEstimate::add_footprint` / `add_photon`) over the candidates in `(kind, index)` order: bit for bit what [`arpa_core::gather::estimate::gather_brute_force`] gives over the same records |
 /// | [`accumulate`](Tracer::accumulate) | adds the iteration's image to the compensated running mean |
 ///
 /// # Determinism
@@ -105,7 +105,7 @@ struct Loaded {
     /// Output of the gather: the iteration's image.
     image: Vec<Vec3>,
     /// Per-pixel scratch of a per-pixel bandwidth gather (kept between iterations).
-    planes: Vec<[Vec3; arpa_core::bandwidth::PLANES]>,
+    planes: Vec<[Vec3; arpa_core::gather::scales::PLANES]>,
     /// Failed point queries of the gather (answered as "nothing found").
     gather_errors: AtomicU64,
 }

@@ -9,7 +9,7 @@ use std::f64::consts::PI;
 use std::time::Instant;
 
 use arpa_core::glam::{DVec3, Vec3};
-use arpa_core::tracer::{Method, QueryRecord, RenderSettings, Tracer};
+use arpa_core::render::tracer::{Method, QueryRecord, RenderSettings, Tracer};
 use arpa_cpu::CpuTracer;
 use common::*;
 

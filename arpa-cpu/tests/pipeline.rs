@@ -3,18 +3,18 @@
 
 mod common;
 
-use arpa_core::camera_path::trace_camera_path;
-use arpa_core::emission::{Light, LightError, QuadLight};
-use arpa_core::estimate::{QueryPoint, gather_brute_force};
-use arpa_core::footprint::PackedFootprint;
+use arpa_core::render::camera_path::trace_camera_path;
+use arpa_core::emit::emission::{Light, LightError, QuadLight};
+use arpa_core::gather::estimate::{QueryPoint, gather_brute_force};
+use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::glam::{DVec3, Vec3};
-use arpa_core::photon_path::{PhotonPassSetup, trace_photon};
-use arpa_core::prepared_scene::PreparedScene;
-use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::ray_cast::BruteForceCaster;
-use arpa_core::scene::{Material, Scene, SceneError};
-use arpa_core::store::StoredPhoton;
-use arpa_core::tracer::{
+use arpa_core::render::photon_path::{PhotonPassSetup, trace_photon};
+use arpa_core::render::prepared_scene::PreparedScene;
+use arpa_core::store::progressive_photon::PackedPhoton;
+use arpa_core::render::brute_force::BruteForceCaster;
+use arpa_core::render::scene::{Material, Scene, SceneError};
+use arpa_core::store::decision::StoredPhoton;
+use arpa_core::render::tracer::{
     BackendKind, Call, IterationStats, Method, RenderSettings, Stage, StageError, Tracer,
 };
 use arpa_cpu::{CpuError, CpuTracer};
@@ -435,22 +435,22 @@ fn bad_input_is_a_documented_error() {
         },
         RenderSettings { max_depth: 0, ..s },
         RenderSettings {
-            smoothing: arpa_core::classify::Smoothing {
+            smoothing: arpa_core::propagate::classify::Smoothing {
                 caustic: f64::NAN,
                 global: 1.0,
             },
             ..s
         },
         RenderSettings {
-            radii: arpa_core::radius::ProgressiveConfig {
+            radii: arpa_core::accumulate::radius::ProgressiveConfig {
                 alpha: 0.0,
                 ..s.radii
             },
             ..s
         },
         RenderSettings {
-            radii: arpa_core::radius::ProgressiveConfig {
-                global: arpa_core::radius::RadiusSpec::Absolute(-1.0),
+            radii: arpa_core::accumulate::radius::ProgressiveConfig {
+                global: arpa_core::accumulate::radius::RadiusSpec::Absolute(-1.0),
                 ..s.radii
             },
             ..s
@@ -621,7 +621,7 @@ fn empty_photon_buffers_work() {
 /// gather finds, bit for bit, for the constant kernel too (full weight at the rim).
 #[test]
 fn gather_matches_brute_force_on_a_facetted_sphere() {
-    use arpa_core::kernel::Kernel;
+    use arpa_core::gather::kernel::Kernel;
     let sphere = icosphere(Vec3::ZERO, 1.0, 1, 0);
     let scene = scene(
         vec![sphere],

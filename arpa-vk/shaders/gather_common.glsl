@@ -13,7 +13,7 @@
 // (scale 0 multiplies by 2^0 = 1, exact). Dot products are written out in glam's order (x,
 // then y, then z) and `precise` forbids contracting them into fused multiply-adds, so on a
 // conforming device the tests decide as the core's f32 code does. Covered by
-// arpa-vk/tests/gather_hit_group.rs (against arpa_core::estimate::gather_brute_force and
+// arpa-vk/tests/gather_hit_group.rs (against arpa_core::gather::estimate::gather_brute_force and
 // gather_brute_force_scales); edit with the core and the WGSL twin.
 //
 // Records: instance custom index = ARPA_INSTANCE_PHOTON_BIT for progressive photons, plus
@@ -37,7 +37,7 @@ const uint ARPA_HIT_PHOTON = 1u;
 // Added to the hit kind of a candidate whose record does not contain the query point.
 const uint ARPA_HIT_OUTSIDE = 2u;
 
-// arpa_core::footprint::PackedFootprint (64 bytes).
+// arpa_core::store::footprint::PackedFootprint (64 bytes).
 struct ArpaPackedFootprint {
     vec3 center;
     uint map;
@@ -49,7 +49,7 @@ struct ArpaPackedFootprint {
     float flux_density_b;
 };
 
-// arpa_core::progressive_photon::PackedPhoton (48 bytes).
+// arpa_core::store::progressive_photon::PackedPhoton (48 bytes).
 struct ArpaPackedPhoton {
     vec3 position;
     uint map;
@@ -78,7 +78,7 @@ layout(set = 0, binding = 4, std430) readonly buffer ArpaGatherParams {
     uint pad2;
 } arpa_params;
 
-// arpa_core::bandwidth::SCALES (bandwidth.wgsl's ARPA_SCALES).
+// arpa_core::gather::scales::SCALES (bandwidth.wgsl's ARPA_SCALES).
 const uint ARPA_SCALES = 5u;
 
 layout(set = 0, binding = 0, std430) readonly buffer ArpaFootprints { ArpaPackedFootprint arpa_footprints[]; };

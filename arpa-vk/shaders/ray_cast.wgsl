@@ -1,6 +1,6 @@
 // arpa-vk's ray-casting test kernel (tests/ray_cast.rs): one closest-hit ray per input ray
 // through scene_trace.wgsl's miss and closest-hit shaders, the device side of
-// arpa_core::ray_cast::RayCaster::intersect. Group 0: the scene (scene_trace.wgsl's top
+// arpa_core::render::ray_cast::RayCaster::intersect. Group 0: the scene (scene_trace.wgsl's top
 // level at binding 0, the core's SceneTables at bindings 1 to 4). Group 1: the rays and one
 // result (VkCastHit) per ray. Launch: (rays, 1, 1), or 2-D with x fastest.
 

@@ -2,7 +2,7 @@
 //! entry `accumulate`, as a compute pipeline): per entry of the image (every plane of every
 //! pixel, plane-major) a compensated `f32` sum and a count of rejected non-finite samples
 //! ([`AccumPixel`]); the tracer turns a read-back into the core's
-//! [`arpa_core::accumulate::Accumulation`], whose mean is the image, so the mean is the
+//! [`arpa_core::accumulate::image::Accumulation`], whose mean is the image, so the mean is the
 //! core's and arpa-wgpu's.
 
 use std::sync::Arc;
@@ -23,7 +23,7 @@ pub const IMAGE_PIXEL_BYTES: u64 = 16;
 ///
 /// Errors: [`VkError::Shader`] if naga rejects the core's WGSL; device errors.
 pub fn accumulate_pipeline(ctx: &VkContext) -> Result<ComputePipeline, VkError> {
-    let source = arpa_core::shaders::compose(&[&arpa_core::shaders::ACCUMULATE]);
+    let source = arpa_core::gpu::shaders::compose(&[&arpa_core::gpu::shaders::ACCUMULATE]);
     use BindingKind::StorageBuffer as Sb;
     ComputePipeline::from_wgsl(ctx, "arpa accumulate", &source, "accumulate", &[&[Sb, Sb]])
 }

@@ -11,7 +11,7 @@ use crate::pipeline::{BindingKind, Bindings, HitGroup, Resource, RtPipeline, RtP
 use crate::scene::{SCENE_SET, VkScene};
 use crate::shaders::{CAMERA_RAYGEN, compile_wgsl};
 use arpa_core::gpu::layout::CameraParams;
-use arpa_core::tracer::QueryRecord;
+use arpa_core::render::tracer::QueryRecord;
 use ash::vk;
 use std::sync::Arc;
 use gpu_allocator::MemoryLocation;
@@ -49,7 +49,7 @@ pub(crate) fn scene_pipeline(ctx: &VkContext, label: &str, source: &str, raygen:
 /// The camera pass's pipeline (independent of scene and settings; shared by every
 /// [`CameraPass`] of a context).
 pub fn camera_pipeline(ctx: &VkContext) -> Result<RtPipeline, VkError> {
-    let source = arpa_core::shaders::compose(&[&CAMERA_RAYGEN]);
+    let source = arpa_core::gpu::shaders::compose(&[&CAMERA_RAYGEN]);
     scene_pipeline(ctx, "camera pass", &source, "vk_camera_raygen", &[BindingKind::UniformBuffer, BindingKind::StorageBuffer])
 }
 

@@ -4,7 +4,7 @@
 //! photon maps' boxes; the AABB hit group is GLSL ([`GATHER_INTERSECTION`]: the exact
 //! filter-space or sphere test; [`GATHER_ANY_HIT`]: the contribution into the payload, then
 //! `ignoreIntersectionEXT`), the miss shader is WGSL. Writes, per pixel and scale `k` of the
-//! bandwidth ([`arpa_core::bandwidth`]), `radiance + weight · E_k` (`E_0 = E_caustic +
+//! bandwidth ([`arpa_core::gather::scales`]), `radiance + weight · E_k` (`E_0 = E_caustic +
 //! E_global`, the stored scale) and, for a per-pixel bandwidth, the moment planes, plane-major;
 //! counts contributions and valid query points.
 //!
@@ -27,9 +27,9 @@ use crate::device::VkContext;
 use crate::error::VkError;
 use crate::pipeline::{BindingKind, HitGroup, Resource, RtPipeline, RtPipelineDesc, ShaderEntry};
 use crate::shaders::{GATHER_ANY_HIT, GATHER_INTERSECTION, GATHER_RAYGEN, GlslStage, compile_wgsl};
-use arpa_core::bandwidth::Bandwidth;
+use arpa_core::gather::scales::Bandwidth;
 use arpa_core::gpu::layout::{self, GatherBatch, GatherImageParams, ImageBufferSizes};
-use arpa_core::kernel::Kernel;
+use arpa_core::gather::kernel::Kernel;
 use ash::vk;
 use std::sync::Arc;
 use gpu_allocator::MemoryLocation;
@@ -52,7 +52,7 @@ pub struct GatherInputs<'a> {
 /// The gather's pipeline (independent of scene and settings; shared by every
 /// [`GatherPass`] of a context).
 pub fn gather_pipeline(ctx: &VkContext) -> Result<RtPipeline, VkError> {
-    let spirv = compile_wgsl("gather", &arpa_core::shaders::compose(&[&GATHER_RAYGEN]))?;
+    let spirv = compile_wgsl("gather", &arpa_core::gpu::shaders::compose(&[&GATHER_RAYGEN]))?;
     let module = ctx.create_shader_module(&spirv)?;
     let glsl = |g: &GlslStage| ctx.create_shader_module(&g.module()?);
     let (rint, rahit) = (glsl(&GATHER_INTERSECTION)?, glsl(&GATHER_ANY_HIT)?);

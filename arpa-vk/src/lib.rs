@@ -1,5 +1,5 @@
 //! ARPA's Vulkan backend on ray-tracing pipelines: [`VkTracer`] implements
-//! `arpa_core::tracer::Tracer` (the facade's `--backend vk`). Every trace is a ray-tracing
+//! `arpa_core::render::tracer::Tracer` (the facade's `--backend vk`). Every trace is a ray-tracing
 //! pipeline (raygen, closest-hit and miss over the triangle structures; for the gather one
 //! short ray per query point through an AABB hit group whose intersection shader does the
 //! exact filter-space test), the store and sort are compute; ray queries are not used.

@@ -1,7 +1,7 @@
 //! The keyed store, sort and compaction of one iteration's photon maps on the device: a port
 //! of arpa-wgpu's `store.rs`, `sort.rs` and `maps.rs` without photon batches (one batch per
 //! iteration), running the core's WGSL kernels (`path/store.wgsl`, `path/sort.wgsl`,
-//! [`arpa_core::shaders::STORE`], [`arpa_core::shaders::SORT`]) as compute pipelines.
+//! [`arpa_core::gpu::shaders::STORE`], [`arpa_core::gpu::shaders::SORT`]) as compute pipelines.
 //!
 //! Raw footprints ([`KeyedFootprint`], smoothed by the photon pass) go through the twin's
 //! heuristics; rejected ones fall back to progressive photons as in [`arpa_core::store`].
@@ -27,10 +27,10 @@ use crate::compute::{ComputePipeline, ComputePipelineDesc, record_compute_barrie
 use crate::device::VkContext;
 use crate::error::VkError;
 use crate::pipeline::{BindingKind, Bindings, Resource};
-use arpa_core::footprint::PackedFootprint;
-use arpa_core::gpu::layout::{KeyedFootprint, KeyedPhoton, SortItem, StoreCounts, StoreParams, StoreSettings};
+use arpa_core::store::footprint::PackedFootprint;
+use arpa_core::{gpu::layout::{KeyedFootprint, KeyedPhoton, StoreCounts, StoreParams, StoreSettings}, gpu::sort::SortItem};
 use arpa_core::gpu::sort::{MAX_SORT_ITEMS, SORT_BLOCK, sort_steps, sorted_len};
-use arpa_core::progressive_photon::PackedPhoton;
+use arpa_core::store::progressive_photon::PackedPhoton;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
@@ -74,13 +74,13 @@ impl StorePipelines {
     ///
     /// Errors: [`VkError::Shader`] if naga rejects the core's WGSL; device errors.
     pub fn new(ctx: &VkContext) -> Result<Self, VkError> {
-        let store_spirv = crate::shaders::compile_wgsl("arpa store", &arpa_core::shaders::compose(&[&arpa_core::shaders::STORE]))?;
+        let store_spirv = crate::shaders::compile_wgsl("arpa store", &arpa_core::gpu::shaders::compose(&[&arpa_core::gpu::shaders::STORE]))?;
         // sort.wgsl's shared-memory kernels copy all SORT_BLOCK items into workgroup memory
         // before the first barrier and read nothing else, so WGSL's zero initialisation of
         // workgroup memory is dead work; naga's polyfill of it makes lavapipe's first
         // compilation of sort_merge take minutes (see `compile_wgsl_with`).
         let sort_spirv =
-            crate::shaders::compile_wgsl_with("arpa sort", &arpa_core::shaders::compose(&[&arpa_core::shaders::SORT]), false)?;
+            crate::shaders::compile_wgsl_with("arpa sort", &arpa_core::gpu::shaders::compose(&[&arpa_core::gpu::shaders::SORT]), false)?;
         let store_set = [BindingKind::StorageBuffer; 13];
         let sort_set = [BindingKind::StorageBuffer, BindingKind::UniformBuffer];
         let make = |spirv, entry, set: &[BindingKind]| {
@@ -212,7 +212,7 @@ impl MapStore {
 
     /// The photons' boxes: the sphere of the map's progressive radius, padded as every
     /// acceleration-structure box (`arpa_padded_box`, the twin of
-    /// [`arpa_core::aabb::Aabb::padded_f32`]); 24 bytes each, [`BOX_USAGE`].
+    /// [`arpa_core::base::aabb::Aabb::padded_f32`]); 24 bytes each, [`BOX_USAGE`].
     pub fn photon_boxes(&self) -> &Buffer {
         &self.photon_boxes
     }

@@ -13,10 +13,10 @@ use crate::error::VkError;
 use crate::pipeline::{BindingKind, Bindings, Resource, RtPipeline};
 use crate::scene::VkScene;
 use crate::shaders::PHOTON_RAYGEN;
-use arpa_core::emission::PackedLight;
-use arpa_core::gpu::layout::{EmitterRange, KeyedFootprint, KeyedPhoton, PhotonCounters, PhotonParams, emitter_tables};
-use arpa_core::photon_path::PhotonPassSetup;
-use arpa_core::tracer::RenderSettings;
+use arpa_core::emit::emission::PackedLight;
+use arpa_core::{gpu::layout::{EmitterRange, KeyedFootprint, KeyedPhoton, PhotonCounters, PhotonParams}, gpu::fill::emitter_tables};
+use arpa_core::render::photon_path::PhotonPassSetup;
+use arpa_core::render::tracer::RenderSettings;
 use ash::vk;
 use std::sync::Arc;
 use gpu_allocator::MemoryLocation;
@@ -77,7 +77,7 @@ pub struct PhotonPass {
     params: Buffer,
     lights: Buffer,
     ranges: Buffer,
-    /// The scene's projection cells ([`arpa_core::gpu::layout::cell_table`]), written once.
+    /// The scene's projection cells ([`arpa_core::gpu::fill::cell_table`]), written once.
     cells: Buffer,
     /// Sources of the setups this pass takes (twice the scene's emitters).
     emitters: usize,
@@ -87,7 +87,7 @@ pub struct PhotonPass {
 /// The photon pass's pipeline (independent of scene and settings; shared by every
 /// [`PhotonPass`] of a context).
 pub fn photon_pipeline(ctx: &VkContext) -> Result<RtPipeline, VkError> {
-    let source = arpa_core::shaders::compose(&[&PHOTON_RAYGEN]);
+    let source = arpa_core::gpu::shaders::compose(&[&PHOTON_RAYGEN]);
     use BindingKind::{StorageBuffer as Sb, UniformBuffer as Ub};
     scene_pipeline(ctx, "photon pass", &source, "vk_photon_raygen", &[Ub, Sb, Sb, Sb, Sb, Sb, Sb])
 }
@@ -95,11 +95,11 @@ pub fn photon_pipeline(ctx: &VkContext) -> Result<RtPipeline, VkError> {
 impl PhotonPass {
     /// The pass on `pipeline` ([`photon_pipeline`]) for the scene `prepared` (its
     /// emitters; its projection cells are written here) under `settings`.
-    pub fn new(ctx: &VkContext, pipeline: &Arc<RtPipeline>, prepared: &arpa_core::prepared_scene::PreparedScene, settings: &RenderSettings) -> Result<Self, VkError> {
+    pub fn new(ctx: &VkContext, pipeline: &Arc<RtPipeline>, prepared: &arpa_core::render::prepared_scene::PreparedScene, settings: &RenderSettings) -> Result<Self, VkError> {
         let pipeline = Arc::clone(pipeline);
         // A global and a caustic source per emitter (PhotonPassSetup).
         let emitters = 2 * prepared.emitters().len();
-        let cell_table = arpa_core::gpu::layout::cell_table(prepared);
+        let cell_table = arpa_core::gpu::fill::cell_table(prepared);
         let n = emitters.max(1) as u64;
         let host = MemoryLocation::CpuToGpu;
         Ok(Self {

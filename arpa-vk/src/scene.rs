@@ -11,7 +11,7 @@ use crate::device::VkContext;
 use crate::error::VkError;
 use crate::pipeline::{BindingKind, Resource};
 use arpa_core::gpu::scene::SceneTables;
-use arpa_core::prepared_scene::PreparedScene;
+use arpa_core::render::prepared_scene::PreparedScene;
 use ash::vk;
 
 /// The kinds of descriptor set 0 of a pass that traces the scene.

@@ -1,7 +1,7 @@
 //! WGSL ray-tracing stages compiled to SPIR-V at run time with naga 30
 //! (`enable wgpu_ray_tracing_pipeline;`: `@ray_generation`, `@miss`, `@closest_hit`,
 //! `@any_hit`, `var<ray_payload>`, `var<incoming_ray_payload>`, `traceRay`), and this crate's
-//! own WGSL files, composed with the core's by [`arpa_core::shaders::compose`].
+//! own WGSL files, composed with the core's by [`arpa_core::gpu::shaders::compose`].
 //!
 //! What naga 30 cannot express, and what that means here:
 //! - no intersection stage and no `ignoreIntersection`/`reportIntersection` (the gather's AABB
@@ -23,7 +23,7 @@
 //! (`arpa-vk/shaders/gather_common.glsl`) is held to the core by `tests/gather_hit_group.rs`.
 
 use crate::error::VkError;
-use arpa_core::shaders::{SCENE, WgslFile};
+use arpa_core::gpu::shaders::{SCENE, WgslFile};
 
 /// The SPIR-V version of the modules (ray-tracing pipelines need Vulkan 1.2, which takes 1.5;
 /// 1.4 is what `VK_KHR_ray_tracing_pipeline` is specified against).
@@ -48,7 +48,7 @@ pub const RAY_CAST: WgslFile =
 pub const CAMERA_RAYGEN: WgslFile = WgslFile {
     name: "arpa-vk/camera_raygen.wgsl",
     source: include_str!("../shaders/camera_raygen.wgsl"),
-    deps: &[&arpa_core::shaders::CAMERA_PASS, &SCENE_TRACE],
+    deps: &[&arpa_core::gpu::shaders::CAMERA_PASS, &SCENE_TRACE],
 };
 
 /// The photon pass's ray generation `vk_photon_raygen` (one invocation per photon), over the
@@ -56,7 +56,7 @@ pub const CAMERA_RAYGEN: WgslFile = WgslFile {
 pub const PHOTON_RAYGEN: WgslFile = WgslFile {
     name: "arpa-vk/photon_raygen.wgsl",
     source: include_str!("../shaders/photon_raygen.wgsl"),
-    deps: &[&arpa_core::shaders::PHOTON_PASS, &SCENE_TRACE],
+    deps: &[&arpa_core::gpu::shaders::PHOTON_PASS, &SCENE_TRACE],
 };
 
 /// The gather's ray generation `vk_gather_raygen` (one point query per query record) and
@@ -65,12 +65,12 @@ pub const PHOTON_RAYGEN: WgslFile = WgslFile {
 pub const GATHER_RAYGEN: WgslFile = WgslFile {
     name: "arpa-vk/gather_raygen.wgsl",
     source: include_str!("../shaders/gather_raygen.wgsl"),
-    deps: &[&arpa_core::shaders::GATHER],
+    deps: &[&arpa_core::gpu::shaders::GATHER],
 };
 
 /// The composed WGSL of [`RAY_CAST`] and the core files it needs.
 pub fn ray_cast_source() -> String {
-    arpa_core::shaders::compose(&[&RAY_CAST])
+    arpa_core::gpu::shaders::compose(&[&RAY_CAST])
 }
 
 /// A GLSL ray-tracing stage compiled ahead of time by `scripts/build-vk-shaders.sh`
@@ -221,7 +221,7 @@ mod tests {
             (&PHOTON_RAYGEN, vec![(RayGeneration, "vk_photon_raygen"), (Miss, "vk_cast_miss"), (ClosestHit, "vk_cast_closest_hit")]),
             (&GATHER_RAYGEN, vec![(RayGeneration, "vk_gather_raygen"), (Miss, "vk_gather_miss")]),
         ] {
-            let m = compile_wgsl(file.name, &arpa_core::shaders::compose(&[file])).unwrap_or_else(|e| panic!("{e}"));
+            let m = compile_wgsl(file.name, &arpa_core::gpu::shaders::compose(&[file])).unwrap_or_else(|e| panic!("{e}"));
             let names: Vec<_> = m.entry_points.iter().map(|(s, n)| (*s, n.as_str())).collect();
             assert_eq!(names.len(), want.len(), "{}: {names:?}", file.name);
             for w in want {
@@ -245,7 +245,7 @@ mod tests {
 
     #[test]
     fn workgroup_zero_initialisation_is_optional() {
-        let sort = arpa_core::shaders::compose(&[&arpa_core::shaders::SORT]);
+        let sort = arpa_core::gpu::shaders::compose(&[&arpa_core::gpu::shaders::SORT]);
         let with = compile_wgsl("sort", &sort).expect("sort compiles");
         let without = compile_wgsl_with("sort", &sort, false).expect("sort compiles without zero initialisation");
         assert_eq!(with.entry_points, without.entry_points);

@@ -1,4 +1,4 @@
-//! [`VkTracer`]: the Vulkan backend of [`arpa_core::tracer::Tracer`] on ray-tracing
+//! [`VkTracer`]: the Vulkan backend of [`arpa_core::render::tracer::Tracer`] on ray-tracing
 //! pipelines.
 
 use crate::accumulate::{AccumPixel, DeviceAccumulator, accumulate_pipeline};
@@ -13,15 +13,15 @@ use crate::map_accel::MapAccel;
 use crate::maps::{MapStore, StorePipelines};
 use crate::photons::{PhotonOutputs, PhotonPass, photon_pipeline};
 use crate::scene::VkScene;
-use arpa_core::accumulate::Accumulation;
-use arpa_core::footprint::PackedFootprint;
+use arpa_core::accumulate::image::Accumulation;
+use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::gpu::batch::{Overflow, RecordLimits, after_overflow, for_each_batch, initial_capacity, shrink};
-use arpa_core::gpu::layout::{CameraParams, GatherBatch, ImageBufferSizes, StoreCounts, StoreSettings, check_record_keys};
-use arpa_core::photon_path::PhotonPassSetup;
-use arpa_core::prepared_scene::PreparedScene;
-use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::scene::{Scene, SceneError};
-use arpa_core::tracer::{
+use arpa_core::{gpu::layout::{CameraParams, GatherBatch, ImageBufferSizes, StoreCounts, StoreSettings}, gpu::fill::check_record_keys};
+use arpa_core::render::photon_path::PhotonPassSetup;
+use arpa_core::render::prepared_scene::PreparedScene;
+use arpa_core::store::progressive_photon::PackedPhoton;
+use arpa_core::render::scene::{Scene, SceneError};
+use arpa_core::render::tracer::{
     BackendKind, Call, Capabilities, Image, IterationStats, QueryRecord, RenderSettings, Stage, StageClock, StageError, Tracer,
     prepare_upload, uploaded,
 };
@@ -85,9 +85,9 @@ pub enum VkTracerError {
 /// another `f32` order).
 ///
 /// # Bandwidth
-/// The iteration image has [`arpa_core::bandwidth::Bandwidth::planes`] planes per pixel
+/// The iteration image has [`arpa_core::gather::scales::Bandwidth::planes`] planes per pixel
 /// (`RenderSettings::bandwidth`: 1 for a global bandwidth; per pixel, the radiance at every
-/// scale and the moment planes, [`arpa_core::bandwidth`]), plane-major, and so have the
+/// scale and the moment planes, [`arpa_core::accumulate::bandwidth`]), plane-major, and so have the
 /// accumulated sums: [`Tracer::read_accumulation`] returns every plane and
 /// [`Tracer::read_image`] is the core's [`Accumulation::mean`] of them (the per-pixel
 /// selection). The image, the batch irradiance and the sums must each fit one storage

@@ -5,13 +5,13 @@
 //!
 //! First `scripts/build-vk-shaders.sh --check` (the checked-in SPIR-V is what the GLSL
 //! compiles to, and `spirv-val` accepts it). Then random footprints (stored through
-//! `arpa_core::store::store_footprint`, as the photon pass does) and progressive
+//! `arpa_core::store::decision::store_footprint`, as the photon pass does) and progressive
 //! photons on three planes, both maps, some seen from the back; an AABB BLAS per
 //! (kind, map) over the padded boxes (`Aabb::padded_f32`), instance custom index = kind bit |
 //! first record, mask `1 << map` (gather.wgsl's convention). One short ray per query point,
-//! for each of the three kernels, against `arpa_core::estimate::gather_brute_force` over the
+//! for each of the three kernels, against `arpa_core::gather::estimate::gather_brute_force` over the
 //! same records, and at every scale of the bandwidth ladder against
-//! `arpa_core::estimate::gather_brute_force_scales` (the any-hit shader's scale-1..4 totals of
+//! `arpa_core::gather::estimate::gather_brute_force_scales` (the any-hit shader's scale-1..4 totals of
 //! both maps). (A wrong rejection by the intersection shader shows as a missing count; a
 //! wrong acceptance is caught by the any-hit shader's own test, so only the any-hit's decision
 //! reaches the counts in that case.)
@@ -47,17 +47,17 @@
 //! Without a Vulkan loader, driver or validation layer, or without `glslc`/`spirv-val`, the
 //! test skips with a loud message, except in CI (env `CI` set), where it fails.
 
-use arpa_core::aabb::Aabb;
-use arpa_core::classify::Smoothing;
-use arpa_core::bandwidth::{SCALES, inv_scale2};
-use arpa_core::estimate::{QueryPoint, gather_brute_force, gather_brute_force_scales};
-use arpa_core::footprint::{Footprint, PackedFootprint, PhotonMap};
+use arpa_core::base::aabb::Aabb;
+use arpa_core::propagate::classify::Smoothing;
+use arpa_core::gather::scales::{SCALES, inv_scale2};
+use arpa_core::gather::estimate::{QueryPoint, gather_brute_force, gather_brute_force_scales};
+use arpa_core::store::footprint::{Footprint, PackedFootprint, PhotonMap};
 use arpa_core::gpu::codes::{INSTANCE_PHOTON_BIT, kernel_code};
-use arpa_core::heuristics::Heuristics;
-use arpa_core::kernel::Kernel;
-use arpa_core::progressive_photon::{PackedPhoton, ProgressivePhoton};
-use arpa_core::rng::{Rng, StreamDomain};
-use arpa_core::store::{StoredPhoton, store_footprint};
+use arpa_core::store::heuristics::Heuristics;
+use arpa_core::gather::kernel::Kernel;
+use arpa_core::store::progressive_photon::{PackedPhoton, ProgressivePhoton};
+use arpa_core::base::rng::{Rng, StreamDomain};
+use arpa_core::store::decision::{StoredPhoton, store_footprint};
 use arpa_vk::accel::IDENTITY_TRANSFORM;
 use arpa_vk::vk;
 use arpa_vk::{
@@ -224,7 +224,7 @@ fn records(rng: &mut Rng, footprints: usize, photons: usize, queries: usize, rim
             qs.push(QueryPoint { position: (fp.center + d).as_vec3(), normal: fp.normal.as_vec3() });
         } else {
             let ph = &phs[rng.next_u32() as usize % phs.len()];
-            let dir = arpa_core::sampling::uniform_sphere(rng.next_2d());
+            let dir = arpa_core::base::sampling::uniform_sphere(rng.next_2d());
             let r = f64::from(RADII[ph.photon_map().index()]);
             let q = Vec3::from_array(ph.position).as_dvec3() + dir * (r * s);
             qs.push(QueryPoint { position: q.as_vec3(), normal: Vec3::from_array(ph.normal) });
@@ -321,7 +321,7 @@ fn counts(q: &QueryPoint, r: &Records, kernel: Kernel) -> ([u32; 2], [DVec3; 2])
 }
 
 /// The GLSL's ladder is the core's: `ARPA_SCALES` of `gather_common.glsl` is
-/// `arpa_core::bandwidth::SCALES`, and the payload holds a total for every smaller scale.
+/// `arpa_core::gather::scales::SCALES`, and the payload holds a total for every smaller scale.
 #[test]
 fn glsl_scales_are_the_cores() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("shaders");

@@ -1,7 +1,7 @@
 //! The compute half of the Vulkan backend on a real driver (lavapipe in CI) under the Khronos
 //! validation layer (any error or warning fails, also while destroying):
 //! * `run_kernel` under the kernel contract: a tiny kernel, and the core's WGSL rng
-//!   (`rng.wgsl`) against `arpa_core::rng::Rng` bit for bit;
+//!   (`rng.wgsl`) against `arpa_core::base::rng::Rng` bit for bit;
 //! * the keyed store, sort and compaction (`MapStore`) on a few thousand synthetic keyed
 //!   footprints and photons against a CPU reference: each raw footprint's outcome is the
 //!   core's `ResolvedHeuristics::store` (except within 1e-3 of a threshold, as in arpa-wgpu's
@@ -11,23 +11,23 @@
 //!   shuffled input (another append order) gives bit-identical outputs;
 //! * the maps' acceleration structure built on the device from the sorted boxes
 //!   (`MapAccel`): one short ray per query through the GLSL gather hit group counts exactly
-//!   the records `arpa_core::estimate` finds by brute force over the device's records (except
+//!   the records `arpa_core::gather::estimate` finds by brute force over the device's records (except
 //!   on a boundary within rounding); an empty iteration's top level traces with no hits;
 //! * the running mean (`DeviceAccumulator`) of three known images, one sample non-finite.
 //!
 //! Without a Vulkan loader, driver or validation layer the tests skip with a loud message,
 //! except in CI (env `CI` set), where they fail.
 
-use arpa_core::aabb::Aabb;
-use arpa_core::estimate::{QueryPoint, gather_brute_force};
-use arpa_core::footprint::{Footprint, PackedFootprint, PhotonMap};
+use arpa_core::base::aabb::Aabb;
+use arpa_core::gather::estimate::{QueryPoint, gather_brute_force};
+use arpa_core::store::footprint::{Footprint, PackedFootprint, PhotonMap};
 use arpa_core::gpu::codes::kernel_code;
 use arpa_core::gpu::layout::{KeyedFootprint, KeyedPhoton, RawFootprint, StoreCounts, StoreSettings};
-use arpa_core::gpu::morton::{inverse_extent, morton_code};
-use arpa_core::heuristics::{HeuristicContext, Heuristics};
-use arpa_core::kernel::Kernel;
-use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::rng::{Rng, StreamDomain};
+use arpa_core::base::morton::{inverse_extent, morton_code};
+use arpa_core::store::heuristics::{HeuristicContext, Heuristics};
+use arpa_core::gather::kernel::Kernel;
+use arpa_core::store::progressive_photon::PackedPhoton;
+use arpa_core::base::rng::{Rng, StreamDomain};
 use arpa_vk::maps::StorePipelines;
 use arpa_vk::vk;
 use std::sync::Arc;
@@ -97,7 +97,7 @@ fn count_input(@builtin(global_invocation_id) gid: vec3<u32>) {{
 #[test]
 fn run_kernel_runs_the_core_rng_twin() {
     let Some(ctx) = context("maps") else { return };
-    let source = arpa_core::shaders::compose(&[&arpa_core::shaders::RNG])
+    let source = arpa_core::gpu::shaders::compose(&[&arpa_core::gpu::shaders::RNG])
         + KERNEL_IO
         + "
 // Stream i: (seed, iteration, index, domain) = input[4i..4i+4]; writes 3 next_u32 and one

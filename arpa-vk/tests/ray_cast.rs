@@ -18,13 +18,13 @@
 //! Without a Vulkan loader, driver or validation layer the tests skip with a loud message,
 //! except in CI (env `CI` set), where they fail.
 
-use arpa_core::emission::{Light, PointLight};
+use arpa_core::emit::emission::{Light, PointLight};
 use arpa_core::gpu::scene::SceneTables;
-use arpa_core::prepared_scene::PreparedScene;
-use arpa_core::ray_cast::{BruteForceCaster, RayCaster};
-use arpa_core::rng::{Rng, StreamDomain};
-use arpa_core::scene::{Camera, Material, Scene, TriangleMesh};
-use arpa_core::shapes::{icosphere, parallelogram};
+use arpa_core::render::prepared_scene::PreparedScene;
+use arpa_core::{render::brute_force::BruteForceCaster, render::ray_cast::RayCaster};
+use arpa_core::base::rng::{Rng, StreamDomain};
+use arpa_core::render::scene::{Camera, Material, Scene, TriangleMesh};
+use arpa_core::render::shapes::{icosphere, parallelogram};
 use arpa_vk::accel::IDENTITY_TRANSFORM;
 use arpa_vk::shaders::{compile_wgsl, ray_cast_source};
 use arpa_vk::vk;
@@ -95,7 +95,7 @@ fn rays(seed: u32, n: usize) -> Vec<CastRay> {
     (0..n)
         .map(|_| {
             let o = Vec3::new(1.9 * rng.next_f32() - 0.95, 0.05 + 1.9 * rng.next_f32(), 1.9 * rng.next_f32() - 0.95);
-            let d = arpa_core::sampling::uniform_sphere(rng.next_2d()).as_vec3().normalize();
+            let d = arpa_core::base::sampling::uniform_sphere(rng.next_2d()).as_vec3().normalize();
             // Mostly unbounded, some short rays that stop before the walls.
             let t_max = if rng.next_u32().is_multiple_of(4) { 0.05 + rng.next_f32() } else { 100.0 };
             CastRay { origin: o.to_array(), t_min: 0.0, direction: d.to_array(), t_max }
@@ -270,7 +270,7 @@ fn aabb_blas_and_top_levels_build_cleanly() {
 }
 
 /// A second closest-hit shader that marks its hits (`pad[0] = 1`), for hit-group selection.
-static MARKED_HIT: arpa_core::shaders::WgslFile = arpa_core::shaders::WgslFile {
+static MARKED_HIT: arpa_core::gpu::shaders::WgslFile = arpa_core::gpu::shaders::WgslFile {
     name: "arpa-vk-tests/marked_hit.wgsl",
     source: "@closest_hit\n@incoming_payload(vk_cast_incoming)\nfn marked_closest_hit(\n    @builtin(instance_custom_data) mesh: u32,\n    @builtin(primitive_index) primitive: u32,\n    @builtin(ray_t_current_max) t: f32,\n) {\n    let hit = arpa_scene_hit(mesh, primitive, t, vec2<f32>(0.0));\n    vk_cast_incoming = VkCastHit(t, mesh, primitive, hit.triangle, 0.0, 0.0, 1u, 0u);\n}\n",
     deps: &[&arpa_vk::shaders::RAY_CAST],
@@ -285,7 +285,7 @@ fn instance_sbt_offsets_select_hit_groups() {
     let (tlas, orders) = (accel.tlas(), accel.triangle_orders());
     let tables = SceneTables::new(&prepared, orders).expect("tables");
 
-    let spirv = compile_wgsl("marked", &arpa_core::shaders::compose(&[&MARKED_HIT])).expect("marked_hit.wgsl");
+    let spirv = compile_wgsl("marked", &arpa_core::gpu::shaders::compose(&[&MARKED_HIT])).expect("marked_hit.wgsl");
     let module = ctx.create_shader_module(&spirv).expect("shader module");
     let entry = |entry| ShaderEntry { module: &module, entry };
     use BindingKind::{AccelerationStructure as As, StorageBuffer as Sb, UniformBuffer as Ub};

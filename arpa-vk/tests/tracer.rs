@@ -10,12 +10,12 @@
 //! exactly. Radiometric agreement with the other backends and with analytic irradiance is
 //! the conformance suite's (`arpa-conformance`).
 
-use arpa_core::emission::{Light, PointLight};
-use arpa_core::scene::{Camera, Material, Scene};
-use arpa_core::shapes::{icosphere, parallelogram};
-use arpa_core::accumulate::Accumulation;
-use arpa_core::bandwidth::{Bandwidth, PLANES, SCALES, moments};
-use arpa_core::tracer::{Image, IterationStats, Method, RenderSettings, Tracer};
+use arpa_core::emit::emission::{Light, PointLight};
+use arpa_core::render::scene::{Camera, Material, Scene};
+use arpa_core::render::shapes::{icosphere, parallelogram};
+use arpa_core::accumulate::image::Accumulation;
+use arpa_core::gather::scales::{Bandwidth, PLANES, SCALES, moments};
+use arpa_core::render::tracer::{Image, IterationStats, Method, RenderSettings, Tracer};
 use arpa_vk::VkTracer;
 use glam::{DVec3, Vec3};
 

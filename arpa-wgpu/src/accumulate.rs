@@ -1,12 +1,12 @@
 //! The running mean of the iteration images on the device (the core's `accumulate.wgsl`):
 //! per plane and pixel a compensated `f32` sum and a count of rejected non-finite samples
-//! ([`AccumPixel`]); the read-back sums form an [`arpa_core::accumulate::Accumulation`],
-//! whose [`mean`](arpa_core::accumulate::Accumulation::mean) is the image.
+//! ([`AccumPixel`]); the read-back sums form an [`arpa_core::accumulate::image::Accumulation`],
+//! whose [`mean`](arpa_core::accumulate::image::Accumulation::mean) is the image.
 
 pub use arpa_core::gpu::layout::AccumPixel;
 
 /// The accumulation buffer and pipeline of one image size: one sum per entry of the
-/// iteration image (planes × pixels, plane-major, [`arpa_core::bandwidth::Bandwidth::planes`]).
+/// iteration image (planes × pixels, plane-major, [`arpa_core::gather::scales::Bandwidth::planes`]).
 pub struct DeviceAccumulator {
     pipeline: wgpu::ComputePipeline,
     /// `entries` × [`AccumPixel`] (`COPY_SRC` for read-back).

@@ -1,9 +1,9 @@
 //! The camera pass on the device: one invocation per pixel traces the camera path of
-//! [`arpa_core::camera_path::trace_camera_path`] in `f32` (same random stream
+//! [`arpa_core::render::camera_path::trace_camera_path`] in `f32` (same random stream
 //! `StreamDomain::Camera`, jitter, specular chains with the Fresnel choice, radiance-mode
 //! `(n_i/n_t)²`, emission seen, next-event estimation with every delta light and one area
 //! emitter picked by power, shading-normal Lambertian, flipped orientation) and writes one
-//! [`arpa_core::tracer::QueryRecord`] per pixel, row-major, into a caller's buffer.
+//! [`arpa_core::render::tracer::QueryRecord`] per pixel, row-major, into a caller's buffer.
 //!
 //! Precision: positions, weights and radiance agree with the core to `f32` rounding where
 //! the path takes the same decisions; a decision taken at a threshold (Fresnel choice,
@@ -16,9 +16,9 @@ use crate::harness::{HarnessError, scene_pipeline, storage_entry, uniform_entry}
 use crate::scene::GpuScene;
 use arpa_core::gpu::codes::WORKGROUP_SIZE as WORKGROUP;
 use arpa_core::gpu::layout::CameraParams;
-use arpa_core::prepared_scene::PreparedScene;
-use arpa_core::scene::SceneError;
-use arpa_core::tracer::{QueryRecord, RenderSettings};
+use arpa_core::render::prepared_scene::PreparedScene;
+use arpa_core::render::scene::SceneError;
+use arpa_core::render::tracer::{QueryRecord, RenderSettings};
 use wgpu::util::DeviceExt;
 
 /// Bytes of one query record on the device (= `size_of::<QueryRecord>()`).

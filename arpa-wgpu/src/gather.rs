@@ -2,17 +2,17 @@
 //! traversal, [`crate::shaders::gather`]): per query record of the camera pass, every
 //! footprint and progressive photon of a batch's maps whose box contains the query point
 //! ([`crate::accel`]), tested exactly and summed per map at every scale of the bandwidth
-//! ([`arpa_core::bandwidth`]); the iteration's image planes per pixel out.
+//! ([`arpa_core::gather::scales`]); the iteration's image planes per pixel out.
 
-use arpa_core::bandwidth::Bandwidth;
+use arpa_core::gather::scales::Bandwidth;
 use arpa_core::gpu::layout::{GatherBatch, GatherCounts, GatherImageParams};
-use arpa_core::kernel::Kernel;
+use arpa_core::gather::kernel::Kernel;
 
-/// The tracer's gather: per query record (one per pixel, [`arpa_core::tracer::QueryRecord`])
+/// The tracer's gather: per query record (one per pixel, [`arpa_core::render::tracer::QueryRecord`])
 /// and scale `k` of the bandwidth, `radiance + weight · E_k` with non-finite components set
 /// to 0 (as arpa-cpu's gather; `E_0 = E_caustic + E_global`, the stored scale), written as
 /// `vec4<f32>` (RGB, 0) per plane and pixel, plane-major, then (per-pixel bandwidth) the
-/// moment planes ([`arpa_core::bandwidth::moments`]); the contributions and candidates per
+/// moment planes ([`arpa_core::gather::scales::moments`]); the contributions and candidates per
 /// map at the stored scale summed into 64-bit counters and the valid records counted
 /// ([`ImageGather::total_buffer`]).
 pub struct ImageGather {

@@ -3,10 +3,10 @@
 //! The wgpu backend of ARPA, on Vulkan ray queries (`EXPERIMENTAL_RAY_QUERY`), with
 //! lavapipe (Mesa's software Vulkan, ≥ 25) when no GPU is present.
 //!
-//! [`WgpuTracer`] implements [`arpa_core::tracer::Tracer`] with every stage on the device.
+//! [`WgpuTracer`] implements [`arpa_core::render::tracer::Tracer`] with every stage on the device.
 //! What is not wgpu-specific lives in the core's GPU layer, shared with the other GPU
 //! backend: the record layouts, codes, Morton codes, sort schedule and photon-batch policy
-//! ([`arpa_core::gpu`]) and the path-level WGSL ([`arpa_core::shaders`]). This crate holds
+//! ([`arpa_core::gpu`]) and the path-level WGSL ([`arpa_core::gpu::shaders`]). This crate holds
 //! the wgpu API calls and the ray-query glue:
 //! * [`device`]: adapter choice (a real GPU with ray queries, else lavapipe, or a name
 //!   forced by the caller) and device creation, with an error naming the adapter when ray

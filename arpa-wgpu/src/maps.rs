@@ -11,12 +11,12 @@ use crate::device::GpuContext;
 use crate::gather::ImageGather;
 use crate::store::{BOX_BYTES, FOOTPRINT_BYTES, MapStore, PHOTON_BYTES, StorePipelines};
 use crate::tracer::WgpuError;
-use arpa_core::bandwidth::Bandwidth;
-use arpa_core::footprint::PackedFootprint;
+use arpa_core::gather::scales::Bandwidth;
+use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::gpu::layout::{GatherBatch, StoreCounts, StoreSettings};
-use arpa_core::kernel::Kernel;
-use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::tracer::{Call, Stage, StageError};
+use arpa_core::gather::kernel::Kernel;
+use arpa_core::store::progressive_photon::PackedPhoton;
+use arpa_core::render::tracer::{Call, Stage, StageError};
 
 /// Runs `record` (which creates and encodes device work) inside a validation and an
 /// out-of-memory error scope; an error becomes [`WgpuError::Device`] naming `stage`.

@@ -1,5 +1,5 @@
 //! The photon pass on the device: one invocation per photon, the twin of
-//! [`arpa_core::photon_path::trace_photon`] (emission from the iteration's prepared lights,
+//! [`arpa_core::render::photon_path::trace_photon`] (emission from the iteration's prepared lights,
 //! specular chains with ray differentials and the Fresnel choice, diffuse store with the
 //! adjoint shading-normal ratio, re-emission with the virtual distance, caustic/global
 //! classification, Russian roulette, `max_depth`), for both methods.
@@ -13,7 +13,7 @@
 //!   already scaled by the map's smoothing factor (`S_c`, `S_g`). The store stage
 //!   ([`crate::store`], `heuristics.wgsl`'s `arpa_store`) applies only the heuristics, and a
 //!   footprint it rejects becomes a progressive photon at its centre with the same flux,
-//!   normal and map (as [`arpa_core::store::store_footprint`] does);
+//!   normal and map (as [`arpa_core::store::decision::store_footprint`] does);
 //! * [`KeyedPhoton`]s: progressive photons (method RTPM, or a lost differential);
 //! * [`PhotonCounters`].
 //!
@@ -26,11 +26,11 @@
 use crate::device::GpuContext;
 use crate::harness::{HarnessError, scene_pipeline, storage_entry, uniform_entry};
 use crate::scene::GpuScene;
-use arpa_core::emission::PackedLight;
-use arpa_core::gpu::layout::{EmitterRange, PhotonParams, emitter_tables};
+use arpa_core::emit::emission::PackedLight;
+use arpa_core::{gpu::layout::{EmitterRange, PhotonParams}, gpu::fill::emitter_tables};
 pub use arpa_core::gpu::layout::{KeyedFootprint, KeyedPhoton, PhotonCounters};
-use arpa_core::photon_path::PhotonPassSetup;
-use arpa_core::tracer::RenderSettings;
+use arpa_core::render::photon_path::PhotonPassSetup;
+use arpa_core::render::tracer::RenderSettings;
 
 /// Workgroup size of the photon pass (photons per workgroup).
 pub const PHOTON_WORKGROUP_SIZE: u32 = arpa_core::gpu::codes::WORKGROUP_SIZE;
@@ -158,7 +158,7 @@ pub struct PhotonPass {
     params: wgpu::Buffer,
     lights: wgpu::Buffer,
     ranges: wgpu::Buffer,
-    /// The scene's projection cells ([`arpa_core::gpu::layout::cell_table`]), written once.
+    /// The scene's projection cells ([`arpa_core::gpu::fill::cell_table`]), written once.
     cells: wgpu::Buffer,
     /// Sources of the setups this pass takes (twice the scene's emitters).
     emitters: usize,
@@ -169,10 +169,10 @@ impl PhotonPass {
     /// Compiles the pass for `scene` (uploaded with its bind group 0), the upload of
     /// `prepared` (its emitters and projection cells, which are written here), and the
     /// method, seed, `max_depth`, direct-lighting flag and smoothing of `settings`.
-    pub fn new(ctx: &GpuContext, scene: &GpuScene, prepared: &arpa_core::prepared_scene::PreparedScene, settings: &RenderSettings) -> Result<Self, PhotonPassError> {
+    pub fn new(ctx: &GpuContext, scene: &GpuScene, prepared: &arpa_core::render::prepared_scene::PreparedScene, settings: &RenderSettings) -> Result<Self, PhotonPassError> {
         // A global and a caustic source per emitter (PhotonPassSetup).
         let emitters = 2 * prepared.emitters().len();
-        let cell_table = arpa_core::gpu::layout::cell_table(prepared);
+        let cell_table = arpa_core::gpu::fill::cell_table(prepared);
         let device = &ctx.device;
         let label = "photon pass";
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);

@@ -9,8 +9,8 @@
 use crate::device::GpuContext;
 use crate::harness::HarnessError;
 use arpa_core::gpu::scene::{SceneTables, morton_triangle_order};
-use arpa_core::prepared_scene::PreparedScene;
-use arpa_core::scene::TriangleMesh;
+use arpa_core::render::prepared_scene::PreparedScene;
+use arpa_core::render::scene::TriangleMesh;
 use wgpu::util::DeviceExt;
 
 /// Why a scene could not be uploaded.
@@ -182,7 +182,7 @@ pub struct GpuScene {
     layout: wgpu::BindGroupLayout,
     bind_group: wgpu::BindGroup,
     /// Emitters in the device's order: delta lights, then area emitters (indices into
-    /// [`arpa_core::prepared_scene::PreparedScene::emitters`]).
+    /// [`arpa_core::render::prepared_scene::PreparedScene::emitters`]).
     pub emitter_order: Vec<usize>,
 }
 

@@ -1,5 +1,5 @@
-//! The WGSL modules of the backend: the core's path-level files ([`arpa_core::shaders`])
-//! with this backend's ray-query glue, each composed by [`arpa_core::shaders::compose`].
+//! The WGSL modules of the backend: the core's path-level files ([`arpa_core::gpu::shaders`])
+//! with this backend's ray-query glue, each composed by [`arpa_core::gpu::shaders::compose`].
 //!
 //! The glue implements what the core's files leave to the backend: [`SCENE_RAY_QUERY`]
 //! casts rays against the scene (`arpa_scene_intersect`, `arpa_scene_occluded`: camera and
@@ -7,7 +7,7 @@
 //! gather). Both need wgpu's `EXPERIMENTAL_RAY_QUERY` (`enable wgpu_ray_query;`, which
 //! `compose` puts first).
 
-use arpa_core::shaders::{self as core, WgslFile, compose};
+use arpa_core::gpu::shaders::{self as core, WgslFile, compose};
 
 /// `arpa_scene_intersect` and `arpa_scene_occluded` on ray queries, with the scene's
 /// top-level structure as binding 0 of group 0 ([`crate::scene::GpuScene`]).

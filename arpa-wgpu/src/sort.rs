@@ -11,7 +11,7 @@
 //! The sort is written here rather than taken from a crate: the wgpu sort crates pin other
 //! wgpu versions than this workspace's.
 
-use arpa_core::gpu::layout::{SortItem, SortStep};
+use arpa_core::gpu::sort::{SortItem, SortStep};
 use arpa_core::gpu::sort::{MAX_SORT_ITEMS, SORT_BLOCK, sort_steps};
 use wgpu::util::DeviceExt;
 

@@ -1,5 +1,5 @@
 //! The keyed store on the device, on the photon pass's buffers (the core's
-//! `store.wgsl`, [`arpa_core::shaders::STORE`]): raw footprints ([`arpa_core::gpu::layout::KeyedFootprint`],
+//! `store.wgsl`, [`arpa_core::gpu::shaders::STORE`]): raw footprints ([`arpa_core::gpu::layout::KeyedFootprint`],
 //! smoothed by the photon pass) go through the twin's heuristics, rejected ones fall back to
 //! progressive photons as in [`arpa_core::store`]; they and the pass's progressive photons
 //! ([`KeyedPhoton`]), each with its unique photon key, are keyed by `(map, Morton code of
@@ -12,10 +12,10 @@
 //! ([`MapStore::encode_store`], [`MapStore::encode_sort`]): the sort's step schedule and the
 //! acceleration-structure build (wgpu has no indirect build) depend on them.
 
-use arpa_core::footprint::PackedFootprint;
-use arpa_core::gpu::layout::{KeyedPhoton, SortItem, StoreCounts, StoreParams, StoreSettings};
+use arpa_core::store::footprint::PackedFootprint;
+use arpa_core::{gpu::layout::{KeyedPhoton, StoreCounts, StoreParams, StoreSettings}, gpu::sort::SortItem};
 use arpa_core::gpu::sort::{MAX_SORT_ITEMS, sorted_len};
-use arpa_core::progressive_photon::PackedPhoton;
+use arpa_core::store::progressive_photon::PackedPhoton;
 
 /// Bytes of a sorted footprint record ([`PackedFootprint`]).
 pub const FOOTPRINT_BYTES: u64 = size_of::<PackedFootprint>() as u64;
@@ -91,7 +91,7 @@ pub struct MapStore {
     /// [`StoreCounts::total_photons`] are valid, caustic first.
     pub photons: wgpu::Buffer,
     /// Their boxes (the sphere of the map's progressive radius, padded as in
-    /// [`arpa_core::aabb::Aabb::padded_f32`]).
+    /// [`arpa_core::base::aabb::Aabb::padded_f32`]).
     pub photon_boxes: wgpu::Buffer,
     bind_group: wgpu::BindGroup,
 }

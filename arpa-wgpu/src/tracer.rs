@@ -1,4 +1,4 @@
-//! [`WgpuTracer`]: the wgpu backend of [`arpa_core::tracer::Tracer`] on ray queries.
+//! [`WgpuTracer`]: the wgpu backend of [`arpa_core::render::tracer::Tracer`] on ray queries.
 
 use crate::accumulate::{AccumPixel, DeviceAccumulator};
 use crate::camera::CameraPass;
@@ -6,16 +6,16 @@ use crate::device::{AdapterChoice, DeviceError, GpuContext};
 use crate::maps::{PhotonMaps, read_buffer, scoped};
 use crate::photon::{PhotonOutputs, PhotonPass};
 use crate::scene::GpuScene;
-use arpa_core::accumulate::Accumulation;
-use arpa_core::footprint::PackedFootprint;
+use arpa_core::accumulate::image::Accumulation;
+use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::gpu::batch::{Overflow, RecordLimits, after_overflow, for_each_batch, initial_capacity, shrink};
-use arpa_core::gpu::layout::{GatherCounts, ImageBufferSizes, PhotonCounters, StoreSettings, check_record_keys};
+use arpa_core::{gpu::layout::{GatherCounts, ImageBufferSizes, PhotonCounters, StoreSettings}, gpu::fill::check_record_keys};
 use arpa_core::gpu::sort::{MAX_SORT_ITEMS, sorted_len};
-use arpa_core::photon_path::PhotonPassSetup;
-use arpa_core::prepared_scene::PreparedScene;
-use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::scene::Scene;
-use arpa_core::tracer::{
+use arpa_core::render::photon_path::PhotonPassSetup;
+use arpa_core::render::prepared_scene::PreparedScene;
+use arpa_core::store::progressive_photon::PackedPhoton;
+use arpa_core::render::scene::Scene;
+use arpa_core::render::tracer::{
     BackendKind, Call, Capabilities, Image, IterationStats, QueryRecord, RenderSettings, Stage, StageClock, StageError, Tracer,
     prepare_upload, uploaded,
 };
@@ -81,9 +81,9 @@ const QUERY_BYTES: u64 = std::mem::size_of::<QueryRecord>() as u64;
 /// | [`accumulate`](Tracer::accumulate) | compensated running sum of every plane | — |
 ///
 /// # Bandwidth
-/// The iteration image has [`arpa_core::bandwidth::Bandwidth::planes`] planes per pixel
+/// The iteration image has [`arpa_core::gather::scales::Bandwidth::planes`] planes per pixel
 /// (`RenderSettings::bandwidth`: 1 for a global bandwidth; per pixel, the radiance at every
-/// scale and the moment planes, [`arpa_core::bandwidth`]), plane-major, and so have the
+/// scale and the moment planes, [`arpa_core::accumulate::bandwidth`]), plane-major, and so have the
 /// accumulated sums: [`Tracer::read_accumulation`] returns every plane and
 /// [`Tracer::read_image`] is the core's [`Accumulation::mean`] of them (the per-pixel
 /// selection). The image, the batch irradiance and the sums must each fit one storage
@@ -138,7 +138,7 @@ const QUERY_BYTES: u64 = std::mem::size_of::<QueryRecord>() as u64;
 /// render repeated on the same adapter takes the same B.
 ///
 /// # Stage order
-/// As [`arpa_core::tracer::Tracer`] ([`StageClock`]); a call whose input is missing returns
+/// As [`arpa_core::render::tracer::Tracer`] ([`StageClock`]); a call whose input is missing returns
 /// [`WgpuError::Stage`].
 pub struct WgpuTracer {
     ctx: GpuContext,

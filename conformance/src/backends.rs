@@ -6,7 +6,7 @@
 use arpa::backends::{BackendEntry, REGISTRY};
 /// What [`Backend::external`] takes: how to create a backend's tracer, and its options.
 pub use arpa::backends::{BackendOptions, CreateTracer};
-use arpa::core::tracer::BackendKind;
+use arpa::core::render::tracer::BackendKind;
 
 use crate::kernel_runner::MakeKernelRunner;
 

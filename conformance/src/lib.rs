@@ -3,7 +3,7 @@
 //! The one conformance suite of arpa: backend-agnostic cases that run against every
 //! backend compiled in and report a case × backend table.
 //!
-//! * [`DynTracer`]: the object-safe face of any [`arpa_core::tracer::Tracer`]; every case
+//! * [`DynTracer`]: the object-safe face of any [`arpa_core::render::tracer::Tracer`]; every case
 //!   is one function of `&mut dyn DynTracer`, written once for all backends.
 //! * [`backends`]: the registry. Each backend is a cargo feature of this crate (`cpu`, on
 //!   by default; `wgpu`, `vk` as they land) with the cases it is expected to fail, each
@@ -38,7 +38,7 @@
 //!
 //! ## Your own tracer
 //!
-//! A renderer that implements [`arpa_core::tracer::Tracer`] but is not one of arpa's
+//! A renderer that implements [`arpa_core::render::tracer::Tracer`] but is not one of arpa's
 //! backends runs the same suite: wrap its constructor in [`Backend::external`] and hand it
 //! to [`run_suite_with`] with the cases of [`cases::all`]. Without its default features
 //! this crate builds no backend of its own and none of the `arpa` command line's crates

@@ -1,13 +1,13 @@
 //! The small analytic and test scenes of the suite (a few large triangles each, so every
 //! backend builds them in microseconds and the core's brute-force caster can trace them).
 
-use arpa_core::emission::{Light, PointLight, TriangleLight};
+use arpa_core::emit::emission::{Light, PointLight, TriangleLight};
 use arpa_core::glam::{DVec3, Vec3};
-use arpa_core::scene::{Camera, Material, Scene, TriangleMesh};
+use arpa_core::render::scene::{Camera, Material, Scene, TriangleMesh};
 
-pub use arpa_core::shapes::parallelogram as quad;
+pub use arpa_core::render::shapes::parallelogram as quad;
 
-pub use arpa_core::shapes::cuboid;
+pub use arpa_core::render::shapes::cuboid;
 
 /// A grey Lambertian material.
 pub fn diffuse(albedo: f32) -> Material {
@@ -217,9 +217,9 @@ pub fn zero_area_triangle_light() -> Light {
 }
 
 /// An icosphere of radius `radius` around `centre` with flat facets
-/// ([`arpa_core::shapes::icosphere`]).
+/// ([`arpa_core::render::shapes::icosphere`]).
 pub fn icosphere(centre: Vec3, radius: f32, subdivisions: u32, material: u32) -> TriangleMesh {
-    arpa_core::shapes::icosphere("icosphere", centre, radius, subdivisions, false, material)
+    arpa_core::render::shapes::icosphere("icosphere", centre, radius, subdivisions, false, material)
 }
 
 /// Intensity of the furnace's point light (W/sr).
@@ -268,7 +268,7 @@ pub fn glass_slab(size: u32) -> Scene {
 
 /// Thickness of [`thin_sheet`]'s glass (m): a twelfth of the ray-origin offset the paths
 /// once used (`1e-5 (1 + |p|)`, 5e-5 m at the sheet's corners), 8 times the `t_min` of a
-/// ray leaving it ([`arpa_core::ray_cast::leave_t_min`] at `|p| = 4`).
+/// ray leaving it ([`arpa_core::render::ray_cast::leave_t_min`] at `|p| = 4`).
 pub const THIN_SHEET_THICKNESS: f64 = 4e-6;
 
 /// [`glass_slab`] with the slab only [`THIN_SHEET_THICKNESS`] thick (its top at
@@ -534,7 +534,7 @@ pub fn bandwidth_plane(size: u32, occluded: bool) -> Scene {
         let y = BANDWIDTH_OCCLUDER_HEIGHT;
         meshes.push(quad("occluder", Vec3::new(-2.5, y, -1.5), Vec3::new(0.0, 0.0, 3.0), Vec3::new(2.0, 0.0, 0.0), 1));
     }
-    let light = Light::Directional(arpa_core::emission::DirectionalLight {
+    let light = Light::Directional(arpa_core::emit::emission::DirectionalLight {
         direction: DVec3::new(1.0, -1.0, 0.0).normalize(),
         irradiance: DVec3::splat(BANDWIDTH_IRRADIANCE),
     });

@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use crate::backends::Backend;
 use arpa::backends::BackendOptions;
-use arpa::core::tracer::BackendKind;
+use arpa::core::render::tracer::BackendKind;
 use crate::dyn_tracer::{BoxError, DynTracer};
 use crate::kernel_runner::{KernelRunner, MakeKernelRunner};
 use crate::{Report, Verdict};

@@ -7,11 +7,11 @@
 
 use arpa_conformance::suite::AVAILABILITY_ROW;
 use arpa_conformance::{Backend, Case, SuiteOptions, Verdict, cases, run_suite_with};
-use arpa_core::accumulate::Accumulation;
-use arpa_core::footprint::PackedFootprint;
-use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::scene::Scene;
-use arpa_core::tracer::{Capabilities, Image, IterationStats, QueryRecord, RenderSettings, Tracer};
+use arpa_core::accumulate::image::Accumulation;
+use arpa_core::store::footprint::PackedFootprint;
+use arpa_core::store::progressive_photon::PackedPhoton;
+use arpa_core::render::scene::Scene;
+use arpa_core::render::tracer::{Capabilities, Image, IterationStats, QueryRecord, RenderSettings, Tracer};
 use arpa_cpu::{CpuError, CpuTracer};
 
 /// A renderer that is not in the registry: the CPU backend behind a type of its own,

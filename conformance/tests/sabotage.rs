@@ -4,11 +4,11 @@
 
 use arpa_conformance::suite::ci_is_set;
 use arpa_conformance::{BoxError, Case, CaseBody, DynTracer, backends, cases};
-use arpa_core::accumulate::Accumulation;
-use arpa_core::footprint::PackedFootprint;
-use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::scene::Scene;
-use arpa_core::tracer::{Capabilities, Image, IterationStats, QueryRecord, RenderSettings};
+use arpa_core::accumulate::image::Accumulation;
+use arpa_core::store::footprint::PackedFootprint;
+use arpa_core::store::progressive_photon::PackedPhoton;
+use arpa_core::render::scene::Scene;
+use arpa_core::render::tracer::{Capabilities, Image, IterationStats, QueryRecord, RenderSettings};
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Fault {

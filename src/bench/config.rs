@@ -2,7 +2,7 @@
 
 use crate::metrics::PixelRect;
 use anyhow::{Context, bail};
-use arpa_core::tracer::{BackendKind, Method};
+use arpa_core::render::tracer::{BackendKind, Method};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -129,7 +129,7 @@ pub enum BenchMethod {
     /// ARPA with automatic smoothing and one bandwidth for the whole image.
     ArpaAuto,
     /// ARPA with automatic smoothing of the stored scale and a per-pixel bandwidth
-    /// ([`arpa_core::bandwidth`]).
+    /// ([`arpa_core::accumulate::bandwidth`]).
     ArpaPerPixel,
     /// RTPM.
     Rtpm,
@@ -151,10 +151,10 @@ impl BenchMethod {
 
     /// The bandwidth: per-pixel for `arpa-pp`, global for the others (the baselines it is
     /// compared with).
-    pub fn bandwidth(self) -> arpa_core::bandwidth::Bandwidth {
+    pub fn bandwidth(self) -> arpa_core::gather::scales::Bandwidth {
         match self {
-            BenchMethod::ArpaPerPixel => arpa_core::bandwidth::Bandwidth::PerPixel,
-            _ => arpa_core::bandwidth::Bandwidth::Global,
+            BenchMethod::ArpaPerPixel => arpa_core::gather::scales::Bandwidth::PerPixel,
+            _ => arpa_core::gather::scales::Bandwidth::Global,
         }
     }
 

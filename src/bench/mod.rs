@@ -28,12 +28,12 @@ use crate::backends::{self, BackendOptions};
 use crate::metrics::{self, PixelRect};
 use crate::scene_file::load_scene;
 use crate::session::{Budget, CheckpointRow, Checkpoints, Hooks, Reference, SessionOptions, auto_smoothing, render_with};
-use arpa_core::classify::AutoSmoothing;
+use arpa_core::propagate::classify::AutoSmoothing;
 pub use config::BenchMethod;
 use anyhow::{Context, bail};
-use arpa_core::classify::Smoothing;
-use arpa_core::radius::RadiusSpec;
-use arpa_core::tracer::{Image, Method, RenderSettings, StageTimes};
+use arpa_core::propagate::classify::Smoothing;
+use arpa_core::accumulate::radius::RadiusSpec;
+use arpa_core::render::tracer::{Image, Method, RenderSettings, StageTimes};
 use config::{LoadedConfig, SceneEntry};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -110,7 +110,7 @@ pub struct BenchRow {
     pub region_rel_mse: Option<f64>,
     /// Share of the pixels per scale of a per-pixel bandwidth run
     /// ([`crate::session::CheckpointRow::scale_share`]; `None` otherwise).
-    pub scale_share: Option<[f64; arpa_core::bandwidth::SCALES]>,
+    pub scale_share: Option<[f64; arpa_core::gather::scales::SCALES]>,
     /// The photon passes' rates (`None` for peers).
     pub photons: Option<PhotonRates>,
 }
@@ -178,8 +178,8 @@ pub struct Header {
     pub config_hash: String,
     /// Wall-clock budget of each run (seconds).
     pub seconds: f64,
-    /// The photon emission of our runs ([`arpa_core::tracer::EmissionStrategy`]).
-    pub emission: arpa_core::tracer::EmissionStrategy,
+    /// The photon emission of our runs ([`arpa_core::render::tracer::EmissionStrategy`]).
+    pub emission: arpa_core::render::tracer::EmissionStrategy,
 }
 
 impl Header {
@@ -227,7 +227,7 @@ pub struct BenchOptions {
     /// Python interpreter for the peers.
     pub python: String,
     /// Photon emission of every arpa run (projection on by default).
-    pub emission: arpa_core::tracer::EmissionStrategy,
+    pub emission: arpa_core::render::tracer::EmissionStrategy,
     /// Run the config's peers (off: only our runs, e.g. a second sweep with other
     /// emission settings).
     pub peers: bool,
@@ -270,7 +270,7 @@ struct PreparedBenchScene {
     entry: SceneEntry,
     /// The scene file.
     file: PathBuf,
-    scene: arpa_core::scene::Scene,
+    scene: arpa_core::render::scene::Scene,
     max_depth: Option<u32>,
     reference: Reference,
     /// The caustic region at the sweep's resolution.
@@ -321,7 +321,7 @@ fn settings_for(s: &PreparedBenchScene, method: Method, photons: u32, seed: u32)
         // Mitsuba's max_depth counts segments; the core counts surface interactions.
         max_depth: s.max_depth.map_or(d.max_depth, |m| m.saturating_sub(1).clamp(1, 1024)),
         smoothing: Smoothing { caustic: e.smoothing_caustic.unwrap_or(d.smoothing.caustic), global: e.smoothing_global.unwrap_or(d.smoothing.global) },
-        radii: arpa_core::radius::ProgressiveConfig {
+        radii: arpa_core::accumulate::radius::ProgressiveConfig {
             caustic: e.radius_caustic.map_or(d.radii.caustic, RadiusSpec::Absolute),
             global: e.radius_global.map_or(d.radii.global, RadiusSpec::Absolute),
             ..d.radii

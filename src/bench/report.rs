@@ -6,7 +6,7 @@ use super::{BenchRow, Header, RunKind, RunResult, budget_label};
 use crate::image_io;
 use crate::metrics;
 use anyhow::{Context, anyhow};
-use arpa_core::tracer::Image;
+use arpa_core::render::tracer::Image;
 use plotters::prelude::*;
 use plotters::style::colors::colormaps::ViridisRGB;
 use std::fmt::Write as _;
@@ -104,7 +104,7 @@ pub fn csv_text(header: &Header, results: &[RunResult]) -> String {
                 },
             );
             // Per-scale share of the pixels (per-pixel bandwidth runs; empty otherwise).
-            let shares = row.scale_share.map_or_else(|| ",".repeat(arpa_core::bandwidth::SCALES - 1), |sh| sh.map(|v| format!("{v:.4}")).join(","));
+            let shares = row.scale_share.map_or_else(|| ",".repeat(arpa_core::gather::scales::SCALES - 1), |sh| sh.map(|v| format!("{v:.4}")).join(","));
             let _ = writeln!(
                 s,
                 "{},{run},{backend},{method},{photons},ok,{},{:.6},{:.9e},{:.9},{:.9},{:.6},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{rates},{shares}",

@@ -88,13 +88,13 @@ pub enum SceneFileError {
         /// What is wrong.
         message: String,
     },
-    /// The loaded scene fails [`arpa_core::scene::Scene::validate`].
+    /// The loaded scene fails [`arpa_core::render::scene::Scene::validate`].
     #[error("scene '{}' is invalid: {source}", path.display())]
     Scene {
         /// The scene file.
         path: PathBuf,
         /// The validation error.
-        source: arpa_core::scene::SceneError,
+        source: arpa_core::render::scene::SceneError,
     },
 }
 

@@ -9,9 +9,9 @@
 //! names the file ([`error_names_file`]); a panic, hang or runaway allocation is a bug.
 
 use super::{LoadedScene, SceneFileError, load_scene_bytes};
-use arpa_core::prepared_scene::PreparedScene;
+use arpa_core::render::prepared_scene::PreparedScene;
 #[cfg(doc)]
-use arpa_core::scene::Scene;
+use arpa_core::render::scene::Scene;
 use std::io::{Error, ErrorKind};
 use std::path::Path;
 

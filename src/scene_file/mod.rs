@@ -14,22 +14,22 @@
 //! |---|---|
 //! | `<default name value>`, `$name` | substituted in every attribute value; `-D name=value` ([`load_scene`]'s `defines`) overrides defaults; an undefined `$name` is an error naming the line |
 //! | `<transform name="to_world">` | `matrix` (16 numbers, row-major, or 9), `lookat` (`origin`, `target`, `up`), `translate`, `rotate` (`axis`, `angle` in degrees), `scale` (one or three values); composed in document order as Mitsuba does (each operation is applied after the previous ones) |
-//! | `<shape type="ply">` | `ply-rs` loader (binary little/big endian or ASCII; `x y z` with optional `nx ny nz`; faces `list <int> <int> vertex_indices`, quads fan-triangulated). Without stored normals the mesh is shaded with face normals (the shared scenes' convention). Stored normals shade every surface: specular ones reflect and refract about them, diffuse ones are two-sided Lambertian in the shading frame as in Mitsuba (`arpa_core::lambertian`); a diffuse mesh with more than 1 % of its area under vertex normals tilted over 60° from their faces gets a warning (likely a broken export) |
+//! | `<shape type="ply">` | `ply-rs` loader (binary little/big endian or ASCII; `x y z` with optional `nx ny nz`; faces `list <int> <int> vertex_indices`, quads fan-triangulated). Without stored normals the mesh is shaded with face normals (the shared scenes' convention). Stored normals shade every surface: specular ones reflect and refract about them, diffuse ones are two-sided Lambertian in the shading frame as in Mitsuba (`arpa_core::propagate::lambertian`); a diffuse mesh with more than 1 % of its area under vertex normals tilted over 60° from their faces gets a warning (likely a broken export) |
 //! | `<shape type="obj">` | `tobj`, all objects merged, polygons triangulated, `.mtl` ignored |
 //! | `<shape type="rectangle" / "cube" / "sphere">` | Mitsuba's canonical shapes (`[-1,1]²` at z = 0 facing +z; `[-1,1]³`; sphere `center` + `radius` tessellated into 5,120 triangles with exact vertices and smooth normals) |
 //! | shape `face_normals`, `flip_normals` | drop stored normals; reverse the winding and normals |
 //! | `<bsdf type="diffuse">` | [`Material::Diffuse`] with `reflectance` |
 //! | `dielectric` | [`Material::Dielectric`], `ior = int_ior / ext_ior` (numbers or Mitsuba's named IORs), `specular_transmittance` |
-//! | `conductor` | [`Material::Conductor`], roughness 0. `material="none"` (Mitsuba's default) is a perfect mirror of reflectance `specular_reflectance`; a named metal uses a small table of normal-incidence reflectances (Ag, Al, Au, Cr, Cu, Ni_palik, Pt, Fe, Ti, W), any other name 0.9 gray (warning); `eta`/`k` give the cosine-weighted hemispherical average of the exact conductor Fresnel reflectance ([`conductor_albedo`](arpa_core::fresnel::conductor_albedo)), used at every angle (warning) |
+//! | `conductor` | [`Material::Conductor`], roughness 0. `material="none"` (Mitsuba's default) is a perfect mirror of reflectance `specular_reflectance`; a named metal uses a small table of normal-incidence reflectances (Ag, Al, Au, Cr, Cu, Ni_palik, Pt, Fe, Ti, W), any other name 0.9 gray (warning); `eta`/`k` give the cosine-weighted hemispherical average of the exact conductor Fresnel reflectance ([`conductor_albedo`](arpa_core::propagate::fresnel::conductor_albedo)), used at every angle (warning) |
 //! | `roughconductor`, `roughdielectric` | as above with roughness `alpha` (or the mean of `alpha_u`, `alpha_v`; default 0.1): the renderer applies [`Scene::roughness_cutoff`] ([`ROUGHNESS_CUTOFF`] = `alpha` 0.25 here, RTPM's rule of linear roughness `sqrt(alpha)` 0.5): `alpha` at or above it is diffuse, smoother is perfectly specular (warning saying which) |
 //! | `plastic`, `roughplastic` | diffuse with `diffuse_reflectance`; the specular coating is dropped (warning) |
 //! | `twosided` | its nested bsdf (arpa's materials are two-sided). A one-sided diffuse/conductor with non-zero reflectance gets a warning, since Mitsuba renders its back black |
 //! | `<ref id>` / `id` | top-level bsdfs by id; a shape without a bsdf is diffuse 0.5 (Mitsuba's default) |
 //! | `<emitter type="area">` in a shape | [`TriangleMesh::emission`] = `radiance`, one-sided on the geometric-normal side `cross(p1−p0, p2−p0)` (the shared scenes' convention); zero total area is an error; a warning if the stored normals point the other way |
-//! | `point` | [`PointLight`](arpa_core::emission::PointLight): `intensity` (W/sr), `position` or `to_world` |
-//! | `spot` | [`SpotLight`](arpa_core::emission::SpotLight): `to_world` (+z is the axis), `intensity`, `cutoff_angle` (default 20°, in (0°, 90°]) and `beam_width` (default ¾ cutoff, in [0, cutoff]) in degrees → radians, [`SpotFalloff::LinearAngle`](arpa_core::emission::SpotFalloff) (Mitsuba's curve) |
-//! | `directional` | [`DirectionalLight`](arpa_core::emission::DirectionalLight): `direction` or `to_world` +z, `irradiance` |
-//! | `<sensor type="perspective">` | [`Camera`](arpa_core::scene::Camera) from `to_world` in Mitsuba's convention (camera +z forward, +y up, +x *left*; a mirrored frame is an error); `fov` with `fov_axis` x (Mitsuba's default), y, diagonal, smaller, larger, converted to the vertical FOV; film `width`/`height` (default 768×576) |
+//! | `point` | [`PointLight`](arpa_core::emit::emission::PointLight): `intensity` (W/sr), `position` or `to_world` |
+//! | `spot` | [`SpotLight`](arpa_core::emit::emission::SpotLight): `to_world` (+z is the axis), `intensity`, `cutoff_angle` (default 20°, in (0°, 90°]) and `beam_width` (default ¾ cutoff, in [0, cutoff]) in degrees → radians, [`SpotFalloff::LinearAngle`](arpa_core::emit::emission::SpotFalloff) (Mitsuba's curve) |
+//! | `directional` | [`DirectionalLight`](arpa_core::emit::emission::DirectionalLight): `direction` or `to_world` +z, `irradiance` |
+//! | `<sensor type="perspective">` | [`Camera`](arpa_core::render::scene::Camera) from `to_world` in Mitsuba's convention (camera +z forward, +y up, +x *left*; a mirrored frame is an error); `fov` with `fov_axis` x (Mitsuba's default), y, diagonal, smaller, larger, converted to the vertical FOV; film `width`/`height` (default 768×576) |
 //! | colours | `<rgb value="r, g, b">`, `<rgb value="v">`, `<float>`, constant `<spectrum value="v">` |
 //! | `<integrator>` | ignored (arpa is the integrator); its `max_depth` is reported in [`LoadedScene::max_depth`] |
 //! | sampler, film `pixel_format` etc. | ignored; `sample_count` in [`LoadedScene::sample_count`]; a non-box `rfilter` warns |
@@ -76,9 +76,9 @@ mod xml;
 pub use error::{SceneFileError, Warning};
 pub use mitsuba::ROUGHNESS_CUTOFF;
 
-use arpa_core::scene::Scene;
+use arpa_core::render::scene::Scene;
 #[cfg(doc)]
-use arpa_core::scene::{Material, TriangleMesh};
+use arpa_core::render::scene::{Material, TriangleMesh};
 use glam::DVec3;
 use std::path::{Path, PathBuf};
 

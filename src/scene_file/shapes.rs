@@ -29,9 +29,9 @@ pub(crate) fn cube() -> RawMesh {
 pub const SPHERE_SUBDIVISIONS: u32 = 4;
 
 /// A unit icosphere (`20·4^SPHERE_SUBDIVISIONS` triangles) with outward winding and normals
-/// ([`arpa_core::shapes::unit_icosphere`]).
+/// ([`arpa_core::render::shapes::unit_icosphere`]).
 pub(crate) fn sphere() -> RawMesh {
-    let (positions, indices) = arpa_core::shapes::unit_icosphere(SPHERE_SUBDIVISIONS);
+    let (positions, indices) = arpa_core::render::shapes::unit_icosphere(SPHERE_SUBDIVISIONS);
     let normals = positions.clone();
     RawMesh { positions, normals: Some(normals), indices }
 }

@@ -1,5 +1,5 @@
 // Running mean of the iteration images on the device: per pixel an f32 sum with Neumaier
-// compensation (arpa_core::accumulate::RunningMean, in f32) and the count of rejected
+// compensation (arpa_core::accumulate::image::RunningMean, in f32) and the count of rejected
 // (non-finite) samples; the host divides by the iteration count when it reads the mean.
 // A non-finite sample counts as an iteration that contributed 0, as in the core. Needs
 // math.wgsl.

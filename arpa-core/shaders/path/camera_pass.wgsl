@@ -1,5 +1,5 @@
 // The camera pass: per pixel, arpa_camera_trace traces the camera path of
-// arpa_core::camera_path::trace_camera_path in f32 and gives its QueryRecord, which the
+// arpa_core::render::camera_path::trace_camera_path in f32 and gives its QueryRecord, which the
 // backend's entry point (one invocation per pixel; arpa-wgpu: compute, arpa-vk: ray
 // generation) writes to arpa_camera_queries. Group 0: the
 // scene (scene.wgsl, with the backend's arpa_scene_intersect / arpa_scene_occluded); group

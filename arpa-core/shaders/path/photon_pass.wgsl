@@ -1,13 +1,13 @@
 // Photon pass on the device: photon_trace is the WGSL twin of
-// arpa_core::photon_path::trace_photon for one photon; the backend's entry point (one
+// arpa_core::render::photon_path::trace_photon for one photon; the backend's entry point (one
 // invocation per photon of a batch; arpa-wgpu: compute, arpa-vk: ray generation) calls it
 // for global photon first_photon + local and adds the photon and its segments to
 // photon_counters.emitted / .segments. Emission from the iteration's prepared lights
-// (arpa_core::emission::PackedLight, lattice shift drawn on the host as PhotonPassSetup does),
+// (arpa_core::emit::emission::PackedLight, lattice shift drawn on the host as PhotonPassSetup does),
 // transfer / reflection / refraction of the ray differential (differential.wgsl), Fresnel
 // choice, Russian roulette, diffuse store with the adjoint shading-normal ratio and lobe
-// re-emission (arpa_core::lambertian), re-emission with the virtual distance
-// (reemission.wgsl), caustic/global classification (arpa_core::classify), max_depth.
+// re-emission (arpa_core::propagate::lambertian), re-emission with the virtual distance
+// (reemission.wgsl), caustic/global classification (arpa_core::propagate::classify), max_depth.
 //
 // Group 0: the scene (scene.wgsl, with the backend's arpa_scene_intersect).
 //

@@ -21,7 +21,7 @@ struct ArpaKeyedFootprint {
     pad6: u32,
 }
 
-// arpa_core::progressive_photon::PackedPhoton (48 bytes): a progressive photon of a sorted map.
+// arpa_core::store::progressive_photon::PackedPhoton (48 bytes): a progressive photon of a sorted map.
 struct ArpaPackedPhoton {
     position: vec3<f32>, // metres
     map: u32,
@@ -46,7 +46,7 @@ struct ArpaKeyedPhoton {
     pad4: u32,
 }
 
-// arpa_core::tracer::QueryRecord (64 bytes): the camera pass's record of one pixel.
+// arpa_core::render::tracer::QueryRecord (64 bytes): the camera pass's record of one pixel.
 struct ArpaQueryRecord {
     position: vec3<f32>,  // metres
     pixel: u32,

@@ -1,7 +1,7 @@
 // The scene on the device (bind group 0 of the camera and photon passes): per-mesh
 // materials with the scene's roughness cut-off resolved on the host, per-triangle geometry,
 // and the emitters for next-event estimation, as arpa_core::gpu::scene::SceneTables
-// uploads them; mirrors arpa_core::prepared_scene::PreparedScene. Needs math.wgsl.
+// uploads them; mirrors arpa_core::render::prepared_scene::PreparedScene. Needs math.wgsl.
 // Units: metres, world space; radiance W/(m^2 sr), intensity W/sr, irradiance W/m^2
 // (linear RGB).
 //
@@ -18,7 +18,7 @@
 // ray queries; arpa-vk: ray-tracing pipelines). The passes cast through an ArpaRayStart
 // (arpa_start_intersect / arpa_start_occluded below), never directly.
 
-// Scattering kinds (arpa_core::scene::Scattering; arpa_core::gpu::codes::SCATTER_*).
+// Scattering kinds (arpa_core::render::scene::Scattering; arpa_core::gpu::codes::SCATTER_*).
 const ARPA_SCATTER_DIFFUSE: u32 = 0u;
 const ARPA_SCATTER_MIRROR: u32 = 1u;
 const ARPA_SCATTER_REFRACTIVE: u32 = 2u;
@@ -92,7 +92,7 @@ struct ArpaSceneTriangle {
 
 // layout::SceneEmitter (80 bytes).
 struct ArpaSceneEmitter {
-    // ARPA_LIGHT_* (the light kinds of emission.wgsl, arpa_core::emission::PackedLight::kind).
+    // ARPA_LIGHT_* (the light kinds of emission.wgsl, arpa_core::emit::emission::PackedLight::kind).
     kind: u32,
     // Spot falloff: 0 linear in angle, 1 smoothstep (ARPA_FALLOFF_* of emission.wgsl).
     falloff: u32,

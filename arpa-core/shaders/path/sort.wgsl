@@ -10,7 +10,7 @@
 // the host schedule of the steps is arpa_core::gpu::sort::sort_steps.
 
 // One step: merge size k and compare distance j (both powers of two); the first 16 bytes of
-// arpa_core::gpu::layout::SortStep.
+// arpa_core::gpu::sort::SortStep.
 struct SortStep {
     k: u32,
     j: u32,

@@ -23,7 +23,7 @@
 use core::ops::Range;
 
 use crate::gpu::layout::{KeyedFootprint, KeyedPhoton};
-use crate::progressive_photon::PackedPhoton;
+use crate::store::progressive_photon::PackedPhoton;
 
 /// Stored records per photon of a batch the photon pass's append buffers start with (each
 /// buffer).

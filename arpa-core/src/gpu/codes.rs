@@ -1,11 +1,11 @@
-//! The integer codes the path-level WGSL ([`crate::shaders::PATH`]) and the twin take where
+//! The integer codes the path-level WGSL ([`crate::gpu::shaders::PATH`]) and the twin take where
 //! the Rust side has enums. Each constant names its WGSL twin. Light kinds and spot falloff
-//! curves have theirs beside their types ([`crate::emission::Light::kind_code`],
-//! [`crate::emission::SpotFalloff::code`]).
+//! curves have theirs beside their types ([`crate::emit::emission::Light::kind_code`],
+//! [`crate::emit::emission::SpotFalloff::code`]).
 
-use crate::store::ProgressiveReason;
+use crate::store::heuristics::ProgressiveReason;
 
-use crate::kernel::Kernel;
+use crate::gather::kernel::Kernel;
 
 /// Workgroup size (invocations along x) of every path-level kernel but the sort's.
 pub const WORKGROUP_SIZE: u32 = 64;
@@ -19,30 +19,30 @@ pub const fn kernel_code(kernel: Kernel) -> u32 {
     }
 }
 
-/// `ARPA_PHOTON_METHOD_ARPA` of `photon_pass.wgsl` ([`crate::tracer::Method::Arpa`]).
+/// `ARPA_PHOTON_METHOD_ARPA` of `photon_pass.wgsl` ([`crate::render::tracer::Method::Arpa`]).
 pub const METHOD_ARPA: u32 = 0;
-/// `ARPA_PHOTON_METHOD_RTPM` ([`crate::tracer::Method::Rtpm`]).
+/// `ARPA_PHOTON_METHOD_RTPM` ([`crate::render::tracer::Method::Rtpm`]).
 pub const METHOD_RTPM: u32 = 1;
 
 /// [`METHOD_ARPA`] or [`METHOD_RTPM`].
 #[cfg(feature = "alloc")]
 #[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
-pub const fn method_code(method: crate::tracer::Method) -> u32 {
+pub const fn method_code(method: crate::render::tracer::Method) -> u32 {
     match method {
-        crate::tracer::Method::Arpa => METHOD_ARPA,
-        crate::tracer::Method::Rtpm => METHOD_RTPM,
+        crate::render::tracer::Method::Arpa => METHOD_ARPA,
+        crate::render::tracer::Method::Rtpm => METHOD_RTPM,
     }
 }
 
-/// `ARPA_SCATTER_DIFFUSE` of `scene.wgsl` ([`crate::scene::Scattering::Diffuse`]).
+/// `ARPA_SCATTER_DIFFUSE` of `scene.wgsl` ([`crate::render::scene::Scattering::Diffuse`]).
 pub const SCATTER_DIFFUSE: u32 = 0;
-/// `ARPA_SCATTER_MIRROR` ([`crate::scene::Scattering::Mirror`]).
+/// `ARPA_SCATTER_MIRROR` ([`crate::render::scene::Scattering::Mirror`]).
 pub const SCATTER_MIRROR: u32 = 1;
-/// `ARPA_SCATTER_REFRACTIVE` ([`crate::scene::Scattering::Refractive`]).
+/// `ARPA_SCATTER_REFRACTIVE` ([`crate::render::scene::Scattering::Refractive`]).
 pub const SCATTER_REFRACTIVE: u32 = 2;
 
 /// `ARPA_TRIANGLE_SHADED` of `scene.wgsl`: the triangle's vertex normals differ from its
-/// face normal ([`crate::prepared_scene::PreparedScene::has_shading_normals`]).
+/// face normal ([`crate::render::prepared_scene::PreparedScene::has_shading_normals`]).
 pub const TRIANGLE_SHADED: u32 = 1;
 /// `ARPA_TRIANGLE_NORMALS`: the mesh has vertex normals and the triangle a non-zero area,
 /// so specular bounces interpolate them.

@@ -1,27 +1,20 @@
 //! The `#[repr(C)]` records of the device buffers the path-level WGSL
-//! ([`crate::shaders::PATH`]) reads and writes, each the host side of the WGSL struct it
+//! ([`crate::gpu::shaders::PATH`]) reads and writes, each the host side of the WGSL struct it
 //! names (same size and field offsets, checked below at compile time against the WGSL
 //! layout rules: `vec3<f32>` aligned to 16 bytes, so a `u32` or `f32` fills its fourth
 //! word), with the host computations that fill them from the core's types.
 //!
 //! Records of the twin have theirs beside the Rust types they pack:
-//! [`crate::footprint::PackedFootprint`], [`crate::progressive_photon::PackedPhoton`],
-//! [`crate::heuristics::PackedHeuristics`], [`crate::emission::PackedLight`],
-//! [`crate::tracer::QueryRecord`].
+//! [`crate::store::footprint::PackedFootprint`], [`crate::store::progressive_photon::PackedPhoton`],
+//! [`crate::store::heuristics::PackedHeuristics`], [`crate::emit::emission::PackedLight`],
+//! [`crate::render::tracer::QueryRecord`].
 
-use core::mem::{offset_of, size_of};
+use core::mem::size_of;
 
-use crate::bandwidth::Bandwidth;
-use crate::heuristics::PackedHeuristics;
-use crate::progressive_photon::PackedPhoton;
+use crate::gather::scales::Bandwidth;
+use crate::store::heuristics::PackedHeuristics;
+use crate::store::progressive_photon::PackedPhoton;
 
-/// Checks a record's size and field offsets at compile time.
-macro_rules! layout {
-    ($t:ty, $size:expr, { $($field:ident: $offset:expr),* $(,)? }) => {
-        const _: () = assert!(size_of::<$t>() == $size);
-        $(const _: () = assert!(offset_of!($t, $field) == $offset);)*
-    };
-}
 
 /// A footprint as the photon pass leaves it at a diffuse hit, before the heuristics
 /// (world space: metres, unit normal towards the arriving photon, W). 80 bytes; the first
@@ -84,24 +77,6 @@ pub struct KeyedPhoton {
 }
 layout!(KeyedPhoton, 64, { photon: 0, key: 48 });
 
-/// Refuses settings whose record keys (`photon_index · max_depth + depth`, as
-/// [`KeyedFootprint::key`] and [`KeyedPhoton::key`]) would not all fit a `u32`: the check a
-/// GPU backend's `upload_scene` adds to [`crate::tracer::prepare_upload`] (which has
-/// already refused `max_depth = 0`). The message names `backend` and the largest photon
-/// count per iteration at this depth.
-#[cfg(feature = "alloc")]
-#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
-pub fn check_record_keys(settings: &crate::tracer::RenderSettings, backend: crate::tracer::BackendKind) -> Result<(), crate::tracer::StageError> {
-    if u64::from(settings.photons_per_iteration) * u64::from(settings.max_depth) <= u64::from(u32::MAX) {
-        return Ok(());
-    }
-    Err(crate::tracer::StageError::Settings(crate::tracer::InvalidSettings(alloc::format!(
-        "photons_per_iteration {} × max_depth {} exceeds the u32 record keys of the {backend} backend (at most {} photons at this depth)",
-        settings.photons_per_iteration,
-        settings.max_depth,
-        u32::MAX / settings.max_depth.max(1)
-    ))))
-}
 layout!(PackedPhoton, 48, { position: 0, map: 12, normal: 16, flux: 32 });
 
 /// What the photon pass counted (`PhotonCounters` of `photon_pass.wgsl`, 48 bytes).
@@ -181,26 +156,6 @@ pub struct PhotonParams {
 }
 layout!(PhotonParams, 48, { photon_count: 0, iteration: 4, seed: 8, max_depth: 12, method: 16, direct_lighting: 20, emitter_count: 24, first_photon: 28, smoothing: 32 });
 
-#[cfg(feature = "alloc")]
-#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
-impl PhotonParams {
-    /// The parameters of the photons `batch` (global indices) of iteration `iteration`
-    /// under `settings`, with `emitters` emitters.
-    pub fn new(settings: &crate::tracer::RenderSettings, iteration: u32, emitters: u32, batch: core::ops::Range<u32>) -> Self {
-        Self {
-            photon_count: batch.end.saturating_sub(batch.start),
-            iteration,
-            seed: settings.seed,
-            max_depth: settings.max_depth,
-            method: crate::gpu::codes::method_code(settings.method),
-            direct_lighting: settings.direct_lighting as u32,
-            emitter_count: emitters,
-            first_photon: batch.start,
-            smoothing: [settings.smoothing.caustic as f32, settings.smoothing.global as f32],
-            pad1: [0.0; 2],
-        }
-    }
-}
 
 /// Global photon range of one emitter (`PhotonEmitterRange` of `photon_pass.wgsl`,
 /// 16 bytes).
@@ -214,49 +169,12 @@ pub struct EmitterRange {
     /// 1 if the emitter can emit.
     pub valid: u32,
     /// 1 for a caustic-pass source (its photons store only caustic records and end at
-    /// their first diffuse hit; [`crate::photon_path::PhotonPassSetup`]).
+    /// their first diffuse hit; [`crate::render::photon_path::PhotonPassSetup`]).
     pub caustic_only: u32,
 }
 layout!(EmitterRange, 16, { first_index: 0, count: 4, valid: 8, caustic_only: 12 });
 
-/// The photon pass's light and range buffers of an iteration: one
-/// [`crate::emission::PackedLight`] (with its caustic weight and the place of its cells
-/// in [`cell_table`]) and one [`EmitterRange`] per source of `setup` (`2 ×` the scene's
-/// emitters; one zeroed element each for a scene without emitters: storage bindings must
-/// not be empty).
-#[cfg(feature = "alloc")]
-#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
-pub fn emitter_tables(setup: &crate::photon_path::PhotonPassSetup) -> (alloc::vec::Vec<crate::emission::PackedLight>, alloc::vec::Vec<EmitterRange>) {
-    let n = setup.lights.len().max(1);
-    let mut lights = alloc::vec![crate::emission::PackedLight::default(); n];
-    let mut ranges = alloc::vec![EmitterRange::default(); n];
-    for (e, light) in setup.lights.iter().enumerate() {
-        let caustic_only = setup.is_caustic_source(e) as u32;
-        ranges[e] = EmitterRange { first_index: setup.first_index[e], count: setup.allocation[e], valid: light.is_some() as u32, caustic_only };
-        if let Some(l) = light {
-            let mut packed = l.pack();
-            packed.caustic_weight = setup.caustic_weight[e] as f32;
-            packed.cell_first = setup.cell_first[e];
-            lights[e] = packed;
-        }
-    }
-    (lights, ranges)
-}
 
-/// The photon pass's cell buffer of `scene` (`photon_cells`, the same every iteration):
-/// every source's projection cells ([`crate::photon_path::source_cells`]) in source order,
-/// where [`crate::photon_path::PhotonPassSetup::cell_first`] points; one zero for a scene
-/// without any (storage bindings must not be empty).
-#[cfg(feature = "alloc")]
-#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
-pub fn cell_table(scene: &crate::prepared_scene::PreparedScene) -> alloc::vec::Vec<u32> {
-    let sources = 2 * scene.projections().len();
-    let mut cells: alloc::vec::Vec<u32> = (0..sources).flat_map(|s| crate::photon_path::source_cells(scene, s).cells.iter().copied()).collect();
-    if cells.is_empty() {
-        cells.push(0);
-    }
-    cells
-}
 
 /// Per-batch inputs of the keyed store (not a device record: [`StoreParams::new`] makes
 /// one).
@@ -288,7 +206,7 @@ pub struct StoreParams {
     pub scene_lo: [f32; 3],
     /// Raw footprints appended by the photon pass.
     pub raw_count: u32,
-    /// `1 / scene extent` per axis ([`crate::gpu::morton::inverse_extent`]).
+    /// `1 / scene extent` per axis ([`crate::base::morton::inverse_extent`]).
     pub scene_inv: [f32; 3],
     /// Progressive photons appended by the photon pass.
     pub photon_count: u32,
@@ -316,7 +234,7 @@ impl StoreParams {
             pad0: [0.0; 2],
             scene_lo: lo,
             raw_count: settings.raw_count,
-            scene_inv: crate::gpu::morton::inverse_extent(lo, hi),
+            scene_inv: crate::base::morton::inverse_extent(lo, hi),
             photon_count: settings.photon_count,
             fp_sorted: crate::gpu::sort::sorted_len(fp_count),
             ph_sorted: crate::gpu::sort::sorted_len(ph_count),
@@ -365,46 +283,9 @@ impl StoreCounts {
     }
 }
 
-/// One item of the device sort (`ArpaSortItem`, 12 bytes): sorted by `hi`, then `lo`, then
-/// `value` (ascending). The store's items: `hi` = `map << 30 | Morton code`, `lo` = photon
-/// key, `value` = slot.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct SortItem {
-    /// Most significant key word.
-    pub hi: u32,
-    /// Least significant key word.
-    pub lo: u32,
-    /// Payload, last tie-breaker (a slot index).
-    pub value: u32,
-}
-layout!(SortItem, 12, { hi: 0, lo: 4, value: 8 });
-
-/// One step of the sort (`SortStep` of `sort.wgsl` in its first 16 bytes), padded to
-/// 256 bytes: the steps of one sort sit in one uniform buffer read at dynamic offsets,
-/// whose alignment is at most 256 bytes.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct SortStep {
-    /// Merge size (a power of two).
-    pub k: u32,
-    /// Compare distance (a power of two; 0: the shared-memory stages).
-    pub j: u32,
-    /// Padding.
-    pub pad: [[u32; 2]; 31],
-}
-layout!(SortStep, 256, { k: 0, j: 4 });
-
-impl SortStep {
-    /// The step of merge size `k` and distance `j`.
-    pub const fn new(k: u32, j: u32) -> Self {
-        Self { k, j, pad: [[0; 2]; 31] }
-    }
-}
-
 /// Irradiance gathered at one query point (`ArpaGatherResult` of `gather.wgsl`, 112 bytes;
 /// W/m², RGB, summed in `f32` on the device): per map at the stored scale, and both maps
-/// together at the smaller scales of the bandwidth ladder ([`crate::bandwidth`]).
+/// together at the smaller scales of the bandwidth ladder ([`crate::gather::scales`]).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct GatherResult {
@@ -424,7 +305,7 @@ pub struct GatherResult {
     /// Irradiance at scales `1 .. SCALES` (entry `k − 1` is scale `k`), both maps summed
     /// together in traversal order, RGB in the first three words, the fourth zero; zero at
     /// the scales the gather did not evaluate ([`GatherImageParams::scales`]).
-    pub scaled: [[f32; 4]; crate::bandwidth::SCALES - 1],
+    pub scaled: [[f32; 4]; crate::gather::scales::SCALES - 1],
 }
 layout!(GatherResult, 112, { caustic: 0, caustic_count: 12, global: 16, global_count: 28, candidates: 32, pad: 40, scaled: 48 });
 
@@ -513,7 +394,7 @@ pub struct GatherImageParams {
     /// [`GatherBatch::bits`].
     pub batch: u32,
     /// Scales the gather evaluates ([`Bandwidth::scales`]): 1 (one image plane per pixel)
-    /// or [`crate::bandwidth::SCALES`] (every plane of [`crate::bandwidth::PLANES`]).
+    /// or [`crate::gather::scales::SCALES`] (every plane of [`crate::gather::scales::PLANES`]).
     /// The device clamps it to `1 ..= SCALES` and writes the moment planes only for `SCALES`.
     pub scales: u32,
     /// Padding.
@@ -524,7 +405,7 @@ layout!(GatherImageParams, 32, { radii: 0, kernel: 8, pixels: 12, batch: 16, sca
 impl GatherImageParams {
     /// The parameters of gathering `pixels` query records as `batch` for an image of
     /// `bandwidth`'s planes.
-    pub fn new(radii: [f32; 2], kernel: crate::kernel::Kernel, pixels: u32, batch: GatherBatch, bandwidth: Bandwidth) -> Self {
+    pub fn new(radii: [f32; 2], kernel: crate::gather::kernel::Kernel, pixels: u32, batch: GatherBatch, bandwidth: Bandwidth) -> Self {
         Self { radii, kernel: crate::gpu::codes::kernel_code(kernel), pixels, batch: batch.bits(), scales: bandwidth.scales() as u32, pad: [0; 2] }
     }
 }
@@ -570,7 +451,7 @@ impl ImageBufferSizes {
 }
 
 /// One pixel's accumulator of the running mean (`AccumPixel` of `accumulate.wgsl`,
-/// 32 bytes): a compensated `f32` sum (Neumaier, as [`crate::accumulate::RunningMean`] in
+/// 32 bytes): a compensated `f32` sum (Neumaier, as [`crate::accumulate::image::RunningMean`] in
 /// `f64`) and the count of rejected non-finite samples.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
@@ -590,31 +471,20 @@ impl AccumPixel {
     /// The mean over `iterations` iterations: `(sum + compensation) / iterations` in
     /// `f64`; 0 before any iteration and where not finite (so no NaN or Inf reaches a pixel).
     pub fn mean(&self, iterations: u32) -> glam::Vec3 {
-        crate::accumulate::output_mean(self.to_sum().total(), u64::from(iterations))
+        crate::accumulate::image::output_mean(self.to_sum().total(), u64::from(iterations))
     }
 
     /// The sums in `f64`, exactly (for a checkpoint).
-    pub fn to_sum(&self) -> crate::accumulate::PixelSum {
+    pub fn to_sum(&self) -> crate::accumulate::image::PixelSum {
         let f = |v: [f32; 3]| v.map(f64::from);
-        crate::accumulate::PixelSum { sum: f(self.sum), compensation: f(self.compensation), rejected: u64::from(self.rejected), pad: 0 }
+        crate::accumulate::image::PixelSum { sum: f(self.sum), compensation: f(self.compensation), rejected: u64::from(self.rejected), pad: 0 }
     }
 
-    /// The device records of `state`'s sums, for a GPU backend's
-    /// [`Tracer::restore_accumulation`](crate::tracer::Tracer::restore_accumulation):
-    /// refused when a sum is not exactly `f32` ([`AccumPixel::from_sum`]).
-    #[cfg(feature = "alloc")]
-    pub fn from_accumulation(state: &crate::accumulate::Accumulation) -> Result<alloc::vec::Vec<Self>, crate::tracer::StageError> {
-        state.pixels.iter().map(Self::from_sum).collect::<Option<alloc::vec::Vec<_>>>().ok_or_else(|| {
-            crate::tracer::StageError::Accumulation(
-                "its sums are not f32 values (merged parts or an f64 accumulator); a GPU backend continues only its own f32 sums exactly".into(),
-            )
-        })
-    }
 
     /// The device record of `sum`, when its values are exactly `f32` (as a device
     /// accumulator's are) and its rejected count fits; `None` otherwise (sums merged or
     /// accumulated in `f64`, which this accumulator cannot continue exactly).
-    pub fn from_sum(sum: &crate::accumulate::PixelSum) -> Option<Self> {
+    pub fn from_sum(sum: &crate::accumulate::image::PixelSum) -> Option<Self> {
         let f = |v: [f64; 3]| {
             let g = v.map(|x| x as f32);
             (g.map(f64::from) == v).then_some(g)
@@ -631,7 +501,7 @@ pub struct CameraParams {
     pub position: [f32; 3],
     /// Image width (pixels).
     pub width: u32,
-    /// Unit viewing direction ([`crate::scene::CameraFrame`]).
+    /// Unit viewing direction ([`crate::render::scene::CameraFrame`]).
     pub forward: [f32; 3],
     /// Image height (pixels).
     pub height: u32,
@@ -659,34 +529,6 @@ pub struct CameraParams {
     pub pad: [u32; 2],
 }
 layout!(CameraParams, 96, { position: 0, width: 12, forward: 16, height: 28, right: 32, tan_half_fov: 44, up: 48, aspect: 60, seed: 64, iteration: 68, max_depth: 72, direct_lighting: 76, pixel_count: 80, row_invocations: 84 });
-
-#[cfg(feature = "alloc")]
-#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
-impl CameraParams {
-    /// The parameters of iteration 0 for `camera` under `settings`, dispatched on a grid of
-    /// `row_invocations` invocations per row (the caller checks that `width · height`
-    /// fits a `u32` and its grid).
-    pub fn new(camera: &crate::scene::Camera, settings: &crate::tracer::RenderSettings, row_invocations: u32) -> Result<Self, crate::scene::SceneError> {
-        let frame = camera.frame()?;
-        Ok(Self {
-            position: camera.position.to_array(),
-            width: camera.width,
-            forward: frame.forward.to_array(),
-            height: camera.height,
-            right: frame.right.to_array(),
-            tan_half_fov: frame.tan_half_fov,
-            up: frame.up.to_array(),
-            aspect: frame.aspect,
-            seed: settings.seed,
-            iteration: 0,
-            max_depth: settings.max_depth,
-            direct_lighting: settings.direct_lighting as u32,
-            pixel_count: camera.width.wrapping_mul(camera.height),
-            row_invocations,
-            pad: [0; 2],
-        })
-    }
-}
 
 /// `ArpaSceneInfo` of `scene.wgsl` (uniform, 32 bytes).
 #[repr(C)]
@@ -773,9 +615,9 @@ layout!(SceneTriangle, 112, { p0: 0, flags: 12, p1: 16, blas_triangle: 28, p2: 3
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct SceneEmitter {
-    /// [`crate::emission::Light::kind_code`].
+    /// [`crate::emit::emission::Light::kind_code`].
     pub kind: u32,
-    /// Spot falloff ([`crate::emission::SpotFalloff::code`]).
+    /// Spot falloff ([`crate::emit::emission::SpotFalloff::code`]).
     pub falloff: u32,
     /// Spot cut-off half-angle (rad).
     pub cutoff: f32,
@@ -832,7 +674,7 @@ mod tests {
         assert!(p.check(10, 10, Bandwidth::PerPixel, 8 * 3200).is_ok());
         let e = p.check(10, 10, Bandwidth::PerPixel, 8 * 3200 - 1).unwrap_err();
         assert!(e.contains("accumulation") && e.contains("per-pixel") && e.contains("8 plane"), "{e}");
-        assert_eq!(GatherImageParams::new([0.1; 2], crate::kernel::Kernel::Constant, 100, GatherBatch::WHOLE, Bandwidth::PerPixel).scales, 5);
+        assert_eq!(GatherImageParams::new([0.1; 2], crate::gather::kernel::Kernel::Constant, 100, GatherBatch::WHOLE, Bandwidth::PerPixel).scales, 5);
     }
 
     #[test]

@@ -1,4 +1,4 @@
-//! The prepared scene as the device reads it ([`crate::shaders::SCENE`], bind group 0 of
+//! The prepared scene as the device reads it ([`crate::gpu::shaders::SCENE`], bind group 0 of
 //! the camera and photon passes): per-mesh materials with the roughness cut-off resolved,
 //! per-triangle vertices and normals, and the emitters of next-event estimation, every
 //! value the core's rounded once to `f32`; and the order of each mesh's triangles in its
@@ -8,14 +8,14 @@ use alloc::vec::Vec;
 
 use glam::{DVec3, Vec3};
 
-use crate::emission::Light;
+use crate::emit::emission::Light;
 use crate::gpu::codes::{SCATTER_DIFFUSE, SCATTER_MIRROR, SCATTER_REFRACTIVE, TRIANGLE_NORMALS, TRIANGLE_SHADED};
 use crate::gpu::layout::{SceneEmitter, SceneInfo, SceneMesh, SceneTriangle};
-use crate::gpu::morton::morton_code;
-use crate::prepared_scene::PreparedScene;
-use crate::ray_cast::RayHit;
-use crate::scene::{Scattering, TriangleMesh};
-use crate::shading_normal::ShadedTriangle;
+use crate::base::morton::morton_code;
+use crate::render::prepared_scene::PreparedScene;
+use crate::render::ray_cast::RayHit;
+use crate::render::scene::{Scattering, TriangleMesh};
+use crate::propagate::shading_normal::ShadedTriangle;
 
 /// The order in which a mesh's triangles go into its bottom-level acceleration structure:
 /// triangle indices sorted by the 30-bit Morton code ([`morton_code`]) of their `f32`
@@ -32,7 +32,7 @@ pub fn morton_triangle_order(mesh: &TriangleMesh) -> Vec<u32> {
     let centroids: Vec<Vec3> = mesh.indices.iter().map(centroid).collect();
     let lo = centroids.iter().copied().fold(Vec3::INFINITY, Vec3::min);
     let hi = centroids.iter().copied().fold(Vec3::NEG_INFINITY, Vec3::max);
-    let inv_extent = crate::gpu::morton::inverse_extent(lo.to_array(), hi.to_array());
+    let inv_extent = crate::base::morton::inverse_extent(lo.to_array(), hi.to_array());
     let lo = if lo.is_finite() { lo } else { Vec3::ZERO };
     let mut keyed: Vec<(u32, u32)> = centroids.iter().zip(0u32..).map(|(c, i)| (morton_code(c.to_array(), lo.to_array(), inv_extent), i)).collect();
     keyed.sort_unstable();

@@ -1,11 +1,45 @@
-//! The device sort of the store's items (`path/sort.wgsl`, [`crate::shaders::SORT`]): a
+//! The device sort of the store's items (`path/sort.wgsl`, [`crate::gpu::shaders::SORT`]): a
 //! bitonic sort of [`SortItem`]s by `(hi, lo, value)` on a power-of-two length, with
 //! shared-memory stages for compare distances below [`SORT_BLOCK`]. The order is total, so
 //! the result does not depend on the order the items were appended in.
 
-use crate::gpu::layout::SortItem;
-#[cfg(feature = "alloc")]
-use crate::gpu::layout::SortStep;
+/// One item of the device sort (`ArpaSortItem`, 12 bytes): sorted by `hi`, then `lo`, then
+/// `value` (ascending). The store's items: `hi` = `map << 30 | Morton code`, `lo` = photon
+/// key, `value` = slot.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SortItem {
+    /// Most significant key word.
+    pub hi: u32,
+    /// Least significant key word.
+    pub lo: u32,
+    /// Payload, last tie-breaker (a slot index).
+    pub value: u32,
+}
+layout!(SortItem, 12, { hi: 0, lo: 4, value: 8 });
+
+/// One step of the sort (`SortStep` of `sort.wgsl` in its first 16 bytes), padded to
+/// 256 bytes: the steps of one sort sit in one uniform buffer read at dynamic offsets,
+/// whose alignment is at most 256 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SortStep {
+    /// Merge size (a power of two).
+    pub k: u32,
+    /// Compare distance (a power of two; 0: the shared-memory stages).
+    pub j: u32,
+    /// Padding.
+    pub pad: [[u32; 2]; 31],
+}
+layout!(SortStep, 256, { k: 0, j: 4 });
+
+impl SortStep {
+    /// The step of merge size `k` and distance `j`.
+    pub const fn new(k: u32, j: u32) -> Self {
+        Self { k, j, pad: [[0; 2]; 31] }
+    }
+}
+
 
 /// Items per workgroup block of the shared-memory stages (`SORT_BLOCK` of `sort.wgsl`);
 /// sorted lengths are powers of two of at least this.

@@ -2,10 +2,10 @@
 #![allow(dead_code)]
 
 
-use arpa_core::emission::{Light, PointLight};
+use arpa_core::emit::emission::{Light, PointLight};
 use arpa_core::glam::{DVec3, Vec3};
-use arpa_core::scene::{Camera, Material, Scene, TriangleMesh};
-use arpa_core::tracer::{QueryRecord, Tracer};
+use arpa_core::render::scene::{Camera, Material, Scene, TriangleMesh};
+use arpa_core::render::tracer::{QueryRecord, Tracer};
 use arpa_cpu::CpuTracer;
 
 /// A diffuse triangle mesh using material `material`.
@@ -25,12 +25,12 @@ pub fn mesh(
     }
 }
 
-pub use arpa_core::shapes::parallelogram as quad;
+pub use arpa_core::render::shapes::parallelogram as quad;
 
 /// An icosphere of radius `radius` around `centre` with flat facets
-/// ([`arpa_core::shapes::icosphere`]).
+/// ([`arpa_core::render::shapes::icosphere`]).
 pub fn icosphere(centre: Vec3, radius: f32, subdivisions: u32, material: u32) -> TriangleMesh {
-    arpa_core::shapes::icosphere("icosphere", centre, radius, subdivisions, false, material)
+    arpa_core::render::shapes::icosphere("icosphere", centre, radius, subdivisions, false, material)
 }
 
 

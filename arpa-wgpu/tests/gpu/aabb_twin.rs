@@ -6,8 +6,8 @@
 //! padding.
 
 use crate::common::*;
-use arpa_core::aabb::Aabb;
-use arpa_core::rng::{Rng, StreamDomain};
+use arpa_core::base::aabb::Aabb;
+use arpa_core::base::rng::{Rng, StreamDomain};
 
 #[test]
 fn padded_box_twin_contains_what_the_tests_need() {

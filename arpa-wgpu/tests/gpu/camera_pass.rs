@@ -21,11 +21,11 @@
 
 use crate::common::*;
 use crate::scenes;
-use arpa_core::camera_path::trace_camera_path;
-use arpa_core::prepared_scene::PreparedScene;
-use arpa_core::ray_cast::BruteForceCaster;
-use arpa_core::scene::Scene;
-use arpa_core::tracer::{QueryRecord, RenderSettings};
+use arpa_core::render::camera_path::trace_camera_path;
+use arpa_core::render::prepared_scene::PreparedScene;
+use arpa_core::render::brute_force::BruteForceCaster;
+use arpa_core::render::scene::Scene;
+use arpa_core::render::tracer::{QueryRecord, RenderSettings};
 use arpa_wgpu::camera::{CameraPass, CameraPassError};
 use arpa_wgpu::scene::GpuScene;
 use arpa_wgpu::GpuContext;

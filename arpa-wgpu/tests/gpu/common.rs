@@ -46,7 +46,7 @@ pub fn run(ctx: &GpuContext, label: &str, body: &str, input: &[u32], in_stride: 
 pub fn run_with(ctx: &GpuContext, label: &str, helpers: &str, body: &str, input: &[u32], in_stride: usize, out_stride: usize) -> Vec<Vec<u32>> {
     assert_eq!(input.len() % in_stride, 0);
     let items = input.len() / in_stride;
-    let twin = arpa_core::shaders::compose(&arpa_core::shaders::TWIN);
+    let twin = arpa_core::gpu::shaders::compose(&arpa_core::gpu::shaders::TWIN);
     let source = format!(
         "{twin}\n{PRELUDE}\n{helpers}\n@compute @workgroup_size(64)\nfn main(@builtin(global_invocation_id) gid: vec3<u32>) {{\n    let item = gid.x;\n    if item >= {items}u {{ return; }}\n    let ib = item * {in_stride}u;\n    let ob = item * {out_stride}u;\n{body}\n}}\n"
     );

@@ -15,12 +15,12 @@
 //! per-map sums and counts of a five-scale gather are bit for bit the one-scale gather's.
 
 
-use arpa_core::bandwidth::{SCALES, inv_scale2};
-use arpa_core::estimate::{IrradianceEstimate, QueryPoint, gather_brute_force_scales};
-use arpa_core::footprint::{Footprint, PackedFootprint, PhotonMap};
-use arpa_core::kernel::Kernel;
-use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::rng::{Rng, StreamDomain};
+use arpa_core::gather::scales::{SCALES, inv_scale2};
+use arpa_core::gather::estimate::{IrradianceEstimate, QueryPoint, gather_brute_force_scales};
+use arpa_core::store::footprint::{Footprint, PackedFootprint, PhotonMap};
+use arpa_core::gather::kernel::Kernel;
+use arpa_core::store::progressive_photon::PackedPhoton;
+use arpa_core::base::rng::{Rng, StreamDomain};
 use arpa_core::gpu::layout::GatherResult;
 use crate::common::*;
 use crate::support::gather;
@@ -34,7 +34,7 @@ fn plane(k: usize) -> (f64, DVec3) {
     (0.3 * k as f64, if k == 0 { DVec3::Z } else { -DVec3::Z })
 }
 
-fn scene(seed: u32, n: usize) -> (Vec<PackedFootprint>, Vec<arpa_core::aabb::Aabb>) {
+fn scene(seed: u32, n: usize) -> (Vec<PackedFootprint>, Vec<arpa_core::base::aabb::Aabb>) {
     let mut rng = Rng::new(seed, 0, 0, StreamDomain::User);
     let (mut fps, mut boxes) = (Vec::new(), Vec::new());
     while fps.len() < n {

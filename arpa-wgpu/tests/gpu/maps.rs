@@ -22,19 +22,19 @@
 
 use crate::common::*;
 use crate::store::{core_footprint, near_threshold, raw, scene_bounds};
-use arpa_core::classify::Smoothing;
-use arpa_core::bandwidth::{Bandwidth, PLANES, SCALES, moments};
-use arpa_core::estimate::{QueryPoint, gather_brute_force, gather_brute_force_scales};
-use arpa_core::footprint::PhotonMap;
-use arpa_core::heuristics::Heuristics;
-use arpa_core::kernel::Kernel;
-use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::rng::{Rng, StreamDomain};
-use arpa_core::store::{StoredPhoton, store_footprint};
-use arpa_core::tracer::QueryRecord;
+use arpa_core::propagate::classify::Smoothing;
+use arpa_core::gather::scales::{Bandwidth, PLANES, SCALES, moments};
+use arpa_core::gather::estimate::{QueryPoint, gather_brute_force, gather_brute_force_scales};
+use arpa_core::store::footprint::PhotonMap;
+use arpa_core::store::heuristics::Heuristics;
+use arpa_core::gather::kernel::Kernel;
+use arpa_core::store::progressive_photon::PackedPhoton;
+use arpa_core::base::rng::{Rng, StreamDomain};
+use arpa_core::store::decision::{StoredPhoton, store_footprint};
+use arpa_core::render::tracer::QueryRecord;
 use crate::support::{HostRun, run_from_host};
 use arpa_core::gpu::layout::{KeyedFootprint, KeyedPhoton, RawFootprint, StoreSettings};
-use arpa_core::gpu::morton::morton_code;
+use arpa_core::base::morton::morton_code;
 use glam::{DVec3, Vec3};
 
 const RADII: [f32; 2] = [0.02, 0.05];
@@ -131,7 +131,7 @@ fn chain_matches_core() {
     let heuristics = Heuristics::default();
     let resolved = heuristics.resolve(&scene_bounds());
     let smoothing = Smoothing { caustic: SMOOTHING[0] as f64, global: SMOOTHING[1] as f64 };
-    let fp_by_center: std::collections::HashMap<[u32; 3], &arpa_core::footprint::PackedFootprint> =
+    let fp_by_center: std::collections::HashMap<[u32; 3], &arpa_core::store::footprint::PackedFootprint> =
         out.footprints.iter().map(|f| (f.center.map(f32::to_bits), f)).collect();
     let ph_by_pos: std::collections::HashMap<[u32; 3], &PackedPhoton> = out.photons.iter().map(|p| (p.position.map(f32::to_bits), p)).collect();
     let (mut checked, mut fallbacks, mut flipped) = (0, 0, 0);

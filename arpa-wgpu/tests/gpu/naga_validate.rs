@@ -5,13 +5,14 @@
 //! the layouts of their Rust twins in `arpa_core::gpu::layout` (naga's struct layout
 //! against `size_of` / `offset_of`).
 
-use arpa_core::emission::PackedLight;
-use arpa_core::footprint::PackedFootprint;
+use arpa_core::emit::emission::PackedLight;
+use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::gpu::layout::*;
-use arpa_core::heuristics::PackedHeuristics;
-use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::shaders::{self, WgslFile, compose};
-use arpa_core::tracer::QueryRecord;
+use arpa_core::gpu::sort::{SortItem, SortStep};
+use arpa_core::store::heuristics::PackedHeuristics;
+use arpa_core::store::progressive_photon::PackedPhoton;
+use arpa_core::gpu::shaders::{self, WgslFile, compose};
+use arpa_core::render::tracer::QueryRecord;
 use std::mem::{offset_of, size_of};
 
 fn parse(label: &str, source: &str) -> naga::Module {
@@ -146,10 +147,10 @@ fn records_have_the_layouts_of_their_rust_twins() {
     }
 }
 
-/// `bandwidth.wgsl`'s ladder constants are the core's (`arpa_core::bandwidth`).
+/// `bandwidth.wgsl`'s ladder constants are the core's (`arpa_core::gather::scales`).
 #[test]
 fn bandwidth_constants_are_the_cores() {
-    use arpa_core::bandwidth::{MOMENT_PLANES, PLANES, SCALES};
+    use arpa_core::gather::scales::{MOMENT_PLANES, PLANES, SCALES};
     let module = parse("bandwidth", &compose(&[&shaders::BANDWIDTH]));
     for (name, want) in [("ARPA_SCALES", SCALES), ("ARPA_MOMENT_PLANES", MOMENT_PLANES), ("ARPA_PLANES", PLANES)] {
         let (_, c) = module.constants.iter().find(|(_, c)| c.name.as_deref() == Some(name)).unwrap_or_else(|| panic!("no constant {name}"));

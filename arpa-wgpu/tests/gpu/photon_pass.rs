@@ -1,5 +1,5 @@
 //! The device photon pass (`arpa_wgpu::photon`) against the core's
-//! `arpa_core::photon_path::trace_photon` with the core's brute-force caster, photon by
+//! `arpa_core::render::photon_path::trace_photon` with the core's brute-force caster, photon by
 //! photon, on small scenes: a closed diffuse box with a glass sphere, a diffuse sphere and
 //! a mirror sphere (all with vertex normals), a mirror panel, a mirror whose vertex normals
 //! vanish (differentials lost there), an emissive quad and a point light; and a floor
@@ -23,20 +23,20 @@
 //! filter-space rows and compared as the ellipse they span.
 
 use crate::common::gpu;
-use arpa_core::classify::Smoothing;
-use arpa_core::emission::{DirectionalLight, Light, PointLight, SpotFalloff, SpotLight, TriangleLight};
-use arpa_core::footprint::{Footprint, PackedFootprint, PhotonMap};
+use arpa_core::propagate::classify::Smoothing;
+use arpa_core::emit::emission::{DirectionalLight, Light, PointLight, SpotFalloff, SpotLight, TriangleLight};
+use arpa_core::store::footprint::{Footprint, PackedFootprint, PhotonMap};
 use arpa_core::glam::{DMat3, DVec3, Vec3};
-use arpa_core::heuristics::Heuristics;
-use arpa_core::photon_path::{PhotonPassSetup, trace_photon};
-use arpa_core::prepared_scene::PreparedScene;
-use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::ray_cast::BruteForceCaster;
-use arpa_core::rng::{Rng, StreamDomain};
-use arpa_core::scene::{Camera, Material, Scene, TriangleMesh};
-use arpa_core::shapes::{icosphere, parallelogram};
-use arpa_core::store::{ProgressiveReason, StoredPhoton, store_footprint};
-use arpa_core::tracer::{Method, RenderSettings};
+use arpa_core::store::heuristics::Heuristics;
+use arpa_core::render::photon_path::{PhotonPassSetup, trace_photon};
+use arpa_core::render::prepared_scene::PreparedScene;
+use arpa_core::store::progressive_photon::PackedPhoton;
+use arpa_core::render::brute_force::BruteForceCaster;
+use arpa_core::base::rng::{Rng, StreamDomain};
+use arpa_core::render::scene::{Camera, Material, Scene, TriangleMesh};
+use arpa_core::render::shapes::{icosphere, parallelogram};
+use arpa_core::{store::heuristics::ProgressiveReason, store::decision::{StoredPhoton, store_footprint}};
+use arpa_core::render::tracer::{Method, RenderSettings};
 use arpa_wgpu::GpuContext;
 use arpa_wgpu::photon::{PhotonOutputs, PhotonPass};
 use crate::support::{PhotonReadback, read_outputs};
@@ -132,7 +132,7 @@ fn settings(method: Method, photons: u32, direct_lighting: bool) -> RenderSettin
         smoothing: Smoothing { caustic: 0.6, global: 0.9 },
         // A caustic pass (aimed, weighted, ending at its first diffuse hit) besides the
         // global one, so that the comparisons cover both.
-        emission: arpa_core::tracer::EmissionStrategy { projection: true, caustic_photons: Some(photons / 2) },
+        emission: arpa_core::render::tracer::EmissionStrategy { projection: true, caustic_photons: Some(photons / 2) },
         ..RenderSettings::default()
     }
 }

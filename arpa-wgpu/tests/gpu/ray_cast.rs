@@ -7,12 +7,12 @@
 //! t within 1e-5 relative (plus 1e-6 m), barycentrics within 1e-4.
 
 use crate::common::*;
-use arpa_core::emission::{Light, PointLight};
-use arpa_core::prepared_scene::PreparedScene;
-use arpa_core::ray_cast::{BruteForceCaster, RayCaster};
-use arpa_core::rng::{Rng, StreamDomain};
-use arpa_core::scene::{Camera, Material, Scene, TriangleMesh};
-use arpa_core::shapes::{icosphere, parallelogram};
+use arpa_core::emit::emission::{Light, PointLight};
+use arpa_core::render::prepared_scene::PreparedScene;
+use arpa_core::{render::brute_force::BruteForceCaster, render::ray_cast::RayCaster};
+use arpa_core::base::rng::{Rng, StreamDomain};
+use arpa_core::render::scene::{Camera, Material, Scene, TriangleMesh};
+use arpa_core::render::shapes::{icosphere, parallelogram};
 use arpa_wgpu::scene::{GpuGeometry, SceneUploadError};
 use glam::{DVec3, Vec3};
 use proptest::prelude::*;
@@ -45,7 +45,7 @@ fn rays(seed: u32, n: usize) -> Vec<(Vec3, Vec3, f32)> {
     (0..n)
         .map(|_| {
             let o = Vec3::new(1.9 * rng.next_f32() - 0.95, 0.05 + 1.9 * rng.next_f32(), 1.9 * rng.next_f32() - 0.95);
-            let d = arpa_core::sampling::uniform_sphere(rng.next_2d()).as_vec3().normalize();
+            let d = arpa_core::base::sampling::uniform_sphere(rng.next_2d()).as_vec3().normalize();
             // Mostly unbounded, some short rays that stop before the walls.
             let t_max = if rng.next_u32().is_multiple_of(4) { 0.05 + rng.next_f32() } else { 100.0 };
             (o, d, t_max)

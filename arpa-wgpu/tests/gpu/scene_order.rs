@@ -11,11 +11,11 @@
 
 use crate::common::*;
 use crate::scenes::mixed_scene;
-use arpa_core::prepared_scene::PreparedScene;
-use arpa_core::ray_cast::{BruteForceCaster, RayCaster};
-use arpa_core::scene::TriangleMesh;
+use arpa_core::render::prepared_scene::PreparedScene;
+use arpa_core::{render::brute_force::BruteForceCaster, render::ray_cast::RayCaster};
+use arpa_core::render::scene::TriangleMesh;
 use crate::support::run_scene_kernel;
-use arpa_core::gpu::morton::morton_code;
+use arpa_core::base::morton::morton_code;
 use arpa_core::gpu::scene::morton_triangle_order;
 use arpa_wgpu::scene::GpuScene;
 use glam::Vec3;

@@ -18,10 +18,10 @@
 
 use crate::common::*;
 use crate::scenes::mixed_scene;
-use arpa_core::prepared_scene::{offset_origin, PreparedScene};
-use arpa_core::ray_cast::{BruteForceCaster, RayCaster, RayHit, RayStart, TriangleId};
-use arpa_core::rng::{Rng, StreamDomain};
-use arpa_core::scene::Scattering;
+use arpa_core::{render::ray_cast::offset_origin, render::prepared_scene::PreparedScene};
+use arpa_core::{render::brute_force::BruteForceCaster, render::ray_cast::{RayCaster, RayHit, RayStart, TriangleId}};
+use arpa_core::base::rng::{Rng, StreamDomain};
+use arpa_core::render::scene::Scattering;
 use crate::support::run_scene_kernel;
 use arpa_wgpu::scene::GpuScene;
 use glam::{DVec3, Vec3};
@@ -87,7 +87,7 @@ fn rays(seed: u32, n: usize) -> Vec<(Vec3, Vec3, f32)> {
     (0..n)
         .map(|_| {
             let o = Vec3::new(1.9 * rng.next_f32() - 0.95, 0.05 + 1.9 * rng.next_f32(), 1.9 * rng.next_f32() - 0.95);
-            let d = arpa_core::sampling::uniform_sphere(rng.next_2d()).as_vec3().normalize();
+            let d = arpa_core::base::sampling::uniform_sphere(rng.next_2d()).as_vec3().normalize();
             let t_max = if rng.next_u32().is_multiple_of(4) { 0.05 + rng.next_f32() } else { 100.0 };
             (o, d, t_max)
         })
@@ -185,7 +185,7 @@ fn surfaces_match_prepared_scene() {
         let left = TriangleId { mesh: hit.mesh, triangle: hit.triangle };
         let core_start = RayStart { origin: Vec3::from_array([f(g[61]), f(g[62]), f(g[63])]), ..RayStart::leaving(s.position, left) };
         assert!((dv(g, 61) - s.position).length() <= 4.0 * EPS * vmax, "leaving origin {:?} vs {:?}", dv(g, 61), s.position);
-        let want_t_min = arpa_core::ray_cast::leave_t_min(core_start.origin);
+        let want_t_min = arpa_core::render::ray_cast::leave_t_min(core_start.origin);
         assert!((f(g[60]) - want_t_min).abs() <= want_t_min * EPS as f32, "t_min {} vs {want_t_min}", f(g[60]));
         let next = (g[56] == 1).then(|| RayHit { t: f(g[59]), mesh: g[57], triangle: g[58], b1: 0.0, b2: 0.0 });
         assert!(next.is_none_or(|n| (n.mesh, n.triangle) != (left.mesh, left.triangle)), "the leaving ray hit the triangle it left: {hit:?}");

@@ -1,9 +1,9 @@
 //! Small test scenes shared by the scene-data and camera-pass tests.
 #![allow(dead_code)]
 
-use arpa_core::emission::{DirectionalLight, Light, PointLight, QuadLight, SpotFalloff, SpotLight};
-use arpa_core::scene::{Camera, Material, Scene, TriangleMesh};
-use arpa_core::shapes::{icosphere, parallelogram};
+use arpa_core::emit::emission::{DirectionalLight, Light, PointLight, QuadLight, SpotFalloff, SpotLight};
+use arpa_core::render::scene::{Camera, Material, Scene, TriangleMesh};
+use arpa_core::render::shapes::{icosphere, parallelogram};
 use glam::{DVec3, Vec3};
 
 /// A closed 2 m box (diffuse walls of three albedos) holding every kind of surface: a smooth
@@ -113,7 +113,7 @@ fn facetted_ball() -> TriangleMesh {
     TriangleMesh { name: "facetted".into(), positions, normals: Some(normals), indices, material: 0, emission: None }
 }
 
-pub use arpa_core::shapes::cuboid;
+pub use arpa_core::render::shapes::cuboid;
 
 fn camera(position: Vec3, target: Vec3, fov_degrees: f32, width: u32, height: u32) -> Camera {
     Camera { position, target, up: Vec3::Y, vertical_fov: fov_degrees.to_radians(), width, height }

@@ -5,10 +5,10 @@
 //! against its host twin bit for bit (points inside, outside and on the scene box, NaN).
 
 use crate::common::*;
-use arpa_core::rng::{Rng, StreamDomain};
+use arpa_core::base::rng::{Rng, StreamDomain};
 use crate::support::sort_items;
-use arpa_core::gpu::layout::SortItem;
-use arpa_core::gpu::morton::morton_code;
+use arpa_core::gpu::sort::SortItem;
+use arpa_core::base::morton::morton_code;
 
 fn items(seed: u32, n: usize) -> Vec<SortItem> {
     let mut rng = Rng::new(seed, 0, 0, StreamDomain::User);

@@ -9,12 +9,12 @@
 
 use crate::common::*;
 use crate::gather::{check, queries};
-use arpa_core::aabb::Aabb;
-use arpa_core::footprint::{Footprint, PackedFootprint, PhotonMap};
-use arpa_core::heuristics::{HeuristicContext, Heuristics};
+use arpa_core::base::aabb::Aabb;
+use arpa_core::store::footprint::{Footprint, PackedFootprint, PhotonMap};
+use arpa_core::store::heuristics::{HeuristicContext, Heuristics};
 use arpa_core::gpu::codes::store_code;
-use arpa_core::kernel::Kernel;
-use arpa_core::rng::{Rng, StreamDomain};
+use arpa_core::gather::kernel::Kernel;
+use arpa_core::base::rng::{Rng, StreamDomain};
 use arpa_core::gpu::layout::RawFootprint;
 use crate::support::store_and_gather;
 use glam::DVec3;

@@ -4,19 +4,19 @@
 //! tracer's store → sort → build → gather → accumulate chain on host data.
 #![allow(dead_code)]
 
-use arpa_core::aabb::Aabb;
-use arpa_core::estimate::QueryPoint;
-use arpa_core::footprint::PackedFootprint;
+use arpa_core::base::aabb::Aabb;
+use arpa_core::gather::estimate::QueryPoint;
+use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::glam::Vec3;
 use arpa_core::gpu::codes::kernel_code;
-use arpa_core::bandwidth::Bandwidth;
-use arpa_core::gpu::layout::{AccumPixel, GatherCounts, GatherResult, ImageBufferSizes, KeyedFootprint, KeyedPhoton, PhotonCounters, RawFootprint, SortItem, StoreCounts, StoreParams, StoreSettings};
+use arpa_core::gather::scales::Bandwidth;
+use arpa_core::{gpu::layout::{AccumPixel, GatherCounts, GatherResult, ImageBufferSizes, KeyedFootprint, KeyedPhoton, PhotonCounters, RawFootprint, StoreCounts, StoreParams, StoreSettings}, gpu::sort::SortItem};
 use arpa_core::gpu::sort::sorted_len;
-use arpa_core::heuristics::PackedHeuristics;
-use arpa_core::kernel::Kernel;
-use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::ray_cast::RayHit;
-use arpa_core::tracer::QueryRecord;
+use arpa_core::store::heuristics::PackedHeuristics;
+use arpa_core::gather::kernel::Kernel;
+use arpa_core::store::progressive_photon::PackedPhoton;
+use arpa_core::render::ray_cast::RayHit;
+use arpa_core::render::tracer::QueryRecord;
 use arpa_wgpu::GpuContext;
 use arpa_wgpu::accumulate::DeviceAccumulator;
 use arpa_wgpu::maps::PhotonMaps;
@@ -155,7 +155,7 @@ struct CastHit {
 }
 
 /// Closest hits of the rays `(origin, unit direction, t_max)` (metres) against `geometry`,
-/// as [`arpa_core::ray_cast::RayCaster::intersect`] would return them.
+/// as [`arpa_core::render::ray_cast::RayCaster::intersect`] would return them.
 pub fn cast_rays(ctx: &GpuContext, geometry: &GpuGeometry, rays: &[(Vec3, Vec3, f32)]) -> Vec<Option<RayHit>> {
     if rays.is_empty() {
         return Vec::new();
@@ -391,7 +391,7 @@ pub fn store_and_gather(ctx: &GpuContext, raw: &[RawFootprint], heuristics: Pack
     assert!(!raw.is_empty() && !queries.is_empty());
     let device = &ctx.device;
     let n = raw.len();
-    let source = arpa_core::shaders::compose(&[&arpa_core::shaders::HEURISTICS]) + TEST_STORE;
+    let source = arpa_core::gpu::shaders::compose(&[&arpa_core::gpu::shaders::HEURISTICS]) + TEST_STORE;
     let store = pipeline(ctx, "test store", &source, "test_store");
     checked(ctx, "store and gather", || {
         let raw_buf = upload(ctx, bytemuck::cast_slice(raw), wgpu::BufferUsages::empty());

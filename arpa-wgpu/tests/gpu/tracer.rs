@@ -16,18 +16,18 @@
 
 use crate::common::*;
 use crate::scenes::cornell;
-use arpa_core::camera_path::trace_camera_path;
-use arpa_core::accumulate::Accumulation;
-use arpa_core::bandwidth::{Bandwidth, PLANES, SCALES, moments};
-use arpa_core::estimate::{QueryPoint, gather_brute_force, gather_brute_force_scales};
-use arpa_core::footprint::PackedFootprint;
-use arpa_core::photon_path::{PhotonPassSetup, trace_photon};
-use arpa_core::prepared_scene::PreparedScene;
-use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::ray_cast::BruteForceCaster;
-use arpa_core::scene::Scene;
-use arpa_core::store::StoredPhoton;
-use arpa_core::tracer::{Call, Image, IterationStats, Method, RenderSettings, Stage, StageError, Tracer};
+use arpa_core::render::camera_path::trace_camera_path;
+use arpa_core::accumulate::image::Accumulation;
+use arpa_core::gather::scales::{Bandwidth, PLANES, SCALES, moments};
+use arpa_core::gather::estimate::{QueryPoint, gather_brute_force, gather_brute_force_scales};
+use arpa_core::store::footprint::PackedFootprint;
+use arpa_core::render::photon_path::{PhotonPassSetup, trace_photon};
+use arpa_core::render::prepared_scene::PreparedScene;
+use arpa_core::store::progressive_photon::PackedPhoton;
+use arpa_core::render::brute_force::BruteForceCaster;
+use arpa_core::render::scene::Scene;
+use arpa_core::store::decision::StoredPhoton;
+use arpa_core::render::tracer::{Call, Image, IterationStats, Method, RenderSettings, Stage, StageError, Tracer};
 use arpa_wgpu::{WgpuError, WgpuTracer};
 use glam::{DVec3, Vec3};
 

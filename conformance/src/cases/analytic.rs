@@ -4,8 +4,8 @@
 use std::f64::consts::PI;
 
 use arpa_core::glam::{DVec3, Vec3};
-use arpa_core::radius::{ProgressiveConfig, RadiusSpec};
-use arpa_core::tracer::{Method, QueryRecord, RenderSettings};
+use arpa_core::accumulate::radius::{ProgressiveConfig, RadiusSpec};
+use arpa_core::render::tracer::{Method, QueryRecord, RenderSettings};
 
 use crate::dyn_tracer::DynTracer;
 use crate::scenes::{self, PLANE_ALBEDO, PLANE_INTENSITY, PLANE_LIGHT_HEIGHT};
@@ -21,7 +21,7 @@ pub const PLANE_PHOTONS: u32 = 50_000;
 pub const PLANE_ITERATIONS: u32 = 4;
 
 /// A grey scene's image: every pixel finite with equal channels (to 1e-5 relative).
-pub(crate) fn check_grey(image: &arpa_core::tracer::Image) -> Result<(), String> {
+pub(crate) fn check_grey(image: &arpa_core::render::tracer::Image) -> Result<(), String> {
     match image.pixels.iter().find(|p| !p.is_finite() || (p.x - p.y).abs() > 1e-5 * p.x.abs() || (p.x - p.z).abs() > 1e-5 * p.x.abs()) {
         Some(p) => Err(format!("grey scene, coloured or non-finite pixel {p:?}")),
         None => Ok(()),
@@ -242,7 +242,7 @@ pub const SPECULAR_ITERATIONS: u32 = 4;
 fn region_means(
     t: &mut dyn DynTracer,
     method: Method,
-    scene: &arpa_core::scene::Scene,
+    scene: &arpa_core::render::scene::Scene,
     max_depth: u32,
     irradiance: impl Fn(DVec3) -> f64,
     region: impl Fn(DVec3) -> Option<usize>,
@@ -355,7 +355,7 @@ fn glass_slab(t: &mut dyn DynTracer, method: Method) -> CaseResult {
 
 /// The region check of [`glass_slab`] on `scene`: the slab scene's layout with the slab
 /// `thick` metres thick.
-pub(crate) fn slab_regions(t: &mut dyn DynTracer, method: Method, scene: &arpa_core::scene::Scene, thick: f64) -> CaseResult {
+pub(crate) fn slab_regions(t: &mut dyn DynTracer, method: Method, scene: &arpa_core::render::scene::Scene, thick: f64) -> CaseResult {
     let foot = DVec3::new(scenes::SLAB_LIGHT.x, 0.0, scenes::SLAB_LIGHT.z);
     let rho = |q: DVec3| (q - foot).length();
     let (errors, msg) = region_means(

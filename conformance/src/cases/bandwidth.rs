@@ -1,13 +1,13 @@
-//! Per-pixel bandwidth ([`arpa_core::bandwidth`]) against closed-form light: an evenly lit
+//! Per-pixel bandwidth ([`arpa_core::accumulate::bandwidth`]) against closed-form light: an evenly lit
 //! plane, where every scale is unbiased and the selection must keep the largest, and a
 //! hard shadow edge, where the larger scales blur the step and the selection must go
 //! smaller near the edge only, and come out sharper than the global bandwidth.
 
 use std::f64::consts::{FRAC_1_SQRT_2, PI};
 
-use arpa_core::bandwidth::Bandwidth;
+use arpa_core::gather::scales::Bandwidth;
 use arpa_core::glam::Vec3;
-use arpa_core::tracer::{Method, QueryRecord, RenderSettings};
+use arpa_core::render::tracer::{Method, QueryRecord, RenderSettings};
 
 use crate::dyn_tracer::DynTracer;
 use crate::scenes::{self, BANDWIDTH_ALBEDO, BANDWIDTH_IRRADIANCE};
@@ -49,8 +49,8 @@ fn render(t: &mut dyn DynTracer, occluded: bool, bandwidth: Bandwidth) -> Result
         direct_lighting: false,
         bandwidth,
         emission: super::emission(),
-        smoothing: arpa_core::classify::Smoothing { caustic: SMOOTHING, global: SMOOTHING },
-        heuristics: arpa_core::heuristics::Heuristics { dampening: None, culling: None, ..Default::default() },
+        smoothing: arpa_core::propagate::classify::Smoothing { caustic: SMOOTHING, global: SMOOTHING },
+        heuristics: arpa_core::store::heuristics::Heuristics { dampening: None, culling: None, ..Default::default() },
         ..RenderSettings::default()
     };
     t.upload_scene(&scene, &settings).ctx("upload_scene")?;

@@ -16,7 +16,7 @@
 use std::f64::consts::PI;
 
 use arpa_core::glam::{DVec3, Vec3};
-use arpa_core::tracer::{Method, QueryRecord, RenderSettings};
+use arpa_core::render::tracer::{Method, QueryRecord, RenderSettings};
 
 use super::optics::{Pinhole, fresnel, slab_entry_angle};
 use crate::dyn_tracer::DynTracer;
@@ -302,7 +302,7 @@ pub fn glass_slab(t: &mut dyn DynTracer) -> CaseResult {
 /// The camera check of [`glass_slab`] on `scene` (the slab scene's layout with a slab
 /// `thickness` thick), with chains of at most `max_crossings` slab crossings (odd): the
 /// expected Fresnel counts are `Σ_k (1 − F)² F^{2k}` over the chains that fit.
-pub(crate) fn slab_chains(t: &mut dyn DynTracer, scene: &arpa_core::scene::Scene, thickness: f64, max_crossings: u32, seed: u32) -> CaseResult {
+pub(crate) fn slab_chains(t: &mut dyn DynTracer, scene: &arpa_core::render::scene::Scene, thickness: f64, max_crossings: u32, seed: u32) -> CaseResult {
     let pin = Pinhole::new(&scene.camera);
     let n = scenes::SLAB_IOR;
     let top = scenes::SLAB_BOTTOM + thickness;

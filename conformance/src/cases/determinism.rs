@@ -1,7 +1,7 @@
 //! Determinism: the same scene, settings and seed give a bit-identical image.
 
-use arpa_core::accumulate::Accumulation;
-use arpa_core::tracer::{Image, Method, RenderSettings};
+use arpa_core::accumulate::image::Accumulation;
+use arpa_core::render::tracer::{Image, Method, RenderSettings};
 
 use crate::dyn_tracer::DynTracer;
 use crate::scenes;

@@ -2,7 +2,7 @@
 //! [`gather_brute_force`] over the very records the backend stored and the query points
 //! it found, within [`GATHER_REL_TOL`], at every scale of a per-pixel bandwidth render
 //! ([`gather_brute_force_scales`]), and so do its moment planes
-//! ([`arpa_core::bandwidth::moments`] of the expected radiances).
+//! ([`arpa_core::gather::scales::moments`] of the expected radiances).
 //!
 //! The `Tracer` trait has no call to upload arbitrary footprints, so the footprints and
 //! query points come from one iteration of the backend on a scene built to produce the
@@ -15,12 +15,12 @@
 //! on a shelf's underside against footprints on its lit top), and fails if the scene
 //! produced none of any kind.
 
-use arpa_core::bandwidth::{PLANES, SCALES};
-use arpa_core::estimate::{QueryPoint, gather_brute_force, gather_brute_force_scales};
-use arpa_core::footprint::PackedFootprint;
+use arpa_core::gather::scales::{PLANES, SCALES};
+use arpa_core::gather::estimate::{QueryPoint, gather_brute_force, gather_brute_force_scales};
+use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::glam::{DMat3, DVec3, Vec3};
-use arpa_core::kernel::Kernel;
-use arpa_core::tracer::{Method, RenderSettings};
+use arpa_core::gather::kernel::Kernel;
+use arpa_core::render::tracer::{Method, RenderSettings};
 
 use crate::dyn_tracer::DynTracer;
 use crate::scenes;
@@ -166,7 +166,7 @@ fn check(
             scaled[0] = expected;
             // What the backend stores for the iteration: finite, in f32.
             let stored = scaled.map(|v| DVec3::select(v.is_finite_mask(), v, DVec3::ZERO).as_vec3());
-            let moments = arpa_core::bandwidth::moments(&stored);
+            let moments = arpa_core::gather::scales::moments(&stored);
             for (p, s) in sum.iter_mut().enumerate() {
                 *s += if p < SCALES { stored[p] } else { moments[p - SCALES] }.as_dvec3();
             }

@@ -190,13 +190,13 @@ pub fn all() -> Vec<Case> {
         },
         Case {
             id: "twin-rng",
-            title: "WGSL twin rng.wgsl = arpa_core::rng (known answers and random streams, bit-exact)",
+            title: "WGSL twin rng.wgsl = arpa_core::base::rng (known answers and random streams, bit-exact)",
             needs: None,
             run: CaseBody::Kernels(twin::rng::matches_core),
         },
         Case {
             id: "twin-rng-draws",
-            title: "WGSL twin rng.wgsl f64-mirroring draws = arpa_core::rng (next_below, next_f64 as f32; bit-exact)",
+            title: "WGSL twin rng.wgsl f64-mirroring draws = arpa_core::base::rng (next_below, next_f64 as f32; bit-exact)",
             needs: None,
             run: CaseBody::Kernels(twin::rng_draws::matches_core),
         },
@@ -208,19 +208,19 @@ pub fn all() -> Vec<Case> {
         },
         Case {
             id: "twin-fresnel",
-            title: "WGSL twin fresnel.wgsl + refract_direction = arpa_core::fresnel, differential (reflectance, refraction)",
+            title: "WGSL twin fresnel.wgsl + refract_direction = arpa_core::propagate::fresnel, differential (reflectance, refraction)",
             needs: None,
             run: CaseBody::Kernels(twin::fresnel::matches_core),
         },
         Case {
             id: "twin-differential",
-            title: "WGSL twin differential.wgsl = arpa_core::differential (transfer, reflect, refract, TIR)",
+            title: "WGSL twin differential.wgsl = arpa_core::propagate::differential (transfer, reflect, refract, TIR)",
             needs: None,
             run: CaseBody::Kernels(twin::differential::matches_core),
         },
         Case {
             id: "twin-emission",
-            title: "WGSL twin emission.wgsl = arpa_core::emission (every light kind, Fibonacci lattice)",
+            title: "WGSL twin emission.wgsl = arpa_core::emit::emission (every light kind, Fibonacci lattice)",
             needs: None,
             run: CaseBody::Kernels(twin::emission::matches_core),
         },
@@ -232,19 +232,19 @@ pub fn all() -> Vec<Case> {
         },
         Case {
             id: "twin-reemission",
-            title: "WGSL twin reemission.wgsl = arpa_core::reemission",
+            title: "WGSL twin reemission.wgsl = arpa_core::propagate::reemission",
             needs: None,
             run: CaseBody::Kernels(twin::reemission::matches_core),
         },
         Case {
             id: "twin-lambertian",
-            title: "WGSL twin lambertian.wgsl = arpa_core::lambertian (shading frame, adjoint ratio, re-emission)",
+            title: "WGSL twin lambertian.wgsl = arpa_core::propagate::lambertian (shading frame, adjoint ratio, re-emission)",
             needs: None,
             run: CaseBody::Kernels(twin::lambertian::matches_core),
         },
         Case {
             id: "twin-footprint",
-            title: "WGSL twin footprint.wgsl + kernel.wgsl + bandwidth.wgsl = arpa_core::footprint, kernel, bandwidth (record, M_p^-1, gather test, scale ladder, moments)",
+            title: "WGSL twin footprint.wgsl + kernel.wgsl + bandwidth.wgsl = arpa_core::store::footprint, kernel, bandwidth (record, M_p^-1, gather test, scale ladder, moments)",
             needs: None,
             run: CaseBody::Kernels(twin::footprint::matches_core),
         },
@@ -256,7 +256,7 @@ pub fn all() -> Vec<Case> {
         },
         Case {
             id: "twin-radius",
-            title: "WGSL twin radius.wgsl = arpa_core::radius (progressive radius schedule)",
+            title: "WGSL twin radius.wgsl = arpa_core::accumulate::radius (progressive radius schedule)",
             needs: None,
             run: CaseBody::Kernels(twin::radius::matches_core),
         },
@@ -272,24 +272,24 @@ pub(crate) fn rel(a: arpa_core::glam::DVec3, b: arpa_core::glam::DVec3) -> f64 {
 
 thread_local! {
     /// The emission strategy the analytic cases render with ([`emission`]).
-    static EMISSION: std::cell::Cell<arpa_core::tracer::EmissionStrategy> = std::cell::Cell::new(arpa_core::tracer::EmissionStrategy::default());
+    static EMISSION: std::cell::Cell<arpa_core::render::tracer::EmissionStrategy> = std::cell::Cell::new(arpa_core::render::tracer::EmissionStrategy::default());
 }
 
 /// The emission strategy of the analytic case being run (projection on or off).
-pub(crate) fn emission() -> arpa_core::tracer::EmissionStrategy {
+pub(crate) fn emission() -> arpa_core::render::tracer::EmissionStrategy {
     EMISSION.with(|e| e.get())
 }
 
 /// Runs an analytic case with projection on (the default: projection maps and a caustic
 /// pass) and off (one pass over every light's whole domain); both must pass.
 pub(crate) fn with_and_without_projection(t: &mut dyn crate::dyn_tracer::DynTracer, mut case: impl FnMut(&mut dyn crate::dyn_tracer::DynTracer) -> crate::suite::CaseResult) -> crate::suite::CaseResult {
-    let mut run = |strategy: arpa_core::tracer::EmissionStrategy, t: &mut dyn crate::dyn_tracer::DynTracer| {
+    let mut run = |strategy: arpa_core::render::tracer::EmissionStrategy, t: &mut dyn crate::dyn_tracer::DynTracer| {
         EMISSION.with(|e| e.set(strategy));
         let r = case(t);
-        EMISSION.with(|e| e.set(arpa_core::tracer::EmissionStrategy::default()));
+        EMISSION.with(|e| e.set(arpa_core::render::tracer::EmissionStrategy::default()));
         r
     };
-    let on = run(arpa_core::tracer::EmissionStrategy::default(), t).map_err(|e| format!("projection on: {e}"))?;
-    let off = run(arpa_core::tracer::EmissionStrategy::WHOLE_DOMAIN, t).map_err(|e| format!("projection off: {e}"))?;
+    let on = run(arpa_core::render::tracer::EmissionStrategy::default(), t).map_err(|e| format!("projection on: {e}"))?;
+    let off = run(arpa_core::render::tracer::EmissionStrategy::WHOLE_DOMAIN, t).map_err(|e| format!("projection off: {e}"))?;
     Ok(format!("projection on: {on}; off: {off}"))
 }

@@ -1,6 +1,6 @@
 //! A point light, a small tilted plane mirror and a diffuse floor in an open scene
 //! ([`scenes::open_mirror`]), rendered with projection off and on
-//! ([`arpa_core::tracer::EmissionStrategy`]). The mirror subtends about 1 % of the light's
+//! ([`arpa_core::render::tracer::EmissionStrategy`]). The mirror subtends about 1 % of the light's
 //! sphere of directions, so this is the scene projection exists for: without it 99 % of
 //! the photons never meet the mirror. Whatever the strategy, the caustic must be the
 //! image source's light through the mirror's square, carry the flux the mirror
@@ -15,11 +15,11 @@
 
 use std::f64::consts::PI;
 
-use arpa_core::footprint::{PackedFootprint, PhotonMap};
+use arpa_core::store::footprint::{PackedFootprint, PhotonMap};
 use arpa_core::glam::{DVec3, Vec3};
-use arpa_core::radius::{ProgressiveConfig, RadiusSpec};
-use arpa_core::scene::Scene;
-use arpa_core::tracer::{EmissionStrategy, Method, RenderSettings};
+use arpa_core::accumulate::radius::{ProgressiveConfig, RadiusSpec};
+use arpa_core::render::scene::Scene;
+use arpa_core::render::tracer::{EmissionStrategy, Method, RenderSettings};
 
 use super::camera::SIGMAS;
 use crate::dyn_tracer::DynTracer;

@@ -4,7 +4,7 @@
 //! All in `f64`, metres and radians.
 
 use arpa_core::glam::DVec3;
-use arpa_core::scene::Camera;
+use arpa_core::render::scene::Camera;
 
 /// The pinhole of [`Camera`] as documented there: `forward = target − position`, `right =
 /// forward × up`, `up' = right × forward`, vertical field of view, film position `(0, 0)`

@@ -31,8 +31,8 @@
 use std::path::{Path, PathBuf};
 
 use arpa::metrics::{self, Metrics, downsample, mean};
-use arpa_core::classify::Smoothing;
-use arpa_core::tracer::{Image, Method, RenderSettings};
+use arpa_core::propagate::classify::Smoothing;
+use arpa_core::render::tracer::{Image, Method, RenderSettings};
 
 use crate::dyn_tracer::DynTracer;
 use crate::suite::{CaseResult, Context};
@@ -465,12 +465,12 @@ pub mod scenes {
     /// shaded by their face normals: region relMSE 0.032–0.039, SSIM 0.364–0.374, FLIP
     /// 0.198–0.206, atrium floor −0.0…+5.2 %, far arches −1.4…+15.7 %, foreground arch (lit
     /// indirectly) +8.3…+20.6 %; the mean limit is the noise-derived 3 %, which face normals
-    /// (mean +7.1…+8.9 %) fail. With diffuse shading normals ([`arpa_core::lambertian`]),
+    /// (mean +7.1…+8.9 %) fail. With diffuse shading normals ([`arpa_core::propagate::lambertian`]),
     /// seed 1: reduced 0.019, 0.413, 0.180, mean +0.9 %, regions −0.7 / +7.2 / +7.3 %; full
     /// 6.2e-4, 0.554, 0.106, mean +0.2 %, regions +0.3 / +1.0 / **−2.8 %** (the foreground
     /// arch, within its 3 % full-set limit; its remaining deficit is the light Mitsuba lets
     /// through open sheets under tilted shading normals, which arpa does not, see
-    /// `arpa_core::lambertian`).
+    /// `arpa_core::propagate::lambertian`).
     pub const SPONZA_STANDIN: RefScene = RefScene {
         dir: "sponza-standin",
         reference: "sponza-standin_mitsuba-path_320x180_1024spp_81s.exr",

@@ -1,14 +1,14 @@
 //! Stage agreement: the backend's photon pass stores what `arpa-core`'s reference photon
 //! path ([`trace_photon`] over the f64 [`BruteForceCaster`]) stores, photon for photon.
 
-use arpa_core::footprint::PackedFootprint;
+use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::glam::{DVec3, Vec3};
-use arpa_core::photon_path::{PhotonPassSetup, trace_photon};
-use arpa_core::prepared_scene::PreparedScene;
-use arpa_core::progressive_photon::PackedPhoton;
-use arpa_core::ray_cast::BruteForceCaster;
-use arpa_core::store::StoredPhoton;
-use arpa_core::tracer::{Method, RenderSettings};
+use arpa_core::render::photon_path::{PhotonPassSetup, trace_photon};
+use arpa_core::render::prepared_scene::PreparedScene;
+use arpa_core::store::progressive_photon::PackedPhoton;
+use arpa_core::render::brute_force::BruteForceCaster;
+use arpa_core::store::decision::StoredPhoton;
+use arpa_core::render::tracer::{Method, RenderSettings};
 
 use super::rel;
 use crate::dyn_tracer::DynTracer;
@@ -119,7 +119,7 @@ fn match_records<T>(
 /// The reference: every photon of iteration 0 through [`trace_photon`] with the
 /// brute-force caster, in photon-index order.
 pub fn reference_photon_pass(
-    scene: &arpa_core::scene::Scene,
+    scene: &arpa_core::render::scene::Scene,
     settings: &RenderSettings,
 ) -> Result<(Vec<PackedFootprint>, Vec<PackedPhoton>, u32), String> {
     let prepared =
@@ -157,7 +157,7 @@ pub fn photon_pass_agreement(t: &mut dyn DynTracer) -> CaseResult {
         direct_lighting: false,
         // An explicit caustic pass: the automatic count skips it in this room (the glass
         // and the mirror fill much of the light's view).
-        emission: arpa_core::tracer::EmissionStrategy { projection: true, caustic_photons: Some(2000) },
+        emission: arpa_core::render::tracer::EmissionStrategy { projection: true, caustic_photons: Some(2000) },
         ..RenderSettings::default()
     };
     t.upload_scene(&scene, &settings).ctx("upload_scene")?;

@@ -9,8 +9,8 @@
 use std::f64::consts::PI;
 
 use arpa_core::glam::{DVec3, Vec3};
-use arpa_core::scene::Scene;
-use arpa_core::tracer::{Method, QueryRecord, RenderSettings};
+use arpa_core::render::scene::Scene;
+use arpa_core::render::tracer::{Method, QueryRecord, RenderSettings};
 
 use super::analytic::{SPECULAR_SIZE, slab_regions};
 use super::camera::{SIGMAS, SIZE, slab_chains};

@@ -26,16 +26,16 @@
 #![no_std]
 #![no_main]
 
-use arpa_core::aabb::Aabb;
-use arpa_core::differential::RayDifferential;
-use arpa_core::emission::{EmissionParams, Light, PointLight};
-use arpa_core::footprint::{Footprint, PhotonMap};
+use arpa_core::base::aabb::Aabb;
+use arpa_core::propagate::differential::RayDifferential;
+use arpa_core::emit::emission::{EmissionParams, Light, PointLight};
+use arpa_core::store::footprint::{Footprint, PhotonMap};
 use arpa_core::glam::DVec3;
-use arpa_core::heuristics::Heuristics;
-use arpa_core::kernel::Kernel;
-use arpa_core::progressive_photon::ProgressivePhoton;
-use arpa_core::radius::{ProgressiveConfig, RadiusSpec};
-use arpa_core::rng::{Rng, StreamDomain};
+use arpa_core::store::heuristics::Heuristics;
+use arpa_core::gather::kernel::Kernel;
+use arpa_core::store::progressive_photon::ProgressivePhoton;
+use arpa_core::accumulate::radius::{ProgressiveConfig, RadiusSpec};
+use arpa_core::base::rng::{Rng, StreamDomain};
 use core::fmt::Write;
 
 const I: f64 = 1.0; // W/sr

@@ -1,4 +1,4 @@
-//! differential.wgsl against arpa_core::differential: transfer, reflection and refraction
+//! differential.wgsl against arpa_core::propagate::differential: transfer, reflection and refraction
 //! (with total internal reflection) of random ray differentials whose derivatives span
 //! 1e-15 … 1e15, distances up to 1e6 and unnormalised normals; bad inputs and the f32
 //! overflow labelled like the core.
@@ -17,7 +17,7 @@
 
 use std::cell::Cell;
 
-use arpa_core::differential::{
+use arpa_core::propagate::differential::{
     DifferentialError, NormalDifferential, RayDifferential, RefractionEvent,
 };
 use arpa_core::glam::{DVec3, Vec3};

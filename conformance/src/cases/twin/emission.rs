@@ -1,4 +1,4 @@
-//! emission.wgsl (with frame.wgsl, sampling.wgsl) against arpa_core::emission: random
+//! emission.wgsl (with frame.wgsl, sampling.wgsl) against arpa_core::emit::emission: random
 //! lights of every kind, prepared on the host (`PreparedLight::pack`), over their whole
 //! domain or random projection cells (`EmissionParams::with_cells`), photon `index` of N
 //! emitted on the device (`arpa_emission_slot`, then `arpa_emit_in` with the cell of that
@@ -21,13 +21,13 @@
 
 use std::cell::Cell;
 
-use arpa_core::emission::{
+use arpa_core::emit::emission::{
     DirectionalLight, EmissionParams, Light, PackedLight, PointLight, QuadLight, SpotFalloff,
     SpotLight, TriangleLight,
 };
 use arpa_core::glam::{DVec2, DVec3};
-use arpa_core::rng::{Rng, StreamDomain};
-use arpa_core::sampling::{fibonacci_lattice, round_robin};
+use arpa_core::base::rng::{Rng, StreamDomain};
+use arpa_core::base::sampling::{fibonacci_lattice, round_robin};
 use proptest::prelude::*;
 
 use super::{check, f, fb, proptest_batches, run, run_prop, v3};

@@ -1,4 +1,4 @@
-//! footprint.wgsl + kernel.wgsl against arpa_core::footprint and arpa_core::kernel, over
+//! footprint.wgsl + kernel.wgsl against arpa_core::store::footprint and arpa_core::gather::kernel, over
 //! random footprints whose scale spans 1e-30 … 1e30 (the f32 range leaves room for the
 //! products the record needs), centres up to 1e6 and angles between the differentials down
 //! to sin θ = 1e-3; parallel, zero and bad inputs labelled like the core. Then
@@ -33,11 +33,11 @@
 
 use std::cell::Cell;
 
-use arpa_core::bandwidth::{SCALES, inv_scale2, luminance, moments};
-use arpa_core::footprint::{Footprint, FootprintError, PackedFootprint, PhotonMap};
-use arpa_core::progressive_photon::PackedPhoton;
+use arpa_core::gather::scales::{SCALES, inv_scale2, luminance, moments};
+use arpa_core::store::footprint::{Footprint, FootprintError, PackedFootprint, PhotonMap};
+use arpa_core::store::progressive_photon::PackedPhoton;
 use arpa_core::glam::{DVec3, Vec3};
-use arpa_core::kernel::Kernel;
+use arpa_core::gather::kernel::Kernel;
 use proptest::prelude::*;
 
 use super::{check, f, fb, proptest_batches, push3, run, run_prop, v3};
@@ -361,7 +361,7 @@ prop_compose! {
         let fp = core_footprint(&c);
         let p = fp.pack(c.radius as f64).ok()?;
         let h = fp.half_thickness(c.radius as f64);
-        let s = arpa_core::bandwidth::scale(k);
+        let s = arpa_core::gather::scales::scale(k);
         let q = fp.center + 0.5 * s * x * fp.du + 0.5 * s * y * fp.dv + z * h * fp.normal;
         let nq = if back { -fp.normal } else { fp.normal };
         Some(Query { fp: p, q: f3(q), nq: f3(nq), kernel })

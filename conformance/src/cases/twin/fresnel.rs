@@ -1,6 +1,6 @@
 //! fresnel.wgsl's `arpa_dielectric_reflectance` against
-//! `arpa_core::fresnel::dielectric_reflectance`, and differential.wgsl's
-//! `arpa_refract_direction` against `arpa_core::differential::refract_direction`: random
+//! `arpa_core::propagate::fresnel::dielectric_reflectance`, and differential.wgsl's
+//! `arpa_refract_direction` against `arpa_core::propagate::differential::refract_direction`: random
 //! interfaces (relative index 1.0001 to 3, inverted 0.2 to 1, exactly 1, and 1e-3 to 1e3)
 //! hit at random angles, plus stress angles: grazing (|cos| down to 1e-30), near normal
 //! (1 − cos down to 3e-8) and within 1e-7 to 1e-1 relative of the critical angle, from both
@@ -25,8 +25,8 @@
 
 use std::cell::Cell;
 
-use arpa_core::differential::{RefractionEvent, refract_direction};
-use arpa_core::fresnel::dielectric_reflectance;
+use arpa_core::propagate::differential::{RefractionEvent, refract_direction};
+use arpa_core::propagate::fresnel::dielectric_reflectance;
 use arpa_core::glam::DVec3;
 use proptest::prelude::*;
 
@@ -130,7 +130,7 @@ struct Refraction {
 prop_compose! {
     fn refraction()((c, ior) in interface(), (t, p) in (0.0..std::f64::consts::PI, 0.0..std::f64::consts::TAU), phi in 0.0..std::f64::consts::TAU) -> Refraction {
         let n = DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos());
-        let f = arpa_core::frame::Frame::from_normal(n);
+        let f = arpa_core::base::frame::Frame::from_normal(n);
         let s = (1.0 - c * c).max(0.0).sqrt();
         let d = f.to_world(DVec3::new(s * phi.cos(), s * phi.sin(), c));
         Refraction { d: d.as_vec3().as_dvec3(), n: n.as_vec3().as_dvec3(), ior }

@@ -20,14 +20,14 @@
 use std::cell::Cell;
 use std::f64::consts::{PI, TAU};
 
-use arpa_core::aabb::Aabb;
-use arpa_core::footprint::{Footprint, PackedFootprint, PhotonMap};
+use arpa_core::base::aabb::Aabb;
+use arpa_core::store::footprint::{Footprint, PackedFootprint, PhotonMap};
 use arpa_core::glam::{DMat3, DVec3, Vec3};
-use arpa_core::heuristics::{
+use arpa_core::store::heuristics::{
     BoundingBoxCulling, CullMetric, DampenReference, Dampening, DegenerateRemoval, HMax, HMaxMode,
     HeuristicContext, Heuristics, LengthSpec, PackedHeuristics,
 };
-use arpa_core::store::ProgressiveReason;
+use arpa_core::store::heuristics::ProgressiveReason;
 use proptest::prelude::*;
 
 use super::{f, fb, proptest_batches, push3, run_prop, v3};

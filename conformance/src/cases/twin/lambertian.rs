@@ -1,4 +1,4 @@
-//! lambertian.wgsl against arpa_core::lambertian::DiffuseShading: random geometric normals,
+//! lambertian.wgsl against arpa_core::propagate::lambertian::DiffuseShading: random geometric normals,
 //! shading normals tilted from them by up to 90° (either orientation), viewer, light and
 //! photon directions over the whole sphere, and re-emission samples; edge cases labelled
 //! like the core.
@@ -16,7 +16,7 @@
 use std::cell::Cell;
 
 use arpa_core::glam::{DVec2, DVec3};
-use arpa_core::lambertian::{DiffuseShading, MAX_ADJOINT_RATIO};
+use arpa_core::propagate::lambertian::{DiffuseShading, MAX_ADJOINT_RATIO};
 use proptest::prelude::*;
 
 use super::{check, f, fb, proptest_batches, push3, run, run_prop, v3};
@@ -48,7 +48,7 @@ struct Case {
 prop_compose! {
     fn case()(g in dir(), tilt in 0.0f64..(std::f64::consts::FRAC_PI_2 - 1e-4), phi in 0.0..std::f64::consts::TAU, flip in any::<bool>(), toward in dir(), w in dir(),
               u in (0.0f32..1.0, 0.0f32..1.0)) -> Case {
-        let f = arpa_core::frame::Frame::from_normal(g);
+        let f = arpa_core::base::frame::Frame::from_normal(g);
         let s = f.to_world(DVec3::new(tilt.sin() * phi.cos(), tilt.sin() * phi.sin(), tilt.cos()));
         let s = if flip { -s } else { s };
         // The frame is built for a direction on the side of the geometric normal.

@@ -76,7 +76,7 @@ fn finite_matches_is_finite_on_special_and_random_bit_patterns(
     ]);
     bits.extend((0..=255u32).map(|e| (e << 23) | 0x0012_3456));
     // A pseudo-random sweep (the core's hash as the generator).
-    bits.extend((0..4096u32).map(|i| arpa_core::rng::pcg4d([i, 77, 0, 0])[0]));
+    bits.extend((0..4096u32).map(|i| arpa_core::base::rng::pcg4d([i, 77, 0, 0])[0]));
     // Items: three words, f32 bit patterns; outputs arpa_finite of the first, arpa_finite3.
     let items: Vec<[u32; 3]> = bits
         .iter()
@@ -218,7 +218,7 @@ fn pair() -> impl Strategy<Value = (DVec3, DVec3)> {
         1 => prop::sample::select(vec![0.0, pi, pi / 3.0, 2.0 * pi / 3.0, pi / 2.0]),
     ];
     (unit(), angle, 0.0..std::f64::consts::TAU).prop_map(|(a, theta, phi)| {
-        let f = arpa_core::frame::Frame::from_normal(a);
+        let f = arpa_core::base::frame::Frame::from_normal(a);
         let b = f.to_world(DVec3::new(
             theta.sin() * phi.cos(),
             theta.sin() * phi.sin(),

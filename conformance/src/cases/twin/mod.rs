@@ -1,4 +1,4 @@
-//! The core's WGSL twin ([`arpa_core::shaders`]) against the Rust core, run on a backend's
+//! The core's WGSL twin ([`arpa_core::gpu::shaders`]) against the Rust core, run on a backend's
 //! [`KernelRunner`]: one case per twin file or group of functions (rng streams, rng draws
 //! mirroring the core's f64 uses, math helpers, Fresnel reflectance + refraction,
 //! differential, emission, spot falloff, re-emission, Lambertian shading, footprint +
@@ -21,7 +21,7 @@
 //! item, the batch and the seed.
 //!
 //! The kernels follow the [`crate::kernel_runner`] contract: every twin file
-//! ([`arpa_core::shaders::TWIN`], composed by [`arpa_core::shaders::compose`]), a prelude
+//! ([`arpa_core::gpu::shaders::TWIN`], composed by [`arpa_core::gpu::shaders::compose`]), a prelude
 //! with the two buffers and bit-cast accessors, then the case's WGSL statements per item.
 
 use std::cell::Cell;
@@ -93,7 +93,7 @@ pub(crate) fn run_with(
     let items = input.len() / in_stride;
     let invocations =
         u32::try_from(items).map_err(|_| format!("kernel {label:?}: {items} items"))?;
-    let twin = arpa_core::shaders::compose(&arpa_core::shaders::TWIN);
+    let twin = arpa_core::gpu::shaders::compose(&arpa_core::gpu::shaders::TWIN);
     let source = format!(
         "{twin}\n{PRELUDE}\n{helpers}\n@compute @workgroup_size({WORKGROUP_SIZE})\nfn main(@builtin(global_invocation_id) gid: vec3<u32>) {{\n    let item = gid.x;\n    if item >= {items}u {{ return; }}\n    let ib = item * {in_stride}u;\n    let ob = item * {out_stride}u;\n{body}\n}}\n"
     );

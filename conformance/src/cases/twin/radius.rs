@@ -1,4 +1,4 @@
-//! radius.wgsl against arpa_core::radius::RadiusSchedule over every u32 iteration,
+//! radius.wgsl against arpa_core::accumulate::radius::RadiusSchedule over every u32 iteration,
 //! α ∈ (0, 1] and the invalid inputs the core maps to defaults.
 //!
 //! Bound of the closed form: the twin (product, then asymptotic series, in f32) is good to
@@ -10,7 +10,7 @@
 
 use std::cell::Cell;
 
-use arpa_core::radius::{MIN_RADIUS, RadiusSchedule};
+use arpa_core::accumulate::radius::{MIN_RADIUS, RadiusSchedule};
 use proptest::prelude::*;
 
 use super::{check, f, fb, proptest_batches, run, run_prop};

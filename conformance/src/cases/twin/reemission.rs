@@ -1,4 +1,4 @@
-//! reemission.wgsl against arpa_core::reemission: re-emission of random absorbed footprints
+//! reemission.wgsl against arpa_core::propagate::reemission: re-emission of random absorbed footprints
 //! (differentials 1e-15 … 1e15, re-emission lengths 1e-6 … 10) and cosine-distributed
 //! diffuse directions; bad inputs labelled like the core.
 //!
@@ -11,7 +11,7 @@
 use std::cell::Cell;
 
 use arpa_core::glam::{DVec2, DVec3};
-use arpa_core::reemission::{diffuse_direction, reemit};
+use arpa_core::propagate::reemission::{diffuse_direction, reemit};
 use proptest::prelude::*;
 
 use super::{check, fb, proptest_batches, push3, run, run_prop, v3};

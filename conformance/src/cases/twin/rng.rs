@@ -1,10 +1,10 @@
-//! rng.wgsl against arpa_core::rng: the pinned known-answer vectors (arpa-core's
+//! rng.wgsl against arpa_core::base::rng: the pinned known-answer vectors (arpa-core's
 //! `rng::tests`, computed by an independent transcription of pcg4d), random streams and
 //! the counter's wrap, bit for bit.
 
 use std::cell::Cell;
 
-use arpa_core::rng::{Rng, StreamDomain, pcg4d};
+use arpa_core::base::rng::{Rng, StreamDomain, pcg4d};
 use proptest::prelude::*;
 
 use super::{check, f, proptest_batches, run, run_prop};

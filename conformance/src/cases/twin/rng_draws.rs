@@ -12,7 +12,7 @@
 
 use std::cell::Cell;
 
-use arpa_core::rng::{Rng, StreamDomain};
+use arpa_core::base::rng::{Rng, StreamDomain};
 use proptest::prelude::*;
 
 use super::{check, f, fb, proptest_batches, run};

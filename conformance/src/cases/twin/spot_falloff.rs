@@ -1,6 +1,6 @@
 //! emission.wgsl's `arpa_spot_falloff_at(θ, θ_b, θ_c, curve)` (the spot falloff the photon
 //! pass's emission and the camera pass's next-event estimation share) against
-//! `arpa_core::emission::SpotLight::falloff_at`: random beams and cut-offs over `(0, π]`
+//! `arpa_core::emit::emission::SpotLight::falloff_at`: random beams and cut-offs over `(0, π]`
 //! (including beams equal to the cut-off and narrow bands down to 1e-6 rad), angles over
 //! `[0, π]` and angles on and a few ulps either side of both edges, both curves.
 //!
@@ -13,7 +13,7 @@
 
 use std::cell::Cell;
 
-use arpa_core::emission::{SpotFalloff, SpotLight};
+use arpa_core::emit::emission::{SpotFalloff, SpotLight};
 use arpa_core::glam::DVec3;
 use proptest::prelude::*;
 

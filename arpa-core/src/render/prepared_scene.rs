@@ -1,0 +1,389 @@
+//! A validated scene with what the paths need precomputed: the emitters and how the
+//! photons of an iteration are shared among them, scene bounds, the camera frame, and
+//! surface lookups (positions, geometric and shading normals with their derivatives).
+
+use crate::base::aabb::Aabb;
+use crate::propagate::differential::{DifferentialError, NormalDifferential};
+use crate::emit::emission::Light;
+use crate::render::projection::{project, project_on, DomainCells, LightProjection, Targets, SPECULAR_AREA_GRID, SPECULAR_DELTA_GRID};
+use crate::base::prefetch::prefetch;
+use crate::render::ray_cast::{RayHit, RayStart, TriangleId};
+use crate::render::scene::{CameraFrame, Scattering, Scene, SceneError};
+use crate::propagate::shading_normal::ShadedTriangle;
+use alloc::vec::Vec;
+use glam::{DVec3, Vec3};
+
+/// Luminance weights used to compare light powers.
+const LUMINANCE: DVec3 = DVec3::new(0.2126, 0.7152, 0.0722);
+
+/// A validated, render-ready scene.
+#[derive(Clone, Debug)]
+pub struct PreparedScene {
+    scene: Scene,
+    emitters: Vec<Light>,
+    emitter_power: Vec<f64>,
+    area_emitters: Vec<usize>,
+    area_cdf: Vec<f64>,
+    bounds: Aabb,
+    sphere: (DVec3, f64),
+    camera: CameraFrame,
+    scattering: Vec<Scattering>,
+    /// Per mesh, per triangle: what every hit reads ([`TriangleGeometry`]).
+    triangles: Vec<Vec<TriangleGeometry>>,
+    /// Per mesh with shading normals, per triangle: its vertex normals and barycentric
+    /// gradients ([`ShadingRecord`]); `None` for meshes without normals.
+    shading: Vec<Option<Vec<ShadingRecord>>>,
+    /// Per emitter: the cells of its domain that see geometry and specular objects.
+    projections: Vec<LightProjection>,
+    /// Whether some mesh is a mirror or glass.
+    has_specular: bool,
+    /// Whether a photon leaving a diffuse surface can hit another surface at all (some
+    /// diffuse surface scatters and not all geometry lies in one plane).
+    second_hit_possible: bool,
+}
+
+/// One triangle's barycentric gradients, or why it has none.
+type TriangleGradients = Result<[DVec3; 3], DifferentialError>;
+
+/// What a hit on a triangle with vertex normals reads besides its [`TriangleGeometry`]:
+/// the vertex normals and the barycentric gradients, in one 128-byte record (two adjacent
+/// cache lines, which [`PreparedScene::surface`] prefetches as soon as the hit is known)
+/// instead of an index lookup followed by three normal lookups, and a gradient lookup, in
+/// four arrays.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(128))]
+struct ShadingRecord {
+    /// Vertex normals (the mesh's `f32` values, in vertex order).
+    n: [Vec3; 3],
+    /// [`ShadedTriangle::barycentric_gradients`] of the triangle.
+    gradients: TriangleGradients,
+}
+
+impl ShadingRecord {
+    /// The vertex normals in `f64` (exact).
+    #[inline(always)]
+    fn normals(&self) -> [DVec3; 3] {
+        self.n.map(|v| v.as_dvec3())
+    }
+}
+
+/// A triangle's vertices (the mesh's `f32` values, so converting them to `f64` is exact)
+/// and its unit geometric normal, computed once at [`PreparedScene::new`] instead of at
+/// every hit; 64 bytes, one cache line per hit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(64))]
+struct TriangleGeometry {
+    /// Vertex positions (metres).
+    p: [Vec3; 3],
+    /// `(p1 − p0) × (p2 − p0)` in `f64`, normalised (`+y` for a degenerate triangle).
+    normal: DVec3,
+    /// Whether the triangle has vertex normals that differ from `normal` (by more than
+    /// [`FLAT_NORMAL_TOLERANCE`]); only then do diffuse hits on it take the shading-normal
+    /// paths (the others give the same result up to that tolerance, faster).
+    shaded: bool,
+}
+
+/// Largest distance (radians, for unit vectors) of all three unit vertex normals of a
+/// triangle from its face normal (all on the same side) for which the triangle is shaded
+/// flat: the cosines then differ by less than this relative amount.
+pub const FLAT_NORMAL_TOLERANCE: f64 = 1e-6;
+
+impl TriangleGeometry {
+    /// The vertices in `f64`.
+    #[inline]
+    fn vertices(&self) -> [DVec3; 3] {
+        self.p.map(|v| v.as_dvec3())
+    }
+}
+
+/// A point on a surface hit by a ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SurfacePoint {
+    /// Position interpolated from the vertices (metres).
+    pub position: DVec3,
+    /// Unit geometric normal `(p1 − p0) × (p2 − p0)` normalised (not oriented).
+    pub geometric_normal: DVec3,
+    /// Barycentric weights of the three vertices.
+    pub barycentric: DVec3,
+    /// How the surface scatters.
+    pub scattering: Scattering,
+    /// Emitted radiance on the geometric-normal side, if the mesh emits.
+    pub emission: Option<Vec3>,
+    /// Mesh index.
+    pub mesh: u32,
+    /// Triangle index.
+    pub triangle: u32,
+}
+
+impl SurfacePoint {
+    /// A ray leaving this point (either side: the direction decides), as after a
+    /// reflection, refraction or diffuse bounce: [`RayStart::leaving`] at its position and
+    /// triangle.
+    pub fn leaving(&self) -> RayStart {
+        RayStart::leaving(self.position, TriangleId { mesh: self.mesh, triangle: self.triangle })
+    }
+}
+
+impl PreparedScene {
+    /// Validates `scene` and precomputes its lookups.
+    pub fn new(scene: Scene) -> Result<Self, SceneError> {
+        scene.validate()?;
+        let emitters = scene.emitters();
+        let radius = scene.bounding_sphere().1;
+        let emitter_power: Vec<f64> = emitters.iter().map(|l| l.power(radius).dot(LUMINANCE).max(0.0)).collect();
+        let area_emitters: Vec<usize> = (0..emitters.len()).filter(|&i| matches!(emitters[i], Light::Triangle(_) | Light::Quad(_))).collect();
+        let mut area_cdf = Vec::with_capacity(area_emitters.len());
+        let mut acc = 0.0;
+        for &i in &area_emitters {
+            acc += emitter_power[i];
+            area_cdf.push(acc);
+        }
+        let scattering: Vec<Scattering> = scene.materials.iter().map(|m| m.scattering(scene.roughness_cutoff)).collect();
+        let vertices = |m: &crate::render::scene::TriangleMesh, idx: [u32; 3]| idx.map(|i| m.positions[i as usize].as_dvec3());
+        let triangles: Vec<Vec<TriangleGeometry>> = scene
+            .meshes
+            .iter()
+            .map(|m| {
+                m.indices
+                    .iter()
+                    .map(|&idx| {
+                        let p = vertices(m, idx);
+                        let normal = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or(DVec3::Y);
+                        let shaded = m.normals.as_ref().is_some_and(|ns| {
+                            let near = |side: f64| {
+                                idx.iter().all(|&i| (ns[i as usize].as_dvec3().normalize_or_zero() - normal * side).length() <= FLAT_NORMAL_TOLERANCE)
+                            };
+                            !(near(1.0) || near(-1.0))
+                        });
+                        TriangleGeometry { p: idx.map(|i| m.positions[i as usize]), normal, shaded }
+                    })
+                    .collect()
+            })
+            .collect();
+        let shading = scene
+            .meshes
+            .iter()
+            .map(|m| {
+                m.normals.as_ref().map(|normals| {
+                    m.indices
+                        .iter()
+                        .map(|&idx| {
+                            let n = idx.map(|i| normals[i as usize]);
+                            let gradients = ShadedTriangle { p: vertices(m, idx), n: n.map(|v| v.as_dvec3()) }.barycentric_gradients();
+                            ShadingRecord { n, gradients }
+                        })
+                        .collect()
+                })
+            })
+            .collect();
+        let is_specular = |m: &crate::render::scene::TriangleMesh| matches!(scattering.get(m.material as usize), Some(Scattering::Mirror(_) | Scattering::Refractive(..)));
+        let all: Vec<[DVec3; 3]> = triangles.iter().flatten().map(TriangleGeometry::vertices).collect();
+        let specular: Vec<[DVec3; 3]> = scene.meshes.iter().zip(&triangles).filter(|(m, _)| is_specular(m)).flat_map(|(_, t)| t.iter().map(TriangleGeometry::vertices)).collect();
+        let all_groups: Vec<usize> = scene.meshes.iter().map(|m| m.indices.len()).collect();
+        let specular_groups: Vec<usize> = scene.meshes.iter().filter(|m| is_specular(m)).map(|m| m.indices.len()).collect();
+        let has_specular = !specular.is_empty();
+        let coplanar_geometry = coplanar(&all);
+        // Clusters within each mesh: a small mirror never shares a sphere with another object.
+        let (all_targets, specular_targets) = (Targets::grouped(all, &all_groups), Targets::grouped(specular, &specular_groups));
+        let sphere = scene.bounding_sphere();
+        let projections = emitters
+            .iter()
+            .map(|l| LightProjection { geometry: project(l, sphere, &all_targets), specular: if has_specular { project_on(l, sphere, &specular_targets, SPECULAR_DELTA_GRID, SPECULAR_AREA_GRID) } else { DomainCells::none() } })
+            .collect();
+        let scatters = scene.meshes.iter().any(|m| matches!(scattering.get(m.material as usize), Some(Scattering::Diffuse(a)) if a.max_element() > 0.0));
+        let second_hit_possible = scatters && !coplanar_geometry;
+        Ok(Self {
+            projections,
+            has_specular,
+            second_hit_possible,
+            triangles,
+            shading,
+            bounds: scene.bounds(),
+            sphere: scene.bounding_sphere(),
+            camera: scene.camera.frame()?,
+            scene,
+            emitters,
+            emitter_power,
+            area_emitters,
+            area_cdf,
+            scattering,
+        })
+    }
+
+    /// The scene.
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// Every emitter (analytic lights, then emissive triangles).
+    pub fn emitters(&self) -> &[Light] {
+        &self.emitters
+    }
+
+    /// Bounds of the geometry.
+    pub fn bounds(&self) -> Aabb {
+        self.bounds
+    }
+
+    /// Bounding sphere `(centre, radius)`.
+    pub fn bounding_sphere(&self) -> (DVec3, f64) {
+        self.sphere
+    }
+
+    /// The camera basis.
+    pub fn camera(&self) -> CameraFrame {
+        self.camera
+    }
+
+    /// Each emitter's projections ([`crate::render::projection`]), in [`PreparedScene::emitters`]
+    /// order.
+    pub fn projections(&self) -> &[LightProjection] {
+        &self.projections
+    }
+
+    /// Whether some mesh is a mirror or glass.
+    pub fn has_specular(&self) -> bool {
+        self.has_specular
+    }
+
+    /// Whether a photon path of at most `max_depth` interactions can have a second
+    /// interaction after a diffuse one: `max_depth` ≥ 2, some diffuse surface with a
+    /// non-zero albedo, and not all geometry in one plane (a photon leaving a plane never
+    /// meets it again).
+    pub fn can_bounce_twice(&self, max_depth: u32) -> bool {
+        max_depth >= 2 && self.second_hit_possible
+    }
+
+    /// Photons each emitter gets out of `total`: proportional to its power (luminance),
+    /// by largest remainders, at least one per emitter with power while `total` allows.
+    /// The counts sum to `total`.
+    pub fn photon_allocation(&self, total: u32) -> Vec<u32> {
+        crate::render::projection::allocate(&self.emitter_power, total)
+    }
+
+    /// Vertices of a triangle in `f64`.
+    pub fn triangle(&self, mesh: u32, triangle: u32) -> [DVec3; 3] {
+        self.triangles[mesh as usize][triangle as usize].vertices()
+    }
+
+    /// Asks the CPU to start loading what [`PreparedScene::surface`] and the shading-normal
+    /// lookups will read for `hit` (the triangle's geometry record and, on meshes with
+    /// vertex normals, its shading record). A hint: no effect on results; an out-of-range
+    /// hit is ignored.
+    #[inline(always)]
+    pub fn prefetch_hit(&self, hit: &RayHit) {
+        let (mesh, triangle) = (hit.mesh as usize, hit.triangle as usize);
+        if let Some(tri) = self.triangles.get(mesh).and_then(|t| t.get(triangle)) {
+            prefetch(tri);
+        }
+        if let Some(record) = self.shading.get(mesh).and_then(|r| r.as_ref()).and_then(|r| r.get(triangle)) {
+            prefetch(record);
+        }
+    }
+
+    /// The surface point of a hit.
+    #[inline]
+    pub fn surface(&self, hit: &RayHit) -> SurfacePoint {
+        let m = &self.scene.meshes[hit.mesh as usize];
+        let tri = &self.triangles[hit.mesh as usize][hit.triangle as usize];
+        let p = tri.vertices();
+        let (b1, b2) = (hit.b1 as f64, hit.b2 as f64);
+        let b = DVec3::new(1.0 - b1 - b2, b1, b2);
+        SurfacePoint {
+            position: p[0] * b.x + p[1] * b.y + p[2] * b.z,
+            geometric_normal: tri.normal,
+            barycentric: b,
+            scattering: self.scattering[m.material as usize],
+            emission: m.emission,
+            mesh: hit.mesh,
+            triangle: hit.triangle,
+        }
+    }
+
+    /// The shading normal at `s` and its derivatives along the positional differentials
+    /// `dp_du`, `dp_dv` (zero for meshes without vertex normals), oriented like the
+    /// geometric normal.
+    #[inline(always)]
+    pub fn shading_normal(&self, s: &SurfacePoint, dp_du: DVec3, dp_dv: DVec3) -> Result<NormalDifferential, DifferentialError> {
+        let Some(records) = &self.shading[s.mesh as usize] else {
+            return Ok(NormalDifferential::flat(s.geometric_normal));
+        };
+        let record = &records[s.triangle as usize];
+        let tri = ShadedTriangle { p: self.triangle(s.mesh, s.triangle), n: record.normals() };
+        let mut nd = tri.normal_differential_with(record.gradients?, s.barycentric, dp_du, dp_dv)?;
+        if nd.n.dot(s.geometric_normal) < 0.0 {
+            nd = NormalDifferential { n: -nd.n, dn_du: -nd.dn_du, dn_dv: -nd.dn_dv };
+        }
+        Ok(nd)
+    }
+
+    /// Whether the triangle of `s` has vertex normals that differ from its face normal
+    /// (beyond [`FLAT_NORMAL_TOLERANCE`]); else its shading normal is the geometric one.
+    #[inline(always)]
+    pub fn has_shading_normals(&self, s: &SurfacePoint) -> bool {
+        self.triangles[s.mesh as usize][s.triangle as usize].shaded
+    }
+
+    /// The unit interpolated shading normal at `s` (world space, oriented like the
+    /// geometric normal), without derivatives: the geometric normal for triangles without
+    /// distinct vertex normals ([`PreparedScene::has_shading_normals`]) or where the
+    /// interpolated normal vanishes.
+    #[inline(always)]
+    pub fn shading_normal_at(&self, s: &SurfacePoint) -> DVec3 {
+        if !self.has_shading_normals(s) {
+            return s.geometric_normal;
+        }
+        let Some(records) = &self.shading[s.mesh as usize] else { return s.geometric_normal };
+        let b = s.barycentric;
+        let v = records[s.triangle as usize].normals();
+        let n = (v[0] * b.x + v[1] * b.y + v[2] * b.z).normalize_or_zero();
+        if n == DVec3::ZERO {
+            s.geometric_normal
+        } else if n.dot(s.geometric_normal) < 0.0 {
+            -n
+        } else {
+            n
+        }
+    }
+
+    /// Power of every emitter as the photon allocation and the area-emitter pick weigh
+    /// it (luminance of the emitted power, W; ≥ 0), in [`PreparedScene::emitters`] order.
+    pub fn emitter_powers(&self) -> &[f64] {
+        &self.emitter_power
+    }
+
+    /// The area emitters (triangles and quads) in the order
+    /// [`PreparedScene::pick_area_emitter`] searches them: their indices into
+    /// [`PreparedScene::emitters`] and the running sum of their powers (W; the last entry is
+    /// the total). For backends that mirror the pick.
+    pub fn area_emitter_cdf(&self) -> (&[usize], &[f64]) {
+        (&self.area_emitters, &self.area_cdf)
+    }
+
+    /// Picks an area emitter for next-event estimation with probability proportional to
+    /// its power from the uniform number `u`: `(emitter index, probability)`.
+    pub fn pick_area_emitter(&self, u: f64) -> Option<(usize, f64)> {
+        let total = *self.area_cdf.last()?;
+        if !(total > 0.0) {
+            return None;
+        }
+        let x = u * total;
+        let k = self.area_cdf.partition_point(|&c| c <= x).min(self.area_cdf.len() - 1);
+        let i = self.area_emitters[k];
+        Some((i, self.emitter_power[i] / total))
+    }
+}
+
+/// Whether every triangle's vertices lie in one plane (to a relative 1e-6 of the
+/// geometry's size); degenerate triangles do not choose the plane.
+fn coplanar(triangles: &[[DVec3; 3]]) -> bool {
+    let Some(plane) = triangles.iter().find_map(|t| {
+        let n = (t[1] - t[0]).cross(t[2] - t[0]);
+        (n.length() > 0.0).then(|| (n.normalize(), t[0]))
+    }) else {
+        return true;
+    };
+    let b = crate::base::aabb::Aabb::from_points(triangles.iter().flatten().copied());
+    let tol = 1e-6 * b.diagonal().max(f64::MIN_POSITIVE);
+    triangles.iter().flatten().all(|p| (*p - plane.1).dot(plane.0).abs() <= tol)
+}

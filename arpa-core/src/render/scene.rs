@@ -1,0 +1,394 @@
+//! The scene model every backend renders: triangle meshes with optional shading normals,
+//! materials, lights and a pinhole camera, plus validation that turns bad input into a
+//! clear error instead of a wrong image.
+//!
+//! Frames and units: world space is right-handed, lengths in scene units (metres in the
+//! docs). Radiance is linear RGB in W/(m²·sr); light parameters follow
+//! [`crate::emit::emission`].
+
+use crate::base::aabb::Aabb;
+use crate::emit::emission::{Light, LightError, TriangleLight};
+use alloc::string::String;
+use alloc::vec::Vec;
+use glam::{DVec3, Vec3};
+
+/// Index into [`Scene::materials`].
+pub type MaterialId = u32;
+
+/// A surface material.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Material {
+    /// Lambertian reflector of albedo `ρ ∈ [0, 1]³`.
+    Diffuse {
+        /// Albedo (linear RGB).
+        albedo: Vec3,
+    },
+    /// Mirror or metal: specular reflection scaled by `reflectance`. With `roughness`
+    /// at or above the scene's [`Scene::roughness_cutoff`] it is treated as diffuse with
+    /// albedo `reflectance` (RTPM's rule).
+    Conductor {
+        /// Specular reflectance (linear RGB, ≤ 1).
+        reflectance: Vec3,
+        /// GGX-style roughness α (0 = perfect mirror).
+        roughness: f32,
+    },
+    /// Smooth dielectric interface (glass, water) with exact Fresnel; the interior is on
+    /// the side opposite the geometric normal. Rough ones at or above the cut-off are diffuse
+    /// with albedo `transmittance`.
+    Dielectric {
+        /// Interior over exterior index of refraction.
+        ior: f32,
+        /// Multiplier of transmitted light (linear RGB, ≤ 1).
+        transmittance: Vec3,
+        /// Roughness α (0 = smooth).
+        roughness: f32,
+    },
+}
+
+/// How a material scatters light, after the roughness rule.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Scattering {
+    /// Lambertian with this albedo: photons are stored here, camera paths end here.
+    Diffuse(Vec3),
+    /// Perfect mirror with this reflectance.
+    Mirror(Vec3),
+    /// Smooth dielectric: relative IOR (inside/outside) and transmittance.
+    Refractive(f32, Vec3),
+}
+
+impl Material {
+    /// The scattering behaviour under roughness cut-off `cutoff`.
+    pub fn scattering(&self, cutoff: f32) -> Scattering {
+        match *self {
+            Material::Diffuse { albedo } => Scattering::Diffuse(albedo),
+            Material::Conductor { reflectance, roughness } => {
+                if roughness >= cutoff { Scattering::Diffuse(reflectance) } else { Scattering::Mirror(reflectance) }
+            }
+            Material::Dielectric { ior, transmittance, roughness } => {
+                if roughness >= cutoff { Scattering::Diffuse(transmittance) } else { Scattering::Refractive(ior, transmittance) }
+            }
+        }
+    }
+}
+
+/// A triangle mesh in world space.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TriangleMesh {
+    /// Name used in error messages (file or element name).
+    pub name: String,
+    /// Vertex positions (metres, world space).
+    pub positions: Vec<Vec3>,
+    /// Optional per-vertex shading normals (interpolated; their derivatives focus caustics).
+    pub normals: Option<Vec<Vec3>>,
+    /// Triangles as vertex indices; winding defines the geometric normal
+    /// `(p1 − p0) × (p2 − p0)`.
+    pub indices: Vec<[u32; 3]>,
+    /// Material of every triangle.
+    pub material: MaterialId,
+    /// One-sided emitted radiance (W/(m²·sr)) on the geometric-normal side, making every
+    /// triangle an area light.
+    pub emission: Option<Vec3>,
+}
+
+/// A pinhole camera.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// Eye position (metres).
+    pub position: Vec3,
+    /// Point looked at.
+    pub target: Vec3,
+    /// Approximate up direction.
+    pub up: Vec3,
+    /// Vertical field of view (radians, in `(0, π)`).
+    pub vertical_fov: f32,
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+}
+
+/// An orthonormal camera basis: `forward` into the image, `right` to the image's right,
+/// `up` to its top.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraFrame {
+    /// Unit viewing direction.
+    pub forward: Vec3,
+    /// Unit right vector.
+    pub right: Vec3,
+    /// Unit up vector.
+    pub up: Vec3,
+    /// `tan(fov/2)`.
+    pub tan_half_fov: f32,
+    /// Width over height.
+    pub aspect: f32,
+}
+
+impl Camera {
+    /// The camera basis, or an error for a degenerate camera.
+    pub fn frame(&self) -> Result<CameraFrame, SceneError> {
+        let bad = |why: &'static str| Err(SceneError::DegenerateCamera(why));
+        if !(self.position.is_finite() && self.target.is_finite() && self.up.is_finite() && self.vertical_fov.is_finite()) {
+            return bad("non-finite position, target, up or field of view");
+        }
+        if self.width == 0 || self.height == 0 {
+            return bad("zero image size");
+        }
+        if !(self.vertical_fov > 0.0 && self.vertical_fov < core::f32::consts::PI) {
+            return bad("vertical field of view outside (0, 180) degrees");
+        }
+        let forward = (self.target - self.position).normalize_or_zero();
+        if forward == Vec3::ZERO {
+            return bad("target equals position");
+        }
+        let right = forward.cross(self.up).normalize_or_zero();
+        if right == Vec3::ZERO {
+            return bad("up is parallel to the viewing direction");
+        }
+        let up = right.cross(forward);
+        Ok(CameraFrame { forward, right, up, tan_half_fov: libm::tanf(0.5 * self.vertical_fov), aspect: self.width as f32 / self.height as f32 })
+    }
+}
+
+impl CameraFrame {
+    /// Unit direction through film position `(x, y)` in pixels (continuous; `(0, 0)` is the
+    /// top-left corner) of a `width × height` image.
+    pub fn direction(&self, x: f32, y: f32, width: u32, height: u32) -> Vec3 {
+        let sx = (2.0 * x / width as f32 - 1.0) * self.tan_half_fov * self.aspect;
+        let sy = (1.0 - 2.0 * y / height as f32) * self.tan_half_fov;
+        (self.forward + self.right * sx + self.up * sy).normalize_or(self.forward)
+    }
+}
+
+/// Why a scene cannot be rendered. Every variant names the offending item.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum SceneError {
+    /// A vertex position or normal is NaN or infinite.
+    #[error("mesh '{mesh}': vertex {vertex} has a non-finite {what}")]
+    NonFiniteVertex {
+        /// Mesh name.
+        mesh: String,
+        /// Vertex index.
+        vertex: usize,
+        /// "position" or "normal".
+        what: &'static str,
+    },
+    /// A triangle refers to a vertex that does not exist.
+    #[error("mesh '{mesh}': triangle {triangle} refers to vertex {index}, but the mesh has {count} vertices")]
+    IndexOutOfRange {
+        /// Mesh name.
+        mesh: String,
+        /// Triangle index.
+        triangle: usize,
+        /// Offending vertex index.
+        index: u32,
+        /// Number of vertices.
+        count: usize,
+    },
+    /// Normals given but not one per vertex.
+    #[error("mesh '{mesh}': {normals} normals for {positions} vertices")]
+    NormalCount {
+        /// Mesh name.
+        mesh: String,
+        /// Normals given.
+        normals: usize,
+        /// Vertices.
+        positions: usize,
+    },
+    /// A mesh uses a material that does not exist.
+    #[error("mesh '{mesh}': material {material} does not exist ({count} materials)")]
+    MissingMaterial {
+        /// Mesh name.
+        mesh: String,
+        /// Material index.
+        material: MaterialId,
+        /// Number of materials.
+        count: usize,
+    },
+    /// A material parameter is out of range.
+    #[error("material {index}: {why}")]
+    BadMaterial {
+        /// Material index.
+        index: usize,
+        /// What is wrong.
+        why: &'static str,
+    },
+    /// An emissive mesh emits nothing it could: zero total area or bad radiance.
+    #[error("mesh '{mesh}': emitter {why}")]
+    BadEmitter {
+        /// Mesh name.
+        mesh: String,
+        /// What is wrong.
+        why: &'static str,
+    },
+    /// An analytic light is invalid.
+    #[error("light {index}: {source}")]
+    BadLight {
+        /// Light index in [`Scene::lights`].
+        index: usize,
+        /// The problem.
+        source: LightError,
+    },
+    /// The scene has no light at all.
+    #[error("the scene has no light (no analytic light and no emissive mesh)")]
+    NoLights,
+    /// The scene has no geometry.
+    #[error("the scene has no geometry")]
+    Empty,
+    /// The camera cannot form an image.
+    #[error("degenerate camera: {0}")]
+    DegenerateCamera(&'static str),
+    /// [`Scene::roughness_cutoff`] is NaN, infinite or negative (a NaN cut-off would
+    /// silently make every rough material specular).
+    #[error("roughness cut-off {0} is not a finite non-negative GGX alpha")]
+    BadRoughnessCutoff(f32),
+}
+
+/// A complete scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scene {
+    /// Geometry.
+    pub meshes: Vec<TriangleMesh>,
+    /// Materials referenced by [`TriangleMesh::material`].
+    pub materials: Vec<Material>,
+    /// Analytic lights (point, spot, directional, triangle/quad emitters).
+    pub lights: Vec<Light>,
+    /// The camera.
+    pub camera: Camera,
+    /// GGX `alpha` at and above which glossy materials count as diffuse (RTPM's rule is
+    /// linear roughness `sqrt(alpha)` above 0.5; the Mitsuba loader uses `alpha` 0.25).
+    pub roughness_cutoff: f32,
+}
+
+fn finite_rgb_in(v: Vec3, lo: f32, hi: f32) -> bool {
+    v.is_finite() && v.min_element() >= lo && v.max_element() <= hi
+}
+
+impl Scene {
+    /// Checks the whole scene; the first problem found is returned.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        if self.meshes.iter().all(|m| m.indices.is_empty()) {
+            return Err(SceneError::Empty);
+        }
+        if !(self.roughness_cutoff.is_finite() && self.roughness_cutoff >= 0.0) {
+            return Err(SceneError::BadRoughnessCutoff(self.roughness_cutoff));
+        }
+        for (index, m) in self.materials.iter().enumerate() {
+            let why = match *m {
+                Material::Diffuse { albedo } if !finite_rgb_in(albedo, 0.0, 1.0) => Some("diffuse albedo outside [0, 1]"),
+                Material::Conductor { reflectance, roughness } if !(finite_rgb_in(reflectance, 0.0, 1.0) && roughness >= 0.0 && roughness.is_finite()) => {
+                    Some("conductor reflectance outside [0, 1] or roughness negative or not finite")
+                }
+                Material::Dielectric { ior, transmittance, roughness } if !(ior > 0.0 && ior.is_finite() && finite_rgb_in(transmittance, 0.0, 1.0) && roughness >= 0.0 && roughness.is_finite()) => {
+                    Some("dielectric IOR not finite and positive, transmittance outside [0, 1] or roughness negative or not finite")
+                }
+                _ => None,
+            };
+            if let Some(why) = why {
+                return Err(SceneError::BadMaterial { index, why });
+            }
+        }
+        for m in &self.meshes {
+            if let Some(vertex) = m.positions.iter().position(|p| !p.is_finite()) {
+                return Err(SceneError::NonFiniteVertex { mesh: m.name.clone(), vertex, what: "position" });
+            }
+            if let Some(n) = &m.normals {
+                if n.len() != m.positions.len() {
+                    return Err(SceneError::NormalCount { mesh: m.name.clone(), normals: n.len(), positions: m.positions.len() });
+                }
+                if let Some(vertex) = n.iter().position(|p| !p.is_finite()) {
+                    return Err(SceneError::NonFiniteVertex { mesh: m.name.clone(), vertex, what: "normal" });
+                }
+            }
+            for (triangle, t) in m.indices.iter().enumerate() {
+                if let Some(&index) = t.iter().find(|&&i| i as usize >= m.positions.len()) {
+                    return Err(SceneError::IndexOutOfRange { mesh: m.name.clone(), triangle, index, count: m.positions.len() });
+                }
+            }
+            if m.material as usize >= self.materials.len() {
+                return Err(SceneError::MissingMaterial { mesh: m.name.clone(), material: m.material, count: self.materials.len() });
+            }
+            if let Some(e) = m.emission {
+                if !(e.is_finite() && e.min_element() >= 0.0) {
+                    return Err(SceneError::BadEmitter { mesh: m.name.clone(), why: "radiance is negative or not finite" });
+                }
+                if e.max_element() > 0.0 && !(m.area() > 0.0) {
+                    return Err(SceneError::BadEmitter { mesh: m.name.clone(), why: "has zero area" });
+                }
+            }
+        }
+        let radius = self.bounding_sphere().1;
+        for (index, l) in self.lights.iter().enumerate() {
+            l.validate(radius).map_err(|source| SceneError::BadLight { index, source })?;
+        }
+        if self.emitters().is_empty() {
+            return Err(SceneError::NoLights);
+        }
+        self.camera.frame()?;
+        Ok(())
+    }
+
+    /// Bounds of all mesh vertices.
+    pub fn bounds(&self) -> Aabb {
+        Aabb::from_points(self.meshes.iter().flat_map(|m| m.positions.iter().map(|p| p.as_dvec3())))
+    }
+
+    /// Centre and radius of the sphere around [`Scene::bounds`] (the aperture of
+    /// directional lights). Radius at least 1e-6.
+    pub fn bounding_sphere(&self) -> (DVec3, f64) {
+        let b = self.bounds();
+        if b.is_empty() {
+            return (DVec3::ZERO, 1e-6);
+        }
+        (b.centre(), (0.5 * b.diagonal()).max(1e-6))
+    }
+
+    /// Every emitter: the analytic lights followed by one [`TriangleLight`] per emissive
+    /// triangle with non-zero area and radiance.
+    pub fn emitters(&self) -> Vec<Light> {
+        let mut out: Vec<Light> = self.lights.clone();
+        for m in &self.meshes {
+            let Some(e) = m.emission else { continue };
+            if !(e.max_element() > 0.0) {
+                continue;
+            }
+            for t in &m.indices {
+                let p = t.map(|i| m.positions.get(i as usize).copied().unwrap_or(Vec3::ZERO).as_dvec3());
+                let l = Light::Triangle(TriangleLight { p, radiance: e.as_dvec3() });
+                if l.area() > 0.0 {
+                    out.push(l);
+                }
+            }
+        }
+        out
+    }
+}
+
+impl TriangleMesh {
+    /// Total area of the triangles (m², computed in `f64`); indices out of range count as
+    /// the origin, so this never panics on an unvalidated mesh.
+    pub fn area(&self) -> f64 {
+        self.indices
+            .iter()
+            .map(|t| {
+                let p = t.map(|i| self.positions.get(i as usize).copied().unwrap_or(Vec3::ZERO).as_dvec3());
+                0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length()
+            })
+            .sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn roughness_cutoff_is_inclusive() {
+        let metal = |roughness| Material::Conductor { reflectance: Vec3::splat(0.5), roughness };
+        assert_eq!(metal(0.0).scattering(0.25), Scattering::Mirror(Vec3::splat(0.5)));
+        assert_eq!(metal(0.2499).scattering(0.25), Scattering::Mirror(Vec3::splat(0.5)));
+        assert_eq!(metal(0.25).scattering(0.25), Scattering::Diffuse(Vec3::splat(0.5)));
+        let glass = |roughness| Material::Dielectric { ior: 1.5, transmittance: Vec3::ONE, roughness };
+        assert_eq!(glass(0.1).scattering(0.25), Scattering::Refractive(1.5, Vec3::ONE));
+        assert_eq!(glass(0.25).scattering(0.25), Scattering::Diffuse(Vec3::ONE));
+    }
+}
