@@ -11,12 +11,11 @@ use arpa_core::store::progressive_photon::PackedPhoton;
 use arpa_core::render::scene::Scene;
 use arpa_core::render::tracer::{BackendKind, Capabilities, Image, IterationStats, QueryRecord, RenderSettings, Tracer};
 
+pub mod error;
 pub mod kernel_runner;
 
+pub use error::BoxError;
 pub use kernel_runner::{KernelJob, KernelRunner, MakeKernelRunner, WORKGROUP_SIZE};
-
-/// A backend's error, boxed (the backend's own `thiserror` enum inside).
-pub type BoxError = Box<dyn std::error::Error + Send + Sync + 'static>;
 
 /// How to create a backend.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]

@@ -6,7 +6,7 @@ use rayon::prelude::*;
 
 use crate::embree::{BuildQuality, Device, EmbreeBox, EmbreeScene, EmbreeSceneBuilder};
 use crate::photon_store::{PhotonStore, photon_box};
-use crate::tracer::CpuError;
+use crate::error::CpuError;
 
 /// The box BVH of an iteration.
 #[derive(Debug)]

@@ -48,6 +48,7 @@ mod accel;
 mod camera;
 mod caster;
 mod embree;
+mod error;
 mod gather;
 mod photon_store;
 mod photons;
@@ -59,4 +60,5 @@ pub use embree::{
     PacketRay, PointQueryCandidate, Result,
 };
 pub use photons::PHOTON_CHUNK;
-pub use tracer::{CpuError, CpuTracer};
+pub use error::CpuError;
+pub use tracer::CpuTracer;

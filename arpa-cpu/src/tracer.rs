@@ -20,32 +20,10 @@ use arpa_core::render::tracer::{
 
 use crate::accel::Accel;
 use crate::caster::EmbreeCaster;
-use crate::embree::{Device, EmbreeError};
+use crate::embree::Device;
+use crate::error::CpuError;
 use crate::gather::GatherInput;
 use crate::photons::PhotonBuffers;
-
-/// Errors of the CPU backend.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-pub enum CpuError {
-    /// A call out of order, the iteration limit, or a scene or settings no render can use
-    /// (the errors every backend shares).
-    #[error(transparent)]
-    Stage(#[from] StageError),
-    /// The image has more pixels than the `u32` pixel index can address.
-    #[error("image of {width}×{height} pixels is too large (at most 2^32 − 1 pixels)")]
-    ImageTooLarge {
-        /// Width in pixels.
-        width: u32,
-        /// Height in pixels.
-        height: u32,
-    },
-    /// Embree failed (device creation, BVH build).
-    #[error(transparent)]
-    Embree(#[from] EmbreeError),
-    /// A buffer could not be allocated.
-    #[error("out of memory allocating {0}")]
-    OutOfMemory(&'static str),
-}
 
 /// The photon-mapping pipeline on the CPU: Embree 4 for rays and box queries, rayon for
 /// parallelism.

@@ -14,7 +14,8 @@
 //! a queue family with compute. Ray queries are not needed; whether the adapter has them is
 //! reported in [`DeviceInfo::ray_query`].
 
-use crate::error::{AdapterSummary, VkError, VkResultExt};
+use crate::adapter::{AdapterSummary, DeviceType};
+use crate::error::{VkError, VkResultExt};
 use ash::vk;
 use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
 use gpu_allocator::{AllocationSizes, AllocatorDebugSettings};
@@ -53,55 +54,6 @@ pub struct ContextOptions {
     pub validation: bool,
 }
 
-/// The kind of an adapter (`VkPhysicalDeviceType`).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum DeviceType {
-    /// A separate GPU.
-    DiscreteGpu,
-    /// A GPU sharing the host's memory.
-    IntegratedGpu,
-    /// A GPU in a virtualised environment.
-    VirtualGpu,
-    /// A driver running on the host CPU (lavapipe).
-    Cpu,
-    /// Anything else.
-    Other,
-}
-
-impl DeviceType {
-    fn from_vk(t: vk::PhysicalDeviceType) -> Self {
-        match t {
-            vk::PhysicalDeviceType::DISCRETE_GPU => Self::DiscreteGpu,
-            vk::PhysicalDeviceType::INTEGRATED_GPU => Self::IntegratedGpu,
-            vk::PhysicalDeviceType::VIRTUAL_GPU => Self::VirtualGpu,
-            vk::PhysicalDeviceType::CPU => Self::Cpu,
-            _ => Self::Other,
-        }
-    }
-
-    /// Preference for [`AdapterChoice::Auto`] (lower is better).
-    fn rank(self) -> u32 {
-        match self {
-            Self::DiscreteGpu => 0,
-            Self::IntegratedGpu => 1,
-            Self::VirtualGpu => 2,
-            Self::Cpu => 3,
-            Self::Other => 4,
-        }
-    }
-}
-
-impl fmt::Display for DeviceType {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            Self::DiscreteGpu => "discrete GPU",
-            Self::IntegratedGpu => "integrated GPU",
-            Self::VirtualGpu => "virtual GPU",
-            Self::Cpu => "CPU",
-            Self::Other => "other",
-        })
-    }
-}
 
 /// A Vulkan version, `major.minor.patch`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]

@@ -1,44 +1,8 @@
 //! The crate's error type: every failure of the device layer is a [`VkError`], never a panic.
 
+use crate::adapter::{AdapterList, AdapterSummary};
 use ash::vk;
-use std::fmt;
 
-/// A physical device as the adapter choice saw it: enough to name it in an error.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct AdapterSummary {
-    /// The adapter's name (`VkPhysicalDeviceProperties::deviceName`).
-    pub name: String,
-    /// Its type.
-    pub device_type: crate::device::DeviceType,
-    /// What it lacks of the backend's requirements (extensions, features, API version, a
-    /// compute queue); empty when it has everything.
-    pub missing: Vec<String>,
-}
-
-impl fmt::Display for AdapterSummary {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{:?} ({}", self.name, self.device_type)?;
-        if self.missing.is_empty() { write!(f, ", has everything)") } else { write!(f, ", missing {})", self.missing.join(", ")) }
-    }
-}
-
-/// Formats a list of adapters for an error message (`none` when empty).
-pub(crate) struct AdapterList<'a>(pub &'a [AdapterSummary]);
-
-impl fmt::Display for AdapterList<'_> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        if self.0.is_empty() {
-            return write!(f, "none");
-        }
-        for (i, a) in self.0.iter().enumerate() {
-            if i > 0 {
-                write!(f, "; ")?;
-            }
-            write!(f, "{a}")?;
-        }
-        Ok(())
-    }
-}
 
 /// Why the Vulkan device layer failed.
 #[derive(Debug, thiserror::Error)]
@@ -219,7 +183,7 @@ impl<T> VkResultExt<T> for Result<T, vk::Result> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::device::DeviceType;
+    use crate::adapter::DeviceType;
 
     #[test]
     fn messages_name_adapters_and_what_they_lack() {

@@ -46,6 +46,7 @@
 #![warn(missing_docs)]
 
 pub mod accel;
+pub mod adapter;
 pub mod accumulate;
 pub mod buffer;
 pub mod camera;
@@ -69,10 +70,11 @@ pub use ash::vk;
 pub use buffer::Buffer;
 pub use compute::{ComputePipeline, ComputePipelineDesc, record_compute_barrier};
 pub use device::{
-    AdapterChoice, ApiVersion, ContextOptions, DeviceInfo, DeviceType, MemoryHeap, MemoryLimits, RayTracingProperties, Severity,
+    AdapterChoice, ApiVersion, ContextOptions, DeviceInfo, MemoryHeap, MemoryLimits, RayTracingProperties, Severity,
     ValidationLog, ValidationMessage, VkContext,
 };
-pub use error::{AdapterSummary, VkError};
+pub use adapter::{AdapterSummary, DeviceType};
+pub use error::VkError;
 pub use gpu_allocator::MemoryLocation;
 pub use kernel::run_kernel;
 pub use map_accel::{MapAccel, MapInstance};

@@ -12,7 +12,8 @@
 //! pixels).
 
 use crate::device::GpuContext;
-use crate::harness::{HarnessError, scene_pipeline, storage_entry, uniform_entry};
+use crate::harness::{HarnessError, storage_entry, uniform_entry};
+use crate::scene::scene_pipeline;
 use crate::scene::GpuScene;
 use arpa_core::gpu::codes::WORKGROUP_SIZE as WORKGROUP;
 use arpa_core::gpu::layout::CameraParams;

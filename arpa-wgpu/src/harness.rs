@@ -143,18 +143,6 @@ pub(crate) fn pipeline(
     })
 }
 
-/// The compute pipeline of a pass that reads the scene: the scene's bind group 0
-/// ([`crate::scene::GpuScene::bind_group_layout`]) and the pass's own `group1`.
-pub(crate) fn scene_pipeline(
-    device: &wgpu::Device,
-    label: &str,
-    module: &wgpu::ShaderModule,
-    scene: &crate::scene::GpuScene,
-    group1: &wgpu::BindGroupLayout,
-    entry: &str,
-) -> wgpu::ComputePipeline {
-    pipeline(device, label, module, &[Some(scene.bind_group_layout()), Some(group1)], entry)
-}
 
 /// A kernel's output buffer of `bytes` (`STORAGE | COPY_SRC`) and the `MAP_READ` staging
 /// buffer of the same size it is copied into for [`submit_and_read`].

@@ -37,6 +37,7 @@ pub mod accel;
 pub mod accumulate;
 pub mod camera;
 pub mod device;
+pub mod error;
 pub mod gather;
 pub mod harness;
 pub mod maps;
@@ -49,4 +50,5 @@ pub mod tracer;
 
 pub use device::{AdapterChoice, DeviceError, GpuContext};
 pub use harness::{HarnessError, run_kernel};
-pub use tracer::{WgpuError, WgpuTracer};
+pub use error::WgpuError;
+pub use tracer::WgpuTracer;

@@ -10,7 +10,7 @@ use crate::accel::MapAccel;
 use crate::device::GpuContext;
 use crate::gather::ImageGather;
 use crate::store::{BOX_BYTES, FOOTPRINT_BYTES, MapStore, PHOTON_BYTES, StorePipelines};
-use crate::tracer::WgpuError;
+use crate::error::WgpuError;
 use arpa_core::gather::scales::Bandwidth;
 use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::gpu::layout::{GatherBatch, StoreCounts, StoreSettings};

@@ -24,7 +24,8 @@
 //! `row_n` and the fallback photon's normal then come out flipped too, exactly).
 
 use crate::device::GpuContext;
-use crate::harness::{HarnessError, scene_pipeline, storage_entry, uniform_entry};
+use crate::harness::{HarnessError, storage_entry, uniform_entry};
+use crate::scene::scene_pipeline;
 use crate::scene::GpuScene;
 use arpa_core::emit::emission::PackedLight;
 use arpa_core::{gpu::layout::{EmitterRange, PhotonParams}, gpu::fill::emitter_tables};

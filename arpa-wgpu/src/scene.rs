@@ -252,3 +252,16 @@ impl GpuScene {
         &self.geometry
     }
 }
+
+/// The compute pipeline of a pass that reads the scene: the scene's bind group 0
+/// ([`GpuScene::bind_group_layout`]) and the pass's own `group1`.
+pub(crate) fn scene_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    module: &wgpu::ShaderModule,
+    scene: &GpuScene,
+    group1: &wgpu::BindGroupLayout,
+    entry: &str,
+) -> wgpu::ComputePipeline {
+    crate::harness::pipeline(device, label, module, &[Some(scene.bind_group_layout()), Some(group1)], entry)
+}

@@ -2,7 +2,8 @@
 
 use crate::accumulate::{AccumPixel, DeviceAccumulator};
 use crate::camera::CameraPass;
-use crate::device::{AdapterChoice, DeviceError, GpuContext};
+use crate::device::{AdapterChoice, GpuContext};
+use crate::error::WgpuError;
 use crate::maps::{PhotonMaps, read_buffer, scoped};
 use crate::photon::{PhotonOutputs, PhotonPass};
 use crate::scene::GpuScene;
@@ -19,47 +20,6 @@ use arpa_core::render::tracer::{
     BackendKind, Call, Capabilities, Image, IterationStats, QueryRecord, RenderSettings, Stage, StageClock, StageError, Tracer,
     prepare_upload, uploaded,
 };
-
-/// Errors of the wgpu backend.
-#[derive(Debug, thiserror::Error)]
-pub enum WgpuError {
-    /// A call out of order, the iteration limit, or a scene or settings no render can use
-    /// (the errors every backend shares; this backend adds one setting check: the `u32`
-    /// record keys bound `photons_per_iteration · max_depth`).
-    #[error(transparent)]
-    Stage(#[from] StageError),
-    /// No usable adapter or device (the message names the adapter).
-    #[error(transparent)]
-    Adapter(#[from] DeviceError),
-    /// The scene could not be uploaded to the device.
-    #[error("scene upload: {0}")]
-    SceneUpload(String),
-    /// wgpu reported a validation or out-of-memory error while recording `stage`.
-    #[error("wgpu error in {stage}: {message}")]
-    Device {
-        /// The stage.
-        stage: &'static str,
-        /// wgpu's message.
-        message: String,
-    },
-    /// Reading a buffer back failed.
-    #[error("reading back {stage} failed: {message}")]
-    Readback {
-        /// What was read.
-        stage: &'static str,
-        /// What failed.
-        message: String,
-    },
-    /// A size beyond what a buffer, dispatch or acceleration structure takes.
-    #[error("size limit: {0}")]
-    Size(String),
-    /// The camera pass could not be built.
-    #[error(transparent)]
-    CameraPass(#[from] crate::camera::CameraPassError),
-    /// The photon pass could not be built or run.
-    #[error(transparent)]
-    PhotonPass(#[from] crate::photon::PhotonPassError),
-}
 
 /// Bytes of one query record ([`QueryRecord`]).
 const QUERY_BYTES: u64 = std::mem::size_of::<QueryRecord>() as u64;

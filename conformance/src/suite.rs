@@ -9,7 +9,7 @@ use arpa::backends::BackendOptions;
 use arpa::core::render::tracer::BackendKind;
 use crate::dyn_tracer::{BoxError, DynTracer};
 use crate::kernel_runner::{KernelRunner, MakeKernelRunner};
-use crate::{Report, Verdict};
+use crate::report::{Report, Verdict};
 
 /// What a case body returns: the measured metric when its assertion held, else what was
 /// measured and what was expected.
@@ -372,10 +372,6 @@ pub fn run_suite_with(backends: &[Backend], cases: &[Case], options: &SuiteOptio
     }
 }
 
-/// Runs every case on every backend compiled in, under `options`.
-pub fn run_suite(options: &SuiteOptions) -> SuiteRun {
-    run_suite_with(&crate::backends::compiled(), &crate::cases::all(), options)
-}
 
 /// Adds context to a backend error: `"photon_pass: <error>"`.
 pub(crate) trait Context<T> {

@@ -20,7 +20,7 @@
 //! [`KernelJob::output_words`] words, and returns the output. Floats travel as their bit
 //! patterns (`f32::to_bits`), so nothing is rounded on the way in or out.
 
-use super::BoxError;
+use super::error::BoxError;
 
 /// Workgroup size (x) every kernel declares and the runner dispatches for.
 pub const WORKGROUP_SIZE: u32 = 64;

@@ -2,7 +2,7 @@
 //! images and relMSE heat maps, all in one directory and all under the same [`Header`].
 
 use super::config::LoadedConfig;
-use super::{BenchRow, Header, RunKind, RunResult, budget_label};
+use super::results::{BenchRow, Header, RunKind, RunResult, budget_label};
 use crate::image_io;
 use crate::metrics;
 use anyhow::{Context, anyhow};
@@ -380,7 +380,7 @@ mod tests {
         assert_eq!(short_number(2.0), "2");
         assert_eq!(short_number(0.0125), "0.0125");
         assert_eq!(short_number(150.0), "150");
-        assert_eq!(super::super::budget_label(1_000_000), "1000K");
-        assert_eq!(super::super::budget_label(12_345), "12345");
+        assert_eq!(super::super::results::budget_label(1_000_000), "1000K");
+        assert_eq!(super::super::results::budget_label(12_345), "12345");
     }
 }

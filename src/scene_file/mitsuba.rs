@@ -4,7 +4,9 @@
 use super::error::{SceneFileError, Warning};
 use super::transform::{self, numbers, parse_transform};
 use super::xml::{self, Node};
-use super::{FovAxis, LoadedScene, MeshReader, RawMesh, obj, ply, shapes, vertical_fov};
+use super::loaded::{vertical_fov, FovAxis, LoadedScene};
+use super::mesh::{MeshReader, RawMesh};
+use super::{obj, ply, shapes};
 use arpa_core::propagate::fresnel::conductor_albedo;
 use arpa_core::emit::emission::{DirectionalLight, Light, PointLight, SpotFalloff, SpotLight};
 use arpa_core::render::scene::{Camera, Material, MaterialId, Scene, TriangleMesh};

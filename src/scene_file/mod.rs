@@ -66,6 +66,8 @@
 
 mod error;
 pub mod fuzzing;
+mod loaded;
+mod mesh;
 mod mitsuba;
 mod obj;
 mod ply;
@@ -74,26 +76,13 @@ pub mod transform;
 mod xml;
 
 pub use error::{SceneFileError, Warning};
+pub use loaded::{vertical_fov, FovAxis, LoadedScene};
+pub use mesh::{MeshReader, RawMesh};
 pub use mitsuba::ROUGHNESS_CUTOFF;
 
-use arpa_core::render::scene::Scene;
 #[cfg(doc)]
-use arpa_core::render::scene::{Material, TriangleMesh};
-use glam::DVec3;
-use std::path::{Path, PathBuf};
-
-/// A mesh as read from a PLY or OBJ file (or generated for a built-in shape), in object
-/// space before the shape's `to_world`: what [`parse_ply`] and [`parse_obj`] return. Not yet
-/// checked for non-finite vertices (the scene loader does that when it places the mesh).
-#[derive(Clone, Debug, PartialEq)]
-pub struct RawMesh {
-    /// Vertex positions as stored.
-    pub positions: Vec<DVec3>,
-    /// Per-vertex normals as stored, if every vertex has one.
-    pub normals: Option<Vec<DVec3>>,
-    /// Triangles (polygons fan-triangulated); every index is below `positions.len()`.
-    pub indices: Vec<[u32; 3]>,
-}
+use arpa_core::render::scene::{Material, Scene, TriangleMesh};
+use std::path::Path;
 
 /// Parses a PLY mesh (ASCII or binary, either byte order) from memory; `path` names the
 /// file in errors. The scene loader reads mesh files through this, so it is also the entry
@@ -107,76 +96,6 @@ pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<RawMesh, SceneFileError> {
 /// point of the `obj` fuzz target and its regression tests.
 pub fn parse_obj(bytes: &[u8], path: &Path) -> Result<RawMesh, SceneFileError> {
     obj::parse(bytes, path)
-}
-
-/// Reads a mesh file named by a scene (`<string name="filename">`, resolved against the
-/// scene file's directory). [`load_scene`] reads the file system; [`load_scene_bytes`] takes
-/// any reader, e.g. in-memory files for fuzzing and tests.
-pub type MeshReader<'a> = &'a dyn Fn(&Path) -> std::io::Result<Vec<u8>>;
-
-/// Which image axis a Mitsuba `fov` spans.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum FovAxis {
-    /// Horizontal (Mitsuba's default).
-    X,
-    /// Vertical.
-    Y,
-    /// Diagonal.
-    Diagonal,
-    /// The smaller image side.
-    Smaller,
-    /// The larger image side.
-    Larger,
-}
-
-/// The vertical field of view (radians) of a `fov_degrees` field of view along `axis` on a
-/// `width × height` film.
-pub fn vertical_fov(fov_degrees: f64, axis: FovAxis, width: u32, height: u32) -> f32 {
-    let (w, h) = (width.max(1) as f64, height.max(1) as f64);
-    let t = (0.5 * fov_degrees.to_radians()).tan();
-    let tan_half_v = match axis {
-        FovAxis::Y => t,
-        FovAxis::X => t * h / w,
-        FovAxis::Diagonal => t * h / (w * w + h * h).sqrt(),
-        FovAxis::Smaller => if w < h { t * h / w } else { t },
-        FovAxis::Larger => if w > h { t * h / w } else { t },
-    };
-    (2.0 * tan_half_v.atan()) as f32
-}
-
-/// A loaded (and validated) scene with what the loader noticed.
-#[derive(Clone, Debug)]
-pub struct LoadedScene {
-    /// The scene; its camera has the file's film size.
-    pub scene: Scene,
-    /// Approximations and ignored elements, each naming its line.
-    pub warnings: Vec<Warning>,
-    /// The scene file.
-    pub path: PathBuf,
-    /// The `<integrator>`'s `max_depth`, if any (informative: arpa has its own setting).
-    pub max_depth: Option<u32>,
-    /// The sensor's sampler `sample_count`, if any (informative).
-    pub sample_count: Option<u32>,
-    /// The sensor's `fov` in degrees, along [`LoadedScene::fov_axis`].
-    pub fov_degrees: f64,
-    /// The axis `fov` spans.
-    pub fov_axis: FovAxis,
-}
-
-impl LoadedScene {
-    /// Changes the image size, keeping the field of view along the file's `fov_axis` (as
-    /// Mitsuba does when the film size changes).
-    pub fn set_resolution(&mut self, width: u32, height: u32) {
-        let c = &mut self.scene.camera;
-        c.width = width;
-        c.height = height;
-        c.vertical_fov = vertical_fov(self.fov_degrees, self.fov_axis, width, height);
-    }
-
-    /// Total number of triangles.
-    pub fn triangle_count(&self) -> usize {
-        self.scene.meshes.iter().map(|m| m.indices.len()).sum()
-    }
 }
 
 /// Loads a Mitsuba 3 XML scene file; `defines` are `-D name=value` overrides of its

@@ -2,7 +2,7 @@
 //! polygons triangulated, per-vertex normals kept when every vertex has one; materials
 //! (`.mtl`) are ignored (the scene's `<bsdf>` applies).
 
-use super::RawMesh;
+use super::mesh::RawMesh;
 use super::error::SceneFileError;
 use glam::DVec3;
 use std::path::Path;

@@ -4,7 +4,7 @@
 //! Triangles are kept, larger polygons (quads) are fan-triangulated, anything smaller is
 //! an error. Every failure is a [`SceneFileError::Ply`] naming the file.
 
-use super::RawMesh;
+use super::mesh::RawMesh;
 use super::error::SceneFileError;
 use glam::DVec3;
 use ply_rs::parser::Parser;

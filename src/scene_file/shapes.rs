@@ -3,7 +3,7 @@
 //! face-normal shading) and `sphere` (an icosphere subdivided 4 times, 5,120 triangles,
 //! exact unit-sphere vertices with smooth outward normals).
 
-use super::RawMesh;
+use super::mesh::RawMesh;
 use glam::DVec3;
 
 /// Mitsuba's `rectangle`.

@@ -8,6 +8,7 @@ use embree4_sys as sys;
 use super::device::Device;
 use super::error::{EmbreeError, Result};
 use super::ffi::RTC_INVALID_GEOMETRY_ID;
+use super::geometry::{EmbreeBox, finite3};
 use super::scene::EmbreeScene;
 
 /// BVH build quality (`RTCBuildQuality`): a trade-off between build time and query speed.
@@ -30,30 +31,6 @@ impl BuildQuality {
             Self::Medium => sys::RTCBuildQuality::MEDIUM,
             Self::High => sys::RTCBuildQuality::HIGH,
         }
-    }
-}
-
-/// An axis-aligned box `[lower, upper]` (closed) in `f32`, in the scene's world frame and
-/// units: a primitive of a box set ([`EmbreeSceneBuilder::add_boxes`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[repr(C)]
-pub struct EmbreeBox {
-    /// Minimum corner (x, y, z).
-    pub lower: [f32; 3],
-    /// Maximum corner (x, y, z); each component must be `>=` the matching `lower` one.
-    pub upper: [f32; 3],
-}
-
-impl EmbreeBox {
-    /// Whether `p` lies in the closed box (boundary included).
-    pub fn contains(&self, p: [f32; 3]) -> bool {
-        (0..3).all(|k| self.lower[k] <= p[k] && p[k] <= self.upper[k])
-    }
-
-    fn is_valid(&self) -> bool {
-        (0..3).all(|k| {
-            self.lower[k].is_finite() && self.upper[k].is_finite() && self.lower[k] <= self.upper[k]
-        })
     }
 }
 
@@ -94,9 +71,6 @@ impl Drop for GeometryGuard {
     }
 }
 
-pub(super) fn finite3(p: [f32; 3]) -> bool {
-    p.iter().all(|c| c.is_finite())
-}
 
 unsafe extern "C" fn boxes_bounds(args: *const sys::RTCBoundsFunctionArguments) {
     // SAFETY: Embree passes valid arguments; `geometryUserPtr` is the `Vec<EmbreeBox>` data

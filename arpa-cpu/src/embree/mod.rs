@@ -38,12 +38,14 @@ mod builder;
 mod device;
 mod error;
 mod ffi;
+mod geometry;
 mod scene;
 
 #[cfg(test)]
 mod tests;
 
-pub use builder::{BuildQuality, EmbreeBox, EmbreeSceneBuilder};
+pub use builder::{BuildQuality, EmbreeSceneBuilder};
+pub use geometry::EmbreeBox;
 pub use device::Device;
 pub use error::{EmbreeError, Result};
 pub use scene::{EmbreeScene, Hit, PacketRay, PointQueryCandidate};

@@ -7,7 +7,7 @@ use std::panic::{AssertUnwindSafe, catch_unwind, resume_unwind};
 
 use embree4_sys as sys;
 
-use super::builder::{EmbreeBox, EmbreeSceneBuilder, finite3};
+use super::geometry::{EmbreeBox, finite3};
 use super::device::Device;
 use super::error::{EmbreeError, Result};
 use super::ffi::{
@@ -52,7 +52,7 @@ macro_rules! packet_query {
 }
 
 /// The closest intersection of a ray with the scene's triangles (user boxes are never hit
-/// by rays; see [`EmbreeSceneBuilder::add_boxes`]).
+/// by rays; see [`super::EmbreeSceneBuilder::add_boxes`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
     /// Ray parameter of the hit: the hit point is `origin + t * dir`, so `t` is measured in
@@ -65,7 +65,7 @@ pub struct Hit {
     pub v: f32,
     /// Index of the triangle within its mesh (position in the `indices` slice).
     pub prim_id: u32,
-    /// Geometry id returned by [`EmbreeSceneBuilder::add_triangle_mesh`].
+    /// Geometry id returned by [`super::EmbreeSceneBuilder::add_triangle_mesh`].
     pub geom_id: u32,
     /// Unnormalised geometric normal in the world frame, `(v1 - v0) x (v2 - v0)` (length =
     /// twice the triangle's area); it faces the side from which `v0, v1, v2` appear
@@ -77,8 +77,8 @@ pub struct Hit {
 /// [`EmbreeScene::point_query`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct PointQueryCandidate {
-    /// Geometry id (from [`EmbreeSceneBuilder::add_triangle_mesh`] or
-    /// [`EmbreeSceneBuilder::add_boxes`]).
+    /// Geometry id (from [`super::EmbreeSceneBuilder::add_triangle_mesh`] or
+    /// [`super::EmbreeSceneBuilder::add_boxes`]).
     pub geom_id: u32,
     /// Primitive index within that geometry (triangle index, or index into the box slice).
     pub prim_id: u32,
@@ -176,10 +176,6 @@ unsafe extern "C" fn point_query_trampoline<F: FnMut(PointQueryCandidate)>(
 }
 
 impl EmbreeScene {
-    /// Starts building a scene on `device`; same as [`EmbreeSceneBuilder::new`].
-    pub fn builder(device: &Device) -> Result<EmbreeSceneBuilder> {
-        EmbreeSceneBuilder::new(device)
-    }
 
     #[cfg(test)]
     pub(crate) fn raw_for_tests(&self) -> sys::RTCScene {
@@ -370,7 +366,7 @@ impl EmbreeScene {
         self.device.check()
     }
 
-    /// All boxes (of every box set added with [`EmbreeSceneBuilder::add_boxes`]) that
+    /// All boxes (of every box set added with [`super::EmbreeSceneBuilder::add_boxes`]) that
     /// contain `point` (closed boxes, world frame), sorted by `(geom_id, prim_id)`.
     pub fn boxes_containing(&self, point: [f32; 3]) -> Result<Vec<PointQueryCandidate>> {
         let mut out = Vec::new();

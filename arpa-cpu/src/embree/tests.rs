@@ -32,7 +32,7 @@ fn device() -> Device {
 
 /// v0 = (0,0,0), v1 = (1,0,0), v2 = (0,1,0) in the z = 0 plane.
 fn unit_triangle_scene(dev: &Device) -> EmbreeScene {
-    let mut b = EmbreeScene::builder(dev).unwrap();
+    let mut b = EmbreeSceneBuilder::new(dev).unwrap();
     let id = b
         .add_triangle_mesh(
             &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
@@ -92,7 +92,7 @@ fn ray_hits_unit_triangle_at_analytic_t_u_v() {
 #[test]
 fn closest_hit_among_meshes_and_primitives() {
     let dev = device();
-    let mut b = EmbreeScene::builder(&dev).unwrap();
+    let mut b = EmbreeSceneBuilder::new(&dev).unwrap();
     // geometry 0: two triangles (a unit square) at z = 0; geometry 1: a larger
     // triangle at z = 5, v0 = (0,0,5), v1 = (2,0,5), v2 = (0,2,5).
     let g0 = b
@@ -229,7 +229,7 @@ fn invalid_inputs_are_errors_not_ub() {
         Err(EmbreeError::InvalidInput(_))
     ));
 
-    let mut b = EmbreeScene::builder(&dev).unwrap();
+    let mut b = EmbreeSceneBuilder::new(&dev).unwrap();
     let v = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
     assert!(matches!(
         b.add_triangle_mesh(&v, &[[0, 1, 3]]),
@@ -408,7 +408,7 @@ fn packet_intersect_writes_nothing_past_the_4_4_packets() {
 #[test]
 fn packet_intersect_matches_single_rays_bit_for_bit() {
     let dev = device();
-    let mut b = EmbreeScene::builder(&dev).unwrap();
+    let mut b = EmbreeSceneBuilder::new(&dev).unwrap();
     // A tetrahedron and a ground triangle.
     b.add_triangle_mesh(
         &[[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
@@ -555,7 +555,7 @@ fn deterministic_across_builds_runs_and_threads() {
     let dev = device();
     let (v, idx) = random_soup(42, 3000);
     let build = |q| {
-        let mut b = EmbreeScene::builder(&dev).unwrap().build_quality(q);
+        let mut b = EmbreeSceneBuilder::new(&dev).unwrap().build_quality(q);
         b.add_triangle_mesh(&v, &idx).unwrap();
         b.commit().unwrap()
     };
@@ -647,7 +647,7 @@ fn random_boxes(seed: u64, n: usize) -> Vec<EmbreeBox> {
 fn point_query_over_1000_boxes_matches_brute_force() {
     let dev = device();
     let boxes = random_boxes(3, 1000);
-    let mut b = EmbreeScene::builder(&dev)
+    let mut b = EmbreeSceneBuilder::new(&dev)
         .unwrap()
         .build_quality(BuildQuality::Medium);
     // A triangle mesh alongside the boxes: point queries report it too, but
@@ -722,7 +722,7 @@ fn point_query_with_radius_reports_overlapping_boxes() {
             upper: [4.0, 1.0, 1.0],
         },
     ];
-    let mut b = EmbreeScene::builder(&dev).unwrap();
+    let mut b = EmbreeSceneBuilder::new(&dev).unwrap();
     let gid = b.add_boxes(&boxes).unwrap();
     let scene = b.commit().unwrap();
     let collect = |p, r| {
@@ -752,7 +752,7 @@ fn point_query_with_radius_reports_overlapping_boxes() {
 #[test]
 fn panic_in_point_query_callback_propagates_after_embree_returns() {
     let dev = device();
-    let mut b = EmbreeScene::builder(&dev).unwrap();
+    let mut b = EmbreeSceneBuilder::new(&dev).unwrap();
     b.add_boxes(&random_boxes(5, 100)).unwrap();
     let scene = b.commit().unwrap();
     let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {

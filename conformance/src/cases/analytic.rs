@@ -74,7 +74,7 @@ fn plane(t: &mut dyn DynTracer, method: Method) -> CaseResult {
         seed: 7,
         max_depth: 4,
         direct_lighting: false,
-        emission: super::emission(),
+        emission: super::common::emission(),
         ..RenderSettings::default()
     };
     t.upload_scene(&scene, &settings).ctx("upload_scene")?;
@@ -134,12 +134,12 @@ fn plane(t: &mut dyn DynTracer, method: Method) -> CaseResult {
 
 /// The plane case with ARPA footprints.
 pub fn plane_arpa(t: &mut dyn DynTracer) -> CaseResult {
-    super::with_and_without_projection(t, |t| plane(t, Method::Arpa))
+    super::common::with_and_without_projection(t, |t| plane(t, Method::Arpa))
 }
 
 /// The plane case with RTPM progressive photons.
 pub fn plane_rtpm(t: &mut dyn DynTracer) -> CaseResult {
-    super::with_and_without_projection(t, |t| plane(t, Method::Rtpm))
+    super::common::with_and_without_projection(t, |t| plane(t, Method::Rtpm))
 }
 
 /// Largest error of the furnace's mean radiance (percent).
@@ -171,7 +171,7 @@ fn furnace(t: &mut dyn DynTracer, method: Method, direct_lighting: bool) -> Case
         seed: 7,
         max_depth: 32,
         direct_lighting,
-        emission: super::emission(),
+        emission: super::common::emission(),
         ..RenderSettings::default()
     };
     t.upload_scene(&scene, &settings).ctx("upload_scene")?;
@@ -214,12 +214,12 @@ fn furnace(t: &mut dyn DynTracer, method: Method, direct_lighting: bool) -> Case
 
 /// The furnace case with ARPA footprints and next-event estimation for the direct light.
 pub fn furnace_arpa_direct(t: &mut dyn DynTracer) -> CaseResult {
-    super::with_and_without_projection(t, |t| furnace(t, Method::Arpa, true))
+    super::common::with_and_without_projection(t, |t| furnace(t, Method::Arpa, true))
 }
 
 /// The furnace case with RTPM photons carrying all the light (direct lighting off).
 pub fn furnace_rtpm_photons_only(t: &mut dyn DynTracer) -> CaseResult {
-    super::with_and_without_projection(t, |t| furnace(t, Method::Rtpm, false))
+    super::common::with_and_without_projection(t, |t| furnace(t, Method::Rtpm, false))
 }
 
 /// Largest error of a region mean in the slab and mirror cases (percent).
@@ -258,7 +258,7 @@ fn region_means(
             caustic: RadiusSpec::Absolute(SPECULAR_CAUSTIC_RADIUS),
             ..ProgressiveConfig::default()
         },
-        emission: super::emission(),
+        emission: super::common::emission(),
         ..RenderSettings::default()
     };
     t.upload_scene(scene, &settings).ctx("upload_scene")?;
@@ -440,20 +440,20 @@ fn mirror_caustic(t: &mut dyn DynTracer, method: Method) -> CaseResult {
 
 /// The slab case with ARPA footprints.
 pub fn glass_slab_arpa(t: &mut dyn DynTracer) -> CaseResult {
-    super::with_and_without_projection(t, |t| glass_slab(t, Method::Arpa))
+    super::common::with_and_without_projection(t, |t| glass_slab(t, Method::Arpa))
 }
 
 /// The slab case with RTPM progressive photons.
 pub fn glass_slab_rtpm(t: &mut dyn DynTracer) -> CaseResult {
-    super::with_and_without_projection(t, |t| glass_slab(t, Method::Rtpm))
+    super::common::with_and_without_projection(t, |t| glass_slab(t, Method::Rtpm))
 }
 
 /// The mirror case with ARPA footprints.
 pub fn mirror_caustic_arpa(t: &mut dyn DynTracer) -> CaseResult {
-    super::with_and_without_projection(t, |t| mirror_caustic(t, Method::Arpa))
+    super::common::with_and_without_projection(t, |t| mirror_caustic(t, Method::Arpa))
 }
 
 /// The mirror case with RTPM progressive photons.
 pub fn mirror_caustic_rtpm(t: &mut dyn DynTracer) -> CaseResult {
-    super::with_and_without_projection(t, |t| mirror_caustic(t, Method::Rtpm))
+    super::common::with_and_without_projection(t, |t| mirror_caustic(t, Method::Rtpm))
 }

@@ -48,7 +48,7 @@ fn render(t: &mut dyn DynTracer, occluded: bool, bandwidth: Bandwidth) -> Result
         max_depth: 3,
         direct_lighting: false,
         bandwidth,
-        emission: super::emission(),
+        emission: super::common::emission(),
         smoothing: arpa_core::propagate::classify::Smoothing { caustic: SMOOTHING, global: SMOOTHING },
         heuristics: arpa_core::store::heuristics::Heuristics { dampening: None, culling: None, ..Default::default() },
         ..RenderSettings::default()
@@ -139,11 +139,11 @@ fn shadow_edge(t: &mut dyn DynTracer) -> CaseResult {
 /// The evenly lit plane (mean within [`TOL_PERCENT`], mean scale index at most 0.25, at
 /// least 90 % of the pixels at scale 0) with projection on and off.
 pub fn flat_plane(t: &mut dyn DynTracer) -> CaseResult {
-    super::with_and_without_projection(t, flat)
+    super::common::with_and_without_projection(t, flat)
 }
 
 /// The hard shadow edge (smaller scales within [`NEAR`] of the edge, larger beyond
 /// [`FAR`], band error below 0.8 times the global bandwidth's) with projection on and off.
 pub fn shadow_edge_case(t: &mut dyn DynTracer) -> CaseResult {
-    super::with_and_without_projection(t, shadow_edge)
+    super::common::with_and_without_projection(t, shadow_edge)
 }

@@ -10,7 +10,7 @@ use arpa_core::render::brute_force::BruteForceCaster;
 use arpa_core::store::decision::StoredPhoton;
 use arpa_core::render::tracer::{Method, RenderSettings};
 
-use super::rel;
+use super::common::rel;
 use crate::dyn_tracer::DynTracer;
 use crate::scenes;
 use crate::suite::{CaseResult, Context};

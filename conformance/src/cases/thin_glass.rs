@@ -29,7 +29,7 @@ pub fn camera(t: &mut dyn DynTracer) -> CaseResult {
 /// Photons (ARPA footprints) through the thin sheet onto the floor: ring means against
 /// the exact two-interface irradiance, as the thick slab's case.
 pub fn photons_sheet_arpa(t: &mut dyn DynTracer) -> CaseResult {
-    super::with_and_without_projection(t, |t| slab_regions(t, Method::Arpa, &scenes::thin_sheet(SPECULAR_SIZE), scenes::thin_sheet_thickness()))
+    super::common::with_and_without_projection(t, |t| slab_regions(t, Method::Arpa, &scenes::thin_sheet(SPECULAR_SIZE), scenes::thin_sheet_thickness()))
 }
 
 /// How far a traced-back ray may leave its pixel in the zoomed knife-edge view (px): a
