@@ -496,10 +496,11 @@ fn resolve(raw: &RawPath, known: &BTreeSet<Vec<String>>, reexports: &Reexports, 
             deepest = base.clone();
         } else {
             // Follow a re-export (bounded: a `pub use` may name itself through a glob).
-            if let Some(target) = reexports.get(&(deepest.clone(), s.clone())) {
-                if depth < 8 && !std::ptr::eq(target, raw) {
-                    return resolve(target, known, reexports, depth + 1).or(Some(deepest));
-                }
+            if let Some(target) = reexports.get(&(deepest.clone(), s.clone()))
+                && depth < 8
+                && !std::ptr::eq(target, raw)
+            {
+                return resolve(target, known, reexports, depth + 1).or(Some(deepest));
             }
             break;
         }

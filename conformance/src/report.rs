@@ -30,7 +30,7 @@ pub enum Verdict {
     },
     /// Not run because the case does not apply to this backend: it needs a capability the
     /// backend does not offer (the WGSL-twin cases on a backend without a
-    /// [`KernelRunner`], such as cpu, which runs the Rust reference itself). Neither a
+    /// [`crate::KernelRunner`], such as cpu, which runs the Rust reference itself). Neither a
     /// pass nor a failure, with or without `CI`.
     NotApplicable {
         /// Why the case does not apply.
@@ -91,7 +91,7 @@ impl Report {
         self.rows[row].1[col] = Some(verdict);
     }
 
-    /// The verdict of the row `case` (a [`Case::title`], or [`suite::AVAILABILITY_ROW`])
+    /// The verdict of the row `case` (a [`crate::Case::title`], or [`crate::suite::AVAILABILITY_ROW`])
     /// on `backend`; `None` when that cell did not run.
     pub fn get(&self, case: &str, backend: &str) -> Option<&Verdict> {
         let col = self.backends.iter().position(|b| b == backend)?;
