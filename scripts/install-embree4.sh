@@ -18,11 +18,11 @@
 #    pre-generated bindings), so libclang and clang's builtin headers are needed at
 #    build time.  Debian package: libclang-dev (pulls libclang-14-dev and
 #    libclang-common-14-dev).  Skipped when LIBCLANG_PATH is set.
-# 2. Embree 4: Debian 12 only packages Embree 3, and nothing outside crates.io / PyPI /
-#    Debian is reachable, so the library comes from the PyPI wheel
+# 2. Embree 4: Debian 12 only packages Embree 3, and nothing outside the Rust, Python and
+#    Debian package registries is reachable, so the library comes from the PyPI wheel
 #    embreex==4.4.0.post1 (manylinux_2_28, x86_64).
 #    Why embreex and not pyembree2==1.0.1: embreex is Embree *4.4.0* exactly (the
-#    version whose ABI arpa-cpu mirrors by hand, see arpa-cpu/src/ffi.rs), it is an
+#    version whose ABI arpa-cpu mirrors by hand, see arpa-cpu/src/embree/ffi.rs), it is an
 #    auditwheel-repaired wheel whose libembree4-<hash>.so.4 has RPATH=$ORIGIN and
 #    bundles the matching libtbb-<hash>.so.12, so the two files form a self-contained
 #    library with no other non-glibc/libstdc++ dependencies.  The hashed SONAME is

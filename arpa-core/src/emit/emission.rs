@@ -732,7 +732,7 @@ pub enum EmissionError {
 }
 
 /// The 176-byte `f32` record of a [`PreparedLight`] for GPU storage buffers: the WGSL
-/// twin's `ArpaLight` (`arpa-core/shaders/emission.wgsl`, [`crate::gpu::shaders::EMISSION`]),
+/// twin's `ArpaLight` (`arpa-core/shaders/emit/emission.wgsl`, [`crate::gpu::shaders::EMISSION`]),
 /// whose `arpa_emit` emits photon `index` from it as [`PreparedLight::emit`] does. Built by
 /// [`PreparedLight::pack`]; positions in metres, angles in radians, flux in W per photon.
 #[repr(C)]

@@ -618,7 +618,7 @@ impl ResolvedHeuristics {
 }
 
 /// The 48-byte GPU record of a [`ResolvedHeuristics`]: the WGSL twin's `ArpaHeuristics`
-/// (`arpa-core/shaders/heuristics.wgsl`, [`crate::gpu::shaders::HEURISTICS`]), whose
+/// (`arpa-core/shaders/store/heuristics.wgsl`, [`crate::gpu::shaders::HEURISTICS`]), whose
 /// `arpa_store` makes the decisions of [`ResolvedHeuristics::store`] in `f32`. Lengths in
 /// metres (the surface-area threshold in m²).
 #[repr(C)]
