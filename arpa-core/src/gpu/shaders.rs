@@ -341,7 +341,7 @@ mod tests {
             }
         }
         assert!(!src.contains("path/scene.wgsl"), "only what the files need");
-        assert_eq!(compose(&[&KERNEL]), alloc::format!("// arpa: kernel.wgsl\n{}", KERNEL.source));
+        assert_eq!(compose(&[&KERNEL]), alloc::format!("// arpa: gather/kernel.wgsl\n{}", KERNEL.source));
     }
 
     #[test]
@@ -349,7 +349,7 @@ mod tests {
         static GLUE: WgslFile = WgslFile { name: "test/glue.wgsl", source: "enable wgpu_ray_query;\nfn glue() {}\n", deps: &[&SCENE] };
         static OTHER: WgslFile = WgslFile { name: "test/other.wgsl", source: "  enable wgpu_ray_query;\nfn other() {}\n", deps: &[&GLUE] };
         let src = compose(&[&OTHER, &GLUE]);
-        assert!(src.starts_with("enable wgpu_ray_query;\n// arpa: math.wgsl\n"), "{}", &src[..80]);
+        assert!(src.starts_with("enable wgpu_ray_query;\n// arpa: base/math.wgsl\n"), "{}", &src[..80]);
         assert_eq!(src.matches("enable ").count(), 1);
         assert!(src.find("fn glue").unwrap() < src.find("fn other").unwrap());
     }
