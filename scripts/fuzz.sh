@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Fuzzes the scene-file loaders with cargo-fuzz (libFuzzer): targets scene_xml (Mitsuba
-# XML), ply (ASCII and binary) and obj in fuzz/, each for EXECUTIONS runs (default 10^6).
+# XML), ply (ASCII and binary), obj and serialized (Mitsuba's compressed meshes) in fuzz/,
+# each for EXECUTIONS runs (default 10^6).
 #
 #   scripts/fuzz.sh [EXECUTIONS] [TARGET...]
 #
@@ -25,7 +26,7 @@ root=$PWD
 runs=${1:-1000000}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(scene_xml ply obj)
+[ ${#targets[@]} -gt 0 ] || targets=(scene_xml ply obj serialized)
 case $runs in '' | *[!0-9]*) echo "fuzz.sh: EXECUTIONS must be a number, got '$runs'" >&2; exit 2 ;; esac
 
 if ! cargo +nightly --version >/dev/null 2>&1; then
@@ -65,6 +66,7 @@ seed() {
     scene_xml) pattern='*.xml' ;;
     ply) pattern='*.ply' ;;
     obj) pattern='*.obj' ;;
+    serialized) pattern='*.serialized' ;;
   esac
   local n=0 f name
   while IFS= read -r -d '' f; do

@@ -355,9 +355,9 @@ fn malformed_xml_is_an_error_with_its_line() {
 
 #[test]
 fn unknown_shape_type_names_element_and_line() {
-    let (e, s) = expect_err(load_in_tempdir(&scene_xml("    <shape type=\"disk\"/>"), &[]));
+    let (e, s) = expect_err(load_in_tempdir(&scene_xml("    <shape type=\"bsplinecurve\"/>"), &[]));
     assert!(matches!(e, SceneFileError::Unsupported { line: 11, .. }), "{s}");
-    assert!(s.contains("<shape type=\"disk\">") && s.contains(":11:"), "{s}");
+    assert!(s.contains("<shape type=\"bsplinecurve\">") && s.contains(":11:"), "{s}");
     let (_, s) = expect_err(load_in_tempdir(&scene_xml("    <bsdf type=\"principled\" id=\"p\"/>"), &[]));
     assert!(s.contains("<bsdf type=\"principled\">") && s.contains(":11:"), "{s}");
     let (_, s) = expect_err(load_in_tempdir(&scene_xml("    <emitter type=\"envmap\"/>"), &[]));
@@ -540,4 +540,125 @@ fn cli_renders_a_scene_file() {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(arpa::image_io::read_exr(&dir.path().join("img.exr")).unwrap().width, 8);
+}
+
+/// `tests/data/serialized/` holds serialized files written by its `make_fixtures.py` and
+/// the vertices Mitsuba 3.9.1 reads from them (`mitsuba_values.py` → `mitsuba_values.json`):
+/// the loader reads the same numbers.
+#[test]
+fn serialized_meshes_read_as_mitsuba_reads_them() {
+    let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/serialized");
+    let file = |name: &str| std::fs::read(data.join(name)).unwrap();
+    let shape = |index: u32| scene_xml(&format!(r#"    <shape type="serialized"><string name="filename" value="m.serialized"/><integer name="shape_index" value="{index}"/></shape>"#));
+    let s = load_in_tempdir(&shape(1), &[("m.serialized", file("two_shapes_v3.serialized"))]).unwrap();
+    let m = mesh(&s, "m.serialized");
+    let mitsuba = [vec3(0.1, 0.2, 0.3), vec3(2.5, -1.25, 0.0), vec3(0.0, 3.0, -4.0)];
+    assert_eq!(m.positions, mitsuba);
+    assert_eq!(m.indices, vec![[2, 0, 1]]);
+    // The file stores no normals: Mitsuba computes smooth vertex normals, which on one flat
+    // triangle are its face normal, the normal arpa shades it with.
+    assert!(m.normals.is_none());
+    assert!(close(geometric_normal(m, 0), vec3(0.49976766, 0.7311087, 0.46444827), 1e-6), "{}", geometric_normal(m, 0));
+    // Version 4, double precision, normals and uvs: Mitsuba's shape 0 of normals_uvs_v4.
+    let s = load_in_tempdir(&shape(0), &[("m.serialized", file("normals_uvs_v4.serialized"))]).unwrap();
+    let m = mesh(&s, "m.serialized");
+    assert_eq!(m.positions, [vec3(0.1, 0.2, 0.3), vec3(1.1, 0.2, 0.3), vec3(1.1, 1.2, 0.3), vec3(0.1, 1.2, 0.3)]);
+    // A shape the file does not hold is an error naming the file (Mitsuba fails too).
+    let (_, msg) = expect_err(load_in_tempdir(&shape(2), &[("m.serialized", file("two_shapes_v3.serialized"))]));
+    assert!(msg.contains("m.serialized") && msg.contains("shape_index 2 out of range"), "{msg}");
+    let (_, msg) = expect_err(load_in_tempdir(&shape(0), &[("m.serialized", b"not a mesh".to_vec())]));
+    assert!(msg.contains("m.serialized"), "{msg}");
+}
+
+/// `<path>` directories are searched before the scene's own directory, the last first.
+#[test]
+fn path_elements_are_searched_before_the_scene_directory() {
+    let dir = tempfile::tempdir().unwrap();
+    let quad = |y: f32| ply(&[[0.0, y, 0.0], [1.0, y, 0.0], [1.0, y, 1.0], [0.0, y, 1.0]], &[&[0, 1, 2, 3]], false);
+    for (sub, y) in [("", 0.0), ("a", 1.0), ("b", 2.0)] {
+        std::fs::create_dir_all(dir.path().join(sub)).unwrap();
+        std::fs::write(dir.path().join(sub).join("q.ply"), quad(y)).unwrap();
+    }
+    let load = |paths: &str| {
+        let xml = scene_xml(&format!("{paths}\n    <shape type=\"ply\"><string name=\"filename\" value=\"q.ply\"/></shape>"));
+        let path = dir.path().join("scene.xml");
+        std::fs::write(&path, xml).unwrap();
+        let s = load_scene(&path, &[]).unwrap();
+        mesh(&s, "q.ply").positions[0].y
+    };
+    assert_eq!(load(""), 0.0);
+    assert_eq!(load(r#"<path value="a"/>"#), 1.0);
+    assert_eq!(load(r#"<path value="a"/><path value="b"/>"#), 2.0);
+    assert_eq!(load(r#"<path value="b"/><path value="a"/>"#), 1.0);
+}
+
+/// Wavelength lists become linear sRGB as Mitsuba 3.9.1's RGB variants make them
+/// (reference values from Mitsuba; the module `scene_file::spectrum` has the full table).
+#[test]
+fn spectra_convert_as_mitsuba_converts_them() {
+    let xml = scene_xml(r#"    <shape type="rectangle"><bsdf type="diffuse"><spectrum name="reflectance" value="400:0.1, 700:0.9"/></bsdf></shape>
+    <emitter type="point"><point name="position" x="0" y="2" z="0"/><spectrum name="intensity" value="400:1, 500:5, 600:10, 700:3"/></emitter>"#);
+    let s = load_in_tempdir(&xml, &[]).unwrap();
+    let albedo = match s.scene.meshes[0].material {
+        m => match s.scene.materials[m as usize] {
+            Material::Diffuse { albedo } => albedo,
+            other => panic!("{other:?}"),
+        },
+    };
+    assert!(close(albedo, vec3(0.742852807, 0.481140077, 0.208324552), 1e-6), "{albedo}");
+    let Light::Point(p) = &s.scene.lights[1] else { panic!() };
+    let want = glam::dvec3(11.1462078, 7.01080799, 2.2256465);
+    assert!((p.intensity - want).abs().max_element() < 1e-5, "{}", p.intensity);
+    // A spectrum file, resolved like a mesh; a bad one names the file and the line.
+    let xml = scene_xml(r#"    <shape type="rectangle"><bsdf type="diffuse"><spectrum name="reflectance" filename="r.spd"/></bsdf></shape>"#);
+    let s = load_in_tempdir(&xml, &[("r.spd", b"# ramp\n400 0.1\n700 0.9\n".to_vec())]).unwrap();
+    let Material::Diffuse { albedo } = s.scene.materials[s.scene.meshes[0].material as usize] else { panic!() };
+    assert!(close(albedo, vec3(0.742852807, 0.481140077, 0.208324552), 1e-6), "{albedo}");
+    let (_, msg) = expect_err(load_in_tempdir(&xml, &[("r.spd", b"400 0.1\n300 0.9\n".to_vec())]));
+    assert!(msg.contains(":11:") && msg.contains("r.spd") && msg.contains("wavelengths must increase"), "{msg}");
+}
+
+/// `cylinder` and `disk` are Mitsuba's: areas, orientation and placement.
+#[test]
+fn cylinders_and_disks() {
+    let xml = scene_xml(r#"    <shape type="disk"><transform name="to_world"><scale value="2"/><translate y="1"/></transform><emitter type="area"><rgb name="radiance" value="1"/></emitter></shape>
+    <shape type="cylinder"><point name="p0" x="0" y="0" z="0"/><point name="p1" x="0" y="2" z="0"/><float name="radius" value="0.5"/></shape>"#);
+    let s = load_in_tempdir(&xml, &[]).unwrap();
+    let area = |m: &TriangleMesh| m.indices.iter().map(|t| { let p = t.map(|i| m.positions[i as usize].as_dvec3()); 0.5 * (p[1] - p[0]).cross(p[2] - p[0]).length() }).sum::<f64>();
+    let (disk, cyl) = (mesh(&s, "disk"), mesh(&s, "cylinder"));
+    let pi = std::f64::consts::PI;
+    // Tessellated: the chords cut off 1 − sin(2π/N)/(2π/N) of the exact area.
+    assert!((area(disk) / (4.0 * pi) - 1.0).abs() < 2e-4, "{}", area(disk));
+    assert!((area(cyl) / (2.0 * pi) - 1.0).abs() < 2e-4, "{}", area(cyl));
+    assert!(disk.positions.iter().all(|p| p.z.abs() < 1e-6), "the disk lies in its xy plane");
+    let centre = disk.positions.iter().copied().sum::<Vec3>() / disk.positions.len() as f32;
+    assert!(close(centre, vec3(0.0, 1.0, 0.0), 1e-5), "scaled by 2, then moved up by 1: {centre}");
+    // Mitsuba's disk faces +z in its local frame; under this to_world it still faces +z.
+    assert!((0..disk.indices.len()).all(|t| geometric_normal(disk, t).z > 0.99 || geometric_normal(disk, t).z.is_nan()));
+    // The cylinder's side faces outward, away from its axis (the y axis here).
+    assert!((0..cyl.indices.len()).all(|t| {
+        let p = cyl.indices[t].map(|i| cyl.positions[i as usize]);
+        let mid = (p[0] + p[1] + p[2]) / 3.0;
+        geometric_normal(cyl, t).dot(vec3(mid.x, 0.0, mid.z)) > 0.0
+    }));
+    assert!(cyl.positions.iter().all(|p| p.y >= -1e-6 && p.y <= 2.0 + 1e-6 && (p.x * p.x + p.z * p.z - 0.25).abs() < 1e-5));
+}
+
+/// Mitsuba 2.x files read without a warning; an integrator arpa does not know and a
+/// non-box film filter are warnings that say what arpa does instead.
+#[test]
+fn versions_integrators_and_filters() {
+    let xml = scene_xml("    <shape type=\"cube\"/>").replace("version=\"3.0.0\"", "version=\"2.1.0\"");
+    let s = load_in_tempdir(&xml, &[]).unwrap();
+    assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+    let xml = scene_xml("    <shape type=\"cube\"/>\n    <integrator type=\"path_sms_ss\"><integer name=\"max_depth\" value=\"7\"/><boolean name=\"caustics_bounce\" value=\"true\"/></integrator>")
+        .replace("<film type=\"hdrfilm\">", "<film type=\"hdrfilm\"><rfilter type=\"gaussian\"/>");
+    let s = load_in_tempdir(&xml, &[]).unwrap();
+    assert_eq!(s.max_depth, Some(7));
+    let text: Vec<String> = s.warnings.iter().map(|w| w.to_string()).collect();
+    assert!(text.iter().any(|w| w.contains("path_sms_ss") && w.contains("max_depth")), "{text:?}");
+    assert!(text.iter().any(|w| w.contains("gaussian") && w.contains("box")), "{text:?}");
+    let xml = scene_xml("    <shape type=\"cube\"/>").replace("version=\"3.0.0\"", "version=\"0.6.0\"");
+    let s = load_in_tempdir(&xml, &[]).unwrap();
+    assert!(s.warnings.iter().any(|w| w.to_string().contains("version 0.6.0")), "{:?}", s.warnings);
 }

@@ -76,6 +76,14 @@ pub enum SceneFileError {
         /// What is wrong.
         message: String,
     },
+    /// A Mitsuba serialized mesh file is malformed, truncated or has no shape `shape_index`.
+    #[error("serialized mesh file '{}': {message}", path.display())]
+    Serialized {
+        /// The mesh file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
     /// A mesh's data is unusable (non-finite vertex, index out of range, ...).
     #[error("mesh '{mesh}' ({}:{line}): {message}", path.display())]
     Mesh {

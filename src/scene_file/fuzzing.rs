@@ -24,6 +24,9 @@ pub const PLY_PATH: &str = "fuzz/mesh.ply";
 /// Name under which [`obj`] serves its input to the scene.
 pub const OBJ_PATH: &str = "fuzz/mesh.obj";
 
+/// Name under which [`serialized`] parses its input.
+pub const SERIALIZED_PATH: &str = "fuzz/mesh.serialized";
+
 /// The mesh [`scene_xml`] serves for every `.ply` file a scene names: a unit square of two
 /// triangles with normals, so the shared scenes load past their mesh references.
 pub const SMALL_PLY: &str = "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\nelement face 2\nproperty list uchar int vertex_indices\nend_header\n-1 -1 0 0 0 1\n1 -1 0 0 0 1\n1 1 0 0 0 1\n-1 1 0 0 0 1\n3 0 1 2\n3 0 2 3\n";
@@ -89,6 +92,21 @@ pub fn obj(data: &[u8]) -> Result<LoadedScene, SceneFileError> {
     mesh_file(data, "obj", OBJ_PATH)
 }
 
+/// The `serialized` target: `data` is a Mitsuba serialized mesh file. Its shapes 1 to 4
+/// (where the file has them) and the first index past them are parsed directly, each `Ok`
+/// or an error naming the file; then shape 0 is used by a small scene
+/// ([`SERIALIZED_PATH`]), as the other mesh targets use theirs.
+pub fn serialized(data: &[u8]) -> Result<LoadedScene, SceneFileError> {
+    let path = Path::new(SERIALIZED_PATH);
+    let count = super::serialized::shape_count(data, path).unwrap_or(1).min(4);
+    for shape_index in 1..=count {
+        if let Err(e) = super::serialized::parse(data, path, shape_index) {
+            assert!(error_names_file(&e), "the error names no file: {e}");
+        }
+    }
+    mesh_file(data, "serialized", SERIALIZED_PATH)
+}
+
 /// Whether the message of `e` names the file it concerns: the scene file, or a mesh file
 /// it names (every loader error must; the fuzz targets and their regression tests assert
 /// it). [`SceneFileError::BadDefine`] concerns a command-line argument, not a file, and the
@@ -103,6 +121,7 @@ pub fn error_names_file(e: &SceneFileError) -> bool {
         | E::UndefinedVariable { path, .. }
         | E::Ply { path, .. }
         | E::Obj { path, .. }
+        | E::Serialized { path, .. }
         | E::Mesh { path, .. }
         | E::Scene { path, .. } => path,
         E::BadDefine(_) => return false,

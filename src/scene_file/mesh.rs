@@ -1,6 +1,6 @@
 //! The mesh a file gives before the scene places it, and how the loader reads mesh files.
 
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 use std::path::Path;
 
 /// A mesh as read from a PLY or OBJ file (or generated for a built-in shape), in object
@@ -12,6 +12,9 @@ pub struct RawMesh {
     pub positions: Vec<DVec3>,
     /// Per-vertex normals as stored, if every vertex has one.
     pub normals: Option<Vec<DVec3>>,
+    /// Per-vertex texture coordinates `(u, v)` in Mitsuba's convention (`v = 0` is the
+    /// first image row), if every vertex has them.
+    pub uvs: Option<Vec<DVec2>>,
     /// Triangles (polygons fan-triangulated); every index is below `positions.len()`.
     pub indices: Vec<[u32; 3]>,
 }

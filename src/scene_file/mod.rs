@@ -71,7 +71,9 @@ mod mesh;
 mod mitsuba;
 mod obj;
 mod ply;
+mod serialized;
 mod shapes;
+mod spectrum;
 pub mod transform;
 mod xml;
 

@@ -1,10 +1,11 @@
 //! Wavefront OBJ meshes through `tobj`: all objects and groups merged into one mesh,
-//! polygons triangulated, per-vertex normals kept when every vertex has one; materials
+//! polygons triangulated, per-vertex normals and texture coordinates kept when every vertex
+//! has them (`v` flipped to `1 − v`, as Mitsuba's OBJ loader does by default); materials
 //! (`.mtl`) are ignored (the scene's `<bsdf>` applies).
 
 use super::mesh::RawMesh;
 use super::error::SceneFileError;
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 use std::path::Path;
 
 /// Parses the OBJ file `bytes`; `path` names it in errors. `mtllib` lines are ignored
@@ -20,7 +21,7 @@ pub(crate) fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh, SceneFileError
     let no_materials = |_: &Path| -> tobj::MTLLoadResult { Err(tobj::LoadError::OpenFileFailed) };
     let loaded = std::panic::catch_unwind(|| tobj::load_obj_buf(&mut &bytes[..], &options, no_materials)).map_err(|_| err("the OBJ parser failed on this file".into()))?;
     let (models, _materials) = loaded.map_err(|e| err(format!("cannot parse: {e}")))?;
-    let mut out = RawMesh { positions: Vec::new(), normals: Some(Vec::new()), indices: Vec::new() };
+    let mut out = RawMesh { positions: Vec::new(), normals: Some(Vec::new()), uvs: Some(Vec::new()), indices: Vec::new() };
     for m in &models {
         let mesh = &m.mesh;
         let base = out.positions.len();
@@ -29,6 +30,10 @@ pub(crate) fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh, SceneFileError
         match (&mut out.normals, mesh.normals.len() == mesh.positions.len()) {
             (Some(normals), true) => normals.extend(mesh.normals.chunks_exact(3).map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64))),
             (normals, _) => *normals = None,
+        }
+        match (&mut out.uvs, mesh.texcoords.len() == 2 * n) {
+            (Some(uvs), true) => uvs.extend(mesh.texcoords.chunks_exact(2).map(|t| DVec2::new(t[0] as f64, 1.0 - t[1] as f64))),
+            (uvs, _) => *uvs = None,
         }
         if mesh.indices.len() % 3 != 0 {
             return Err(err(format!("object '{}' has an index count that is not a multiple of 3", m.name)));

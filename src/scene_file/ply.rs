@@ -1,12 +1,13 @@
 //! PLY meshes through `ply-rs`: ASCII or binary (either byte order); vertex properties
-//! `x y z` (float or double) with optional `nx ny nz` (others such as `u v` are read and
-//! ignored); faces `list <int type> <int type> vertex_indices` (or `vertex_index`).
+//! `x y z` (float or double) with optional `nx ny nz` and texture coordinates `u v`,
+//! `texture_u texture_v` or `s t` (the names Mitsuba's PLY loader reads, not flipped; other
+//! properties are read and ignored); faces `list <int type> <int type> vertex_indices` (or `vertex_index`).
 //! Triangles are kept, larger polygons (quads) are fan-triangulated, anything smaller is
 //! an error. Every failure is a [`SceneFileError::Ply`] naming the file.
 
 use super::mesh::RawMesh;
 use super::error::SceneFileError;
-use glam::DVec3;
+use glam::{DVec2, DVec3};
 use ply_rs::parser::Parser;
 use ply_rs::ply::{DefaultElement, ElementDef, Encoding, Property, PropertyAccess, PropertyType, ScalarType};
 use std::io::ErrorKind;
@@ -16,6 +17,7 @@ use std::path::Path;
 struct Vertex {
     p: [f64; 3],
     n: [f64; 3],
+    uv: [f64; 2],
 }
 
 fn scalar(p: &Property) -> Option<f64> {
@@ -45,6 +47,8 @@ impl PropertyAccess for Vertex {
             "nx" => self.n[0] = v,
             "ny" => self.n[1] = v,
             "nz" => self.n[2] = v,
+            "u" | "texture_u" | "s" => self.uv[0] = v,
+            "v" | "texture_v" | "t" => self.uv[1] = v,
             _ => {}
         }
     }
@@ -163,6 +167,7 @@ fn read(mut r: &[u8], path: &Path) -> Result<RawMesh, SceneFileError> {
         return Err(err("the 'vertex' element lacks scalar x, y, z properties".into()));
     }
     let has_normals = ["nx", "ny", "nz"].iter().all(|k| has_scalar(vdef, k));
+    let has_uvs = [["u", "v"], ["texture_u", "texture_v"], ["s", "t"]].iter().any(|pair| pair.iter().all(|k| has_scalar(vdef, k)));
     let fdef = header.elements.get("face").ok_or_else(|| err("no 'face' element (point clouds are not meshes)".into()))?;
     let index_prop = fdef.properties.get("vertex_indices").or_else(|| fdef.properties.get("vertex_index"));
     match index_prop.map(|p| &p.data_type) {
@@ -206,5 +211,6 @@ fn read(mut r: &[u8], path: &Path) -> Result<RawMesh, SceneFileError> {
     }
     let positions = vertices.iter().map(|v| DVec3::from_array(v.p)).collect();
     let normals = has_normals.then(|| vertices.iter().map(|v| DVec3::from_array(v.n)).collect());
-    Ok(RawMesh { positions, normals, indices })
+    let uvs = has_uvs.then(|| vertices.iter().map(|v| DVec2::from_array(v.uv)).collect());
+    Ok(RawMesh { positions, normals, uvs, indices })
 }
