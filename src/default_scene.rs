@@ -83,7 +83,7 @@ pub fn default_scene() -> Scene {
     light.emission = Some(LIGHT_RADIANCE);
     meshes.push(light);
 
-    Scene {
+    Scene { textures: Default::default(),
         meshes,
         materials,
         lights: Vec::<Light>::new(),
@@ -102,7 +102,7 @@ pub fn default_scene() -> Scene {
 /// A parallelogram `centre ± u ± v` of two triangles whose geometric normal is along
 /// `u × v`.
 fn quad(name: &str, centre: Vec3, u: Vec3, v: Vec3, material: MaterialId) -> TriangleMesh {
-    TriangleMesh {
+    TriangleMesh { uvs: None,
         name: name.into(),
         positions: vec![centre - u - v, centre + u - v, centre + u + v, centre - u + v],
         normals: None,
@@ -130,7 +130,7 @@ fn block(name: &str, centre: Vec3, half: Vec3, angle: f32, material: MaterialId)
         indices.push([base, base + 1, base + 2]);
         indices.push([base, base + 2, base + 3]);
     }
-    TriangleMesh { name: name.into(), positions, normals: None, indices, material, emission: None }
+    TriangleMesh { uvs: None, name: name.into(), positions, normals: None, indices, material, emission: None }
 }
 
 /// A UV sphere with `stacks` latitude bands and `slices` longitude segments
@@ -171,5 +171,5 @@ fn uv_sphere(name: &str, centre: Vec3, radius: f32, stacks: u32, slices: u32, ma
             }
         }
     }
-    TriangleMesh { name: name.into(), positions, normals: Some(normals), indices, material, emission: None }
+    TriangleMesh { uvs: None, name: name.into(), positions, normals: Some(normals), indices, material, emission: None }
 }

@@ -19,7 +19,7 @@ use arpa_core::render::shapes::parallelogram;
 use arpa_core::render::tracer::{BackendKind, Method, RenderSettings, Tracer};
 
 fn scene() -> Scene {
-    Scene {
+    Scene { textures: Default::default(),
         meshes: vec![parallelogram("floor", Vec3::new(-20.0, 0.0, -20.0), Vec3::new(0.0, 0.0, 40.0), Vec3::new(40.0, 0.0, 0.0), 0)],
         materials: vec![Material::Diffuse { albedo: Vec3::splat(0.5) }],
         lights: vec![Light::Point(PointLight { position: DVec3::new(0.0, 1.0, 0.0), intensity: DVec3::splat(10.0) })],

@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 type Entry = fn(&[u8]) -> Result<LoadedScene, SceneFileError>;
 
-const TARGETS: [(&str, Entry); 4] = [("scene_xml", fuzzing::scene_xml), ("ply", fuzzing::ply), ("obj", fuzzing::obj), ("serialized", fuzzing::serialized)];
+const TARGETS: [(&str, Entry); 5] = [("scene_xml", fuzzing::scene_xml), ("ply", fuzzing::ply), ("obj", fuzzing::obj), ("serialized", fuzzing::serialized), ("texture", fuzzing::texture)];
 
 fn files(dir_kind: &str, target: &str) -> Vec<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz").join(dir_kind).join(target);

@@ -39,10 +39,9 @@ const SHARED: &[(&str, usize, usize, usize)] = &[
 ];
 
 /// Shared scenes the loader cannot read yet, with what the refusal must name (the file's
-/// line and the element). crytek-sponza needs bitmap textures, alpha masks and instancing
-/// (the real-Mitsuba-scenes and glTF issues); once it loads, this entry fails the test and
-/// goes.
-const REFUSED: &[(&str, &str)] = &[("crytek-sponza", "scene.xml:41: unsupported <texture type=\"bitmap\">")];
+/// line and the element). crytek-sponza needs instancing (the second real-Mitsuba-scenes
+/// issue); once it loads, this entry fails the test and goes.
+const REFUSED: &[(&str, &str)] = &[("crytek-sponza", "scene.xml:76: unsupported <shape type=\"shapegroup\">")];
 
 #[test]
 fn every_shared_scene_loads_and_validates() {
@@ -661,4 +660,57 @@ fn versions_integrators_and_filters() {
     let xml = scene_xml("    <shape type=\"cube\"/>").replace("version=\"3.0.0\"", "version=\"0.6.0\"");
     let s = load_in_tempdir(&xml, &[]).unwrap();
     assert!(s.warnings.iter().any(|w| w.to_string().contains("version 0.6.0")), "{:?}", s.warnings);
+}
+
+/// A PNG file's bytes (8-bit RGB).
+fn png_rgb(width: u32, height: u32, texels: &[[u8; 3]]) -> Vec<u8> {
+    let img = image::RgbImage::from_raw(width, height, texels.iter().flatten().copied().collect()).unwrap();
+    let mut out = Vec::new();
+    image::DynamicImage::ImageRgb8(img).write_to(&mut std::io::Cursor::new(&mut out), image::ImageFormat::Png).unwrap();
+    out
+}
+
+/// Bitmap and checkerboard textures (nested and by reference) and masks load with
+/// Mitsuba's parameters; bad textures are errors naming the file.
+#[test]
+fn textures_and_masks_load() {
+    use arpa::core::render::scene::Opacity;
+    use arpa::core::render::texture::{Texels, Texture, TextureFilter, TextureWrap};
+    let xml = scene_xml(
+        r#"    <texture type="bitmap" id="wood"><string name="filename" value="wood.png"/><string name="filter_type" value="nearest"/><string name="wrap_mode" value="mirror"/><transform name="to_uv"><scale x="2" y="3"/><translate x="0.5"/></transform></texture>
+    <shape type="rectangle"><bsdf type="diffuse"><ref name="reflectance" id="wood"/></bsdf></shape>
+    <shape type="rectangle"><bsdf type="mask"><rgb name="opacity" value="0.2, 0.4, 0.6"/><bsdf type="twosided"><bsdf type="diffuse"><texture name="reflectance" type="checkerboard"><rgb name="color0" value="0.1"/></texture></bsdf></bsdf></bsdf></shape>
+    <shape type="rectangle"><bsdf type="mask"><texture name="opacity" type="bitmap"><string name="filename" value="wood.png"/><boolean name="raw" value="true"/></texture><bsdf type="conductor"/></bsdf></shape>"#,
+    );
+    let png = png_rgb(2, 1, &[[255, 0, 0], [0, 128, 255]]);
+    let s = load_in_tempdir(&xml, &[("wood.png", png.clone())]).unwrap();
+    let t = &s.scene.textures;
+    assert_eq!(t.textures.len(), 3);
+    let Texture::Bitmap(wood) = &t.textures[0] else { panic!() };
+    assert_eq!((wood.width, wood.height, wood.filter, wood.wrap), (2, 1, TextureFilter::Nearest, TextureWrap::Mirror));
+    assert_eq!(wood.texels, Texels::Srgb8(vec![[255, 0, 0], [0, 128, 255]]));
+    // Mitsuba composes in document order: scale, then translate; to_uv = [2 0 0.5; 0 3 0].
+    assert_eq!(wood.to_uv.rows, [[2.0, 0.0, 0.5], [0.0, 3.0, 0.0]]);
+    let maps: Vec<_> = s.scene.meshes.iter().map(|m| t.maps(m.material)).collect();
+    assert_eq!(maps[0].color, Some(0));
+    assert_eq!(maps[0].opacity, None);
+    assert!(matches!(t.textures[1], Texture::Checkerboard { color0, color1, .. } if color0 == Vec3::splat(0.1) && color1 == Vec3::splat(0.2)));
+    assert_eq!(maps[1].color, Some(1));
+    // A constant opacity is the mean of its channels (Mitsuba's single value).
+    assert!(matches!(maps[1].opacity, Some(Opacity::Constant(o)) if (o - 0.4).abs() < 1e-7));
+    assert!(matches!(maps[2].opacity, Some(Opacity::Texture(2))));
+    assert!(matches!(&t.textures[2], Texture::Bitmap(b) if matches!(b.texels, Texels::Linear8(_))));
+    // The rectangles carry Mitsuba's uvs.
+    assert!(s.scene.meshes.iter().all(|m| m.uvs.as_ref().is_some_and(|u| u.len() == m.positions.len())));
+    // Bad textures name the file and what is wrong.
+    let (_, msg) = expect_err(load_in_tempdir(&xml, &[]));
+    assert!(msg.contains("wood.png"), "{msg}");
+    let (_, msg) = expect_err(load_in_tempdir(&xml, &[("wood.png", b"GIF89a....".to_vec())]));
+    assert!(msg.contains("wood.png") && msg.contains("texture file"), "{msg}");
+    let bad_ref = scene_xml(r#"    <shape type="rectangle"><bsdf type="diffuse"><ref name="reflectance" id="nope"/></bsdf></shape>"#);
+    let (_, msg) = expect_err(load_in_tempdir(&bad_ref, &[]));
+    assert!(msg.contains(":11:") && msg.contains("nope"), "{msg}");
+    let bad_opacity = scene_xml(r#"    <shape type="rectangle"><bsdf type="mask"><float name="opacity" value="1.5"/><bsdf type="diffuse"/></bsdf></shape>"#);
+    let (_, msg) = expect_err(load_in_tempdir(&bad_opacity, &[]));
+    assert!(msg.contains(":11:") && msg.contains("opacity"), "{msg}");
 }

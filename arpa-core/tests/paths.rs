@@ -21,8 +21,8 @@ const INTENSITY: f64 = 3.0;
 
 fn plane_scene(size: u32) -> Scene {
     let h = 4.0;
-    Scene {
-        meshes: vec![TriangleMesh {
+    Scene { textures: Default::default(),
+        meshes: vec![TriangleMesh { uvs: None,
             name: "floor".into(),
             positions: vec![Vec3::new(-h, 0.0, -h), Vec3::new(h, 0.0, -h), Vec3::new(h, 0.0, h), Vec3::new(-h, 0.0, h)],
             normals: None,
@@ -167,7 +167,7 @@ fn glass_slab_caustic_matches_optics() {
     let mut indices = it.to_vec();
     indices.extend(ib.iter().map(|t| t.map(|i| i + 4)));
     scene.materials.push(Material::Dielectric { ior: n as f32, transmittance: Vec3::ONE, roughness: 0.0 });
-    scene.meshes.push(TriangleMesh { name: "slab".into(), positions, normals: None, indices, material: 1, emission: None });
+    scene.meshes.push(TriangleMesh { uvs: None, name: "slab".into(), positions, normals: None, indices, material: 1, emission: None });
     let scene = PreparedScene::new(scene).unwrap();
     let caster = BruteForceCaster::new(&scene);
     let radii = [0.05f64, 0.25, 0.5];
@@ -309,7 +309,7 @@ fn tilted_vertex_normals_reflect_photons_by_the_adjoint() {
     let mut scene = plane_scene(4);
     scene.meshes[0].normals = Some(vec![tilted_normal().as_vec3(); 4]);
     let h = 4.0f32;
-    scene.meshes.push(TriangleMesh {
+    scene.meshes.push(TriangleMesh { uvs: None,
         name: "ceiling".into(),
         positions: vec![Vec3::new(-h, 2.0, -h), Vec3::new(h, 2.0, -h), Vec3::new(h, 2.0, h), Vec3::new(-h, 2.0, h)],
         normals: None,

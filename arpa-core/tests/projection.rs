@@ -188,7 +188,7 @@ fn projected_emission_carries_the_kept_power_and_shares_it_evenly() {
 
 fn quad(name: &str, c: DVec3, u: DVec3, v: DVec3, material: u32) -> TriangleMesh {
     let p = [c - u - v, c + u - v, c + u + v, c - u + v].map(|p| p.as_vec3());
-    TriangleMesh { name: name.into(), positions: p.to_vec(), normals: None, indices: vec![[0, 1, 2], [0, 2, 3]], material, emission: None }
+    TriangleMesh { uvs: None, name: name.into(), positions: p.to_vec(), normals: None, indices: vec![[0, 1, 2], [0, 2, 3]], material, emission: None }
 }
 
 const I: f64 = 10.0;
@@ -211,7 +211,7 @@ fn open_scene(mirror: bool) -> Scene {
         let (c, t, _) = mirror_frame();
         meshes.push(quad("mirror", c, t, DVec3::Z * 0.1, 1));
     }
-    Scene {
+    Scene { textures: Default::default(),
         meshes,
         materials: vec![Material::Diffuse { albedo: Vec3::splat(0.5) }, Material::Conductor { reflectance: Vec3::splat(R), roughness: 0.0 }],
         lights: vec![Light::Point(PointLight { position: DVec3::new(0.0, H, 0.0), intensity: DVec3::splat(I) })],

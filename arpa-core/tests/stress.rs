@@ -2660,8 +2660,8 @@ fn check_scene_input((material, poison): (usize, Poison)) -> Outcome {
         Material::Conductor { reflectance: Vec3::splat(0.9), roughness: 0.1 },
         Material::Dielectric { ior: 1.5, transmittance: Vec3::ONE, roughness: 0.0 },
     ];
-    let mut scene = Scene {
-        meshes: vec![TriangleMesh {
+    let mut scene = Scene { textures: Default::default(),
+        meshes: vec![TriangleMesh { uvs: None,
             name: "tri".into(),
             positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y],
             normals: Some(vec![Vec3::Z; 3]),

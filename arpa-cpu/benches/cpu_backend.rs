@@ -134,7 +134,7 @@ impl Config {
 // ---------------------------------------------------------------------------------------
 
 fn mesh(name: &str, positions: Vec<Vec3>, indices: Vec<[u32; 3]>, material: u32) -> TriangleMesh {
-    TriangleMesh {
+    TriangleMesh { uvs: None,
         name: name.into(),
         positions,
         normals: None,
@@ -233,7 +233,7 @@ fn build_scene(size: u32, subdivisions: u32) -> Scene {
         width: size,
         height: size,
     };
-    Scene {
+    Scene { textures: Default::default(),
         meshes,
         materials,
         lights: vec![light],

@@ -273,7 +273,7 @@ mod tests {
     /// (shading normals on a diffuse surface), a mirror block and a quad light.
     fn room() -> Scene {
         let (o, x, y, z) = (Vec3::new(-1.0, 0.0, -1.0), Vec3::X * 2.0, Vec3::Y * 2.0, Vec3::Z * 2.0);
-        Scene {
+        Scene { textures: Default::default(),
             meshes: vec![
                 parallelogram("floor", o, z, x, 0),
                 parallelogram("ceiling", o + y, x, z, 0),

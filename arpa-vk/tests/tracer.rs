@@ -37,7 +37,7 @@ fn scene() -> Scene {
         icosphere("glass", Vec3::new(0.3, 0.5, -0.2), 0.35, 3, true, 1),
         parallelogram("mirror", Vec3::new(-0.9, 0.2, -0.6), Vec3::new(0.0, 0.8, 0.0), Vec3::new(0.3, 0.0, 0.6), 2),
     ];
-    Scene {
+    Scene { textures: Default::default(),
         meshes,
         materials: vec![
             Material::Diffuse { albedo: Vec3::splat(0.6) },

@@ -65,7 +65,7 @@ fn scene(
     lights: Vec<Light>,
     camera: Camera,
 ) -> Scene {
-    Scene {
+    Scene { textures: Default::default(),
         meshes,
         materials,
         lights,
@@ -407,7 +407,7 @@ pub fn knife_edge(size: u32) -> Scene {
         Vec3::new(l, y1, w),
     ];
     let (a0, a1, b0, b1, c0, c1) = (0, 1, 2, 3, 4, 5);
-    let wedge = TriangleMesh {
+    let wedge = TriangleMesh { uvs: None,
         name: "glass wedge".into(),
         positions,
         normals: None,

@@ -76,6 +76,14 @@ pub enum SceneFileError {
         /// What is wrong.
         message: String,
     },
+    /// A texture's image file cannot be decoded or is not a supported format.
+    #[error("texture file '{}': {message}", path.display())]
+    Texture {
+        /// The image file.
+        path: PathBuf,
+        /// What is wrong.
+        message: String,
+    },
     /// A Mitsuba serialized mesh file is malformed, truncated or has no shape `shape_index`.
     #[error("serialized mesh file '{}': {message}", path.display())]
     Serialized {

@@ -24,6 +24,9 @@ pub const PLY_PATH: &str = "fuzz/mesh.ply";
 /// Name under which [`obj`] serves its input to the scene.
 pub const OBJ_PATH: &str = "fuzz/mesh.obj";
 
+/// Name under which [`texture`] serves its input to the scene.
+pub const TEXTURE_PATH: &str = "fuzz/texture.png";
+
 /// Name under which [`serialized`] parses its input.
 pub const SERIALIZED_PATH: &str = "fuzz/mesh.serialized";
 
@@ -92,6 +95,27 @@ pub fn obj(data: &[u8]) -> Result<LoadedScene, SceneFileError> {
     mesh_file(data, "obj", OBJ_PATH)
 }
 
+/// The `texture` target: `data` is an image file (PNG, JPEG, OpenEXR, Radiance HDR, or
+/// anything else) read as a `bitmap` texture twice, sRGB and `raw`, by a small scene
+/// ([`TEXTURE_PATH`]): the reflectance of one rectangle and the opacity of a mask.
+pub fn texture(data: &[u8]) -> Result<LoadedScene, SceneFileError> {
+    let xml = r#"<scene version="3.0.0">
+  <sensor type="perspective">
+    <float name="fov" value="45"/>
+    <transform name="to_world"><lookat origin="0, 0, 5" target="0, 0, 0" up="0, 1, 0"/></transform>
+    <film type="hdrfilm"><integer name="width" value="8"/><integer name="height" value="6"/></film>
+  </sensor>
+  <emitter type="point"><point name="position" x="0" y="0" z="3"/></emitter>
+  <shape type="rectangle"><bsdf type="diffuse"><texture name="reflectance" type="bitmap"><string name="filename" value="texture.png"/></texture></bsdf></shape>
+  <shape type="rectangle">
+    <bsdf type="mask"><texture name="opacity" type="bitmap"><string name="filename" value="texture.png"/><boolean name="raw" value="true"/></texture><bsdf type="diffuse"/></bsdf>
+  </shape>
+</scene>
+"#;
+    let name = Path::new(TEXTURE_PATH);
+    load_and_prepare(xml.as_bytes(), &|p: &Path| if p == name { Ok(data.to_vec()) } else { Err(Error::new(ErrorKind::NotFound, "no such file")) })
+}
+
 /// The `serialized` target: `data` is a Mitsuba serialized mesh file. Its shapes 1 to 4
 /// (where the file has them) and the first index past them are parsed directly, each `Ok`
 /// or an error naming the file; then shape 0 is used by a small scene
@@ -122,6 +146,7 @@ pub fn error_names_file(e: &SceneFileError) -> bool {
         | E::Ply { path, .. }
         | E::Obj { path, .. }
         | E::Serialized { path, .. }
+        | E::Texture { path, .. }
         | E::Mesh { path, .. }
         | E::Scene { path, .. } => path,
         E::BadDefine(_) => return false,

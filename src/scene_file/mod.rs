@@ -64,6 +64,7 @@
 //! through [`fuzzing`], which loads from memory: [`load_scene_bytes`], [`parse_ply`] and
 //! [`parse_obj`] are the file-system-free entry points.
 
+mod bitmap;
 mod error;
 pub mod fuzzing;
 mod loaded;

@@ -166,7 +166,7 @@ mod tests {
     fn triangles_go_in_morton_order() {
         // Triangles along x (same shape), listed in a shuffled order.
         let xs = [3.0f32, 0.0, 2.0, 5.0, 1.0, 4.0];
-        let mut mesh = TriangleMesh { name: "row".into(), positions: Vec::new(), normals: None, indices: Vec::new(), material: 0, emission: None };
+        let mut mesh = TriangleMesh { uvs: None, name: "row".into(), positions: Vec::new(), normals: None, indices: Vec::new(), material: 0, emission: None };
         for (t, x) in xs.iter().enumerate() {
             mesh.positions.extend([Vec3::new(*x, 0.0, 0.0), Vec3::new(x + 0.5, 0.0, 0.0), Vec3::new(*x, 0.5, 0.0)]);
             let i = 3 * t as u32;

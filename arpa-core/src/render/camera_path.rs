@@ -35,7 +35,7 @@ pub fn trace_camera_path(scene: &PreparedScene, caster: &impl RayCaster, setting
     let mut radiance = DVec3::ZERO;
     let mut record = QueryRecord { pixel, ..QueryRecord::default() };
     for _ in 0..settings.max_depth {
-        let Some(hit) = start.intersect(caster, dir.as_vec3(), f32::INFINITY) else { break };
+        let Some(hit) = scene.intersect(caster, start, dir.as_vec3(), f32::INFINITY, &mut rng) else { break };
         scene.prefetch_hit(&hit);
         let s = scene.surface(&hit);
         let front = if dir.dot(s.geometric_normal) < 0.0 { s.geometric_normal } else { -s.geometric_normal };
@@ -109,10 +109,10 @@ pub fn direct_irradiance(scene: &PreparedScene, caster: &impl RayCaster, s: &Sur
     let p = s.position;
     let from = s.leaving();
     let mut e = DVec3::ZERO;
-    let visible = |to: DVec3| {
+    let visible = |to: DVec3, rng: &mut Rng| {
         let d = to - from.origin.as_dvec3();
         let dist = d.length();
-        dist > 0.0 && !from.occluded(caster, (d / dist).as_vec3(), (dist * (1.0 - 1e-4)) as f32)
+        dist > 0.0 && !scene.occluded(caster, from, (d / dist).as_vec3(), (dist * (1.0 - 1e-4)) as f32, rng)
     };
     for light in scene.emitters() {
         match light {
@@ -120,7 +120,7 @@ pub fn direct_irradiance(scene: &PreparedScene, caster: &impl RayCaster, s: &Sur
                 let d = l.position - p;
                 let r2 = d.length_squared();
                 let cos = shading.cosine(d / libm::sqrt(r2));
-                if cos > 0.0 && visible(l.position) {
+                if cos > 0.0 && visible(l.position, rng) {
                     e += l.intensity * (cos / r2);
                 }
             }
@@ -132,7 +132,7 @@ pub fn direct_irradiance(scene: &PreparedScene, caster: &impl RayCaster, s: &Sur
                 let axis = l.direction.normalize_or(DVec3::Z);
                 let theta = libm::acos((-d / r).dot(axis).clamp(-1.0, 1.0));
                 let falloff = l.falloff_at(theta);
-                if cos > 0.0 && falloff > 0.0 && visible(l.position) {
+                if cos > 0.0 && falloff > 0.0 && visible(l.position, rng) {
                     e += l.intensity * (falloff * cos / r2);
                 }
             }
@@ -140,7 +140,7 @@ pub fn direct_irradiance(scene: &PreparedScene, caster: &impl RayCaster, s: &Sur
                 let to_light = -l.direction.normalize_or(DVec3::Z);
                 let cos = shading.cosine(to_light);
                 let far = p + to_light * (4.0 * scene.bounding_sphere().1 + 1.0);
-                if cos > 0.0 && visible(far) {
+                if cos > 0.0 && visible(far, rng) {
                     e += l.irradiance * cos;
                 }
             }
@@ -168,7 +168,7 @@ pub fn direct_irradiance(scene: &PreparedScene, caster: &impl RayCaster, s: &Sur
         if r > 0.0 {
             let cos_q = shading.cosine(d / r);
             let cos_l = -normal.dot(d) / r;
-            if cos_q > 0.0 && cos_l > 0.0 && prob > 0.0 && visible(point) {
+            if cos_q > 0.0 && cos_l > 0.0 && prob > 0.0 && visible(point, rng) {
                 e += radiance * (cos_q * cos_l * area / (r2 * prob));
             }
         }

@@ -2,7 +2,7 @@
 //!
 //! | module | what |
 //! |---|---|
-//! | [`scene`], [`shapes`] | the scene model (meshes, materials, lights, camera) and shape builders |
+//! | [`scene`], [`shapes`], [`texture`] | the scene model (meshes, materials, textures, lights, camera) and shape builders |
 //! | [`prepared_scene`] | a scene prepared for tracing: triangle tables, emitters, shading, projection maps |
 //! | [`projection`] | projection maps: which parts of each light's domain reach which targets |
 //! | [`emission_plan`] | one render's photon allocation and pass skips from the projection maps |
@@ -19,4 +19,5 @@ pub mod projection;
 pub mod ray_cast;
 pub mod scene;
 pub mod shapes;
+pub mod texture;
 pub mod tracer;

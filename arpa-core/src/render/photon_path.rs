@@ -17,7 +17,7 @@ use crate::store::footprint::{Footprint, PhotonMap};
 use crate::propagate::fresnel::dielectric_reflectance;
 use crate::store::heuristics::ResolvedHeuristics;
 use crate::propagate::lambertian::DiffuseShading;
-use crate::render::prepared_scene::{PreparedScene, SurfacePoint};
+use crate::render::prepared_scene::{PreparedScene, SurfacePoint, MAX_MASK_PASSES};
 use crate::render::ray_cast::{RayCaster, RayHit, RayStart};
 use crate::propagate::reemission::{diffuse_direction_unit, reemit_unit};
 use crate::base::rng::{Rng, StreamDomain};
@@ -233,6 +233,8 @@ pub struct PhotonWalk {
     caustic_only: bool,
     /// Weight of the photon's caustic records (0: it stores none).
     caustic_weight: f64,
+    /// Masks passed since the last surface that stopped the photon.
+    mask_passes: u32,
 }
 
 impl PhotonWalk {
@@ -264,6 +266,7 @@ impl PhotonWalk {
             done: false,
             caustic_only: setup.is_caustic_source(source),
             caustic_weight: setup.caustic_weight[source],
+            mask_passes: 0,
         })
     }
 
@@ -293,6 +296,18 @@ impl PhotonWalk {
         hit: Option<RayHit>,
         sink: &mut impl FnMut(StoredPhoton),
     ) {
+        // A mask the photon passes through: the same ray goes on from its surface (the
+        // differential is transferred at the next surface that stops it; passes are not
+        // segments, as in Mitsuba's volpath).
+        if let Some(h) = &hit
+            && self.mask_passes < MAX_MASK_PASSES
+            && !scene.stops(h, &mut self.rng)
+        {
+            self.mask_passes += 1;
+            self.start = scene.surface(h).leaving();
+            return;
+        }
+        self.mask_passes = 0;
         self.stats.segments += 1;
         let carries_on = match hit {
             Some(hit) => self.interact(scene, settings, setup, &hit, sink),

@@ -7,11 +7,12 @@ use crate::propagate::differential::{DifferentialError, NormalDifferential};
 use crate::emit::emission::Light;
 use crate::render::projection::{project, project_on, DomainCells, LightProjection, Targets, SPECULAR_AREA_GRID, SPECULAR_DELTA_GRID};
 use crate::base::prefetch::prefetch;
-use crate::render::ray_cast::{RayHit, RayStart, TriangleId};
-use crate::render::scene::{CameraFrame, Scattering, Scene, SceneError};
+use crate::base::rng::Rng;
+use crate::render::ray_cast::{RayCaster, RayHit, RayStart, TriangleId};
+use crate::render::scene::{CameraFrame, Opacity, Scattering, Scene, SceneError};
 use crate::propagate::shading_normal::ShadedTriangle;
 use alloc::vec::Vec;
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 
 /// Luminance weights used to compare light powers.
 const LUMINANCE: DVec3 = DVec3::new(0.2126, 0.7152, 0.0722);
@@ -37,10 +38,16 @@ pub struct PreparedScene {
     projections: Vec<LightProjection>,
     /// Whether some mesh is a mirror or glass.
     has_specular: bool,
+    /// Whether some material is a mask.
+    has_masks: bool,
     /// Whether a photon leaving a diffuse surface can hit another surface at all (some
     /// diffuse surface scatters and not all geometry lies in one plane).
     second_hit_possible: bool,
 }
+
+/// Most masks one ray passes through before the next surface stops it whatever it is (a
+/// bound on the work of a ray through a stack of cut-outs).
+pub const MAX_MASK_PASSES: u32 = 64;
 
 /// One triangle's barycentric gradients, or why it has none.
 type TriangleGradients = Result<[DVec3; 3], DifferentialError>;
@@ -105,7 +112,9 @@ pub struct SurfacePoint {
     pub geometric_normal: DVec3,
     /// Barycentric weights of the three vertices.
     pub barycentric: DVec3,
-    /// How the surface scatters.
+    /// Texture coordinates: the mesh's interpolated, or `(b1, b2)` without them.
+    pub uv: Vec2,
+    /// How the surface scatters here (the material's colour times its texture at `uv`).
     pub scattering: Scattering,
     /// Emitted radiance on the geometric-normal side, if the mesh emits.
     pub emission: Option<Vec3>,
@@ -195,6 +204,7 @@ impl PreparedScene {
         Ok(Self {
             projections,
             has_specular,
+            has_masks: scene.textures.any_opacity(),
             second_hit_possible,
             triangles,
             shading,
@@ -289,14 +299,107 @@ impl PreparedScene {
         let p = tri.vertices();
         let (b1, b2) = (hit.b1 as f64, hit.b2 as f64);
         let b = DVec3::new(1.0 - b1 - b2, b1, b2);
+        let uv = self.uv(hit);
+        let mut scattering = self.scattering[m.material as usize];
+        if let Some(id) = self.scene.textures.maps(m.material).color {
+            let t = self.scene.textures.textures[id as usize].eval(uv).max(Vec3::ZERO);
+            scattering = match scattering {
+                Scattering::Diffuse(a) => Scattering::Diffuse(a * t),
+                Scattering::Mirror(r) => Scattering::Mirror(r * t),
+                Scattering::Refractive(ior, tr) => Scattering::Refractive(ior, tr * t),
+            };
+        }
         SurfacePoint {
             position: p[0] * b.x + p[1] * b.y + p[2] * b.z,
             geometric_normal: tri.normal,
             barycentric: b,
-            scattering: self.scattering[m.material as usize],
+            uv,
+            scattering,
             emission: m.emission,
             mesh: hit.mesh,
             triangle: hit.triangle,
+        }
+    }
+
+    /// The texture coordinates of a hit: the mesh's, interpolated in `f32` with the hit's
+    /// barycentric weights, or `(b1, b2)` on a mesh without them (as Mitsuba).
+    #[inline]
+    pub fn uv(&self, hit: &RayHit) -> Vec2 {
+        let m = &self.scene.meshes[hit.mesh as usize];
+        match &m.uvs {
+            Some(uvs) => {
+                let t = m.indices[hit.triangle as usize];
+                let [a, b, c] = t.map(|i| uvs[i as usize]);
+                a * (1.0 - hit.b1 - hit.b2) + b * hit.b1 + c * hit.b2
+            }
+            None => Vec2::new(hit.b1, hit.b2),
+        }
+    }
+
+    /// Whether some material is a mask (rays may pass through its surfaces).
+    #[inline]
+    pub fn has_masks(&self) -> bool {
+        self.has_masks
+    }
+
+    /// Whether a ray stops at `hit`: always on an opaque material; on a mask with its
+    /// opacity `o` as probability, drawing one number from `rng` where `0 < o < 1` (none
+    /// where the mask is fully open or closed), so the decision repeats with the stream.
+    #[inline]
+    pub fn stops(&self, hit: &RayHit, rng: &mut Rng) -> bool {
+        if !self.has_masks {
+            return true;
+        }
+        let o = self.opacity(hit);
+        if o >= 1.0 {
+            true
+        } else if o <= 0.0 {
+            false
+        } else {
+            rng.next_f64() < o as f64
+        }
+    }
+
+    /// The closest hit that stops a ray from `start` along unit `direction` up to `t_max`
+    /// (metres): masks are passed as [`PreparedScene::stops`] decides, each pass continuing
+    /// from the mask's surface (at most [`MAX_MASK_PASSES`] passes; the next hit then stops
+    /// it).
+    pub fn intersect<C: RayCaster + ?Sized>(&self, caster: &C, start: RayStart, direction: Vec3, t_max: f32, rng: &mut Rng) -> Option<RayHit> {
+        let mut start = start;
+        let mut left = t_max;
+        for _ in 0..MAX_MASK_PASSES {
+            let hit = start.intersect(caster, direction, left)?;
+            if self.stops(&hit, rng) {
+                return Some(hit);
+            }
+            left -= hit.t;
+            start = self.surface(&hit).leaving();
+        }
+        start.intersect(caster, direction, left)
+    }
+
+    /// Whether a ray from `start` along unit `direction` is stopped before `t_max`
+    /// (metres), masks passed as in [`PreparedScene::intersect`]. Without masks this is
+    /// [`RayStart::occluded`] and draws nothing.
+    pub fn occluded<C: RayCaster + ?Sized>(&self, caster: &C, start: RayStart, direction: Vec3, t_max: f32, rng: &mut Rng) -> bool {
+        if !self.has_masks {
+            return start.occluded(caster, direction, t_max);
+        }
+        self.intersect(caster, start, direction, t_max, rng).is_some()
+    }
+
+    /// The probability that a ray stops at `hit` (its material's opacity there); 1 for
+    /// opaque materials.
+    #[inline]
+    pub fn opacity(&self, hit: &RayHit) -> f32 {
+        let m = &self.scene.meshes[hit.mesh as usize];
+        match self.scene.textures.maps(m.material).opacity {
+            None => 1.0,
+            Some(Opacity::Constant(o)) => o,
+            Some(Opacity::Texture(id)) => {
+                let o = self.scene.textures.textures[id as usize].eval_1(self.uv(hit));
+                if o.is_nan() { 1.0 } else { o.clamp(0.0, 1.0) }
+            }
         }
     }
 

@@ -8,9 +8,10 @@
 
 use crate::base::aabb::Aabb;
 use crate::emit::emission::{Light, LightError, TriangleLight};
+use crate::render::texture::{Texture, TextureId};
 use alloc::string::String;
 use alloc::vec::Vec;
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec2, Vec3};
 
 /// Index into [`Scene::materials`].
 pub type MaterialId = u32;
@@ -80,6 +81,9 @@ pub struct TriangleMesh {
     pub positions: Vec<Vec3>,
     /// Optional per-vertex shading normals (interpolated; their derivatives focus caustics).
     pub normals: Option<Vec<Vec3>>,
+    /// Optional per-vertex texture coordinates (Mitsuba's convention, [`crate::render::texture`]);
+    /// without them a hit's texture coordinates are its barycentric weights `(b1, b2)`.
+    pub uvs: Option<Vec<Vec2>>,
     /// Triangles as vertex indices; winding defines the geometric normal
     /// `(p1 − p0) × (p2 − p0)`.
     pub indices: Vec<[u32; 3]>,
@@ -169,7 +173,7 @@ pub enum SceneError {
         mesh: String,
         /// Vertex index.
         vertex: usize,
-        /// "position" or "normal".
+        /// "position", "normal" or "texture coordinate".
         what: &'static str,
     },
     /// A triangle refers to a vertex that does not exist.
@@ -228,6 +232,24 @@ pub enum SceneError {
         /// The problem.
         source: LightError,
     },
+    /// Texture coordinates given but not one per vertex.
+    #[error("mesh '{mesh}': {uvs} texture coordinates for {positions} vertices")]
+    UvCount {
+        /// Mesh name.
+        mesh: String,
+        /// Texture coordinates given.
+        uvs: usize,
+        /// Vertices.
+        positions: usize,
+    },
+    /// A texture is malformed.
+    #[error("texture {index}: {why}")]
+    BadTexture {
+        /// Index in [`SceneTextures::textures`].
+        index: usize,
+        /// What is wrong.
+        why: &'static str,
+    },
     /// The scene has no light at all.
     #[error("the scene has no light (no analytic light and no emissive mesh)")]
     NoLights,
@@ -257,6 +279,56 @@ pub struct Scene {
     /// GGX `alpha` at and above which glossy materials count as diffuse (RTPM's rule is
     /// linear roughness `sqrt(alpha)` above 0.5; the Mitsuba loader uses `alpha` 0.25).
     pub roughness_cutoff: f32,
+    /// Textures and the materials that read them (none by default).
+    pub textures: SceneTextures,
+}
+
+/// A material's opacity: the probability that a ray hitting it stops there (Mitsuba's
+/// `mask`); a ray that does not stop passes through unchanged.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Opacity {
+    /// The same everywhere, in `[0, 1]`.
+    Constant(f32),
+    /// A texture's single value ([`Texture::eval_1`]), clamped to `[0, 1]`.
+    Texture(TextureId),
+}
+
+/// The textures a material reads.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MaterialMaps {
+    /// Multiplies the material's colour (diffuse albedo, conductor reflectance, dielectric
+    /// transmittance) at every hit.
+    pub color: Option<TextureId>,
+    /// Makes the material a mask; `None` is opaque.
+    pub opacity: Option<Opacity>,
+}
+
+/// A scene's textures and, per material, the textures it reads.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct SceneTextures {
+    /// The textures, indexed by [`TextureId`].
+    pub textures: Vec<Texture>,
+    /// Per material (indexed like [`Scene::materials`]; a shorter list means no maps for
+    /// the rest).
+    pub maps: Vec<MaterialMaps>,
+}
+
+impl SceneTextures {
+    /// The maps of material `m`.
+    #[inline]
+    pub fn maps(&self, m: MaterialId) -> MaterialMaps {
+        self.maps.get(m as usize).copied().unwrap_or_default()
+    }
+
+    /// Whether some material reads a texture or has an opacity.
+    pub fn any(&self) -> bool {
+        self.maps.iter().any(|m| m.color.is_some() || m.opacity.is_some())
+    }
+
+    /// Whether some material is a mask.
+    pub fn any_opacity(&self) -> bool {
+        self.maps.iter().any(|m| m.opacity.is_some())
+    }
 }
 
 fn finite_rgb_in(v: Vec3, lo: f32, hi: f32) -> bool {
@@ -287,7 +359,34 @@ impl Scene {
                 return Err(SceneError::BadMaterial { index, why });
             }
         }
+        if let Some(index) = self.textures.textures.iter().position(|t| !t.is_valid()) {
+            return Err(SceneError::BadTexture { index, why: "its size does not match its texels, or a value or its to_uv is not finite" });
+        }
+        let count = self.textures.textures.len();
+        for (index, maps) in self.textures.maps.iter().enumerate() {
+            let bad_id = |id: TextureId| id as usize >= count;
+            let why = if index >= self.materials.len() {
+                Some("maps given for a material that does not exist")
+            } else if maps.color.is_some_and(bad_id) || matches!(maps.opacity, Some(Opacity::Texture(id)) if bad_id(id)) {
+                Some("refers to a texture that does not exist")
+            } else if matches!(maps.opacity, Some(Opacity::Constant(o)) if !(0.0..=1.0).contains(&o)) {
+                Some("opacity outside [0, 1]")
+            } else {
+                None
+            };
+            if let Some(why) = why {
+                return Err(SceneError::BadMaterial { index, why });
+            }
+        }
         for m in &self.meshes {
+            if let Some(uvs) = &m.uvs {
+                if uvs.len() != m.positions.len() {
+                    return Err(SceneError::UvCount { mesh: m.name.clone(), uvs: uvs.len(), positions: m.positions.len() });
+                }
+                if let Some(vertex) = uvs.iter().position(|p| !p.is_finite()) {
+                    return Err(SceneError::NonFiniteVertex { mesh: m.name.clone(), vertex, what: "texture coordinate" });
+                }
+            }
             if let Some(vertex) = m.positions.iter().position(|p| !p.is_finite()) {
                 return Err(SceneError::NonFiniteVertex { mesh: m.name.clone(), vertex, what: "position" });
             }

@@ -80,7 +80,7 @@ pub fn unit_icosphere(subdivisions: u32) -> (Vec<DVec3>, Vec<[u32; 3]>) {
 /// The parallelogram `origin + s·u + t·v`, `s, t ∈ [0, 1]` (metres), as two triangles
 /// with geometric normal `u × v` and flat shading.
 pub fn parallelogram(name: &str, origin: Vec3, u: Vec3, v: Vec3, material: MaterialId) -> TriangleMesh {
-    TriangleMesh {
+    TriangleMesh { uvs: None,
         name: String::from(name),
         positions: vec![origin, origin + u, origin + u + v, origin + v],
         normals: None,
@@ -104,7 +104,7 @@ pub fn cuboid(name: &str, lo: Vec3, hi: Vec3, material: MaterialId) -> TriangleM
         (lo, dz, dy),                          // -X
         (Vec3::new(hi.x, lo.y, lo.z), dy, dz), // +X
     ];
-    let mut mesh = TriangleMesh { name: String::from(name), positions: Vec::new(), normals: None, indices: Vec::new(), material, emission: None };
+    let mut mesh = TriangleMesh { uvs: None, name: String::from(name), positions: Vec::new(), normals: None, indices: Vec::new(), material, emission: None };
     for (o, u, v) in faces {
         let k = mesh.positions.len() as u32;
         mesh.positions.extend([o, o + u, o + u + v, o + v]);
@@ -117,7 +117,7 @@ pub fn cuboid(name: &str, lo: Vec3, hi: Vec3, material: MaterialId) -> TriangleM
 /// smooth outward vertex normals when `smooth` and flat facets otherwise.
 pub fn icosphere(name: &str, centre: Vec3, radius: f32, subdivisions: u32, smooth: bool, material: MaterialId) -> TriangleMesh {
     let (unit, indices) = unit_icosphere(subdivisions);
-    TriangleMesh {
+    TriangleMesh { uvs: None,
         name: String::from(name),
         positions: unit.iter().map(|p| centre + (*p * radius as f64).as_vec3()).collect(),
         normals: smooth.then(|| unit.iter().map(|p| p.as_vec3()).collect()),
@@ -148,7 +148,7 @@ pub fn glass_room(width: u32, height: u32) -> crate::render::scene::Scene {
         light,
         cuboid("mirror block", Vec3::new(-0.7, 0.0, -0.7), Vec3::new(-0.2, 1.1, -0.3), 4),
     ];
-    Scene {
+    Scene { textures: Default::default(),
         meshes,
         materials: vec![
             Material::Diffuse { albedo: Vec3::splat(0.75) },

@@ -15,7 +15,7 @@ pub fn mesh(
     indices: Vec<[u32; 3]>,
     material: u32,
 ) -> TriangleMesh {
-    TriangleMesh {
+    TriangleMesh { uvs: None,
         name: name.into(),
         positions,
         normals: None,
@@ -64,7 +64,7 @@ pub fn scene(
     lights: Vec<Light>,
     camera: Camera,
 ) -> Scene {
-    Scene {
+    Scene { textures: Default::default(),
         meshes,
         materials,
         lights,

@@ -21,7 +21,7 @@ fn scene() -> Scene {
     let s = 1.0;
     // The empty mesh first: instance slots differ from mesh indices after it.
     let meshes = vec![
-        TriangleMesh { name: "empty".into(), positions: vec![], normals: None, indices: vec![], material: 0, emission: None },
+        TriangleMesh { uvs: None, name: "empty".into(), positions: vec![], normals: None, indices: vec![], material: 0, emission: None },
         parallelogram("floor", Vec3::new(-s, 0.0, -s), Vec3::new(2.0 * s, 0.0, 0.0), Vec3::new(0.0, 0.0, 2.0 * s), 0),
         parallelogram("ceiling", Vec3::new(-s, 2.0, -s), Vec3::new(0.0, 0.0, 2.0 * s), Vec3::new(2.0 * s, 0.0, 0.0), 0),
         parallelogram("back", Vec3::new(-s, 0.0, -s), Vec3::new(0.0, 2.0, 0.0), Vec3::new(2.0 * s, 0.0, 0.0), 0),
@@ -31,7 +31,7 @@ fn scene() -> Scene {
         icosphere("sphere", Vec3::new(0.3, 0.6, -0.2), 0.35, 3, true, 0),
         parallelogram("panel", Vec3::new(-0.8, 0.3, 0.1), Vec3::new(0.6, 0.4, 0.0), Vec3::new(0.1, 0.2, 0.5), 0),
     ];
-    Scene {
+    Scene { textures: Default::default(),
         meshes,
         materials: vec![Material::Diffuse { albedo: Vec3::splat(0.5) }],
         lights: vec![Light::Point(PointLight { position: DVec3::new(0.0, 1.5, 0.0), intensity: DVec3::ONE })],

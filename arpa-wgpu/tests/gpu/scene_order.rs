@@ -67,7 +67,7 @@ fn scrambled_grid(n: u32, y: f32) -> TriangleMesh {
     let count = tris.len() as u64;
     // 7919 is prime and does not divide 2n², so t -> 7919 t mod 2n² permutes.
     let indices = (0..count).map(|t| tris[((t * 7919) % count) as usize]).collect();
-    TriangleMesh { name: "scrambled grid".into(), positions, normals: None, indices, material: 0, emission: None }
+    TriangleMesh { uvs: None, name: "scrambled grid".into(), positions, normals: None, indices, material: 0, emission: None }
 }
 
 fn centroid(m: &TriangleMesh, t: usize) -> Vec3 {
@@ -92,7 +92,7 @@ fn morton_order_is_a_sorted_permutation() {
     // The mixed scene's icospheres are permuted too, so the surface test exercises the map.
     let mixed = mixed_scene(4, 4);
     assert!(mixed.meshes.iter().any(|m| morton_triangle_order(m).iter().zip(0u32..).any(|(&a, b)| a != b)));
-    let empty = TriangleMesh { indices: Vec::new(), ..grid };
+    let empty = TriangleMesh { uvs: None, indices: Vec::new(), ..grid };
     assert!(morton_triangle_order(&empty).is_empty());
 }
 

@@ -40,7 +40,7 @@ pub fn mixed_scene(width: u32, height: u32) -> Scene {
         light,
         small_light,
     ];
-    Scene {
+    Scene { textures: Default::default(),
         meshes,
         materials: vec![
             Material::Diffuse { albedo: Vec3::splat(0.7) },
@@ -110,7 +110,7 @@ fn facetted_ball() -> TriangleMesh {
         }
         indices.push([k, k + 1, k + 2]);
     }
-    TriangleMesh { name: "facetted".into(), positions, normals: Some(normals), indices, material: 0, emission: None }
+    TriangleMesh { uvs: None, name: "facetted".into(), positions, normals: Some(normals), indices, material: 0, emission: None }
 }
 
 pub use arpa_core::render::shapes::cuboid;
@@ -124,7 +124,7 @@ fn camera(position: Vec3, target: Vec3, fov_degrees: f32, width: u32, height: u3
 pub fn glass_slab(size: u32) -> Scene {
     let floor = parallelogram("floor", Vec3::new(-6.0, 0.0, -6.0), Vec3::new(0.0, 0.0, 12.0), Vec3::new(12.0, 0.0, 0.0), 0);
     let slab = cuboid("glass slab", Vec3::new(-4.0, 0.5, -4.0), Vec3::new(4.0, 1.5, 4.0), 1);
-    Scene {
+    Scene { textures: Default::default(),
         meshes: vec![floor, slab],
         materials: vec![Material::Diffuse { albedo: Vec3::splat(0.6) }, Material::Dielectric { ior: 1.5, transmittance: Vec3::ONE, roughness: 0.0 }],
         lights: vec![Light::Point(PointLight { position: DVec3::new(0.3, 3.0, 0.2), intensity: DVec3::splat(10.0) })],
@@ -138,7 +138,7 @@ pub fn glass_slab(size: u32) -> Scene {
 pub fn mirror_wall(size: u32) -> Scene {
     let floor = parallelogram("floor", Vec3::new(-3.0, 0.0, -3.0), Vec3::new(0.0, 0.0, 6.0), Vec3::new(4.0, 0.0, 0.0), 0);
     let mirror = parallelogram("mirror", Vec3::new(1.0, 0.0, -0.5), Vec3::new(0.0, 1.2, 0.0), Vec3::new(0.0, 0.0, 1.0), 1);
-    Scene {
+    Scene { textures: Default::default(),
         meshes: vec![floor, mirror],
         materials: vec![Material::Diffuse { albedo: Vec3::splat(0.5) }, Material::Conductor { reflectance: Vec3::splat(0.9), roughness: 0.0 }],
         lights: vec![Light::Point(PointLight { position: DVec3::new(-0.3, 0.6, 0.0), intensity: DVec3::splat(2.0) })],
@@ -154,7 +154,7 @@ pub fn cornell(size: u32) -> Scene {
     let quad = |name: &str, c: Vec3, u: Vec3, v: Vec3, m: u32| parallelogram(name, c - u - v, 2.0 * u, 2.0 * v, m);
     let mut light = quad("light", Vec3::new(0.0, 0.99, 0.0), x * 0.25, z * 0.25, 0);
     light.emission = Some(Vec3::splat(12.0));
-    Scene {
+    Scene { textures: Default::default(),
         meshes: vec![
             quad("floor", Vec3::new(0.0, -1.0, 0.0), x, -z, 0),
             quad("ceiling", Vec3::new(0.0, 1.0, 0.0), x, z, 0),
@@ -203,10 +203,10 @@ pub fn water(size: u32) -> Scene {
             indices.push([k + 1, k + n + 1, k + n + 2]);
         }
     }
-    let surface = TriangleMesh { name: "water".into(), positions, normals: Some(normals), indices, material: 1, emission: None };
+    let surface = TriangleMesh { uvs: None, name: "water".into(), positions, normals: Some(normals), indices, material: 1, emission: None };
     let mut light = parallelogram("light", Vec3::new(-0.4, 2.5, -0.4), Vec3::new(0.8, 0.0, 0.0), Vec3::new(0.0, 0.0, 0.8), 0);
     light.emission = Some(Vec3::splat(4.0));
-    Scene {
+    Scene { textures: Default::default(),
         meshes: vec![
             parallelogram("pool floor", Vec3::new(-1.0, 0.0, -1.0), Vec3::new(0.0, 0.0, 2.0), Vec3::new(2.0, 0.0, 0.0), 0),
             parallelogram("pool wall", Vec3::new(-1.0, 0.0, -1.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 1.0, 0.0), 2),

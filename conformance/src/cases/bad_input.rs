@@ -16,7 +16,7 @@ fn bad_scenes() -> Vec<(&'static str, Scene)> {
     let mut nan = good.clone();
     nan.meshes[0].positions[2].y = f32::NAN;
     let mut zero_area_mesh = good.clone();
-    zero_area_mesh.meshes.push(arpa_core::render::scene::TriangleMesh {
+    zero_area_mesh.meshes.push(arpa_core::render::scene::TriangleMesh { uvs: None,
         name: "collinear lamp".into(),
         positions: vec![
             Vec3::new(0.0, 2.0, 0.0),

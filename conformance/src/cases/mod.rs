@@ -15,6 +15,7 @@ pub mod open_mirror;
 pub mod optics;
 pub mod reference;
 pub mod stage;
+pub mod textures;
 pub mod thin_glass;
 pub mod twin;
 
@@ -50,6 +51,18 @@ pub fn all() -> Vec<Case> {
             title: "point light over plane, photons only (arpa)",
             needs: None,
             run: CaseBody::Tracer(analytic::plane_arpa),
+        },
+        Case {
+            id: "texture-plane",
+            title: "textured plane (checkerboard, sRGB bitmap) under a point light, photons only",
+            needs: None,
+            run: CaseBody::Tracer(textures::texture_plane),
+        },
+        Case {
+            id: "mask-plane",
+            title: "a half-open mask halves the light behind it and shows the floor half the time",
+            needs: None,
+            run: CaseBody::Tracer(textures::mask_plane),
         },
         Case {
             id: "bandwidth-flat-plane",

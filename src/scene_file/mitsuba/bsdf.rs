@@ -6,7 +6,7 @@ use super::super::spectrum::SpectrumUse;
 use super::super::transform;
 use super::super::xml::Node;
 use arpa_core::propagate::fresnel::conductor_albedo;
-use arpa_core::render::scene::{Material, MaterialId};
+use arpa_core::render::scene::{Material, MaterialId, MaterialMaps, Opacity};
 use glam::{DVec3, Vec3};
 
 /// Roughness cut-off of loaded scenes, in GGX `alpha`: a rough conductor or dielectric
@@ -82,7 +82,33 @@ impl Loader<'_> {
                 me.warn(n.line, format!("{} is not wrapped in <bsdf type=\"twosided\">: Mitsuba renders its back side black, arpa renders both sides", n.describe()));
             }
         };
+        let mut maps = MaterialMaps::default();
         let material = match ty {
+            "mask" => {
+                let inner = self.objects(&p, &["bsdf"]);
+                if inner.len() != 1 {
+                    return Err(self.invalid(n.line, "mask needs exactly one nested <bsdf>"));
+                }
+                let opacity = match self.texture_of(&p, "opacity")? {
+                    Some(id) => Opacity::Texture(id),
+                    None => {
+                        // Mitsuba reads a constant's single value: the mean of an <rgb>.
+                        let line = self.line_of(&p, "opacity");
+                        let o = self.rgb(&p, "opacity", SpectrumUse::Reflectance)?.map_or(0.5, |v| (v.x + v.y + v.z) / 3.0);
+                        if !(0.0..=1.0).contains(&o) {
+                            return Err(self.invalid(line, format!("opacity {} is outside [0, 1]", num(o))));
+                        }
+                        Opacity::Constant(o as f32)
+                    }
+                };
+                self.finish(&p);
+                let mut b = self.bsdf(inner[0])?;
+                if b.maps.opacity.is_some() {
+                    return Err(self.unsupported(inner[0], "a mask inside a mask is not supported"));
+                }
+                b.maps.opacity = Some(opacity);
+                return Ok(b);
+            }
             "twosided" => {
                 let inner = self.objects(&p, &["bsdf"]);
                 if inner.len() != 1 {
@@ -92,14 +118,16 @@ impl Loader<'_> {
                 return self.bsdf_inner(inner[0]);
             }
             "diffuse" => {
-                let albedo = self.fraction(&p, "reflectance", DVec3::splat(0.5))?;
+                let (albedo, texture) = self.fraction_or_texture(&p, "reflectance", DVec3::splat(0.5))?;
+                maps.color = texture;
                 one_sided(self, albedo);
                 Material::Diffuse { albedo: albedo.as_vec3() }
             }
             "dielectric" | "roughdielectric" => {
                 let int = self.ior(&p, "int_ior", 1.5046)?;
                 let ext = self.ior(&p, "ext_ior", 1.000277)?;
-                let transmittance = self.fraction(&p, "specular_transmittance", DVec3::ONE)?;
+                let (transmittance, texture) = self.fraction_or_texture(&p, "specular_transmittance", DVec3::ONE)?;
+                maps.color = texture;
                 if let Some(r) = self.rgb(&p, "specular_reflectance", SpectrumUse::Reflectance)?
                     && r != DVec3::ONE
                 {
@@ -118,7 +146,8 @@ impl Loader<'_> {
                 Material::Dielectric { ior, transmittance: transmittance.as_vec3(), roughness: roughness as f32 }
             }
             "conductor" | "roughconductor" => {
-                let specular = self.fraction(&p, "specular_reflectance", DVec3::ONE)?;
+                let (specular, texture) = self.fraction_or_texture(&p, "specular_reflectance", DVec3::ONE)?;
+                maps.color = texture;
                 let eta = self.rgb(&p, "eta", SpectrumUse::Unbounded)?;
                 let k = self.rgb(&p, "k", SpectrumUse::Unbounded)?;
                 let name = self.string(&p, "material")?;
@@ -160,7 +189,8 @@ impl Loader<'_> {
                 Material::Conductor { reflectance: reflectance.as_vec3(), roughness: roughness as f32 }
             }
             "plastic" | "roughplastic" => {
-                let albedo = self.fraction(&p, "diffuse_reflectance", DVec3::splat(0.5))?;
+                let (albedo, texture) = self.fraction_or_texture(&p, "diffuse_reflectance", DVec3::splat(0.5))?;
+                maps.color = texture;
                 for key in ["int_ior", "ext_ior", "specular_reflectance", "nonlinear", "alpha", "distribution"] {
                     let _ = self.find(&p, key);
                 }
@@ -168,11 +198,11 @@ impl Loader<'_> {
                 one_sided(self, albedo);
                 Material::Diffuse { albedo: albedo.as_vec3() }
             }
-            _ => return Err(self.unsupported(n, "supported bsdfs: diffuse, dielectric, roughdielectric, conductor, roughconductor, plastic, roughplastic, twosided")),
+            _ => return Err(self.unsupported(n, "supported bsdfs: diffuse, dielectric, roughdielectric, conductor, roughconductor, plastic, roughplastic, twosided, mask")),
         };
-        self.objects(&p, &["texture"]).iter().try_for_each(|t| Err(self.unsupported(t, "textures are not supported")))?;
+        self.objects(&p, &["texture"]).iter().try_for_each(|t| Err(self.unsupported(t, "a texture needs the name of the parameter it gives")))?;
         self.finish(&p);
-        Ok(Bsdf { material })
+        Ok(Bsdf { material, maps })
     }
 
     /// The bsdf inside `twosided` (no one-sided warning).
@@ -228,15 +258,16 @@ impl Loader<'_> {
         if let Some(m) = mid {
             return Ok(m);
         }
-        let m = self.push_material(b.material);
+        let m = self.push_material(&b);
         if let Some(e) = self.bsdfs.get_mut(id) {
             e.1 = Some(m);
         }
         Ok(m)
     }
 
-    pub(super) fn push_material(&mut self, m: Material) -> MaterialId {
-        self.materials.push(m);
+    pub(super) fn push_material(&mut self, b: &Bsdf) -> MaterialId {
+        self.materials.push(b.material);
+        self.maps.push(b.maps);
         self.materials.len() as MaterialId - 1
     }
 }

@@ -9,7 +9,8 @@ use super::super::spectrum::{self, SpectrumUse};
 use super::super::transform::{self, numbers, parse_transform};
 use super::super::xml::Node;
 use arpa_core::emit::emission::Light;
-use arpa_core::render::scene::{Camera, Material, MaterialId, TriangleMesh};
+use arpa_core::render::scene::{Camera, Material, MaterialId, MaterialMaps, TriangleMesh};
+use arpa_core::render::texture::{Texture, TextureId};
 use glam::{DMat4, DVec3};
 use std::cell::{Cell, RefCell};
 use std::collections::HashMap;
@@ -22,13 +23,15 @@ pub(super) fn num(v: f64) -> String {
 }
 
 /// Tags that carry a named property value.
-const PROPERTY_TAGS: &[&str] = &["float", "integer", "boolean", "string", "rgb", "spectrum", "point", "vector", "transform", "texture"];
+const PROPERTY_TAGS: &[&str] = &["float", "integer", "boolean", "string", "rgb", "spectrum", "point", "vector", "transform", "texture", "ref"];
 
 /// A bsdf as loaded: the material it maps to.
 #[derive(Clone)]
 pub(super) struct Bsdf {
     /// The material.
     pub(super) material: Material,
+    /// The textures it reads (colour, opacity).
+    pub(super) maps: MaterialMaps,
 }
 
 /// Named properties of one element; remembers which were read so the rest can be
@@ -53,6 +56,12 @@ pub(super) struct Loader<'a> {
     pub(super) bsdfs: HashMap<String, (Bsdf, Option<MaterialId>)>,
     pub(super) default_material: Option<MaterialId>,
     pub(super) materials: Vec<Material>,
+    /// Per material (aligned with `materials`), the textures it reads.
+    pub(super) maps: Vec<MaterialMaps>,
+    /// The scene's textures.
+    pub(super) textures: Vec<Texture>,
+    /// Top-level textures by id.
+    pub(super) texture_ids: HashMap<String, TextureId>,
     pub(super) meshes: Vec<TriangleMesh>,
     pub(super) lights: Vec<Light>,
     pub(super) camera: Option<(Camera, f64, FovAxis)>,
@@ -165,7 +174,7 @@ impl<'a> Loader<'a> {
                 }
                 c.rgb
             }
-            "texture" => return Err(self.unsupported(n, "textures are not supported (use a constant <rgb>)")),
+            "texture" | "ref" => return Err(self.unsupported(n, format!("a texture for '{name}' is not supported (give a constant)"))),
             t => return Err(self.invalid(n.line, format!("'{name}' must be an <rgb>, <float> or <spectrum>, found <{t}>"))),
         };
         if !v.is_finite() {
@@ -238,6 +247,33 @@ impl<'a> Loader<'a> {
             return Err(self.invalid(line, format!("'{name}' ({}, {}, {}) is outside [0, 1]", v.x, v.y, v.z)));
         }
         Ok(v)
+    }
+
+    /// A reflectance-like parameter that may be a texture: a constant in `[0, 1]` (or
+    /// `default`) with no texture, or factor 1 and the texture (a nested `<texture>` or a
+    /// `<ref>` to a top-level one), whose values multiply the material's colour at every hit.
+    pub(super) fn fraction_or_texture(&mut self, p: &Props<'_>, name: &str, default: DVec3) -> R<(DVec3, Option<TextureId>)> {
+        match self.texture_of(p, name)? {
+            Some(id) => Ok((DVec3::ONE, Some(id))),
+            None => Ok((self.fraction(p, name, default)?, None)),
+        }
+    }
+
+    /// The texture the property `name` of `p` names, if it is a `<texture>` or a `<ref>`
+    /// (to a top-level texture); `None` for a constant or an absent property.
+    pub(super) fn texture_of(&mut self, p: &Props<'_>, name: &str) -> R<Option<TextureId>> {
+        let Some(i) = p.node.children.iter().position(|c| matches!(c.tag.as_str(), "texture" | "ref") && c.attr("name") == Some(name)) else { return Ok(None) };
+        p.used[i].set(true);
+        let n = &p.node.children[i];
+        if n.tag == "texture" {
+            return self.texture(n).map(Some);
+        }
+        let id = n.attr("id").ok_or_else(|| self.invalid(n.line, "<ref> lacks 'id'"))?;
+        match self.texture_ids.get(id) {
+            Some(&t) => Ok(Some(t)),
+            None if self.bsdfs.contains_key(id) => Err(self.invalid(n.line, format!("<ref name=\"{name}\" id=\"{id}\"> names a bsdf, not a texture"))),
+            None => Err(self.invalid(n.line, format!("<ref name=\"{name}\" id=\"{id}\"> names no <texture> defined before it"))),
+        }
     }
 
     /// Line of the property `name` of `p`, or of `p`'s element if it is absent.

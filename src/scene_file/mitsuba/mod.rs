@@ -8,6 +8,7 @@ mod emitter;
 mod loader;
 mod sensor;
 mod shape;
+mod texture;
 
 pub use bsdf::ROUGHNESS_CUTOFF;
 
@@ -15,7 +16,7 @@ use super::error::SceneFileError;
 use super::loaded::LoadedScene;
 use super::mesh::MeshReader;
 use super::xml::{self, Node};
-use arpa_core::render::scene::Scene;
+use arpa_core::render::scene::{Scene, SceneTextures};
 use loader::{Loader, R};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -66,8 +67,18 @@ impl Loader<'_> {
                     }
                 }
                 "shape" => self.shape(c)?,
+                "texture" => {
+                    let Some(id) = c.attr("id") else {
+                        self.warn(c.line, "a top-level <texture> without an id is never used");
+                        continue;
+                    };
+                    let t = self.texture(c)?;
+                    if self.texture_ids.insert(id.to_string(), t).is_some() || self.bsdfs.contains_key(id) {
+                        return Err(self.invalid(c.line, format!("duplicate id '{id}'")));
+                    }
+                }
                 "emitter" => self.emitter(c)?,
-                "texture" | "medium" | "include" | "spectrum" | "film" | "sampler" => {
+                "medium" | "include" | "spectrum" | "film" | "sampler" => {
                     return Err(self.unsupported(c, "not supported by the arpa scene loader"));
                 }
                 _ => return Err(self.unsupported(c, "unknown top-level element")),
@@ -109,6 +120,9 @@ pub(crate) fn load_str(text: &str, path: &Path, defines: &[(String, String)], re
         read_mesh,
         base,
         warnings: Default::default(),
+        maps: Vec::new(),
+        textures: Vec::new(),
+        texture_ids: HashMap::new(),
         search,
         bsdfs: HashMap::new(),
         default_material: None,
@@ -123,7 +137,7 @@ pub(crate) fn load_str(text: &str, path: &Path, defines: &[(String, String)], re
     let Some((camera, fov_degrees, fov_axis)) = l.camera else {
         return Err(SceneFileError::Invalid { path: path.to_path_buf(), line: root.line, message: "the scene has no <sensor type=\"perspective\">".into() });
     };
-    let scene = Scene { meshes: l.meshes, materials: l.materials, lights: l.lights, camera, roughness_cutoff: ROUGHNESS_CUTOFF };
+    let scene = Scene { textures: SceneTextures { textures: l.textures, maps: l.maps }, meshes: l.meshes, materials: l.materials, lights: l.lights, camera, roughness_cutoff: ROUGHNESS_CUTOFF };
     scene.validate().map_err(|source| SceneFileError::Scene { path: path.to_path_buf(), source })?;
     Ok(LoadedScene { scene, warnings: l.warnings.into_inner(), path: path.to_path_buf(), max_depth: l.max_depth, sample_count: l.sample_count, fov_degrees, fov_axis })
 }

@@ -1,7 +1,7 @@
 //! Shape plugins: mesh files and Mitsuba's analytic shapes, placed in the world with
 //! their material and area emitter.
 
-use super::loader::{num, Loader, R};
+use super::loader::{num, Bsdf, Loader, R};
 use super::super::error::SceneFileError;
 use super::super::mesh::RawMesh;
 use super::super::xml::Node;
@@ -73,12 +73,12 @@ impl Loader<'_> {
             }
             Some(b) => {
                 let b = self.bsdf(b)?;
-                self.push_material(b.material)
+                self.push_material(&b)
             }
             None => match self.default_material {
                 Some(m) => m,
                 None => {
-                    let m = self.push_material(Material::Diffuse { albedo: Vec3::splat(0.5) });
+                    let m = self.push_material(&Bsdf { material: Material::Diffuse { albedo: Vec3::splat(0.5) }, maps: Default::default() });
                     self.default_material = Some(m);
                     m
                 }
@@ -169,6 +169,15 @@ impl Loader<'_> {
                 );
             }
         }
+        let uvs = match raw.uvs {
+            Some(uvs) => {
+                if let Some(v) = uvs.iter().position(|t| !t.is_finite() || !t.as_vec2().is_finite()) {
+                    return Err(err(format!("vertex {v} has a non-finite texture coordinate")));
+                }
+                Some(uvs.iter().map(|t| t.as_vec2()).collect())
+            }
+            None => None,
+        };
         let mut indices = raw.indices;
         if flip {
             indices.iter_mut().for_each(|t| t.swap(1, 2));
@@ -199,6 +208,7 @@ impl Loader<'_> {
             }
         }
         Ok(TriangleMesh {
+            uvs,
             name: label,
             positions: positions.iter().map(|p| p.as_vec3()).collect(),
             normals: normals.map(|ns| ns.iter().map(|v| v.as_vec3()).collect()),
