@@ -598,13 +598,8 @@ fn spectra_convert_as_mitsuba_converts_them() {
     let xml = scene_xml(r#"    <shape type="rectangle"><bsdf type="diffuse"><spectrum name="reflectance" value="400:0.1, 700:0.9"/></bsdf></shape>
     <emitter type="point"><point name="position" x="0" y="2" z="0"/><spectrum name="intensity" value="400:1, 500:5, 600:10, 700:3"/></emitter>"#);
     let s = load_in_tempdir(&xml, &[]).unwrap();
-    let albedo = match s.scene.meshes[0].material {
-        m => match s.scene.materials[m as usize] {
-            Material::Diffuse { albedo } => albedo,
-            other => panic!("{other:?}"),
-        },
-    };
-    assert!(close(albedo, vec3(0.742852807, 0.481140077, 0.208324552), 1e-6), "{albedo}");
+    let Material::Diffuse { albedo } = s.scene.materials[s.scene.meshes[0].material as usize] else { panic!("not diffuse") };
+    assert!(close(albedo, vec3(0.742_852_8, 0.481_140_1, 0.208_324_55), 1e-6), "{albedo}");
     let Light::Point(p) = &s.scene.lights[1] else { panic!() };
     let want = glam::dvec3(11.1462078, 7.01080799, 2.2256465);
     assert!((p.intensity - want).abs().max_element() < 1e-5, "{}", p.intensity);
@@ -612,7 +607,7 @@ fn spectra_convert_as_mitsuba_converts_them() {
     let xml = scene_xml(r#"    <shape type="rectangle"><bsdf type="diffuse"><spectrum name="reflectance" filename="r.spd"/></bsdf></shape>"#);
     let s = load_in_tempdir(&xml, &[("r.spd", b"# ramp\n400 0.1\n700 0.9\n".to_vec())]).unwrap();
     let Material::Diffuse { albedo } = s.scene.materials[s.scene.meshes[0].material as usize] else { panic!() };
-    assert!(close(albedo, vec3(0.742852807, 0.481140077, 0.208324552), 1e-6), "{albedo}");
+    assert!(close(albedo, vec3(0.742_852_8, 0.481_140_1, 0.208_324_55), 1e-6), "{albedo}");
     let (_, msg) = expect_err(load_in_tempdir(&xml, &[("r.spd", b"400 0.1\n300 0.9\n".to_vec())]));
     assert!(msg.contains(":11:") && msg.contains("r.spd") && msg.contains("wavelengths must increase"), "{msg}");
 }

@@ -150,7 +150,7 @@ pub fn texture_plane(t: &mut dyn DynTracer) -> CaseResult {
                 let i = r.pixel as usize;
                 expected[i] += a / PI * irradiance(p) / ITERATIONS as f64;
                 let l = levels.iter().position(|&x| (x - a).abs() < 1e-12);
-                level[i] = if it == 0 { l } else if level[i] == l { l } else { None };
+                level[i] = if it == 0 || level[i] == l { l } else { None };
             }
         }
         let names: Vec<String> = levels.iter().map(|l| format!("albedo {l:.3}")).collect();
