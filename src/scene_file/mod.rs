@@ -1,5 +1,8 @@
-//! Scene files: a loader for the subset of **Mitsuba 3** XML used by the shared test
-//! scenes (and a little more), with PLY and OBJ meshes.
+//! Scene files: a loader for **Mitsuba 3** XML scenes as they are written in the wild
+//! (versions 2.x and 3.x), with PLY, OBJ and Mitsuba `serialized` meshes and bitmap
+//! textures. The loader grows by plugin kind, as Mitsuba's source tree does: one module per
+//! bsdf, emitter, shape, sensor and texture family under `mitsuba/`. The README's section
+//! "Mitsuba 3 scenes" lists every plugin and parameter in one table.
 //!
 //! ```no_run
 //! let loaded = arpa::scene_file::load_scene("scene.xml".as_ref(), &[("res_x".into(), "64".into())])?;
@@ -13,16 +16,21 @@
 //! | element | mapping |
 //! |---|---|
 //! | `<default name value>`, `$name` | substituted in every attribute value; `-D name=value` ([`load_scene`]'s `defines`) overrides defaults; an undefined `$name` is an error naming the line |
+//! | `<path value="dir">` | a directory relative file names (meshes, textures, spectra) are looked up in before the scene's own; the last `<path>` first (Mitsuba's order) |
 //! | `<transform name="to_world">` | `matrix` (16 numbers, row-major, or 9), `lookat` (`origin`, `target`, `up`), `translate`, `rotate` (`axis`, `angle` in degrees), `scale` (one or three values); composed in document order as Mitsuba does (each operation is applied after the previous ones) |
-//! | `<shape type="ply">` | `ply-rs` loader (binary little/big endian or ASCII; `x y z` with optional `nx ny nz`; faces `list <int> <int> vertex_indices`, quads fan-triangulated). Without stored normals the mesh is shaded with face normals (the shared scenes' convention). Stored normals shade every surface: specular ones reflect and refract about them, diffuse ones are two-sided Lambertian in the shading frame as in Mitsuba (`arpa_core::propagate::lambertian`); a diffuse mesh with more than 1 % of its area under vertex normals tilted over 60° from their faces gets a warning (likely a broken export) |
-//! | `<shape type="obj">` | `tobj`, all objects merged, polygons triangulated, `.mtl` ignored |
-//! | `<shape type="rectangle" / "cube" / "sphere">` | Mitsuba's canonical shapes (`[-1,1]²` at z = 0 facing +z; `[-1,1]³`; sphere `center` + `radius` tessellated into 5,120 triangles with exact vertices and smooth normals) |
+//! | `<shape type="ply">` | `ply-rs` loader (binary little/big endian or ASCII; `x y z` with optional `nx ny nz` and texture coordinates `u v`, `texture_u texture_v` or `s t`; faces `list <int> <int> vertex_indices`, quads fan-triangulated). Without stored normals the mesh is shaded with face normals (the shared scenes' convention). Stored normals shade every surface: specular ones reflect and refract about them, diffuse ones are two-sided Lambertian in the shading frame as in Mitsuba (`arpa_core::propagate::lambertian`); a diffuse mesh with more than 1 % of its area under vertex normals tilted over 60° from their faces gets a warning (likely a broken export) |
+//! | `<shape type="obj">` | `tobj`, all objects merged, polygons triangulated, texture coordinates with `v` flipped (Mitsuba's default), `.mtl` ignored |
+//! | `<shape type="serialized">` | Mitsuba's compressed format (versions 3 and 4, single or double precision, normals, texture coordinates; colours dropped), `shape_index` (default 0); the file's face-normal flag drops its normals |
+//! | `<shape type="rectangle" / "cube" / "sphere" / "cylinder" / "disk">` | Mitsuba's canonical shapes and texture coordinates (`[-1,1]²` at z = 0 facing +z; `[-1,1]³`; sphere `center` + `radius` tessellated into 5,120 triangles with exact vertices and smooth normals; cylinder `p0`, `p1`, `radius`, open, 256 sides; disk of radius 1 at z = 0 facing +z, 256 triangles) |
 //! | shape `face_normals`, `flip_normals` | drop stored normals; reverse the winding and normals |
-//! | `<bsdf type="diffuse">` | [`Material::Diffuse`] with `reflectance` |
+//! | `<bsdf type="diffuse">` | [`Material::Diffuse`] with `reflectance` (a colour or a texture) |
 //! | `dielectric` | [`Material::Dielectric`], `ior = int_ior / ext_ior` (numbers or Mitsuba's named IORs), `specular_transmittance` |
 //! | `conductor` | [`Material::Conductor`], roughness 0. `material="none"` (Mitsuba's default) is a perfect mirror of reflectance `specular_reflectance`; a named metal uses a small table of normal-incidence reflectances (Ag, Al, Au, Cr, Cu, Ni_palik, Pt, Fe, Ti, W), any other name 0.9 gray (warning); `eta`/`k` give the cosine-weighted hemispherical average of the exact conductor Fresnel reflectance ([`conductor_albedo`](arpa_core::propagate::fresnel::conductor_albedo)), used at every angle (warning) |
 //! | `roughconductor`, `roughdielectric` | as above with roughness `alpha` (or the mean of `alpha_u`, `alpha_v`; default 0.1): the renderer applies [`Scene::roughness_cutoff`] ([`ROUGHNESS_CUTOFF`] = `alpha` 0.25 here, RTPM's rule of linear roughness `sqrt(alpha)` 0.5): `alpha` at or above it is diffuse, smoother is perfectly specular (warning saying which) |
 //! | `plastic`, `roughplastic` | diffuse with `diffuse_reflectance`; the specular coating is dropped (warning) |
+//! | `mask` | its nested bsdf with an `opacity` (float, colour (its mean) or texture (its luminance); default 0.5): every ray (camera, photon, shadow) stops there with that probability and passes through otherwise ([`SceneTextures`](arpa_core::render::scene::SceneTextures)) |
+//! | `<texture type="bitmap">` | nested with a parameter's name, or top level with an `id` and referenced by `<ref name="..." id="..."/>`: `filename` (PNG, JPEG 8-bit sRGB unless `raw`; 16-bit PNG, OpenEXR, Radiance HDR linear), `filter_type` bilinear/nearest, `wrap_mode` repeat/mirror/clamp, `raw`, `to_uv`; as `reflectance` (diffuse, plastic `diffuse_reflectance`), conductor `specular_reflectance`, dielectric `specular_transmittance`, mask `opacity` ([`arpa_core::render::texture`]) |
+//! | `<texture type="checkerboard">` | `color0` (default 0.4), `color1` (0.2), `to_uv`, where a bitmap goes |
 //! | `twosided` | its nested bsdf (arpa's materials are two-sided). A one-sided diffuse/conductor with non-zero reflectance gets a warning, since Mitsuba renders its back black |
 //! | `<ref id>` / `id` | top-level bsdfs by id; a shape without a bsdf is diffuse 0.5 (Mitsuba's default) |
 //! | `<emitter type="area">` in a shape | [`TriangleMesh::emission`] = `radiance`, one-sided on the geometric-normal side `cross(p1−p0, p2−p0)` (the shared scenes' convention); zero total area is an error; a warning if the stored normals point the other way |
@@ -30,16 +38,18 @@
 //! | `spot` | [`SpotLight`](arpa_core::emit::emission::SpotLight): `to_world` (+z is the axis), `intensity`, `cutoff_angle` (default 20°, in (0°, 90°]) and `beam_width` (default ¾ cutoff, in [0, cutoff]) in degrees → radians, [`SpotFalloff::LinearAngle`](arpa_core::emit::emission::SpotFalloff) (Mitsuba's curve) |
 //! | `directional` | [`DirectionalLight`](arpa_core::emit::emission::DirectionalLight): `direction` or `to_world` +z, `irradiance` |
 //! | `<sensor type="perspective">` | [`Camera`](arpa_core::render::scene::Camera) from `to_world` in Mitsuba's convention (camera +z forward, +y up, +x *left*; a mirrored frame is an error); `fov` with `fov_axis` x (Mitsuba's default), y, diagonal, smaller, larger, converted to the vertical FOV; film `width`/`height` (default 768×576) |
-//! | colours | `<rgb value="r, g, b">`, `<rgb value="v">`, `<float>`, constant `<spectrum value="v">` |
-//! | `<integrator>` | ignored (arpa is the integrator); its `max_depth` is reported in [`LoadedScene::max_depth`] |
-//! | sampler, film `pixel_format` etc. | ignored; `sample_count` in [`LoadedScene::sample_count`]; a non-box `rfilter` warns |
+//! | colours | `<rgb value="r, g, b">`, `<rgb value="v">`, `<float>`, `<spectrum value="v">`, `<spectrum value="λ1:v1, λ2:v2, …">` and `<spectrum filename="x.spd">`, converted to linear sRGB as Mitsuba's RGB variants convert them (CIE 1931 over 360–830 nm, D65-weighted for reflectances and `eta`/`k`, clamped as Mitsuba clamps with a warning; a constant emission spectrum is `v` times the equal-energy white's colour, as in Mitsuba) |
+//! | `<integrator>` | ignored (arpa is the integrator); its `max_depth` is reported in [`LoadedScene::max_depth`]; a type Mitsuba does not ship (`path_sms_ss`, …) is a warning |
+//! | sampler, film `pixel_format` etc. | ignored; `sample_count` in [`LoadedScene::sample_count`]; a non-box `rfilter` warns that the box filter is used |
+//! | `<scene version>` | 2.x and 3.x read as they are (they share parameter names); another version is a warning |
 //!
 //! ## Unsupported
 //!
-//! Other shape, bsdf, emitter and sensor types, textures, media, `include`, spectra with
-//! wavelengths and `focal_length` are errors naming the element and its line; unknown
+//! Other shape, bsdf, emitter, sensor and texture types, textures on other parameters
+//! (roughness, emission), media, `include`, instancing (`shapegroup`, `instance`) and
+//! `focal_length` are errors naming the element and its line; unknown
 //! properties of supported elements are warnings naming the property and its line
-//! ([`LoadedScene::warnings`]). Malformed XML, PLY or OBJ, missing files, non-finite
+//! ([`LoadedScene::warnings`]). Malformed XML, PLY, OBJ, serialized or image files, missing files, non-finite
 //! vertices and zero-area emitters are [`SceneFileError`]s naming the file and the
 //! problem. The loaded scene is checked with [`Scene::validate`] before it is returned.
 //!
