@@ -67,13 +67,28 @@ fn load_and_prepare(xml: &[u8], read: &dyn Fn(&Path) -> std::io::Result<Vec<u8>>
     Ok(loaded)
 }
 
-/// The `scene_xml` target: `data` is a Mitsuba XML scene file; every `.ply` or `.obj` it
-/// names is [`SMALL_PLY`] or [`SMALL_OBJ`], any other file does not exist.
+/// The mesh [`scene_xml`] serves for every `.serialized` file a scene names: two shapes
+/// (a square and a triangle with texture coordinates), version 3.
+pub const SMALL_SERIALIZED: &[u8] = include_bytes!("../../tests/data/serialized/two_shapes_v3.serialized");
+
+/// The image [`scene_xml`] serves for every `.png`, `.jpg`, `.exr` or `.hdr` file a scene
+/// names: a 2 × 2 8-bit RGB PNG.
+pub const SMALL_PNG: &[u8] = include_bytes!("../../fuzz/corpus/texture/rgb8.png");
+
+/// The spectrum [`scene_xml`] serves for every `.spd` file a scene names.
+pub const SMALL_SPD: &str = "# wavelength value\n400 0.2\n550 0.6\n700 0.4\n";
+
+/// The `scene_xml` target: `data` is a Mitsuba XML scene file; every mesh, image or
+/// spectrum file it names is [`SMALL_PLY`], [`SMALL_OBJ`], [`SMALL_SERIALIZED`],
+/// [`SMALL_PNG`] or [`SMALL_SPD`] by its extension, any other file does not exist.
 pub fn scene_xml(data: &[u8]) -> Result<LoadedScene, SceneFileError> {
     load_and_prepare(data, &|p: &Path| match p.extension().and_then(|e| e.to_str()) {
         Some("ply") => Ok(SMALL_PLY.as_bytes().to_vec()),
         Some("obj") => Ok(SMALL_OBJ.as_bytes().to_vec()),
-        _ => Err(Error::new(ErrorKind::NotFound, "no such file (fuzzing serves only .ply and .obj meshes)")),
+        Some("serialized") => Ok(SMALL_SERIALIZED.to_vec()),
+        Some("png" | "jpg" | "exr" | "hdr") => Ok(SMALL_PNG.to_vec()),
+        Some("spd") => Ok(SMALL_SPD.as_bytes().to_vec()),
+        _ => Err(Error::new(ErrorKind::NotFound, "no such file (fuzzing serves only meshes, images and .spd spectra)")),
     })
 }
 

@@ -235,6 +235,8 @@ pub struct PhotonWalk {
     caustic_weight: f64,
     /// Masks passed since the last surface that stopped the photon.
     mask_passes: u32,
+    /// Weight of the records stored at the current hit (`1/o` on a mask of opacity `o`).
+    record_weight: f64,
 }
 
 impl PhotonWalk {
@@ -267,6 +269,7 @@ impl PhotonWalk {
             caustic_only: setup.is_caustic_source(source),
             caustic_weight: setup.caustic_weight[source],
             mask_passes: 0,
+            record_weight: 1.0,
         })
     }
 
@@ -299,13 +302,23 @@ impl PhotonWalk {
         // A mask the photon passes through: the same ray goes on from its surface (the
         // differential is transferred at the next surface that stops it; passes are not
         // segments, as in Mitsuba's volpath).
+        self.record_weight = 1.0;
         if let Some(h) = &hit
-            && self.mask_passes < MAX_MASK_PASSES
-            && !scene.stops(h, &mut self.rng)
+            && scene.has_masks()
         {
-            self.mask_passes += 1;
-            self.start = scene.surface(h).leaving();
-            return;
+            let opacity = scene.opacity(h);
+            if self.mask_passes < MAX_MASK_PASSES && !scene.stops(h, &mut self.rng) {
+                self.mask_passes += 1;
+                self.start = scene.surface(h).leaving();
+                return;
+            }
+            // A photon stops on a partly open mask with probability `o`, so the records of
+            // the photons that stop there carry 1/o: their density is the full irradiance
+            // arriving at the surface, which a camera ray that stops there (also with
+            // probability o) reads; the photon goes on with its own flux.
+            if opacity > 0.0 && opacity < 1.0 {
+                self.record_weight = 1.0 / opacity as f64;
+            }
         }
         self.mask_passes = 0;
         self.stats.segments += 1;
@@ -367,7 +380,7 @@ impl PhotonWalk {
                     // stored with its orientation flipped, so that only query points seen
                     // from below the shading plane too gather it (crate::propagate::lambertian).
                     let below = shading.as_ref().is_some_and(DiffuseShading::below_shading_plane);
-                    let flux = if map == PhotonMap::Caustic { st.flux * self.caustic_weight } else { st.flux };
+                    let flux = if map == PhotonMap::Caustic { st.flux * self.caustic_weight } else { st.flux } * self.record_weight;
                     sink(store(&ray_at_hit, &s.geometric_normal, flux, map, st.differential_valid, below, settings, setup));
                     self.stats.stored += 1;
                     if self.caustic_only || !(rng.next_f64() < survive) {

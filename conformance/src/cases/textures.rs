@@ -24,11 +24,11 @@ const PHOTONS: u32 = 50_000;
 /// Iterations.
 const ITERATIONS: u32 = 4;
 
-/// `I cos θ / d²` from the plane scene's light at the floor point `p`.
+/// `I cos θ / d²` from the plane scene's light at the point `p` of a surface facing up.
 fn irradiance(p: DVec3) -> f64 {
     let light = DVec3::new(0.0, PLANE_LIGHT_HEIGHT, 0.0);
     let d = (light - p).length();
-    PLANE_INTENSITY * (PLANE_LIGHT_HEIGHT / d) / (d * d)
+    PLANE_INTENSITY * ((light.y - p.y) / d) / (d * d)
 }
 
 /// The lit plane with texture coordinates `((x + 10)/20, (z + 10)/20)` on its 20 × 20
@@ -270,6 +270,47 @@ pub fn mask_plane(t: &mut dyn DynTracer) -> CaseResult {
             4.0 * sigma
         ));
     }
+    // The mask itself lit (albedo 0.8, nothing behind it), photons only: a camera ray that
+    // stops on it (half of them) reads the full irradiance arriving there, as Mitsuba's mask
+    // gives `o · f`; rays that pass see nothing.
+    let (lit, detail) = lit_mask(t)?;
+    ok &= lit;
+    report.push(detail);
     let msg = format!("{} (tol ±{TOL_PERCENT}%)", report.join("; "));
     if ok { Ok(msg) } else { Err(msg) }
+}
+
+/// The mask of [`mask_plane`] alone, albedo 0.8, under the point light; photons only.
+/// Returns whether the mean radiance over the pixels looking at its interior is within
+/// [`TOL_PERCENT`] of `o · ρ/π · I cos θ / d²` at the query points, and the report.
+fn lit_mask(t: &mut dyn DynTracer) -> Result<(bool, String), String> {
+    let mut scene = scenes::lit_plane(SIZE);
+    let (x0, x1, z0, z1) = (MASK_X.0 as f32, MASK_X.1 as f32, MASK_Z.0 as f32, MASK_Z.1 as f32);
+    scene.meshes = vec![scenes::quad("mask", Vec3::new(x0, MASK_HEIGHT as f32, z0), Vec3::new(0.0, 0.0, z1 - z0), Vec3::new(x1 - x0, 0.0, 0.0), 0)];
+    let albedo = 0.8;
+    scene.materials = vec![scenes::diffuse(albedo as f32)];
+    scene.textures = SceneTextures { textures: vec![], maps: vec![MaterialMaps { color: None, opacity: Some(Opacity::Constant(MASK_OPACITY as f32)) }] };
+    let (image, records) = render(t, &scene, false, MASK_ITERATIONS)?;
+    let pixels = image.len();
+    let mut expected = vec![0.0; pixels];
+    let mut inside = vec![true; pixels];
+    let (mut stopped, mut cast) = (0u32, 0u32);
+    for rs in &records {
+        for r in rs {
+            let i = r.pixel as usize;
+            // Where the pixel's ray meets the mask's plane, from the query point (on the
+            // mask) or, for a ray that passed, not known: such a pixel keeps its first class.
+            if r.valid == 1 {
+                let p = Vec3::from_array(r.position).as_dvec3();
+                inside[i] &= (MASK_X.0 + 0.1..=MASK_X.1 - 0.1).contains(&p.x) && (MASK_Z.0 + 0.1..=MASK_Z.1 - 0.1).contains(&p.z);
+                expected[i] += albedo / PI * irradiance(p) / MASK_ITERATIONS as f64;
+                stopped += 1;
+            }
+            cast += 1;
+        }
+    }
+    // Pixels that never stopped on the mask are not known to look at it: left out.
+    let seen: Vec<bool> = (0..pixels).map(|i| expected[i] > 0.0 && inside[i]).collect();
+    let (errors, text) = compare(&image, &expected, &["lit mask"], |i| seen[i].then_some(0));
+    Ok((errors[0].abs() < TOL_PERCENT, format!("mask lit alone, photons only: {text}; {stopped} of {cast} camera rays stopped on it")))
 }
