@@ -137,7 +137,6 @@ fn tokenize(src: &str) -> Vec<(Tok, usize)> {
                 i = q + 1;
             }
         } else if ch.is_alphabetic() || ch == '_' {
-            let start = i;
             if ch == 'r' && next == '#' {
                 i += 2;
             }
@@ -145,7 +144,6 @@ fn tokenize(src: &str) -> Vec<(Tok, usize)> {
             while i < c.len() && (c[i].is_alphanumeric() || c[i] == '_') {
                 i += 1;
             }
-            let _ = start;
             out.push((Tok::Ident(c[id_start..i].iter().collect()), line));
         } else if ch.is_ascii_digit() {
             while i < c.len() && (c[i].is_alphanumeric() || c[i] == '_' || (c[i] == '.' && c.get(i + 1).is_some_and(|d| d.is_ascii_digit()))) {

@@ -5,7 +5,7 @@
 //! reads its own `opacity` texture, never a bitmap's alpha, as in Mitsuba).
 
 use super::error::SceneFileError;
-use arpa_core::render::texture::Texels;
+use arpa_core::render::texture::{srgb_decode, Texels};
 use std::path::Path;
 
 /// A decoded image: `width × height` texels, row-major from the top row.
@@ -54,7 +54,7 @@ pub fn decode(bytes: &[u8], path: &Path, raw: bool) -> Result<DecodedBitmap, Sce
             // 16-bit integer images: to floats at load, through the sRGB curve unless raw.
             let decode = |c: u16| {
                 let c = c as f32 / 65535.0;
-                if raw || c <= 0.04045 { if raw { c } else { c / 12.92 } } else { ((c + 0.055) / 1.055).powf(2.4) }
+                if raw { c } else { srgb_decode(c) }
             };
             Texels::Float(img.to_rgb16().pixels().map(|p| p.0.map(decode)).collect())
         }
@@ -65,7 +65,6 @@ pub fn decode(bytes: &[u8], path: &Path, raw: bool) -> Result<DecodedBitmap, Sce
 /// The first RGB(A) layer of an OpenEXR file in memory, as linear floats (a grey layer
 /// gives equal RGB).
 fn decode_exr(bytes: &[u8], path: &Path) -> Result<DecodedBitmap, SceneFileError> {
-    let err = |message: String| SceneFileError::Texture { path: path.to_path_buf(), message };
     use exr::prelude::*;
     let read = read()
         .no_deep_data()
@@ -93,13 +92,7 @@ fn decode_exr(bytes: &[u8], path: &Path) -> Result<DecodedBitmap, SceneFileError
     let size = image.layer_data.size;
     let (width, height) = (size.width() as u32, size.height() as u32);
     let (_, pixels) = image.layer_data.channel_data.pixels;
-    if width == 0 || height == 0 || pixels.len() as u64 != width as u64 * height as u64 {
-        return Err(err(format!("{width}×{height} texels: empty or larger than {MAX_TEXELS}")));
-    }
-    if let Some(i) = pixels.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
-        return Err(err(format!("texel {i} is not finite")));
-    }
-    Ok(DecodedBitmap { width, height, texels: Texels::Float(pixels) })
+    exr_texels(width, height, pixels, path)
 }
 
 /// A one-channel (`Y`) OpenEXR image as equal RGB.
@@ -130,10 +123,17 @@ fn decode_exr_grey(bytes: &[u8], path: &Path) -> Result<DecodedBitmap, SceneFile
     let size = image.layer_data.size;
     let (width, height) = (size.width() as u32, size.height() as u32);
     let (_, pixels) = image.layer_data.channel_data.pixels;
+    exr_texels(width, height, pixels, path)
+}
+
+/// The texels an OpenEXR reader filled, checked: the size the header gave (not empty, at
+/// most [`MAX_TEXELS`]) and every value finite.
+fn exr_texels(width: u32, height: u32, pixels: Vec<[f32; 3]>, path: &Path) -> Result<DecodedBitmap, SceneFileError> {
+    let err = |message: String| SceneFileError::Texture { path: path.to_path_buf(), message };
     if width == 0 || height == 0 || pixels.len() as u64 != width as u64 * height as u64 {
         return Err(err(format!("{width}×{height} texels: empty or larger than {MAX_TEXELS}")));
     }
-    if let Some(i) = pixels.iter().position(|p| !p[0].is_finite()) {
+    if let Some(i) = pixels.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
         return Err(err(format!("texel {i} is not finite")));
     }
     Ok(DecodedBitmap { width, height, texels: Texels::Float(pixels) })

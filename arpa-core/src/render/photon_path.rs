@@ -17,7 +17,7 @@ use crate::store::footprint::{Footprint, PhotonMap};
 use crate::propagate::fresnel::dielectric_reflectance;
 use crate::store::heuristics::ResolvedHeuristics;
 use crate::propagate::lambertian::DiffuseShading;
-use crate::render::prepared_scene::{PreparedScene, SurfacePoint, MAX_MASK_PASSES};
+use crate::render::prepared_scene::{stops_with, PreparedScene, SurfacePoint, MAX_MASK_PASSES};
 use crate::render::ray_cast::{RayCaster, RayHit, RayStart};
 use crate::propagate::reemission::{diffuse_direction_unit, reemit_unit};
 use crate::base::rng::{Rng, StreamDomain};
@@ -307,9 +307,9 @@ impl PhotonWalk {
             && scene.has_masks()
         {
             let opacity = scene.opacity(h);
-            if self.mask_passes < MAX_MASK_PASSES && !scene.stops(h, &mut self.rng) {
+            if self.mask_passes < MAX_MASK_PASSES && !stops_with(opacity, &mut self.rng) {
                 self.mask_passes += 1;
-                self.start = scene.surface(h).leaving();
+                self.start = scene.leaving_hit(h);
                 return;
             }
             // A photon stops on a partly open mask with probability `o`, so the records of

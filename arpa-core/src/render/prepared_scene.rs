@@ -49,6 +49,20 @@ pub struct PreparedScene {
 /// bound on the work of a ray through a stack of cut-outs).
 pub const MAX_MASK_PASSES: u32 = 64;
 
+/// Whether a ray stops on a surface of opacity `o`: with probability `o`, drawing one
+/// number from `rng` where `0 < o < 1` (none where the surface is fully open or closed), so
+/// the decision repeats with the stream.
+#[inline]
+pub fn stops_with(o: f32, rng: &mut Rng) -> bool {
+    if o >= 1.0 {
+        true
+    } else if o <= 0.0 {
+        false
+    } else {
+        rng.next_f64() < o as f64
+    }
+}
+
 /// One triangle's barycentric gradients, or why it has none.
 type TriangleGradients = Result<[DVec3; 3], DifferentialError>;
 
@@ -296,9 +310,7 @@ impl PreparedScene {
     pub fn surface(&self, hit: &RayHit) -> SurfacePoint {
         let m = &self.scene.meshes[hit.mesh as usize];
         let tri = &self.triangles[hit.mesh as usize][hit.triangle as usize];
-        let p = tri.vertices();
-        let (b1, b2) = (hit.b1 as f64, hit.b2 as f64);
-        let b = DVec3::new(1.0 - b1 - b2, b1, b2);
+        let (position, b) = self.hit_point(hit);
         let uv = self.uv(hit);
         let mut scattering = self.scattering[m.material as usize];
         if let Some(id) = self.scene.textures.maps(m.material).color {
@@ -310,7 +322,7 @@ impl PreparedScene {
             };
         }
         SurfacePoint {
-            position: p[0] * b.x + p[1] * b.y + p[2] * b.z,
+            position,
             geometric_normal: tri.normal,
             barycentric: b,
             uv,
@@ -319,6 +331,23 @@ impl PreparedScene {
             mesh: hit.mesh,
             triangle: hit.triangle,
         }
+    }
+
+    /// The position of a hit interpolated from its triangle's vertices (metres), and its
+    /// barycentric weights.
+    #[inline]
+    fn hit_point(&self, hit: &RayHit) -> (DVec3, DVec3) {
+        let p = self.triangles[hit.mesh as usize][hit.triangle as usize].vertices();
+        let (b1, b2) = (hit.b1 as f64, hit.b2 as f64);
+        let b = DVec3::new(1.0 - b1 - b2, b1, b2);
+        (p[0] * b.x + p[1] * b.y + p[2] * b.z, b)
+    }
+
+    /// A ray going on past `hit` (through a mask): [`SurfacePoint::leaving`] without
+    /// evaluating the surface's material.
+    #[inline]
+    pub fn leaving_hit(&self, hit: &RayHit) -> RayStart {
+        RayStart::leaving(self.hit_point(hit).0, TriangleId { mesh: hit.mesh, triangle: hit.triangle })
     }
 
     /// The texture coordinates of a hit: the mesh's, interpolated in `f32` with the hit's
@@ -342,22 +371,11 @@ impl PreparedScene {
         self.has_masks
     }
 
-    /// Whether a ray stops at `hit`: always on an opaque material; on a mask with its
-    /// opacity `o` as probability, drawing one number from `rng` where `0 < o < 1` (none
-    /// where the mask is fully open or closed), so the decision repeats with the stream.
+    /// Whether a ray stops at `hit`: always on an opaque material; on a mask as
+    /// [`stops_with`] decides for its opacity there.
     #[inline]
     pub fn stops(&self, hit: &RayHit, rng: &mut Rng) -> bool {
-        if !self.has_masks {
-            return true;
-        }
-        let o = self.opacity(hit);
-        if o >= 1.0 {
-            true
-        } else if o <= 0.0 {
-            false
-        } else {
-            rng.next_f64() < o as f64
-        }
+        !self.has_masks || stops_with(self.opacity(hit), rng)
     }
 
     /// The closest hit that stops a ray from `start` along unit `direction` up to `t_max`
@@ -373,7 +391,7 @@ impl PreparedScene {
                 return Some(hit);
             }
             left -= hit.t;
-            start = self.surface(&hit).leaving();
+            start = self.leaving_hit(&hit);
         }
         start.intersect(caster, direction, left)
     }

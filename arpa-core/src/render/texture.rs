@@ -85,10 +85,15 @@ impl Texels {
     }
 }
 
-/// The linear value of the 8-bit sRGB-encoded value `c` (the sRGB transfer function).
+/// The linear value of the 8-bit sRGB-encoded value `c`.
 #[inline]
 pub fn srgb_to_linear(c: u8) -> f32 {
-    let c = c as f32 / 255.0;
+    srgb_decode(c as f32 / 255.0)
+}
+
+/// The sRGB transfer function: the linear value of the encoded value `c ∈ [0, 1]`.
+#[inline]
+pub fn srgb_decode(c: f32) -> f32 {
     if c <= 0.04045 { c / 12.92 } else { libm::powf((c + 0.055) / 1.055, 2.4) }
 }
 

@@ -163,7 +163,7 @@ impl<'a> Loader<'a> {
                 let parsed = match (n.attr("value"), n.attr("filename")) {
                     (Some(text), None) => spectrum::parse_value(text).map_err(|e| self.invalid(n.line, format!("'{name}': {e}")))?,
                     (None, Some(file)) => {
-                        let (path, bytes) = self.read_file(file, n.line)?;
+                        let (path, bytes) = self.read_file(file)?;
                         spectrum::parse_spd(&bytes).map_err(|e| self.invalid(n.line, format!("'{name}': spectrum file '{}': {e}", path.display())))?
                     }
                     _ => return Err(self.invalid(n.line, format!("<spectrum name=\"{name}\"> needs either 'value' or 'filename'"))),
@@ -186,8 +186,7 @@ impl<'a> Loader<'a> {
     /// Reads the file `name` a scene names (a mesh, texture or spectrum file): an absolute
     /// name as is, a relative one from the first of [`Loader::search`] that has it. The
     /// error names the file relative to the scene's directory when no directory has it.
-    pub(super) fn read_file(&self, name: &str, line: usize) -> R<(PathBuf, Vec<u8>)> {
-        let _ = line;
+    pub(super) fn read_file(&self, name: &str) -> R<(PathBuf, Vec<u8>)> {
         let direct = Path::new(name);
         if direct.is_absolute() {
             return (self.read_mesh)(direct).map(|b| (direct.to_path_buf(), b)).map_err(|source| SceneFileError::Io { path: direct.to_path_buf(), source });

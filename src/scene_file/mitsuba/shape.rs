@@ -19,7 +19,7 @@ impl Loader<'_> {
         let (raw, label, to_world) = match ty {
             "ply" | "obj" | "serialized" => {
                 let file = self.string(&p, "filename")?.ok_or_else(|| self.invalid(n.line, format!("{} lacks <string name=\"filename\">", n.describe())))?;
-                let (path, bytes) = self.read_file(&file, n.line)?;
+                let (path, bytes) = self.read_file(&file)?;
                 let raw = match ty {
                     "ply" => ply::parse(&bytes, &path)?,
                     "obj" => obj::parse(&bytes, &path)?,

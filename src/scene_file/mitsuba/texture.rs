@@ -31,13 +31,14 @@ impl Loader<'_> {
                 let raw = self.boolean(&p, "raw")?.unwrap_or(false);
                 // Storage precision and GPU texture objects: nothing for the image.
                 let _ = (self.string(&p, "format")?, self.boolean(&p, "accel")?);
-                let (path, bytes) = self.read_file(&file, n.line)?;
+                let (path, bytes) = self.read_file(&file)?;
                 let d = bitmap::decode(&bytes, &path, raw)?;
                 Texture::Bitmap(Bitmap { width: d.width, height: d.height, texels: d.texels, filter, wrap, to_uv })
             }
             "checkerboard" => {
-                let color0 = self.constant_color(&p, "color0", 0.4)?;
-                let color1 = self.constant_color(&p, "color1", 0.2)?;
+                // Constant colours (a texture there is an error naming it).
+                let color0 = self.rgb(&p, "color0", SpectrumUse::Reflectance)?.unwrap_or(DVec3::splat(0.4));
+                let color1 = self.rgb(&p, "color1", SpectrumUse::Reflectance)?.unwrap_or(DVec3::splat(0.2));
                 Texture::Checkerboard { color0: color0.as_vec3(), color1: color1.as_vec3(), to_uv }
             }
             _ => return Err(self.unsupported(n, "supported textures: bitmap, checkerboard")),
@@ -45,12 +46,6 @@ impl Loader<'_> {
         self.finish(&p);
         self.textures.push(texture);
         Ok(self.textures.len() as TextureId - 1)
-    }
-
-    /// A checkerboard colour: a constant (nested textures are not supported).
-    fn constant_color(&self, p: &Props<'_>, name: &str, default: f64) -> R<DVec3> {
-        let v = self.rgb(p, name, SpectrumUse::Reflectance)?.unwrap_or(DVec3::splat(default));
-        Ok(v)
     }
 
     /// Mitsuba's `to_uv`: the affine part of the transform on `(u, v)` (its 2×2 block and
