@@ -2,7 +2,8 @@
 //! Morton-ordered bottom levels per mesh) and the core's [`SceneTables`] (meshes,
 //! triangles with their normals and materials, the emitters for next-event estimation),
 //! together descriptor set 0 of the camera and photon passes: binding 0 the top level,
-//! 1 the scene info (uniform), 2 meshes, 3 triangles, 4 emitters (read-only storage), as
+//! 1 the scene info (uniform), 2 meshes, 3 triangles, 4 emitters, 5 texture words
+//! (read-only storage), as
 //! the core's `path/scene.wgsl` and `scene_trace.wgsl` declare them.
 
 use crate::accel::SceneAccel;
@@ -15,9 +16,10 @@ use arpa_core::render::prepared_scene::PreparedScene;
 use ash::vk;
 
 /// The kinds of descriptor set 0 of a pass that traces the scene.
-pub const SCENE_SET: [BindingKind; 5] = [
+pub const SCENE_SET: [BindingKind; 6] = [
     BindingKind::AccelerationStructure,
     BindingKind::UniformBuffer,
+    BindingKind::StorageBuffer,
     BindingKind::StorageBuffer,
     BindingKind::StorageBuffer,
     BindingKind::StorageBuffer,
@@ -30,6 +32,7 @@ pub struct VkScene {
     meshes: Buffer,
     triangles: Buffer,
     emitters: Buffer,
+    texture_words: Buffer,
 }
 
 impl VkScene {
@@ -47,12 +50,22 @@ impl VkScene {
             }
             v
         }
+        // SAFETY: a physical device of this instance.
+        let max_range = u64::from(unsafe { ctx.instance().get_physical_device_properties(ctx.physical_device()) }.limits.max_storage_buffer_range);
+        let texture_bytes = 4 * tables.texture_words.len() as u64;
+        if texture_bytes > max_range {
+            return Err(VkError::InvalidInput {
+                what: "scene textures".into(),
+                reason: format!("{texture_bytes} bytes of texels and texture coordinates exceed the device's maxStorageBufferRange {max_range}"),
+            });
+        }
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
         Ok(Self {
             info: ctx.upload("scene info", bytemuck::bytes_of(&tables.info), vk::BufferUsageFlags::UNIFORM_BUFFER)?,
             meshes: ctx.upload("scene meshes", bytemuck::cast_slice(&at_least_one(tables.meshes)), storage)?,
             triangles: ctx.upload("scene triangles", bytemuck::cast_slice(&at_least_one(tables.triangles)), storage)?,
             emitters: ctx.upload("scene emitters", bytemuck::cast_slice(&at_least_one(tables.emitters)), storage)?,
+            texture_words: ctx.upload("scene textures", bytemuck::cast_slice(&tables.texture_words), storage)?,
             accel,
         })
     }
@@ -63,13 +76,14 @@ impl VkScene {
     }
 
     /// Descriptor set 0 of a pass that traces the scene ([`SCENE_SET`]'s kinds).
-    pub fn resources(&self) -> [Resource<'_>; 5] {
+    pub fn resources(&self) -> [Resource<'_>; 6] {
         [
             Resource::AccelerationStructure(self.accel.tlas()),
             Resource::UniformBuffer(&self.info),
             Resource::StorageBuffer(&self.meshes),
             Resource::StorageBuffer(&self.triangles),
             Resource::StorageBuffer(&self.emitters),
+            Resource::StorageBuffer(&self.texture_words),
         ]
     }
 }

@@ -16,7 +16,7 @@ use crate::scene::VkScene;
 use arpa_core::accumulate::image::Accumulation;
 use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::gpu::batch::{Overflow, RecordLimits, after_overflow, for_each_batch, initial_capacity, shrink};
-use arpa_core::{gpu::layout::{CameraParams, GatherBatch, ImageBufferSizes, StoreCounts, StoreSettings}, gpu::fill::{check_no_textures, check_record_keys}};
+use arpa_core::{gpu::layout::{CameraParams, GatherBatch, ImageBufferSizes, StoreCounts, StoreSettings}, gpu::fill::check_record_keys};
 use arpa_core::render::photon_path::PhotonPassSetup;
 use arpa_core::render::prepared_scene::PreparedScene;
 use arpa_core::store::progressive_photon::PackedPhoton;
@@ -342,7 +342,6 @@ impl Tracer for VkTracer {
         self.state = None;
         let prepared = prepare_upload(scene, settings)?;
         check_record_keys(settings, BackendKind::Vk)?;
-        check_no_textures(scene, BackendKind::Vk)?;
         let ctx = &self.ctx;
         let (width, height) = (scene.camera.width, scene.camera.height);
         let binding = binding_bytes(ctx);

@@ -44,9 +44,17 @@ pub enum SceneUploadError {
         /// Limit.
         max: u32,
     },
-    /// More triangles in all than a `u32` counts.
-    #[error("the scene has more than 2^32 - 1 triangles")]
-    TooManyTriangles,
+    /// The scene's tables cannot be indexed (triangles or texture words beyond `u32`).
+    #[error(transparent)]
+    Tables(#[from] arpa_core::gpu::scene::SceneTablesError),
+    /// The textures and texture coordinates outgrow one storage binding of this device.
+    #[error("the scene's textures take {bytes} bytes; this device binds at most {max} bytes of storage at once")]
+    TexturesTooLarge {
+        /// Bytes of the texture words.
+        bytes: u64,
+        /// The device's `max_storage_buffer_binding_size`.
+        max: u64,
+    },
     /// The device rejected a build.
     #[error(transparent)]
     Device(#[from] HarnessError),
@@ -175,7 +183,8 @@ impl GpuGeometry {
 
 /// The prepared scene on the device: the [`GpuGeometry`] plus the core's [`SceneTables`]
 /// (materials with the roughness cut-off resolved, vertex positions and normals, geometric
-/// normals, emission, the emitters for next-event estimation), all in bind group 0
+/// normals, emission, the emitters for next-event estimation, textures and texture
+/// coordinates), all in bind group 0
 /// ([`GpuScene::bind_group_layout`], declared by [`crate::shaders::scene`]).
 pub struct GpuScene {
     geometry: GpuGeometry,
@@ -191,8 +200,13 @@ impl GpuScene {
     /// acceleration-structure build.
     pub fn upload(ctx: &GpuContext, scene: &PreparedScene) -> Result<Self, SceneUploadError> {
         let geometry = GpuGeometry::upload(ctx, &scene.scene().meshes)?;
-        let tables = SceneTables::new(scene, &geometry.orders).map_err(|_| SceneUploadError::TooManyTriangles)?;
+        let tables = SceneTables::new(scene, &geometry.orders)?;
         let device = &ctx.device;
+        let texture_bytes = 4 * tables.texture_words.len() as u64;
+        let max = u64::from(device.limits().max_storage_buffer_binding_size);
+        if texture_bytes > max {
+            return Err(SceneUploadError::TexturesTooLarge { bytes: texture_bytes, max });
+        }
         let label = "scene tables";
         // Storage bindings must not be empty: one zeroed element where a table is.
         fn non_empty<T: Default + Clone>(mut v: Vec<T>) -> Vec<T> {
@@ -206,6 +220,7 @@ impl GpuScene {
         let mesh_buf = init(bytemuck::cast_slice(&non_empty(tables.meshes)), wgpu::BufferUsages::STORAGE);
         let tri_buf = init(bytemuck::cast_slice(&non_empty(tables.triangles)), wgpu::BufferUsages::STORAGE);
         let emitter_buf = init(bytemuck::cast_slice(&non_empty(tables.emitters)), wgpu::BufferUsages::STORAGE);
+        let texture_buf = init(bytemuck::cast_slice(&tables.texture_words), wgpu::BufferUsages::STORAGE);
         let storage = |binding| crate::harness::storage_entry(binding, true);
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("scene (group 0)"),
@@ -220,6 +235,7 @@ impl GpuScene {
                 storage(2),
                 storage(3),
                 storage(4),
+                storage(5),
             ],
         });
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -231,13 +247,15 @@ impl GpuScene {
                 wgpu::BindGroupEntry { binding: 2, resource: mesh_buf.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 3, resource: tri_buf.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 4, resource: emitter_buf.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 5, resource: texture_buf.as_entire_binding() },
             ],
         });
         Ok(Self { geometry, layout, bind_group, emitter_order: tables.emitter_order })
     }
 
     /// Layout of bind group 0 (what [`crate::shaders::scene`] declares): TLAS, scene info
-    /// (uniform), meshes, triangles, emitters (read-only storage); compute stage.
+    /// (uniform), meshes, triangles, emitters, texture words (read-only storage); compute
+    /// stage.
     pub fn bind_group_layout(&self) -> &wgpu::BindGroupLayout {
         &self.layout
     }

@@ -10,7 +10,7 @@ use crate::scene::GpuScene;
 use arpa_core::accumulate::image::Accumulation;
 use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::gpu::batch::{Overflow, RecordLimits, after_overflow, for_each_batch, initial_capacity, shrink};
-use arpa_core::{gpu::layout::{GatherCounts, ImageBufferSizes, PhotonCounters, StoreSettings}, gpu::fill::{check_no_textures, check_record_keys}};
+use arpa_core::{gpu::layout::{GatherCounts, ImageBufferSizes, PhotonCounters, StoreSettings}, gpu::fill::check_record_keys};
 use arpa_core::gpu::sort::{MAX_SORT_ITEMS, sorted_len};
 use arpa_core::render::photon_path::PhotonPassSetup;
 use arpa_core::render::prepared_scene::PreparedScene;
@@ -294,7 +294,6 @@ impl Tracer for WgpuTracer {
         self.state = None;
         let prepared = prepare_upload(scene, settings)?;
         check_record_keys(settings, BackendKind::Wgpu)?;
-        check_no_textures(scene, BackendKind::Wgpu)?;
         let (width, height) = (scene.camera.width, scene.camera.height);
         let pixels = (width as u64 * height as u64).try_into().ok().filter(|&p: &u32| (p as u64) * QUERY_BYTES <= self.ctx.device.limits().max_storage_buffer_binding_size);
         let Some(pixels) = pixels else {

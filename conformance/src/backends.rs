@@ -6,7 +6,6 @@
 use arpa::backends::{BackendEntry, REGISTRY};
 /// What [`Backend::external`] takes: how to create a backend's tracer, and its options.
 pub use arpa::backends::{BackendOptions, CreateTracer};
-use arpa::core::render::tracer::BackendKind;
 
 use crate::kernel_runner::MakeKernelRunner;
 
@@ -22,7 +21,7 @@ pub struct ExpectedFailure {
 /// A backend the suite runs on.
 #[derive(Clone, Copy)]
 pub struct Backend {
-    /// Name as in [`BackendKind::name`] and `ARPA_REQUIRE_BACKENDS` (the report's column);
+    /// Name as in [`BackendKind::name`](arpa::core::render::tracer::BackendKind::name) and `ARPA_REQUIRE_BACKENDS` (the report's column);
     /// for an external backend, the name its author chose.
     pub name: &'static str,
     /// Cargo feature of `arpa-conformance` that compiles it in; empty for an external
@@ -96,24 +95,9 @@ impl Backend {
             name: e.kind.name(),
             feature: e.feature,
             create: e.create,
-            expected_failures: expected_failures(e.kind),
+            expected_failures: &[],
             kernel_runner: e.kernel_runner,
         }
-    }
-}
-
-/// What the GPU backends cannot pass until the GPU layer carries texels and masks: they
-/// refuse such scenes at upload (`arpa_core::gpu::fill::check_no_textures`).
-const GPU_TEXTURES_PENDING: &[ExpectedFailure] = &[
-    ExpectedFailure { case: "texture-plane", reason: "textures are not in the GPU layer yet; the backend refuses textured scenes" },
-    ExpectedFailure { case: "mask-plane", reason: "alpha masks are not in the GPU layer yet; the backend refuses masked scenes" },
-];
-
-/// The cases `kind` is expected to fail.
-fn expected_failures(kind: BackendKind) -> &'static [ExpectedFailure] {
-    match kind {
-        BackendKind::Cpu => &[],
-        BackendKind::Wgpu | BackendKind::Vk => GPU_TEXTURES_PENDING,
     }
 }
 

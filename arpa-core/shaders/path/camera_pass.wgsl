@@ -46,11 +46,11 @@ fn arpa_camera_direction(x: f32, y: f32) -> vec3<f32> {
 }
 
 // Whether the segment from `start` to `to` is unoccluded (the core's shadow ray: up to
-// 1 - 1e-4 of the distance).
-fn arpa_camera_visible(start: ArpaRayStart, to: vec3<f32>) -> bool {
+// 1 - 1e-4 of the distance), masks passed with draws from the path's stream.
+fn arpa_camera_visible(start: ArpaRayStart, to: vec3<f32>, rng: ptr<function, ArpaRng>) -> bool {
     let d = to - start.origin;
     let dist = length(d);
-    return dist > 0.0 && !arpa_start_occluded(start, d / dist, dist * (1.0 - 1e-4));
+    return dist > 0.0 && !arpa_scene_occluded_masked(start, d / dist, dist * (1.0 - 1e-4), rng);
 }
 
 // camera_path::direct_irradiance (W/m^2, RGB) at the diffuse point s in the shading frame sh:
@@ -66,7 +66,7 @@ fn arpa_camera_direct(s: ArpaSurface, sh: ArpaDiffuseShading, rng: ptr<function,
             let to_light = -l.p0;
             let cos = arpa_diffuse_cosine(sh, to_light);
             let far = p + to_light * (4.0 * info.sphere_radius + 1.0);
-            if cos > 0.0 && arpa_camera_visible(shadow_origin, far) {
+            if cos > 0.0 && arpa_camera_visible(shadow_origin, far, rng) {
                 e += l.color * cos;
             }
         } else {
@@ -79,7 +79,7 @@ fn arpa_camera_direct(s: ArpaSurface, sh: ArpaDiffuseShading, rng: ptr<function,
                 let theta = arpa_angle_between(-d / r, l.p1);
                 falloff = arpa_spot_falloff_at(theta, l.beam_width, l.cutoff, l.falloff);
             }
-            if cos > 0.0 && falloff > 0.0 && arpa_camera_visible(shadow_origin, l.p0) {
+            if cos > 0.0 && falloff > 0.0 && arpa_camera_visible(shadow_origin, l.p0, rng) {
                 e += l.color * (falloff * cos / r2);
             }
         }
@@ -121,7 +121,7 @@ fn arpa_camera_direct(s: ArpaSurface, sh: ArpaDiffuseShading, rng: ptr<function,
     if r > 0.0 {
         let cos_q = arpa_diffuse_cosine(sh, d / r);
         let cos_l = -dot(normal, d) / r;
-        if cos_q > 0.0 && cos_l > 0.0 && l.probability > 0.0 && arpa_camera_visible(shadow_origin, point) {
+        if cos_q > 0.0 && cos_l > 0.0 && l.probability > 0.0 && arpa_camera_visible(shadow_origin, point, rng) {
             e += l.color * (cos_q * cos_l * area / (r2 * l.probability));
         }
     }
@@ -142,7 +142,7 @@ fn arpa_camera_trace(pixel: u32) -> ArpaQueryRecord {
     var radiance = vec3<f32>(0.0);
     var rec = ArpaQueryRecord(vec3<f32>(0.0), pixel, vec3<f32>(0.0), 0u, vec3<f32>(0.0), 0u, vec3<f32>(0.0), 0u);
     for (var depth = 0u; depth < c.max_depth; depth++) {
-        let h = arpa_start_intersect(start, dir, ARPA_SCENE_T_MAX);
+        let h = arpa_scene_intersect_masked(start, dir, ARPA_SCENE_T_MAX, &rng);
         if h.hit == 0u {
             break;
         }

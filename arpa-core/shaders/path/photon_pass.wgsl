@@ -7,7 +7,8 @@
 // transfer / reflection / refraction of the ray differential (differential.wgsl), Fresnel
 // choice, Russian roulette, diffuse store with the adjoint shading-normal ratio and lobe
 // re-emission (arpa_core::propagate::lambertian), re-emission with the virtual distance
-// (reemission.wgsl), caustic/global classification (arpa_core::propagate::classify), max_depth.
+// (reemission.wgsl), caustic/global classification (arpa_core::propagate::classify), max_depth,
+// alpha masks passed as the core passes them (scene.wgsl), textured colours at every hit.
 //
 // Group 0: the scene (scene.wgsl, with the backend's arpa_scene_intersect).
 //
@@ -264,7 +265,29 @@ fn photon_trace(index: u32) -> u32 {
     for (var depth = 0u; depth < max_depth; depth++) {
         let d = ray.d;
         segments += 1u;
-        let hit = arpa_start_intersect(start, d, ARPA_SCENE_T_MAX);
+        var hit = arpa_start_intersect(start, d, ARPA_SCENE_T_MAX);
+        // PhotonWalk::advance: a mask the photon passes through lets the same ray go on
+        // from its surface (passes are not segments); a photon that stops on a partly open
+        // mask of opacity o stores its records with weight 1/o.
+        var record_weight = 1.0;
+        if arpa_scene_info.has_masks != 0u {
+            var passes = 0u;
+            loop {
+                if hit.hit == 0u {
+                    break;
+                }
+                let opacity = arpa_scene_opacity(hit);
+                if passes < ARPA_MAX_MASK_PASSES && !arpa_stops_with(opacity, &rng) {
+                    passes += 1u;
+                    hit = arpa_start_intersect(arpa_ray_start_leaving_hit(hit), d, ARPA_SCENE_T_MAX);
+                    continue;
+                }
+                if opacity > 0.0 && opacity < 1.0 {
+                    record_weight = 1.0 / opacity;
+                }
+                break;
+            }
+        }
         if hit.hit == 0u {
             break;
         }
@@ -317,7 +340,7 @@ fn photon_trace(index: u32) -> u32 {
                 if map == 0u {
                     stored_flux = flux * caustic_weight;
                 }
-                photon_store(at, s.geometric_normal, stored_flux, map, valid, below, key);
+                photon_store(at, s.geometric_normal, stored_flux * record_weight, map, valid, below, key);
             }
             if caustic_only {
                 break;

@@ -1,7 +1,9 @@
 // The scene on the device (bind group 0 of the camera and photon passes): per-mesh
 // materials with the scene's roughness cut-off resolved on the host, per-triangle geometry,
-// and the emitters for next-event estimation, as arpa_core::gpu::scene::SceneTables
-// uploads them; mirrors arpa_core::render::prepared_scene::PreparedScene. Needs math.wgsl.
+// the emitters for next-event estimation, and the textures with the meshes' texture
+// coordinates (texture.wgsl's word table), as arpa_core::gpu::scene::SceneTables uploads
+// them; mirrors arpa_core::render::prepared_scene::PreparedScene. Needs math.wgsl,
+// rng.wgsl, records.wgsl and texture.wgsl.
 // Units: metres, world space; radiance W/(m^2 sr), intensity W/sr, irradiance W/m^2
 // (linear RGB).
 //
@@ -17,6 +19,12 @@
 // both with opaque triangles, unit dir and t_max up to ARPA_SCENE_T_MAX (arpa-wgpu:
 // ray queries; arpa-vk: ray-tracing pipelines). The passes cast through an ArpaRayStart
 // (arpa_start_intersect / arpa_start_occluded below), never directly.
+//
+// Alpha masks (PreparedScene::intersect): a ray passes through a mask of opacity o with
+// probability 1 - o, drawing from the path's own stream exactly where the core draws, and
+// is cast again from the mask's surface (arpa_scene_intersect_masked). The backends' casts
+// stay opaque closest-hit queries: the mask decision is the core's, in this file, so every
+// backend passes the same masks for the same seed.
 
 // Scattering kinds (arpa_core::render::scene::Scattering; arpa_core::gpu::codes::SCATTER_*).
 const ARPA_SCATTER_DIFFUSE: u32 = 0u;
@@ -42,13 +50,14 @@ struct ArpaSceneInfo {
     // order, then the area emitters (triangles, quads) in PreparedScene's area order.
     delta_count: u32,
     area_count: u32,
-    pad0: u32,
+    // 1 if some material is a mask (PreparedScene::has_masks).
+    has_masks: u32,
     // Bounding sphere (PreparedScene::bounding_sphere).
     sphere_centre: vec3<f32>,
     sphere_radius: f32,
 }
 
-// layout::SceneMesh (48 bytes).
+// layout::SceneMesh (64 bytes).
 struct ArpaSceneMesh {
     first_triangle: u32,
     triangle_count: u32,
@@ -63,6 +72,15 @@ struct ArpaSceneMesh {
     emission: vec3<f32>,
     // 1 if the mesh has vertex normals.
     has_normals: u32,
+    // The texture multiplying `color`, or ARPA_NO_TEXTURE.
+    color_texture: u32,
+    // The texture whose single value is the opacity, or ARPA_NO_TEXTURE.
+    opacity_texture: u32,
+    // The constant opacity where opacity_texture is none (1: opaque).
+    opacity: f32,
+    // Word of the first triangle's texture coordinates (u0 v0 u1 v1 u2 v2 per triangle) in
+    // the texture words, or ARPA_NO_TEXTURE (the hit's (b1, b2) are used).
+    uv_first: u32,
 }
 
 // layout::SceneTriangle (112 bytes).
@@ -120,6 +138,12 @@ struct ArpaSceneEmitter {
 @group(0) @binding(2) var<storage, read> arpa_scene_meshes: array<ArpaSceneMesh>;
 @group(0) @binding(3) var<storage, read> arpa_scene_triangles: array<ArpaSceneTriangle>;
 @group(0) @binding(4) var<storage, read> arpa_scene_emitters: array<ArpaSceneEmitter>;
+@group(0) @binding(5) var<storage, read> arpa_scene_texture_words: array<u32>;
+
+// texture.wgsl's word table.
+fn arpa_texture_word(i: u32) -> u32 {
+    return arpa_scene_texture_words[i];
+}
 
 // A closest hit (RayHit): t (metres along the unit direction), mesh, triangle within the
 // mesh, barycentric weights b1, b2 of vertices 1 and 2; hit = 0: no hit.
@@ -176,6 +200,8 @@ struct ArpaSurface {
     specular_normal: vec3<f32>,
     // 1 if the mesh has vertex normals.
     mesh_has_normals: u32,
+    // Texture coordinates (PreparedScene::uv).
+    uv: vec2<f32>,
 }
 
 // Index of a mesh's triangle in arpa_scene_triangles.
@@ -209,6 +235,46 @@ fn arpa_scene_interpolated_normal(t: ArpaSceneTriangle, b: vec3<f32>) -> vec3<f3
     return select(n, -n, dot(n, t.normal) < 0.0);
 }
 
+// PreparedScene::uv: the mesh's texture coordinates interpolated with the hit's
+// barycentric weights, or (b1, b2) on a mesh without them.
+fn arpa_scene_uv(h: ArpaSceneHit) -> vec2<f32> {
+    let first = arpa_scene_meshes[h.mesh].uv_first;
+    if first == ARPA_NO_TEXTURE {
+        return vec2<f32>(h.b1, h.b2);
+    }
+    let w = first + 6u * h.triangle;
+    let a = vec2<f32>(arpa_texture_f32(w), arpa_texture_f32(w + 1u));
+    let b = vec2<f32>(arpa_texture_f32(w + 2u), arpa_texture_f32(w + 3u));
+    let c = vec2<f32>(arpa_texture_f32(w + 4u), arpa_texture_f32(w + 5u));
+    return a * (1.0 - h.b1 - h.b2) + b * h.b1 + c * h.b2;
+}
+
+// PreparedScene::opacity: the probability that a ray stops at the hit (1: opaque; a
+// texture's NaN counts as 1).
+fn arpa_scene_opacity(h: ArpaSceneHit) -> f32 {
+    let m = arpa_scene_meshes[h.mesh];
+    if m.opacity_texture == ARPA_NO_TEXTURE {
+        return m.opacity;
+    }
+    let o = arpa_texture_eval_1(m.opacity_texture, arpa_scene_uv(h));
+    if (bitcast<u32>(o) & 0x7fffffffu) > 0x7f800000u {
+        return 1.0;
+    }
+    return clamp(o, 0.0, 1.0);
+}
+
+// prepared_scene::stops_with: whether a ray stops on a surface of opacity o, drawing one
+// number where 0 < o < 1.
+fn arpa_stops_with(o: f32, rng: ptr<function, ArpaRng>) -> bool {
+    if o >= 1.0 {
+        return true;
+    }
+    if o <= 0.0 {
+        return false;
+    }
+    return arpa_rng_next_below(rng, o);
+}
+
 // The surface point of a hit (PreparedScene::surface, shading_normal_at,
 // has_shading_normals, shading_normal without derivatives). h.hit must be 1.
 fn arpa_scene_surface(h: ArpaSceneHit) -> ArpaSurface {
@@ -229,7 +295,11 @@ fn arpa_scene_surface(h: ArpaSceneHit) -> ArpaSurface {
         s.specular_normal = arpa_scene_interpolated_normal(t, b);
     }
     s.ior = m.ior;
+    s.uv = arpa_scene_uv(h);
     s.color = m.color;
+    if m.color_texture != ARPA_NO_TEXTURE {
+        s.color *= max(arpa_texture_eval(m.color_texture, s.uv), vec3<f32>(0.0));
+    }
     s.emissive = m.emissive;
     s.emission = m.emission;
     s.mesh = h.mesh;
@@ -279,6 +349,13 @@ fn arpa_ray_start_leaving(s: ArpaSurface) -> ArpaRayStart {
     return ArpaRayStart(s.position, arpa_leave_t_min(s.position), s.mesh, s.triangle);
 }
 
+// PreparedScene::leaving_hit: a ray going on past the hit h (through a mask).
+fn arpa_ray_start_leaving_hit(h: ArpaSceneHit) -> ArpaRayStart {
+    let t = arpa_scene_triangles[arpa_scene_meshes[h.mesh].first_triangle + h.triangle];
+    let p = t.p0 * (1.0 - h.b1 - h.b2) + t.p1 * h.b1 + t.p2 * h.b2;
+    return ArpaRayStart(p, arpa_leave_t_min(p), h.mesh, h.triangle);
+}
+
 // RayStart::off_surface: photons leaving an area light along its normal n.
 fn arpa_ray_start_off_surface(p: vec3<f32>, n: vec3<f32>) -> ArpaRayStart {
     return arpa_ray_start_at(arpa_offset_origin(p, n));
@@ -312,4 +389,36 @@ fn arpa_start_occluded(start: ArpaRayStart, dir: vec3<f32>, t_max: f32) -> bool 
         return false;
     }
     return start.mesh == ARPA_NO_TRIANGLE || arpa_start_intersect(start, dir, t_max).hit != 0u;
+}
+
+// prepared_scene::MAX_MASK_PASSES.
+const ARPA_MAX_MASK_PASSES: u32 = 64u;
+
+// PreparedScene::intersect: the closest hit that stops the ray, masks passed as
+// arpa_stops_with decides (at most ARPA_MAX_MASK_PASSES, then the next hit stops it). The
+// hit's t is measured from the last surface passed.
+fn arpa_scene_intersect_masked(start: ArpaRayStart, dir: vec3<f32>, t_max: f32, rng: ptr<function, ArpaRng>) -> ArpaSceneHit {
+    if arpa_scene_info.has_masks == 0u {
+        return arpa_start_intersect(start, dir, t_max);
+    }
+    var at = start;
+    var left = t_max;
+    for (var i = 0u; i < ARPA_MAX_MASK_PASSES; i++) {
+        let h = arpa_start_intersect(at, dir, left);
+        if h.hit == 0u || arpa_stops_with(arpa_scene_opacity(h), rng) {
+            return h;
+        }
+        left -= h.t;
+        at = arpa_ray_start_leaving_hit(h);
+    }
+    return arpa_start_intersect(at, dir, left);
+}
+
+// PreparedScene::occluded: whether the ray is stopped before t_max, masks passed as in
+// arpa_scene_intersect_masked (without masks: arpa_start_occluded, drawing nothing).
+fn arpa_scene_occluded_masked(start: ArpaRayStart, dir: vec3<f32>, t_max: f32, rng: ptr<function, ArpaRng>) -> bool {
+    if arpa_scene_info.has_masks == 0u {
+        return arpa_start_occluded(start, dir, t_max);
+    }
+    return arpa_scene_intersect_masked(start, dir, t_max, rng).hit != 0u;
 }

@@ -8,21 +8,9 @@ use crate::emit::emission::PackedLight;
 use crate::gpu::layout::{AccumPixel, CameraParams, EmitterRange, PhotonCounters, PhotonParams, StoreCounts};
 use crate::render::photon_path::{source_cells, PhotonPassSetup};
 use crate::render::prepared_scene::PreparedScene;
-use crate::render::scene::{Camera, Scene, SceneError};
+use crate::render::scene::{Camera, SceneError};
 use crate::render::tracer::{BackendKind, InvalidSettings, IterationStats, RenderSettings, StageError};
 use alloc::vec::Vec;
-
-/// Refuses a scene with textures or masks ([`crate::render::scene::SceneTextures`]): the GPU
-/// layer does not carry texels yet, and a GPU backend must not render such a scene with
-/// its textures silently dropped. The message names `backend` and the backend that can.
-pub fn check_no_textures(scene: &Scene, backend: BackendKind) -> Result<(), StageError> {
-    if !scene.textures.any() {
-        return Ok(());
-    }
-    Err(StageError::Settings(InvalidSettings(alloc::format!(
-        "the scene has textures or alpha masks, which the {backend} backend does not render yet; render it with the cpu backend"
-    ))))
-}
 
 /// Refuses settings whose record keys (`photon_index · max_depth + depth`, as
 /// [`KeyedFootprint::key`](crate::gpu::layout::KeyedFootprint::key) and [`KeyedPhoton::key`](crate::gpu::layout::KeyedPhoton::key)) would not all fit a `u32`: the check a

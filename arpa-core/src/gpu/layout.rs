@@ -540,16 +540,16 @@ pub struct SceneInfo {
     pub delta_count: u32,
     /// Area emitters (triangles, quads), after the delta lights; 0 without positive power.
     pub area_count: u32,
-    /// Padding.
-    pub pad0: u32,
+    /// 1 if some material is a mask ([`crate::render::prepared_scene::PreparedScene::has_masks`]).
+    pub has_masks: u32,
     /// Centre of the bounding sphere (metres).
     pub sphere_centre: [f32; 3],
     /// Its radius (metres).
     pub sphere_radius: f32,
 }
-layout!(SceneInfo, 32, { mesh_count: 0, delta_count: 4, area_count: 8, sphere_centre: 16, sphere_radius: 28 });
+layout!(SceneInfo, 32, { mesh_count: 0, delta_count: 4, area_count: 8, has_masks: 12, sphere_centre: 16, sphere_radius: 28 });
 
-/// `ArpaSceneMesh` of `scene.wgsl` (48 bytes).
+/// `ArpaSceneMesh` of `scene.wgsl` (64 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct SceneMesh {
@@ -569,8 +569,21 @@ pub struct SceneMesh {
     pub emission: [f32; 3],
     /// 1 if the mesh has vertex normals.
     pub has_normals: u32,
+    /// The texture multiplying `color` ([`crate::render::scene::MaterialMaps::color`]), or
+    /// [`crate::gpu::texture::NO_TEXTURE`].
+    pub color_texture: u32,
+    /// The texture whose single value is the opacity, or [`crate::gpu::texture::NO_TEXTURE`].
+    pub opacity_texture: u32,
+    /// The constant opacity where `opacity_texture` is none (1: opaque).
+    pub opacity: f32,
+    /// Word of the mesh's first texture coordinates in the texture words
+    /// ([`crate::gpu::texture::TextureWords`]), or [`crate::gpu::texture::NO_TEXTURE`].
+    pub uv_first: u32,
 }
-layout!(SceneMesh, 48, { first_triangle: 0, triangle_count: 4, kind: 8, emissive: 12, color: 16, ior: 28, emission: 32, has_normals: 44 });
+layout!(SceneMesh, 64, {
+    first_triangle: 0, triangle_count: 4, kind: 8, emissive: 12, color: 16, ior: 28, emission: 32, has_normals: 44,
+    color_texture: 48, opacity_texture: 52, opacity: 56, uv_first: 60
+});
 
 /// `ArpaSceneTriangle` of `scene.wgsl` (112 bytes). The table is in the meshes' triangle
 /// order; `blas_triangle` of the record at `first_triangle + i` is the mesh's triangle at

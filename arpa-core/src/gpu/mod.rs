@@ -36,3 +36,6 @@ pub mod layout;
 pub mod scene;
 pub mod shaders;
 pub mod sort;
+#[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
+pub mod texture;

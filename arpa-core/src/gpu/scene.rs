@@ -11,10 +11,11 @@ use glam::{DVec3, Vec3};
 use crate::emit::emission::Light;
 use crate::gpu::codes::{SCATTER_DIFFUSE, SCATTER_MIRROR, SCATTER_REFRACTIVE, TRIANGLE_NORMALS, TRIANGLE_SHADED};
 use crate::gpu::layout::{SceneEmitter, SceneInfo, SceneMesh, SceneTriangle};
+use crate::gpu::texture::{TextureWords, TooManyTexels, NO_TEXTURE};
 use crate::base::morton::morton_code;
 use crate::render::prepared_scene::PreparedScene;
 use crate::render::ray_cast::RayHit;
-use crate::render::scene::{Scattering, TriangleMesh};
+use crate::render::scene::{Opacity, Scattering, TriangleMesh};
 use crate::propagate::shading_normal::ShadedTriangle;
 
 /// The order in which a mesh's triangles go into its bottom-level acceleration structure:
@@ -39,12 +40,18 @@ pub fn morton_triangle_order(mesh: &TriangleMesh) -> Vec<u32> {
     keyed.into_iter().map(|(_, i)| i).collect()
 }
 
-/// The scene has more triangles than a `u32` counts.
+/// Why a scene's tables cannot be built.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("the scene has more than 2^32 - 1 triangles")]
-pub struct TooManyTriangles;
+pub enum SceneTablesError {
+    /// The scene has more triangles than a `u32` counts.
+    #[error("the scene has more than 2^32 - 1 triangles")]
+    TooManyTriangles,
+    /// The texture words outgrow `u32` indices.
+    #[error(transparent)]
+    TooManyTexels(#[from] TooManyTexels),
+}
 
-/// The tables of bind group 0 (bindings 1 to 4 of `scene.wgsl`).
+/// The tables of bind group 0 (bindings 1 to 5 of `scene.wgsl`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct SceneTables {
     /// Counts and the bounding sphere (uniform).
@@ -58,13 +65,17 @@ pub struct SceneTables {
     pub emitters: Vec<SceneEmitter>,
     /// Per emitter record, its index into [`PreparedScene::emitters`].
     pub emitter_order: Vec<usize>,
+    /// The textures and the meshes' texture coordinates
+    /// ([`crate::gpu::texture::TextureWords::words`]; never empty: the decode tables).
+    pub texture_words: Vec<u32>,
 }
 
 impl SceneTables {
     /// The tables of `scene` whose mesh `m`'s bottom-level structure holds, at primitive
     /// `i`, the mesh's triangle `triangle_orders[m][i]` ([`morton_triangle_order`]).
-    pub fn new(scene: &PreparedScene, triangle_orders: &[Vec<u32>]) -> Result<Self, TooManyTriangles> {
+    pub fn new(scene: &PreparedScene, triangle_orders: &[Vec<u32>]) -> Result<Self, SceneTablesError> {
         let s = scene.scene();
+        let textures = TextureWords::new(s)?;
         let f3 = |v: DVec3| v.as_vec3().to_array();
         let mut meshes = Vec::with_capacity(s.meshes.len());
         let mut triangles = Vec::new();
@@ -74,7 +85,13 @@ impl SceneTables {
                 Scattering::Mirror(c) => (SCATTER_MIRROR, c, 1.0),
                 Scattering::Refractive(ior, c) => (SCATTER_REFRACTIVE, c, ior),
             };
-            let first_triangle = u32::try_from(triangles.len()).map_err(|_| TooManyTriangles)?;
+            let first_triangle = u32::try_from(triangles.len()).map_err(|_| SceneTablesError::TooManyTriangles)?;
+            let maps = s.textures.maps(m.material);
+            let (opacity_texture, opacity) = match maps.opacity {
+                None => (NO_TEXTURE, 1.0),
+                Some(Opacity::Constant(o)) => (NO_TEXTURE, o),
+                Some(Opacity::Texture(id)) => (id, 1.0),
+            };
             meshes.push(SceneMesh {
                 first_triangle,
                 triangle_count: m.indices.len() as u32,
@@ -84,6 +101,10 @@ impl SceneTables {
                 ior,
                 emission: m.emission.unwrap_or(Vec3::ZERO).to_array(),
                 has_normals: m.normals.is_some() as u32,
+                color_texture: maps.color.unwrap_or(NO_TEXTURE),
+                opacity_texture,
+                opacity,
+                uv_first: textures.uv_first[mi],
             });
             let order = triangle_orders.get(mi).map_or(&[][..], |o| &o[..]);
             for (ti, idx) in m.indices.iter().enumerate() {
@@ -150,11 +171,11 @@ impl SceneTables {
             mesh_count: s.meshes.len() as u32,
             delta_count: delta_count as u32,
             area_count: area_count as u32,
-            pad0: 0,
+            has_masks: scene.has_masks() as u32,
             sphere_centre: f3(centre),
             sphere_radius: radius as f32,
         };
-        Ok(Self { info, meshes, triangles, emitters: packed, emitter_order: order })
+        Ok(Self { info, meshes, triangles, emitters: packed, emitter_order: order, texture_words: textures.words })
     }
 }
 

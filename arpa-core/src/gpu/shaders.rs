@@ -50,7 +50,8 @@
 //! | file | Rust reference | what |
 //! |---|---|---|
 //! | [`RECORDS`] | [`crate::gpu::layout`] | the records the kernels exchange (keyed footprints and photons, packed photons, query records, sort items) |
-//! | [`SCENE`] | [`crate::render::prepared_scene::PreparedScene`] | the scene tables of [`crate::gpu::scene::SceneTables`] (group 0), surface points; ray casting by the backend |
+//! | [`TEXTURE`] | [`crate::render::texture`] | bitmap and checkerboard lookups on the word table of [`crate::gpu::texture`] |
+//! | [`SCENE`] | [`crate::render::prepared_scene::PreparedScene`] | the scene tables of [`crate::gpu::scene::SceneTables`] (group 0), surface points with textured colours, alpha masks; ray casting by the backend |
 //! | [`CAMERA_PASS`] | [`crate::render::camera_path::trace_camera_path`] | one query record per pixel |
 //! | [`PHOTON_PASS`] | [`crate::render::photon_path::trace_photon`] | one invocation per photon of a batch, keyed footprints and photons appended |
 //! | [`STORE`] | [`crate::store`] | heuristics, fallback photons, sort keys, compaction into sorted maps with padded boxes |
@@ -159,15 +160,23 @@ pub const BANDWIDTH: WgslFile = WgslFile { name: "gather/bandwidth.wgsl", source
 /// kernels exchange.
 pub const RECORDS: WgslFile = WgslFile { name: "path/records.wgsl", source: include_str!("../../shaders/path/records.wgsl"), deps: &[] };
 
-/// `path/scene.wgsl`: bind group 0 of the camera and photon passes (bindings 1 to 4: the
+/// `path/texture.wgsl`: `arpa_texture_eval`, `arpa_texture_eval_1` (the twin of
+/// [`crate::render::texture::Texture::eval`] and `eval_1`) on the word table of
+/// [`crate::gpu::texture`], read through `arpa_texture_word(i)`, which the including file
+/// defines ([`SCENE`]: binding 5 of group 0).
+pub const TEXTURE: WgslFile = WgslFile { name: "path/texture.wgsl", source: include_str!("../../shaders/path/texture.wgsl"), deps: &[&MATH] };
+
+/// `path/scene.wgsl`: bind group 0 of the camera and photon passes (bindings 1 to 5: the
 /// tables of [`crate::gpu::scene::SceneTables`]), `ArpaSceneHit`, `arpa_scene_hit`,
 /// `arpa_scene_miss`, `ArpaSurface`, `arpa_scene_surface`, `arpa_scene_triangle_vertices`,
 /// `arpa_scene_triangle_normals`, `arpa_offset_origin`, `ARPA_SCENE_T_MAX`, and the ray
 /// starts of [`crate::render::ray_cast::RayStart`] (`ArpaRayStart`, `arpa_ray_start_*`,
-/// `arpa_start_intersect`, `arpa_start_occluded`). The backend's glue adds binding 0 (its
+/// `arpa_start_intersect`, `arpa_start_occluded`), texture lookups at hits and the alpha
+/// masks of [`crate::render::prepared_scene::PreparedScene::intersect`]
+/// (`arpa_scene_intersect_masked`, `arpa_scene_occluded_masked`). The backend's glue adds binding 0 (its
 /// acceleration structure over the triangles) and defines `arpa_scene_intersect` and
 /// `arpa_scene_occluded` with a `t_min` (the file states their contract).
-pub const SCENE: WgslFile = WgslFile { name: "path/scene.wgsl", source: include_str!("../../shaders/path/scene.wgsl"), deps: &[&MATH, &RECORDS] };
+pub const SCENE: WgslFile = WgslFile { name: "path/scene.wgsl", source: include_str!("../../shaders/path/scene.wgsl"), deps: &[&MATH, &RNG, &RECORDS, &TEXTURE] };
 
 /// `path/camera_pass.wgsl`: per pixel `arpa_camera_trace` (group 1:
 /// [`crate::gpu::layout::CameraParams`] and the query records); the backend's entry point
@@ -216,7 +225,7 @@ pub const TWIN: [&WgslFile; 16] =
     [&MATH, &RNG, &KERNEL, &FOOTPRINT, &RADIUS, &DIFFERENTIAL, &FRESNEL, &FRAME, &SAMPLING, &EMISSION, &HEURISTICS, &REEMISSION, &LAMBERTIAN, &AABB, &MORTON, &BANDWIDTH];
 
 /// The path-level files.
-pub const PATH: [&WgslFile; 8] = [&RECORDS, &SCENE, &CAMERA_PASS, &PHOTON_PASS, &STORE, &SORT, &GATHER, &ACCUMULATE];
+pub const PATH: [&WgslFile; 9] = [&RECORDS, &TEXTURE, &SCENE, &CAMERA_PASS, &PHOTON_PASS, &STORE, &SORT, &GATHER, &ACCUMULATE];
 
 /// One WGSL file with the files it needs (WGSL has no imports: [`compose`] includes them).
 #[derive(Clone, Copy, Debug)]

@@ -131,8 +131,8 @@ fn records_have_the_layouts_of_their_rust_twins() {
         ("GatherImageParams", size_of::<GatherImageParams>(), vec![("radii", 0), ("kernel", 8), ("pixels", 12), ("batch", 16), ("scales", offset_of!(GatherImageParams, scales))]),
         ("AccumPixel", size_of::<AccumPixel>(), vec![("sum", 0), ("rejected", 12), ("compensation", 16)]),
         ("ArpaCameraParams", size_of::<CameraParams>(), vec![("position", 0), ("width", 12), ("forward", 16), ("height", 28), ("right", 32), ("tan_half_fov", 44), ("up", 48), ("aspect", 60), ("seed", 64), ("iteration", 68), ("max_depth", 72), ("direct_lighting", 76), ("pixel_count", 80), ("row_invocations", 84)]),
-        ("ArpaSceneInfo", size_of::<SceneInfo>(), vec![("mesh_count", 0), ("delta_count", 4), ("area_count", 8), ("sphere_centre", 16), ("sphere_radius", 28)]),
-        ("ArpaSceneMesh", size_of::<SceneMesh>(), vec![("first_triangle", 0), ("kind", 8), ("color", 16), ("ior", 28), ("emission", 32), ("has_normals", 44)]),
+        ("ArpaSceneInfo", size_of::<SceneInfo>(), vec![("mesh_count", 0), ("delta_count", 4), ("area_count", 8), ("has_masks", 12), ("sphere_centre", 16), ("sphere_radius", 28)]),
+        ("ArpaSceneMesh", size_of::<SceneMesh>(), vec![("first_triangle", 0), ("kind", 8), ("color", 16), ("ior", 28), ("emission", 32), ("has_normals", 44), ("color_texture", 48), ("opacity_texture", 52), ("opacity", 56), ("uv_first", 60)]),
         ("ArpaSceneTriangle", size_of::<SceneTriangle>(), vec![("p0", 0), ("flags", 12), ("p1", 16), ("blas_triangle", 28), ("p2", 32), ("normal", 48), ("n0", 64), ("n1", 80), ("n2", 96)]),
         ("ArpaSceneEmitter", size_of::<SceneEmitter>(), vec![("kind", 0), ("falloff", 4), ("cutoff", 8), ("beam_width", 12), ("p0", 16), ("cdf", 28), ("p1", 32), ("probability", 44), ("p2", 48), ("color", 64)]),
     ];

@@ -245,6 +245,12 @@ pub fn all() -> Vec<Case> {
             run: CaseBody::Kernels(twin::spot_falloff::matches_core),
         },
         Case {
+            id: "twin-texture",
+            title: "WGSL twin texture.wgsl = arpa_core::render::texture (bitmaps: 8-bit sRGB, raw, float; filters, wraps, to_uv; checkerboards)",
+            needs: None,
+            run: CaseBody::Kernels(twin::texture::matches_core),
+        },
+        Case {
             id: "twin-reemission",
             title: "WGSL twin reemission.wgsl = arpa_core::propagate::reemission",
             needs: None,

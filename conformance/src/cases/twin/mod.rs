@@ -2,7 +2,7 @@
 //! [`KernelRunner`]: one case per twin file or group of functions (rng streams, rng draws
 //! mirroring the core's f64 uses, math helpers, Fresnel reflectance + refraction,
 //! differential, emission, spot falloff, re-emission, Lambertian shading, footprint +
-//! kernel, heuristics, radius schedule).
+//! kernel, heuristics, radius schedule, texture lookups).
 //!
 //! Each case runs the twin's functions on the device over random inputs (including the
 //! stress ranges each module names: magnitudes over tens of decades, grazing angles,
@@ -46,6 +46,7 @@ pub mod reemission;
 pub mod rng;
 pub mod rng_draws;
 pub mod spot_falloff;
+pub mod texture;
 
 /// `check!(condition, "format", args…)`: returns `Err(message)` from the enclosing case
 /// function unless `condition` holds.
