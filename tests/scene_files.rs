@@ -555,9 +555,10 @@ fn serialized_meshes_read_as_mitsuba_reads_them() {
     assert_eq!(m.positions, mitsuba);
     assert_eq!(m.indices, vec![[2, 0, 1]]);
     // The file stores no normals: Mitsuba computes smooth vertex normals, which on one flat
-    // triangle are its face normal, the normal arpa shades it with.
-    assert!(m.normals.is_none());
-    assert!(close(geometric_normal(m, 0), vec3(0.49976766, 0.7311087, 0.46444827), 1e-6), "{}", geometric_normal(m, 0));
+    // triangle are its face normal.
+    let face = vec3(0.49976766, 0.7311087, 0.46444827);
+    assert!(close(geometric_normal(m, 0), face, 1e-6), "{}", geometric_normal(m, 0));
+    assert!(m.normals.as_ref().unwrap().iter().all(|n| close(*n, face, 1e-6)), "{:?}", m.normals);
     // Version 4, double precision, normals and uvs: Mitsuba's shape 0 of normals_uvs_v4.
     let s = load_in_tempdir(&shape(0), &[("m.serialized", file("normals_uvs_v4.serialized"))]).unwrap();
     let m = mesh(&s, "m.serialized");
@@ -567,6 +568,34 @@ fn serialized_meshes_read_as_mitsuba_reads_them() {
     assert!(msg.contains("m.serialized") && msg.contains("shape_index 2 out of range"), "{msg}");
     let (_, msg) = expect_err(load_in_tempdir(&shape(0), &[("m.serialized", b"not a mesh".to_vec())]));
     assert!(msg.contains("m.serialized"), "{msg}");
+}
+
+/// Mesh files without normals get Mitsuba's smooth vertex normals (angle-weighted face
+/// normals at shared vertices), unless `face_normals` is set; analytic shapes keep theirs.
+#[test]
+fn meshes_without_normals_get_smooth_normals_as_in_mitsuba() {
+    // A roof: two triangles meeting at a right angle along the shared edge 0-1 (each has a
+    // 90 degree angle at vertex 0 and a 45 degree angle at vertex 1).
+    let roof = [[0.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 1.0, 0.0], [-1.0, 1.0, 0.0]];
+    let faces: [&[i32]; 2] = [&[0, 1, 2], &[0, 3, 1]];
+    let files = [("r.ply", ply(&roof, &faces, false))];
+    let s = load_in_tempdir(&scene_xml(&ply_shape("r.ply")), &files).unwrap();
+    let m = &s.scene.meshes[0];
+    let (n0, n1) = (geometric_normal(m, 0), geometric_normal(m, 1));
+    assert!(close(n0, vec3(-1.0, 1.0, 0.0).normalize(), 1e-6) && close(n1, vec3(1.0, 1.0, 0.0).normalize(), 1e-6), "{n0} {n1}");
+    let ns = m.normals.as_ref().expect("smooth normals");
+    // Equal angles at the shared vertices: the bisector +y; the others keep their face's.
+    assert!(close(ns[0], Vec3::Y, 1e-6) && close(ns[1], Vec3::Y, 1e-6) && close(ns[2], n0, 1e-6) && close(ns[3], n1, 1e-6), "{ns:?}");
+    assert!(s.warnings.is_empty(), "computed normals are not stored ones: {:?}", s.warnings);
+    let flat = ply_shape("r.ply").replace("</shape>", r#"<boolean name="face_normals" value="true"/></shape>"#);
+    assert!(load_in_tempdir(&scene_xml(&flat), &files).unwrap().scene.meshes[0].normals.is_none());
+    // OBJ without vn: the same; the built-in cube: face normals.
+    let obj = "v 0 0 0\nv 0 0 1\nv 1 1 0\nv -1 1 0\nf 1 2 3\nf 1 4 2\n";
+    let xml = scene_xml(r#"    <shape type="obj"><string name="filename" value="r.obj"/></shape>
+    <shape type="cube"/>"#);
+    let s = load_in_tempdir(&xml, &[("r.obj", obj.as_bytes().to_vec())]).unwrap();
+    assert!(close(s.scene.meshes[0].normals.as_ref().unwrap()[0], Vec3::Y, 1e-6));
+    assert!(s.scene.meshes[1].normals.is_none());
 }
 
 /// `<path>` directories are searched before the scene's own directory, the last first.

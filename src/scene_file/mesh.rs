@@ -17,6 +17,9 @@ pub struct RawMesh {
     pub uvs: Option<Vec<DVec2>>,
     /// Triangles (polygons fan-triangulated); every index is below `positions.len()`.
     pub indices: Vec<[u32; 3]>,
+    /// The file asks for face normals (a serialized mesh's flag), unless the scene's
+    /// `face_normals` property says otherwise.
+    pub face_normals: bool,
 }
 
 /// Reads a mesh file named by a scene (`<string name="filename">`, resolved against the

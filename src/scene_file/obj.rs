@@ -21,7 +21,7 @@ pub(crate) fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh, SceneFileError
     let no_materials = |_: &Path| -> tobj::MTLLoadResult { Err(tobj::LoadError::OpenFileFailed) };
     let loaded = std::panic::catch_unwind(|| tobj::load_obj_buf(&mut &bytes[..], &options, no_materials)).map_err(|_| err("the OBJ parser failed on this file".into()))?;
     let (models, _materials) = loaded.map_err(|e| err(format!("cannot parse: {e}")))?;
-    let mut out = RawMesh { positions: Vec::new(), normals: Some(Vec::new()), uvs: Some(Vec::new()), indices: Vec::new() };
+    let mut out = RawMesh { positions: Vec::new(), normals: Some(Vec::new()), uvs: Some(Vec::new()), indices: Vec::new(), face_normals: false };
     for m in &models {
         let mesh = &m.mesh;
         let base = out.positions.len();

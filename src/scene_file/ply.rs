@@ -212,5 +212,5 @@ fn read(mut r: &[u8], path: &Path) -> Result<RawMesh, SceneFileError> {
     let positions = vertices.iter().map(|v| DVec3::from_array(v.p)).collect();
     let normals = has_normals.then(|| vertices.iter().map(|v| DVec3::from_array(v.n)).collect());
     let uvs = has_uvs.then(|| vertices.iter().map(|v| DVec2::from_array(v.uv)).collect());
-    Ok(RawMesh { positions, normals, uvs, indices })
+    Ok(RawMesh { positions, normals, uvs, indices, face_normals: false })
 }

@@ -262,7 +262,7 @@ fn read_shape(compressed: &[u8], version: u16) -> Result<RawMesh, String> {
         indices.push(corners);
     }
     data.finish()?;
-    Ok(RawMesh { positions, normals, uvs, indices })
+    Ok(RawMesh { positions, normals, uvs, indices, face_normals: flags & FACE_NORMALS != 0 })
 }
 
 /// Decodes little-endian `f64`s (`double`) or `f32`s from `bytes`, widened to `f64`.

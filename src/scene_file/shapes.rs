@@ -37,7 +37,7 @@ fn azimuth(y: f64, x: f64) -> f64 {
 pub(crate) fn rectangle() -> RawMesh {
     let positions = vec![DVec3::new(-1.0, -1.0, 0.0), DVec3::new(1.0, -1.0, 0.0), DVec3::new(1.0, 1.0, 0.0), DVec3::new(-1.0, 1.0, 0.0)];
     let uvs = positions.iter().map(|p| DVec2::new(0.5 * (p.x + 1.0), 0.5 * (p.y + 1.0))).collect();
-    RawMesh { positions, normals: Some(vec![DVec3::Z; 4]), uvs: Some(uvs), indices: vec![[0, 1, 2], [0, 2, 3]] }
+    RawMesh { positions, normals: Some(vec![DVec3::Z; 4]), uvs: Some(uvs), indices: vec![[0, 1, 2], [0, 2, 3]], face_normals: false }
 }
 
 /// The `uv` Mitsuba's cube gives the point `p` of its face with outward normal `n`.
@@ -58,7 +58,7 @@ fn cube_uv(n: DVec3, p: DVec3) -> DVec2 {
 pub(crate) fn cube() -> RawMesh {
     let (x, y, z) = (DVec3::X, DVec3::Y, DVec3::Z);
     let faces = [(x, y, z), (-x, z, y), (y, z, x), (-y, x, z), (z, x, y), (-z, y, x)];
-    let mut m = RawMesh { positions: Vec::new(), normals: None, uvs: Some(Vec::new()), indices: Vec::new() };
+    let mut m = RawMesh { positions: Vec::new(), normals: None, uvs: Some(Vec::new()), indices: Vec::new(), face_normals: false };
     for (n, u, v) in faces {
         let b = m.positions.len() as u32;
         let corners = [n - u - v, n + u - v, n + u + v, n - u + v];
@@ -106,14 +106,14 @@ pub(crate) fn sphere() -> RawMesh {
         }
     }
     let normals = positions.clone();
-    RawMesh { positions, normals: Some(normals), uvs: Some(uvs), indices }
+    RawMesh { positions, normals: Some(normals), uvs: Some(uvs), indices, face_normals: false }
 }
 
 /// Mitsuba's `cylinder` in its local frame: radius 1 around +z from `z = 0` to `z = 1`,
 /// open (no caps), outward winding and normals.
 pub(crate) fn cylinder() -> RawMesh {
     let n = CYLINDER_SEGMENTS;
-    let mut m = RawMesh { positions: Vec::new(), normals: Some(Vec::new()), uvs: Some(Vec::new()), indices: Vec::new() };
+    let mut m = RawMesh { positions: Vec::new(), normals: Some(Vec::new()), uvs: Some(Vec::new()), indices: Vec::new(), face_normals: false };
     for i in 0..=n {
         let u = i as f64 / n as f64;
         let (s, c) = (TAU * u).sin_cos();
@@ -133,7 +133,7 @@ pub(crate) fn cylinder() -> RawMesh {
 /// Mitsuba's `disk` in its local frame: radius 1 at `z = 0`, facing +z.
 pub(crate) fn disk() -> RawMesh {
     let n = DISK_SEGMENTS;
-    let mut m = RawMesh { positions: Vec::new(), normals: Some(Vec::new()), uvs: Some(Vec::new()), indices: Vec::new() };
+    let mut m = RawMesh { positions: Vec::new(), normals: Some(Vec::new()), uvs: Some(Vec::new()), indices: Vec::new(), face_normals: false };
     let rim = |i: u32| {
         let v = i as f64 / n as f64;
         let (s, c) = (TAU * v).sin_cos();

@@ -8,6 +8,43 @@ use alloc::vec;
 use alloc::vec::Vec;
 use glam::{DVec3, Vec3};
 
+/// Smooth vertex normals of a triangle mesh without stored ones, as Mitsuba 3 computes them
+/// for its mesh plugins (`Mesh::recompute_vertex_normals`): at each vertex, the sum over
+/// the triangles using it of the unit face normal `(p1 − p0) × (p2 − p0)` weighted by the
+/// triangle's angle at that vertex, normalised. Zero-area triangles add nothing; a vertex
+/// only they use gets `+x`, as in Mitsuba. Only vertices shared by index are smoothed
+/// together, so a mesh that duplicates its vertices along a crease keeps the crease.
+/// Indices must be below `positions.len()`.
+pub fn angle_weighted_normals(positions: &[DVec3], indices: &[[u32; 3]]) -> Vec<DVec3> {
+    // The angle between unit vectors, accurate near 0 and π (asin of half the chord).
+    let unit_angle = |a: DVec3, b: DVec3| {
+        if a.dot(b) < 0.0 {
+            core::f64::consts::PI - 2.0 * libm::asin(((a + b).length() / 2.0).min(1.0))
+        } else {
+            2.0 * libm::asin(((a - b).length() / 2.0).min(1.0))
+        }
+    };
+    let mut sum = vec![DVec3::ZERO; positions.len()];
+    for t in indices {
+        let p = t.map(|i| positions[i as usize]);
+        let n = (p[1] - p[0]).cross(p[2] - p[0]);
+        let len = n.length();
+        if !(len > 0.0 && len.is_finite()) {
+            continue;
+        }
+        let n = n / len;
+        for j in 0..3 {
+            let a = (p[(j + 1) % 3] - p[j]).normalize_or_zero();
+            let b = (p[(j + 2) % 3] - p[j]).normalize_or_zero();
+            let angle = unit_angle(a, b);
+            if angle.is_finite() {
+                sum[t[j] as usize] += n * angle;
+            }
+        }
+    }
+    sum.into_iter().map(|n| n.try_normalize().unwrap_or(DVec3::X)).collect()
+}
+
 /// A unit icosphere: the icosahedron subdivided `subdivisions` times
 /// (`20·4^subdivisions` triangles), every vertex on the unit sphere, triangles wound
 /// outwards (`(p1 − p0) × (p2 − p0)` points away from the centre). The positions double as
@@ -197,5 +234,22 @@ mod tests {
                 assert!((q[1] - q[0]).cross(q[2] - q[0]).dot(q[0]) > 0.0);
             }
         }
+    }
+
+    /// Mitsuba 3's own test of its vertex normals (test_mesh.py, "the weighting scheme"):
+    /// two triangles sharing vertex 0 with angles π/2 and acos(3/5) there.
+    #[test]
+    fn angle_weighted_normals_match_mitsubas_test() {
+        let (a, b) = (1.0, 0.5);
+        let positions = [DVec3::ZERO, DVec3::new(-a, 1.0, 0.0), DVec3::new(a, 1.0, 0.0), DVec3::new(-b, 0.0, 1.0), DVec3::new(b, 0.0, 1.0)];
+        let n = angle_weighted_normals(&positions, &[[0, 1, 2], [0, 3, 4]]);
+        let (n0, n1) = (DVec3::new(0.0, 0.0, -1.0), DVec3::new(0.0, 1.0, 0.0));
+        let n2 = (n0 * core::f64::consts::FRAC_PI_2 + n1 * libm::acos(3.0 / 5.0)).normalize();
+        for (got, want) in n.iter().zip([n2, n0, n0, n1, n1]) {
+            assert!((*got - want).length() < 1e-12, "{got} vs {want}");
+        }
+        // A vertex of degenerate triangles only: +x.
+        let flat = angle_weighted_normals(&[DVec3::ZERO, DVec3::X, DVec3::new(2.0, 0.0, 0.0)], &[[0, 1, 2]]);
+        assert_eq!(flat, [DVec3::X; 3]);
     }
 }

@@ -7,6 +7,7 @@ use super::super::mesh::RawMesh;
 use super::super::xml::Node;
 use super::super::{obj, ply, serialized, shapes};
 use arpa_core::render::scene::{Material, MaterialId, TriangleMesh};
+use arpa_core::render::shapes::angle_weighted_normals;
 use glam::{DMat3, DMat4, DVec3, Vec3};
 
 impl Loader<'_> {
@@ -14,7 +15,7 @@ impl Loader<'_> {
         let ty = n.attr("type").unwrap_or("");
         let p = self.props(n);
         let to_world = self.transform(&p, "to_world")?.unwrap_or(DMat4::IDENTITY);
-        let face_normals = self.boolean(&p, "face_normals")?.unwrap_or(false);
+        let face_normals = self.boolean(&p, "face_normals")?;
         let flip_normals = self.boolean(&p, "flip_normals")?.unwrap_or(false);
         let (raw, label, to_world) = match ty {
             "ply" | "obj" | "serialized" => {
@@ -101,13 +102,21 @@ impl Loader<'_> {
         self.objects(&p, &["medium", "texture", "sensor", "shape"]).iter().try_for_each(|m| Err(self.unsupported(m, "not supported inside a <shape>")))?;
         self.finish(&p);
 
-        let mesh = self.build_mesh(n, raw, &label, to_world, face_normals, flip_normals, material, emission)?;
+        // Mitsuba's mesh plugins give a mesh without stored normals smooth vertex normals
+        // unless face normals are asked for; its analytic shapes have their own.
+        let face_normals = face_normals.unwrap_or(raw.face_normals);
+        let normals = match ty {
+            "ply" | "obj" | "serialized" if !face_normals => MissingNormals::Smooth,
+            _ => MissingNormals::Face,
+        };
+        let mesh = self.build_mesh(n, raw, &label, to_world, face_normals, normals, flip_normals, material, emission)?;
         self.meshes.push(mesh);
         Ok(())
     }
 
     #[allow(clippy::too_many_arguments)]
-    pub(super) fn build_mesh(&mut self, n: &Node, raw: RawMesh, file: &str, to_world: DMat4, face_normals: bool, flip: bool, material: MaterialId, emission: Option<DVec3>) -> R<TriangleMesh> {
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn build_mesh(&mut self, n: &Node, raw: RawMesh, file: &str, to_world: DMat4, face_normals: bool, missing: MissingNormals, flip: bool, material: MaterialId, emission: Option<DVec3>) -> R<TriangleMesh> {
         let err = |message: String| SceneFileError::Mesh { path: self.path.to_path_buf(), line: n.line, mesh: file.to_string(), message };
         let label = format!("{file} (line {})", n.line);
         if raw.indices.is_empty() {
@@ -155,9 +164,11 @@ impl Loader<'_> {
                     }
                 }
             }
+            (None, false) if missing == MissingNormals::Smooth => Some(angle_weighted_normals(&positions, &raw.indices)),
             _ => None,
         };
-        if let (Some(ns), Some(Material::Diffuse { .. })) = (&normals, self.materials.get(material as usize)) {
+        let stored_normals = raw.normals.is_some() && !face_normals;
+        if let (true, Some(ns), Some(Material::Diffuse { .. })) = (stored_normals, &normals, self.materials.get(material as usize)) {
             let off = tilted_normal_area_fraction(&positions, ns, &raw.indices);
             if off > TILTED_NORMAL_WARN_FRACTION {
                 self.warn(
@@ -193,7 +204,7 @@ impl Loader<'_> {
             if (area.is_nan() || area <= 0.0) && e.max_element() > 0.0 {
                 return Err(err("is an area emitter with zero total area".into()));
             }
-            if let Some(ns) = &normals {
+            if let (true, Some(ns)) = (stored_normals, &normals) {
                 let against = indices
                     .iter()
                     .filter(|t| {
@@ -217,6 +228,15 @@ impl Loader<'_> {
             emission: emission.map(|e| e.as_vec3()),
         })
     }
+}
+
+/// What a mesh without stored vertex normals is shaded with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum MissingNormals {
+    /// Smooth normals ([`angle_weighted_normals`]): Mitsuba's mesh plugins.
+    Smooth,
+    /// Face normals: analytic shapes, and meshes with `face_normals`.
+    Face,
 }
 
 /// Angle (degrees) beyond which a vertex normal counts as tilted away from its face.
