@@ -737,4 +737,12 @@ fn textures_and_masks_load() {
     let bad_opacity = scene_xml(r#"    <shape type="rectangle"><bsdf type="mask"><float name="opacity" value="1.5"/><bsdf type="diffuse"/></bsdf></shape>"#);
     let (_, msg) = expect_err(load_in_tempdir(&bad_opacity, &[]));
     assert!(msg.contains(":11:") && msg.contains("opacity"), "{msg}");
+    // A roughness texture picks the material's scattering kind by its mean alpha (0.1 and
+    // 0.5 squares: 0.3, above the cut-off 0.25: diffuse), with a warning naming it.
+    let rough = scene_xml(
+        r#"    <shape type="rectangle"><bsdf type="roughconductor"><texture name="alpha" type="checkerboard"><float name="color0" value="0.1"/><float name="color1" value="0.5"/></texture></bsdf></shape>"#,
+    );
+    let s = load_in_tempdir(&rough, &[]).unwrap();
+    assert!(matches!(s.scene.materials[0], Material::Conductor { roughness, .. } if (roughness - 0.3).abs() < 1e-6), "{:?}", s.scene.materials[0]);
+    assert!(s.warnings.iter().any(|w| w.line == 11 && w.message.contains("roughness texture 'alpha'") && w.message.contains("0.3000")), "{:?}", s.warnings);
 }

@@ -252,6 +252,21 @@ impl Texture {
         }
     }
 
+    /// The mean of [`Texture::eval_1`] over the texture's period: the mean luminance of a
+    /// bitmap's texels, the mean of a checkerboard's two squares. What a material that
+    /// cannot vary a parameter across its surface (the roughness that picks its scattering
+    /// kind) reads of a texture.
+    pub fn mean_1(&self) -> f32 {
+        match self {
+            Texture::Bitmap(b) => {
+                let n = b.texels.len().max(1);
+                let sum: f64 = (0..b.texels.len()).map(|i| b.texels.linear(i).dot(LUMINANCE) as f64).sum();
+                (sum / n as f64) as f32
+            }
+            Texture::Checkerboard { color0, color1, .. } => 0.5 * (color0.dot(LUMINANCE) + color1.dot(LUMINANCE)),
+        }
+    }
+
     /// Whether the texture is well formed (sizes agree, values and transforms finite).
     pub fn is_valid(&self) -> bool {
         match self {

@@ -235,9 +235,18 @@ impl Loader<'_> {
         Ok(v)
     }
 
-    pub(super) fn alpha(&self, p: &Props<'_>) -> R<f64> {
-        let a = self.float(p, "alpha")?;
-        let (u, v) = (self.float(p, "alpha_u")?, self.float(p, "alpha_v")?);
+    /// A rough material's GGX `alpha` (`alpha`, or the mean of `alpha_u` and `alpha_v`;
+    /// Mitsuba's default 0.1). A roughness texture gives its mean ([`arpa_core::render::texture::Texture::mean_1`],
+    /// with a warning): the roughness only picks the material's one scattering kind.
+    pub(super) fn alpha(&mut self, p: &Props<'_>) -> R<f64> {
+        let value = |me: &mut Self, name: &str| -> R<Option<f64>> {
+            let Some(id) = me.texture_of(p, name)? else { return me.float(p, name) };
+            let a = me.textures[id as usize].mean_1() as f64;
+            me.warn(me.line_of(p, name), format!("roughness texture '{name}': the material is rendered by its mean alpha {a:.4} (one scattering kind per material)"));
+            Ok(Some(a))
+        };
+        let a = value(self, "alpha")?;
+        let (u, v) = (value(self, "alpha_u")?, value(self, "alpha_v")?);
         let a = match (a, u, v) {
             (Some(a), _, _) => a,
             (None, Some(u), Some(v)) => 0.5 * (u + v),
