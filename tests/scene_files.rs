@@ -737,6 +737,15 @@ fn textures_and_masks_load() {
     let bad_opacity = scene_xml(r#"    <shape type="rectangle"><bsdf type="mask"><float name="opacity" value="1.5"/><bsdf type="diffuse"/></bsdf></shape>"#);
     let (_, msg) = expect_err(load_in_tempdir(&bad_opacity, &[]));
     assert!(msg.contains(":11:") && msg.contains("opacity"), "{msg}");
+    // A textured area emitter: the texture is the radiance (factor 1), per mesh.
+    let lamp = scene_xml(
+        r#"    <shape type="rectangle"><emitter type="area"><texture name="radiance" type="checkerboard"><rgb name="color0" value="4"/><rgb name="color1" value="1"/></texture></emitter></shape>
+    <shape type="cube"/>"#,
+    );
+    let s = load_in_tempdir(&lamp, &[]).unwrap();
+    assert_eq!(s.scene.meshes[0].emission, Some(Vec3::ONE));
+    assert_eq!(s.scene.textures.emission, vec![Some(0), None]);
+    assert!(matches!(s.scene.textures.textures[0], Texture::Checkerboard { color0, .. } if color0 == Vec3::splat(4.0)));
     // A roughness texture picks the material's scattering kind by its mean alpha (0.1 and
     // 0.5 squares: 0.3, above the cut-off 0.25: diffuse), with a warning naming it.
     let rough = scene_xml(

@@ -81,6 +81,9 @@ pub struct PhotonPass {
     cells: Buffer,
     /// Sources of the setups this pass takes (twice the scene's emitters).
     emitters: usize,
+    /// Per emitter, its record in the scene's texture words
+    /// ([`arpa_core::gpu::texture::emitter_records`]).
+    emission_records: Vec<u32>,
     settings: RenderSettings,
 }
 
@@ -114,6 +117,7 @@ impl PhotonPass {
                 b
             },
             emitters,
+            emission_records: arpa_core::gpu::texture::emitter_records(prepared),
             settings: *settings,
         })
     }
@@ -156,7 +160,7 @@ impl PhotonPass {
         if batch.start > batch.end || batch.end > photons {
             return Err(invalid(format!("photons {batch:?} of an iteration of {photons}")));
         }
-        let (lights, ranges) = emitter_tables(setup);
+        let (lights, ranges) = emitter_tables(setup, &self.emission_records);
         let params = PhotonParams::new(&self.settings, setup.iteration, self.emitters as u32, batch.clone());
         let photons = batch.end - batch.start;
         self.params.write(0, bytemuck::bytes_of(&params))?;

@@ -163,6 +163,9 @@ pub struct PhotonPass {
     cells: wgpu::Buffer,
     /// Sources of the setups this pass takes (twice the scene's emitters).
     emitters: usize,
+    /// Per emitter, its record in the scene's texture words
+    /// ([`arpa_core::gpu::texture::emitter_records`]).
+    emission_records: Vec<u32>,
     settings: RenderSettings,
 }
 
@@ -210,6 +213,7 @@ impl PhotonPass {
                 b
             },
             emitters,
+            emission_records: arpa_core::gpu::texture::emitter_records(prepared),
             settings: *settings,
         })
     }
@@ -266,7 +270,7 @@ impl PhotonPass {
         if gy > max {
             return Err(PhotonPassError::TooManyPhotons { photons, max });
         }
-        let (lights, ranges) = emitter_tables(setup);
+        let (lights, ranges) = emitter_tables(setup, &self.emission_records);
         let params = PhotonParams::new(s, setup.iteration, self.emitters as u32, batch);
         let queue = &ctx.queue;
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));

@@ -45,7 +45,9 @@ struct ArpaLight {
     cell_first: u32,           // first projection cell in the caller's cell table
     cell_count: u32,           // projection cells sampled; 0: the whole domain
     cell_offset: u32,          // start of the round robin over the cells this iteration
-    pad3a: u32,
+    // A textured emitter triangle's record in the scene's texture words (the photon pass,
+    // texture.wgsl's arpa_emitter_texture_factor), or 0xffffffff.
+    emission_record: u32,
     pad3b: u32,
     pad3c: u32,
 }

@@ -104,11 +104,16 @@ fn arpa_camera_direct(s: ArpaSurface, sh: ArpaDiffuseShading, rng: ptr<function,
     var point: vec3<f32>;
     var n: vec3<f32>;
     var area: f32;
+    var radiance = l.color;
     if l.kind == ARPA_LIGHT_TRIANGLE {
         let b = arpa_uniform_triangle(sample);
         n = cross(l.p1 - l.p0, l.p2 - l.p0);
         point = l.p0 * b.x + l.p1 * b.y + l.p2 * b.z;
         area = 0.5 * length(n);
+        // A textured emitter's radiance at the sampled point.
+        if l.emission_record != ARPA_NO_TEXTURE {
+            radiance *= arpa_emitter_texture_factor(l.emission_record, b.y, b.z);
+        }
     } else {
         n = cross(l.p1, l.p2);
         point = l.p0 + l.p1 * sample.x + l.p2 * sample.y;
@@ -122,7 +127,7 @@ fn arpa_camera_direct(s: ArpaSurface, sh: ArpaDiffuseShading, rng: ptr<function,
         let cos_q = arpa_diffuse_cosine(sh, d / r);
         let cos_l = -dot(normal, d) / r;
         if cos_q > 0.0 && cos_l > 0.0 && l.probability > 0.0 && arpa_camera_visible(shadow_origin, point, rng) {
-            e += l.color * (cos_q * cos_l * area / (r2 * l.probability));
+            e += radiance * (cos_q * cos_l * area / (r2 * l.probability));
         }
     }
     return e;

@@ -255,6 +255,12 @@ fn photon_trace(index: u32) -> u32 {
     // Only ARPA's footprints use the differentials: RTPM's photons carry none (photon_path).
     var valid = photon_params.method == ARPA_PHOTON_METHOD_ARPA;
     var flux = emitted.flux;
+    // A textured emitter's photon carries the texture at its origin over the texture's mean
+    // over the triangle (PhotonWalk::start, PreparedScene::emission_factor_at).
+    if light.emission_record != ARPA_NO_TEXTURE {
+        let b = arpa_barycentric(light.p0, light.p1, light.p2, ray.p);
+        flux *= arpa_emitter_texture_factor(light.emission_record, b.x, b.y);
+    }
     var specular_events = 0u;
     var diffuse_events = 0u;
     var start = arpa_ray_start_at(ray.p);

@@ -57,7 +57,7 @@ struct ArpaSceneInfo {
     sphere_radius: f32,
 }
 
-// layout::SceneMesh (64 bytes).
+// layout::SceneMesh (80 bytes).
 struct ArpaSceneMesh {
     first_triangle: u32,
     triangle_count: u32,
@@ -81,6 +81,11 @@ struct ArpaSceneMesh {
     // Word of the first triangle's texture coordinates (u0 v0 u1 v1 u2 v2 per triangle) in
     // the texture words, or ARPA_NO_TEXTURE (the hit's (b1, b2) are used).
     uv_first: u32,
+    // The texture multiplying `emission`, or ARPA_NO_TEXTURE.
+    emission_texture: u32,
+    pad_a: u32,
+    pad_b: u32,
+    pad_c: u32,
 }
 
 // layout::SceneTriangle (112 bytes).
@@ -128,7 +133,10 @@ struct ArpaSceneEmitter {
     probability: f32,
     // Triangle vertex 2, quad edge_v.
     p2: vec3<f32>,
-    pad0: f32,
+    // A textured emitter triangle's record in the texture words (texture.wgsl's
+    // arpa_emitter_texture_factor), or ARPA_NO_TEXTURE; `color` then holds the radiance
+    // times the texture's mean over the triangle.
+    emission_record: u32,
     // Intensity (point, spot), irradiance (directional), radiance (area).
     color: vec3<f32>,
     pad1: f32,
@@ -249,6 +257,24 @@ fn arpa_scene_uv(h: ArpaSceneHit) -> vec2<f32> {
     return a * (1.0 - h.b1 - h.b2) + b * h.b1 + c * h.b2;
 }
 
+// prepared_scene::barycentric: the barycentric weights (b1, b2) of vertices 1 and 2 of the
+// point p of the plane of triangle (p0, p1, p2); (0, 0) for a degenerate triangle.
+fn arpa_barycentric(p0: vec3<f32>, p1: vec3<f32>, p2: vec3<f32>, p: vec3<f32>) -> vec2<f32> {
+    let e1 = p1 - p0;
+    let e2 = p2 - p0;
+    let d = p - p0;
+    let d11 = dot(e1, e1);
+    let d12 = dot(e1, e2);
+    let d22 = dot(e2, e2);
+    let d1 = dot(d, e1);
+    let d2 = dot(d, e2);
+    let det = d11 * d22 - d12 * d12;
+    if !(det > 0.0) {
+        return vec2<f32>(0.0);
+    }
+    return vec2<f32>(d22 * d1 - d12 * d2, d11 * d2 - d12 * d1) / det;
+}
+
 // PreparedScene::opacity: the probability that a ray stops at the hit (1: opaque; a
 // texture's NaN counts as 1).
 fn arpa_scene_opacity(h: ArpaSceneHit) -> f32 {
@@ -302,6 +328,9 @@ fn arpa_scene_surface(h: ArpaSceneHit) -> ArpaSurface {
     }
     s.emissive = m.emissive;
     s.emission = m.emission;
+    if m.emissive != 0u && m.emission_texture != ARPA_NO_TEXTURE {
+        s.emission *= max(arpa_texture_eval(m.emission_texture, s.uv), vec3<f32>(0.0));
+    }
     s.mesh = h.mesh;
     s.triangle = h.triangle;
     s.barycentric = b;

@@ -156,3 +156,15 @@ fn arpa_texture_eval_1(id: u32, uv: vec2<f32>) -> f32 {
     }
     return dot(arpa_texture_bitmap(r, t), ARPA_LUMINANCE);
 }
+
+// arpa_core::render::scene::EmitterTexture::factor from its record at word r
+// (arpa_core::gpu::texture::emitter_record: texture id, u0 v0 u1 v1 u2 v2, 1/mean): the
+// texture at barycentric weights (b1, b2) of the emitter triangle, non-negative, over its
+// mean over the triangle (per channel).
+fn arpa_emitter_texture_factor(r: u32, b1: f32, b2: f32) -> vec3<f32> {
+    let uv0 = vec2<f32>(arpa_texture_f32(r + 1u), arpa_texture_f32(r + 2u));
+    let uv1 = vec2<f32>(arpa_texture_f32(r + 3u), arpa_texture_f32(r + 4u));
+    let uv2 = vec2<f32>(arpa_texture_f32(r + 5u), arpa_texture_f32(r + 6u));
+    let uv = uv0 * (1.0 - b1 - b2) + uv1 * b1 + uv2 * b2;
+    return max(arpa_texture_eval(arpa_texture_word(r), uv), vec3<f32>(0.0)) * arpa_texture_vec3(r + 7u);
+}

@@ -792,8 +792,12 @@ pub struct PackedLight {
     pub cell_count: u32,
     /// [`EmissionParams::cell_offset`] of this iteration.
     pub cell_offset: u32,
+    /// A textured emitter triangle's record in the photon pass's texture words
+    /// (`crate::gpu::texture::emitter_records`; set by `crate::gpu::fill::emitter_tables`),
+    /// or `u32::MAX` (no texture; what [`PreparedLight::pack`] gives).
+    pub emission_record: u32,
     /// Padding (0).
-    pub pad3: [u32; 3],
+    pub pad3: [u32; 2],
 }
 
 // The WGSL struct `ArpaLight` has exactly this size (eight vec3 + scalar groups, a header
@@ -839,7 +843,8 @@ impl PreparedLight {
             cell_first: 0,
             cell_count: self.params.cells.count,
             cell_offset: self.params.cell_offset,
-            pad3: [0; 3],
+            emission_record: u32::MAX,
+            pad3: [0; 2],
         }
     }
 }

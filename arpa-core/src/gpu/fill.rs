@@ -50,10 +50,11 @@ impl PhotonParams {
 
 /// The photon pass's light and range buffers of an iteration: one
 /// [`PackedLight`] (with its caustic weight and the place of its cells
-/// in [`cell_table`]) and one [`EmitterRange`] per source of `setup` (`2 ×` the scene's
-/// emitters; one zeroed element each for a scene without emitters: storage bindings must
-/// not be empty).
-pub fn emitter_tables(setup: &PhotonPassSetup) -> (Vec<PackedLight>, Vec<EmitterRange>) {
+/// in [`cell_table`], and its emitter's record in the texture words from
+/// `emission_records`, [`crate::gpu::texture::emitter_records`]) and one [`EmitterRange`]
+/// per source of `setup` (`2 ×` the scene's emitters; one zeroed element each for a scene
+/// without emitters: storage bindings must not be empty).
+pub fn emitter_tables(setup: &PhotonPassSetup, emission_records: &[u32]) -> (Vec<PackedLight>, Vec<EmitterRange>) {
     let n = setup.lights.len().max(1);
     let mut lights = alloc::vec![PackedLight::default(); n];
     let mut ranges = alloc::vec![EmitterRange::default(); n];
@@ -64,6 +65,7 @@ pub fn emitter_tables(setup: &PhotonPassSetup) -> (Vec<PackedLight>, Vec<Emitter
             let mut packed = l.pack();
             packed.caustic_weight = setup.caustic_weight[e] as f32;
             packed.cell_first = setup.cell_first[e];
+            packed.emission_record = e.checked_rem(setup.emitters).and_then(|i| emission_records.get(i)).copied().unwrap_or(u32::MAX);
             lights[e] = packed;
         }
     }

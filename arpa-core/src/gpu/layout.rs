@@ -549,7 +549,7 @@ pub struct SceneInfo {
 }
 layout!(SceneInfo, 32, { mesh_count: 0, delta_count: 4, area_count: 8, has_masks: 12, sphere_centre: 16, sphere_radius: 28 });
 
-/// `ArpaSceneMesh` of `scene.wgsl` (64 bytes).
+/// `ArpaSceneMesh` of `scene.wgsl` (80 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct SceneMesh {
@@ -579,10 +579,15 @@ pub struct SceneMesh {
     /// Word of the mesh's first texture coordinates in the texture words
     /// ([`crate::gpu::texture::TextureWords`]), or [`crate::gpu::texture::NO_TEXTURE`].
     pub uv_first: u32,
+    /// The texture multiplying `emission` ([`crate::render::scene::SceneTextures::emission`]),
+    /// or [`crate::gpu::texture::NO_TEXTURE`].
+    pub emission_texture: u32,
+    /// Padding.
+    pub pad: [u32; 3],
 }
-layout!(SceneMesh, 64, {
+layout!(SceneMesh, 80, {
     first_triangle: 0, triangle_count: 4, kind: 8, emissive: 12, color: 16, ior: 28, emission: 32, has_normals: 44,
-    color_texture: 48, opacity_texture: 52, opacity: 56, uv_first: 60
+    color_texture: 48, opacity_texture: 52, opacity: 56, uv_first: 60, emission_texture: 64
 });
 
 /// `ArpaSceneTriangle` of `scene.wgsl` (112 bytes). The table is in the meshes' triangle
@@ -647,14 +652,16 @@ pub struct SceneEmitter {
     pub probability: f32,
     /// Triangle vertex 2, quad `edge_v`.
     pub p2: [f32; 3],
-    /// Padding.
-    pub pad0: f32,
-    /// Intensity (point, spot), irradiance (directional), radiance (area).
+    /// A textured emitter triangle's record in the texture words
+    /// ([`crate::gpu::texture::emitter_records`]), or [`crate::gpu::texture::NO_TEXTURE`].
+    pub emission_record: u32,
+    /// Intensity (point, spot), irradiance (directional), radiance (area; a textured
+    /// triangle's holds the texture's mean over it).
     pub color: [f32; 3],
     /// Padding.
     pub pad1: f32,
 }
-layout!(SceneEmitter, 80, { kind: 0, falloff: 4, cutoff: 8, beam_width: 12, p0: 16, cdf: 28, p1: 32, probability: 44, p2: 48, color: 64 });
+layout!(SceneEmitter, 80, { kind: 0, falloff: 4, cutoff: 8, beam_width: 12, p0: 16, cdf: 28, p1: 32, probability: 44, p2: 48, emission_record: 60, color: 64 });
 
 #[cfg(test)]
 mod tests {

@@ -75,7 +75,8 @@ impl SceneTables {
     /// `i`, the mesh's triangle `triangle_orders[m][i]` ([`morton_triangle_order`]).
     pub fn new(scene: &PreparedScene, triangle_orders: &[Vec<u32>]) -> Result<Self, SceneTablesError> {
         let s = scene.scene();
-        let textures = TextureWords::new(s)?;
+        let textures = TextureWords::new(scene)?;
+        let emitter_records = crate::gpu::texture::emitter_records(scene);
         let f3 = |v: DVec3| v.as_vec3().to_array();
         let mut meshes = Vec::with_capacity(s.meshes.len());
         let mut triangles = Vec::new();
@@ -105,6 +106,8 @@ impl SceneTables {
                 opacity_texture,
                 opacity,
                 uv_first: textures.uv_first[mi],
+                emission_texture: s.textures.emission_of(mi).unwrap_or(NO_TEXTURE),
+                ..SceneMesh::default()
             });
             let order = triangle_orders.get(mi).map_or(&[][..], |o| &o[..]);
             for (ti, idx) in m.indices.iter().enumerate() {
@@ -148,7 +151,7 @@ impl SceneTables {
             .enumerate()
             .map(|(slot, &i)| {
                 let (cdf, probability) = if slot >= delta_count { ((cdf[slot - delta_count] / total) as f32, (powers[i] / total) as f32) } else { (0.0, 0.0) };
-                let e = SceneEmitter { kind: emitters[i].kind_code(), cdf, probability, ..SceneEmitter::default() };
+                let e = SceneEmitter { kind: emitters[i].kind_code(), cdf, probability, emission_record: emitter_records[i], ..SceneEmitter::default() };
                 match emitters[i] {
                     Light::Point(l) => SceneEmitter { p0: f3(l.position), color: f3(l.intensity), ..e },
                     Light::Spot(l) => SceneEmitter {

@@ -8,6 +8,7 @@
 //! | `0..256` | the linear value of each 8-bit sRGB code ([`srgb_to_linear`], `f32` bits) |
 //! | `256..512` | the linear value `c/255` of each 8-bit `raw` code |
 //! | [`TEXTURE_FIRST`]`..` | one [`TEXTURE_RECORD_WORDS`]-word record per texture, by [`TextureId`] |
+//! | then | one [`EMITTER_RECORD_WORDS`]-word record per textured emitter triangle ([`EmitterTexture`]), in the core's emitter order ([`emitter_records`]) |
 //! | then | the texels of every bitmap: 8-bit texels one word each (`r | g << 8 | b << 16`), so they stay 8-bit on the device; float texels three `f32` words each |
 //! | then | per mesh with texture coordinates, six `f32` words per triangle (`u0 v0 u1 v1 u2 v2`, the core's triangle order), from [`SceneMesh::uv_first`](crate::gpu::layout::SceneMesh::uv_first) |
 //!
@@ -16,11 +17,14 @@
 //! ([`FILTER_BILINEAR`] / [`FILTER_NEAREST`]), `wrap` ([`WRAP_REPEAT`] / [`WRAP_MIRROR`] /
 //! [`WRAP_CLAMP`]), the word index of its first texel, one padding word, the six `f32` of
 //! `to_uv` (row-major `[A | t]`), then a checkerboard's `color0` and `color1` (linear RGB).
+//! An emitter record: the texture id, the triangle's three texture coordinates (six `f32`),
+//! `1/mean` (three `f32`).
 //! The 8-bit decode tables make the device's texel values those of the core bit for bit.
 
 use alloc::vec::Vec;
 
-use crate::render::scene::{Scene, TriangleMesh};
+use crate::render::prepared_scene::PreparedScene;
+use crate::render::scene::{EmitterTexture, Scene, TriangleMesh};
 use crate::render::texture::{srgb_to_linear, Texels, Texture, TextureFilter, TextureId, TextureWrap, UvTransform};
 
 /// `ARPA_TEXTURE_SRGB_TABLE` of `texture.wgsl`: first word of the sRGB decode table.
@@ -31,6 +35,8 @@ pub const RAW_TABLE: u32 = 256;
 pub const TEXTURE_FIRST: u32 = 512;
 /// `ARPA_TEXTURE_RECORD_WORDS`: words per texture record.
 pub const TEXTURE_RECORD_WORDS: u32 = 20;
+/// `ARPA_EMITTER_RECORD_WORDS`: words per textured-emitter record.
+pub const EMITTER_RECORD_WORDS: u32 = 10;
 /// `ARPA_NO_TEXTURE`: no texture (a material parameter without one; a mesh without
 /// texture coordinates).
 pub const NO_TEXTURE: u32 = u32::MAX;
@@ -132,15 +138,47 @@ fn push_texels(words: &mut Vec<u32>, texels: &Texels) {
     }
 }
 
-/// The decode tables and the textures' records and texels, without texture coordinates:
-/// the table [`TextureWords::new`] starts with (texture `id`'s record at
-/// `TEXTURE_FIRST + id · TEXTURE_RECORD_WORDS`).
-pub fn texture_table(textures: &[Texture]) -> Result<Vec<u32>, TooManyTexels> {
+/// Per emitter of `scene` (the core's order), the word of its record in the table of
+/// [`TextureWords::new`], or [`NO_TEXTURE`] for an emitter without an emission texture.
+pub fn emitter_records(scene: &PreparedScene) -> Vec<u32> {
+    let first = TEXTURE_FIRST as usize + scene.scene().textures.textures.len() * TEXTURE_RECORD_WORDS as usize;
+    let mut k = 0usize;
+    (0..scene.emitters().len())
+        .map(|i| match scene.emitter_texture(i) {
+            Some(_) => {
+                let w = first + k * EMITTER_RECORD_WORDS as usize;
+                k += 1;
+                u32::try_from(w).unwrap_or(NO_TEXTURE)
+            }
+            None => NO_TEXTURE,
+        })
+        .collect()
+}
+
+/// An emitter record (see the module docs).
+pub fn emitter_record(t: &EmitterTexture) -> [u32; EMITTER_RECORD_WORDS as usize] {
+    let [a, b, c] = t.uvs;
+    let f = [a.x, a.y, b.x, b.y, c.x, c.y, t.inv_mean.x, t.inv_mean.y, t.inv_mean.z];
+    let mut r = [t.texture; EMITTER_RECORD_WORDS as usize];
+    for (w, x) in r[1..].iter_mut().zip(f) {
+        *w = x.to_bits();
+    }
+    r
+}
+
+/// The decode tables, the textures' records, the `emitters`' records and the textures'
+/// texels, without texture coordinates: the table [`TextureWords::new`] starts with
+/// (texture `id`'s record at `TEXTURE_FIRST + id · TEXTURE_RECORD_WORDS`, then the emitter
+/// records in order).
+pub fn texture_table(textures: &[Texture], emitters: &[EmitterTexture]) -> Result<Vec<u32>, TooManyTexels> {
     let mut words: Vec<u32> = Vec::new();
     words.extend((0..=255u8).map(|c| srgb_to_linear(c).to_bits()));
     words.extend((0..=255u8).map(|c| (c as f32 / 255.0).to_bits()));
     let records_end = (TEXTURE_FIRST as usize).saturating_add(textures.len().saturating_mul(TEXTURE_RECORD_WORDS as usize));
     words.resize(index(records_end)? as usize, 0);
+    for e in emitters {
+        words.extend(emitter_record(e));
+    }
     for (id, t) in textures.iter().enumerate() {
         let first = index(words.len())?;
         if let Texture::Bitmap(b) = t {
@@ -154,16 +192,21 @@ pub fn texture_table(textures: &[Texture]) -> Result<Vec<u32>, TooManyTexels> {
 }
 
 impl TextureWords {
-    /// The table of `scene`: its textures, then the texture coordinates of every mesh that
-    /// has them and whose material reads a texture (colour or opacity); other meshes get
+    /// The table of `prepared`: its textures and textured emitters, then the texture
+    /// coordinates of every mesh that has them and reads a texture (colour, opacity or
+    /// emission); other meshes get
     /// [`NO_TEXTURE`] (the device then uses the hit's `(b1, b2)`, as the core does without
     /// coordinates, which no lookup of theirs reads).
-    pub fn new(scene: &Scene) -> Result<Self, TooManyTexels> {
-        let mut words = texture_table(&scene.textures.textures)?;
+    pub fn new(prepared: &PreparedScene) -> Result<Self, TooManyTexels> {
+        let scene: &Scene = prepared.scene();
+        let emitters: Vec<EmitterTexture> = (0..prepared.emitters().len()).filter_map(|i| prepared.emitter_texture(i).copied()).collect();
+        let mut words = texture_table(&scene.textures.textures, &emitters)?;
         let mut uv_first = Vec::with_capacity(scene.meshes.len());
-        for m in &scene.meshes {
+        for (mi, m) in scene.meshes.iter().enumerate() {
             let maps = scene.textures.maps(m.material);
-            let reads = maps.color.is_some() || matches!(maps.opacity, Some(crate::render::scene::Opacity::Texture(_)));
+            let reads = maps.color.is_some()
+                || matches!(maps.opacity, Some(crate::render::scene::Opacity::Texture(_)))
+                || scene.textures.emission_of(mi).is_some();
             match (&m.uvs, reads) {
                 (Some(_), true) => {
                     uv_first.push(index(words.len())?);
@@ -221,7 +264,7 @@ mod tests {
             to_uv: UvTransform::IDENTITY,
         });
         let checker = Texture::Checkerboard { color0: Vec3::new(0.1, 0.2, 0.3), color1: Vec3::splat(0.9), to_uv: UvTransform::IDENTITY };
-        let words = texture_table(&[bitmap, checker, float]).unwrap();
+        let words = texture_table(&[bitmap, checker, float], &[]).unwrap();
         assert_eq!(f32::from_bits(words[128]), srgb_to_linear(128));
         assert_eq!(f32::from_bits(words[256 + 51]), 51.0 / 255.0);
         let texels = TEXTURE_FIRST + 3 * TEXTURE_RECORD_WORDS;

@@ -154,7 +154,10 @@ pub fn direct_irradiance(scene: &PreparedScene, caster: &impl RayCaster, s: &Sur
             Light::Triangle(l) => {
                 let b = uniform_triangle(sample);
                 let n = (l.p[1] - l.p[0]).cross(l.p[2] - l.p[0]);
-                (l.p[0] * b.x + l.p[1] * b.y + l.p[2] * b.z, n.normalize_or(DVec3::Y), 0.5 * n.length(), l.radiance)
+                // A textured emitter's radiance at the sampled point (its power, hence
+                // `prob`, holds the texture's mean over the triangle).
+                let radiance = l.radiance * scene.emission_factor(i, b.y as f32, b.z as f32).as_dvec3();
+                (l.p[0] * b.x + l.p[1] * b.y + l.p[2] * b.z, n.normalize_or(DVec3::Y), 0.5 * n.length(), radiance)
             }
             Light::Quad(l) => {
                 let n = l.edge_u.cross(l.edge_v);

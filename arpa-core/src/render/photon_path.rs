@@ -247,7 +247,14 @@ impl PhotonWalk {
         let (source, local) = setup.locate(index)?;
         let light = setup.lights[source].as_ref()?;
         let mut rng = Rng::new(settings.seed, setup.iteration, index, StreamDomain::Photon);
-        let emitted = light.emit_in(local, &mut rng, setup.cells(scene, source)).ok()?;
+        let mut emitted = light.emit_in(local, &mut rng, setup.cells(scene, source)).ok()?;
+        // A textured emitter's photon carries the texture at its origin over the texture's
+        // mean over the triangle (which set the emitter's power).
+        if let Some(emitter) = source.checked_rem(setup.emitters)
+            && scene.emitter_texture(emitter).is_some()
+        {
+            emitted.flux *= scene.emission_factor_at(emitter, emitted.ray.p).as_dvec3();
+        }
         // Only ARPA's footprints use the differentials: RTPM's photons (progressive photons
         // only) carry none, so its pass skips the transfer, reflection, refraction and
         // re-emission of the derivatives (its hits are stored at the surface point).

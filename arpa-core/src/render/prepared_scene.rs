@@ -9,7 +9,7 @@ use crate::render::projection::{project, project_on, DomainCells, LightProjectio
 use crate::base::prefetch::prefetch;
 use crate::base::rng::Rng;
 use crate::render::ray_cast::{RayCaster, RayHit, RayStart, TriangleId};
-use crate::render::scene::{CameraFrame, Opacity, Scattering, Scene, SceneError};
+use crate::render::scene::{CameraFrame, EmitterTexture, Opacity, Scattering, Scene, SceneError};
 use crate::propagate::shading_normal::ShadedTriangle;
 use alloc::vec::Vec;
 use glam::{DVec3, Vec2, Vec3};
@@ -40,6 +40,8 @@ pub struct PreparedScene {
     has_specular: bool,
     /// Whether some material is a mask.
     has_masks: bool,
+    /// Per emitter, the texture of a textured emitter triangle.
+    emitter_textures: Vec<Option<EmitterTexture>>,
     /// Whether a photon leaving a diffuse surface can hit another surface at all (some
     /// diffuse surface scatters and not all geometry lies in one plane).
     second_hit_possible: bool,
@@ -61,6 +63,19 @@ pub fn stops_with(o: f32, rng: &mut Rng) -> bool {
     } else {
         rng.next_f64() < o as f64
     }
+}
+
+/// The barycentric weights `(b1, b2)` of vertices 1 and 2 of the point `p` of the plane of
+/// triangle `t` (the point projected into it; `(0, 0)` for a degenerate triangle).
+pub fn barycentric(t: [DVec3; 3], p: DVec3) -> [f64; 2] {
+    let (e1, e2, d) = (t[1] - t[0], t[2] - t[0], p - t[0]);
+    let (d11, d12, d22) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+    let (d1, d2) = (d.dot(e1), d.dot(e2));
+    let det = d11 * d22 - d12 * d12;
+    if !(det > 0.0) {
+        return [0.0, 0.0];
+    }
+    [(d22 * d1 - d12 * d2) / det, (d11 * d2 - d12 * d1) / det]
 }
 
 /// One triangle's barycentric gradients, or why it has none.
@@ -151,7 +166,7 @@ impl PreparedScene {
     /// Validates `scene` and precomputes its lookups.
     pub fn new(scene: Scene) -> Result<Self, SceneError> {
         scene.validate()?;
-        let emitters = scene.emitters();
+        let (emitters, emitter_textures) = scene.emitters_with_textures();
         let radius = scene.bounding_sphere().1;
         let emitter_power: Vec<f64> = emitters.iter().map(|l| l.power(radius).dot(LUMINANCE).max(0.0)).collect();
         let area_emitters: Vec<usize> = (0..emitters.len()).filter(|&i| matches!(emitters[i], Light::Triangle(_) | Light::Quad(_))).collect();
@@ -227,6 +242,7 @@ impl PreparedScene {
             camera: scene.camera.frame()?,
             scene,
             emitters,
+            emitter_textures,
             emitter_power,
             area_emitters,
             area_cdf,
@@ -327,7 +343,10 @@ impl PreparedScene {
             barycentric: b,
             uv,
             scattering,
-            emission: m.emission,
+            emission: match (m.emission, self.scene.textures.emission_of(hit.mesh as usize)) {
+                (Some(e), Some(id)) => Some(e * self.scene.textures.textures[id as usize].eval(uv).max(Vec3::ZERO)),
+                (e, _) => e,
+            },
             mesh: hit.mesh,
             triangle: hit.triangle,
         }
@@ -363,6 +382,28 @@ impl PreparedScene {
             }
             None => Vec2::new(hit.b1, hit.b2),
         }
+    }
+
+    /// The [`EmitterTexture`] of emitter `i` (a triangle of a mesh with an emission
+    /// texture), if any.
+    #[inline]
+    pub fn emitter_texture(&self, i: usize) -> Option<&EmitterTexture> {
+        self.emitter_textures.get(i).and_then(Option::as_ref)
+    }
+
+    /// What the radiance of emitter `i` is multiplied by at barycentric weights `(b1, b2)`
+    /// of its triangle ([`EmitterTexture::factor`]); 1 for an emitter without a texture.
+    #[inline]
+    pub fn emission_factor(&self, i: usize, b1: f32, b2: f32) -> Vec3 {
+        self.emitter_texture(i).map_or(Vec3::ONE, |t| t.factor(&self.scene.textures.textures, b1, b2))
+    }
+
+    /// [`PreparedScene::emission_factor`] at the point `p` of emitter `i`'s triangle (its
+    /// barycentric weights solved in `f64`).
+    pub fn emission_factor_at(&self, i: usize, p: DVec3) -> Vec3 {
+        let (Some(t), Some(Light::Triangle(l))) = (self.emitter_texture(i), self.emitters.get(i)) else { return Vec3::ONE };
+        let [b1, b2] = barycentric(l.p, p);
+        t.factor(&self.scene.textures.textures, b1 as f32, b2 as f32)
     }
 
     /// Whether some material is a mask (rays may pass through its surfaces).

@@ -311,6 +311,45 @@ pub struct SceneTextures {
     /// Per material (indexed like [`Scene::materials`]; a shorter list means no maps for
     /// the rest).
     pub maps: Vec<MaterialMaps>,
+    /// Per mesh (indexed like [`Scene::meshes`]; a shorter list means none for the rest):
+    /// the texture multiplying the mesh's emitted radiance ([`TriangleMesh::emission`]) at
+    /// each point (Mitsuba's textured `area` emitter).
+    pub emission: Vec<Option<TextureId>>,
+}
+
+/// What an emitter triangle of a mesh with an emission texture reads: the radiance of its
+/// [`TriangleLight`] is the mesh's radiance times the texture's mean over the triangle
+/// (`mean`, per channel, [`EMISSION_QUADRATURE`] points), which sets its power; the
+/// radiance at a point is the mesh's radiance times the texture there, i.e. the
+/// triangle's radiance times [`EmitterTexture::factor`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EmitterTexture {
+    /// The texture.
+    pub texture: TextureId,
+    /// Texture coordinates of the triangle's three vertices (the mesh's, or Mitsuba's
+    /// `(0, 0), (1, 0), (0, 1)` without them).
+    pub uvs: [Vec2; 3],
+    /// `1 / mean` per channel (0 where the mean is 0).
+    pub inv_mean: Vec3,
+}
+
+/// Points per triangle of the emission texture's mean ([`EmitterTexture`]): the centroids
+/// of the triangle cut into `8²` equal triangles.
+pub const EMISSION_QUADRATURE: u32 = 8;
+
+impl EmitterTexture {
+    /// The texture coordinates at barycentric weights `(b1, b2)` of vertices 1 and 2.
+    #[inline]
+    pub fn uv(&self, b1: f32, b2: f32) -> Vec2 {
+        self.uvs[0] * (1.0 - b1 - b2) + self.uvs[1] * b1 + self.uvs[2] * b2
+    }
+
+    /// The texture over its triangle mean at barycentric weights `(b1, b2)` (per channel,
+    /// non-negative): what the triangle's radiance is multiplied by there.
+    #[inline]
+    pub fn factor(&self, textures: &[Texture], b1: f32, b2: f32) -> Vec3 {
+        textures[self.texture as usize].eval(self.uv(b1, b2)).max(Vec3::ZERO) * self.inv_mean
+    }
 }
 
 impl SceneTextures {
@@ -320,9 +359,16 @@ impl SceneTextures {
         self.maps.get(m as usize).copied().unwrap_or_default()
     }
 
-    /// Whether some material reads a texture or has an opacity.
+    /// Whether some material reads a texture or has an opacity, or some mesh emits through
+    /// a texture.
     pub fn any(&self) -> bool {
-        self.maps.iter().any(|m| m.color.is_some() || m.opacity.is_some())
+        self.maps.iter().any(|m| m.color.is_some() || m.opacity.is_some()) || self.emission.iter().any(Option::is_some)
+    }
+
+    /// The emission texture of mesh `m`.
+    #[inline]
+    pub fn emission_of(&self, m: usize) -> Option<TextureId> {
+        self.emission.get(m).copied().flatten()
     }
 
     /// Whether some material is a mask.
@@ -376,6 +422,14 @@ impl Scene {
             };
             if let Some(why) = why {
                 return Err(SceneError::BadMaterial { index, why });
+            }
+        }
+        for (index, t) in self.textures.emission.iter().enumerate() {
+            if t.is_some() && index >= self.meshes.len() {
+                return Err(SceneError::BadTexture { index: t.unwrap_or(0) as usize, why: "an emission texture is given for a mesh that does not exist" });
+            }
+            if t.is_some_and(|id| id as usize >= count) {
+                return Err(SceneError::BadTexture { index: t.unwrap_or(0) as usize, why: "a mesh's emission refers to a texture that does not exist" });
             }
         }
         for m in &self.meshes {
@@ -444,22 +498,63 @@ impl Scene {
     /// Every emitter: the analytic lights followed by one [`TriangleLight`] per emissive
     /// triangle with non-zero area and radiance.
     pub fn emitters(&self) -> Vec<Light> {
+        self.emitters_with_textures().0
+    }
+
+    /// [`Scene::emitters`], and per emitter the [`EmitterTexture`] of a triangle of a mesh
+    /// with an emission texture (its radiance then holds the texture's mean over the
+    /// triangle; a triangle over which the mean is zero emits nothing).
+    pub fn emitters_with_textures(&self) -> (Vec<Light>, Vec<Option<EmitterTexture>>) {
         let mut out: Vec<Light> = self.lights.clone();
-        for m in &self.meshes {
+        let mut textures = alloc::vec![None; out.len()];
+        for (mi, m) in self.meshes.iter().enumerate() {
             let Some(e) = m.emission else { continue };
             if !(e.max_element() > 0.0) {
                 continue;
             }
+            let texture = self.textures.emission_of(mi).filter(|&id| (id as usize) < self.textures.textures.len());
             for t in &m.indices {
                 let p = t.map(|i| m.positions.get(i as usize).copied().unwrap_or(Vec3::ZERO).as_dvec3());
-                let l = Light::Triangle(TriangleLight { p, radiance: e.as_dvec3() });
-                if l.area() > 0.0 {
+                let (radiance, tex) = match texture {
+                    None => (e, None),
+                    Some(id) => {
+                        let uvs = match &m.uvs {
+                            Some(uv) => t.map(|i| uv.get(i as usize).copied().unwrap_or(Vec2::ZERO)),
+                            None => [Vec2::ZERO, Vec2::X, Vec2::Y],
+                        };
+                        let mut tex = EmitterTexture { texture: id, uvs, inv_mean: Vec3::ONE };
+                        let mean = emission_mean(&self.textures.textures[id as usize], &tex);
+                        tex.inv_mean = Vec3::select(mean.cmpgt(Vec3::ZERO), mean.recip(), Vec3::ZERO);
+                        (e * mean, Some(tex))
+                    }
+                };
+                let l = Light::Triangle(TriangleLight { p, radiance: radiance.as_dvec3() });
+                if l.area() > 0.0 && radiance.max_element() > 0.0 {
                     out.push(l);
+                    textures.push(tex);
                 }
             }
         }
-        out
+        (out, textures)
     }
+}
+
+/// The mean of `texture` (non-negative, per channel) over the triangle of `tex` at the
+/// [`EMISSION_QUADRATURE`]² sub-triangle centroids.
+fn emission_mean(texture: &Texture, tex: &EmitterTexture) -> Vec3 {
+    let n = EMISSION_QUADRATURE;
+    let inv = 1.0 / n as f32;
+    let mut sum = Vec3::ZERO;
+    for i in 0..n {
+        for j in 0..n - i {
+            let (fi, fj) = (i as f32, j as f32);
+            sum += texture.eval(tex.uv((fi + 1.0 / 3.0) * inv, (fj + 1.0 / 3.0) * inv)).max(Vec3::ZERO);
+            if i + j + 1 < n {
+                sum += texture.eval(tex.uv((fi + 2.0 / 3.0) * inv, (fj + 2.0 / 3.0) * inv)).max(Vec3::ZERO);
+            }
+        }
+    }
+    sum / (n * n) as f32
 }
 
 impl TriangleMesh {

@@ -124,7 +124,7 @@ fn records_have_the_layouts_of_their_rust_twins() {
         ("PhotonParams", size_of::<PhotonParams>(), vec![("photon_count", 0), ("first_photon", offset_of!(PhotonParams, first_photon)), ("smoothing", offset_of!(PhotonParams, smoothing))]),
         ("PhotonEmitterRange", size_of::<EmitterRange>(), vec![("first_index", 0), ("count", 4), ("valid", 8)]),
         ("PhotonCounters", size_of::<PhotonCounters>(), vec![("emitted", 0), ("differential_lost", offset_of!(PhotonCounters, differential_lost)), ("photon_overflowed", offset_of!(PhotonCounters, photon_overflowed))]),
-        ("ArpaLight", size_of::<PackedLight>(), vec![]),
+        ("ArpaLight", size_of::<PackedLight>(), vec![("cell_offset", offset_of!(PackedLight, cell_offset)), ("emission_record", offset_of!(PackedLight, emission_record))]),
         ("ArpaHeuristics", size_of::<PackedHeuristics>(), vec![]),
         ("StoreParams", size_of::<StoreParams>(), vec![("radii", offset_of!(StoreParams, radii)), ("scene_lo", offset_of!(StoreParams, scene_lo)), ("raw_count", offset_of!(StoreParams, raw_count)), ("scene_inv", offset_of!(StoreParams, scene_inv)), ("photon_count", offset_of!(StoreParams, photon_count)), ("fp_sorted", offset_of!(StoreParams, fp_sorted)), ("ph_count", offset_of!(StoreParams, ph_count))]),
         ("ArpaGatherResult", size_of::<GatherResult>(), vec![("caustic", 0), ("caustic_count", 12), ("global", 16), ("global_count", 28), ("candidates", 32), ("pad", 40), ("scaled", offset_of!(GatherResult, scaled))]),
@@ -132,9 +132,9 @@ fn records_have_the_layouts_of_their_rust_twins() {
         ("AccumPixel", size_of::<AccumPixel>(), vec![("sum", 0), ("rejected", 12), ("compensation", 16)]),
         ("ArpaCameraParams", size_of::<CameraParams>(), vec![("position", 0), ("width", 12), ("forward", 16), ("height", 28), ("right", 32), ("tan_half_fov", 44), ("up", 48), ("aspect", 60), ("seed", 64), ("iteration", 68), ("max_depth", 72), ("direct_lighting", 76), ("pixel_count", 80), ("row_invocations", 84)]),
         ("ArpaSceneInfo", size_of::<SceneInfo>(), vec![("mesh_count", 0), ("delta_count", 4), ("area_count", 8), ("has_masks", 12), ("sphere_centre", 16), ("sphere_radius", 28)]),
-        ("ArpaSceneMesh", size_of::<SceneMesh>(), vec![("first_triangle", 0), ("kind", 8), ("color", 16), ("ior", 28), ("emission", 32), ("has_normals", 44), ("color_texture", 48), ("opacity_texture", 52), ("opacity", 56), ("uv_first", 60)]),
+        ("ArpaSceneMesh", size_of::<SceneMesh>(), vec![("first_triangle", 0), ("kind", 8), ("color", 16), ("ior", 28), ("emission", 32), ("has_normals", 44), ("color_texture", 48), ("opacity_texture", 52), ("opacity", 56), ("uv_first", 60), ("emission_texture", 64)]),
         ("ArpaSceneTriangle", size_of::<SceneTriangle>(), vec![("p0", 0), ("flags", 12), ("p1", 16), ("blas_triangle", 28), ("p2", 32), ("normal", 48), ("n0", 64), ("n1", 80), ("n2", 96)]),
-        ("ArpaSceneEmitter", size_of::<SceneEmitter>(), vec![("kind", 0), ("falloff", 4), ("cutoff", 8), ("beam_width", 12), ("p0", 16), ("cdf", 28), ("p1", 32), ("probability", 44), ("p2", 48), ("color", 64)]),
+        ("ArpaSceneEmitter", size_of::<SceneEmitter>(), vec![("kind", 0), ("falloff", 4), ("cutoff", 8), ("beam_width", 12), ("p0", 16), ("cdf", 28), ("p1", 32), ("probability", 44), ("p2", 48), ("emission_record", 60), ("color", 64)]),
     ];
     for (name, size, members) in checks {
         let module = parsed.iter().find(|m| m.types.iter().any(|(_, t)| t.name.as_deref() == Some(name))).unwrap_or_else(|| panic!("no module declares {name}"));

@@ -59,6 +59,12 @@ pub fn all() -> Vec<Case> {
             run: CaseBody::Tracer(textures::texture_plane),
         },
         Case {
+            id: "emitter-texture",
+            title: "a textured area light (two radiances) lights the floor by its texture; seen, it shows it",
+            needs: None,
+            run: CaseBody::Tracer(textures::emitter_texture),
+        },
+        Case {
             id: "mask-plane",
             title: "a half-open mask halves the light behind it and shows the floor half the time",
             needs: None,

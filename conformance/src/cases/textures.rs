@@ -39,7 +39,7 @@ fn textured_plane(texture: Texture) -> Scene {
         m.uvs = Some(m.positions.iter().map(|p| Vec2::new((p.x + 10.0) / 20.0, (p.z + 10.0) / 20.0)).collect());
     }
     scene.materials[0] = scenes::diffuse(1.0);
-    scene.textures = SceneTextures { textures: vec![texture], maps: vec![MaterialMaps { color: Some(0), opacity: None }] };
+    scene.textures = SceneTextures { textures: vec![texture], maps: vec![MaterialMaps { color: Some(0), opacity: None }], emission: vec![] };
     scene
 }
 
@@ -212,7 +212,7 @@ pub fn mask_plane(t: &mut dyn DynTracer) -> CaseResult {
     let mask = scenes::quad("mask", Vec3::new(x0, MASK_HEIGHT as f32, z0), Vec3::new(0.0, 0.0, z1 - z0), Vec3::new(x1 - x0, 0.0, 0.0), 1);
     scene.meshes.push(mask);
     scene.materials.push(scenes::diffuse(0.0));
-    scene.textures = SceneTextures { textures: vec![], maps: vec![MaterialMaps::default(), MaterialMaps { color: None, opacity: Some(Opacity::Constant(MASK_OPACITY as f32)) }] };
+    scene.textures = SceneTextures { textures: vec![], maps: vec![MaterialMaps::default(), MaterialMaps { color: None, opacity: Some(Opacity::Constant(MASK_OPACITY as f32)) }], emission: vec![] };
     let mut report = Vec::new();
     let mut ok = true;
     for (direct, iterations) in [(false, MASK_ITERATIONS), (true, 4 * MASK_ITERATIONS)] {
@@ -289,7 +289,7 @@ fn lit_mask(t: &mut dyn DynTracer) -> Result<(bool, String), String> {
     scene.meshes = vec![scenes::quad("mask", Vec3::new(x0, MASK_HEIGHT as f32, z0), Vec3::new(0.0, 0.0, z1 - z0), Vec3::new(x1 - x0, 0.0, 0.0), 0)];
     let albedo = 0.8;
     scene.materials = vec![scenes::diffuse(albedo as f32)];
-    scene.textures = SceneTextures { textures: vec![], maps: vec![MaterialMaps { color: None, opacity: Some(Opacity::Constant(MASK_OPACITY as f32)) }] };
+    scene.textures = SceneTextures { textures: vec![], maps: vec![MaterialMaps { color: None, opacity: Some(Opacity::Constant(MASK_OPACITY as f32)) }], emission: vec![] };
     let (image, records) = render(t, &scene, false, MASK_ITERATIONS)?;
     let pixels = image.len();
     let mut expected = vec![0.0; pixels];
@@ -313,4 +313,96 @@ fn lit_mask(t: &mut dyn DynTracer) -> Result<(bool, String), String> {
     let seen: Vec<bool> = (0..pixels).map(|i| expected[i] > 0.0 && inside[i]).collect();
     let (errors, text) = compare(&image, &expected, &["lit mask"], |i| seen[i].then_some(0));
     Ok((errors[0].abs() < TOL_PERCENT, format!("mask lit alone, photons only: {text}; {stopped} of {cast} camera rays stopped on it")))
+}
+
+/// Radiance of the two halves of the textured emitter of [`emitter_texture`] (x < 0, x > 0).
+const EMITTER_RADIANCE: [f64; 2] = [4.0, 1.0];
+/// Height of the emitter above the floor (metres); it covers `x, z ∈ [-1, 1]`.
+const EMITTER_HEIGHT: f64 = 1.0;
+
+/// Irradiance at floor point `p` from the emitter of [`emitter_texture`]: the midpoint rule
+/// over each half (`L h² / r⁴`: both cosines are `h / r`), 80 × 160 cells per half.
+fn emitter_irradiance(p: DVec3) -> f64 {
+    let (nx, nz) = (80, 160);
+    let mut e = 0.0;
+    for (half, l) in EMITTER_RADIANCE.iter().enumerate() {
+        let x0 = half as f64 - 1.0;
+        let (dx, dz) = (1.0 / nx as f64, 2.0 / nz as f64);
+        for i in 0..nx {
+            for k in 0..nz {
+                let (x, z) = (x0 + (i as f64 + 0.5) * dx, -1.0 + (k as f64 + 0.5) * dz);
+                let r2 = (x - p.x).powi(2) + (z - p.z).powi(2) + EMITTER_HEIGHT * EMITTER_HEIGHT;
+                e += l * EMITTER_HEIGHT * EMITTER_HEIGHT / (r2 * r2) * dx * dz;
+            }
+        }
+    }
+    e
+}
+
+/// A textured area light: a 2 × 2 m square one metre above the floor, facing down, whose
+/// radiance is a 2 × 1 float bitmap (nearest): 4 over `x < 0`, 1 over `x > 0`. A camera below
+/// it looks down at the floor: each query point's radiance is `ρ/π E` with `E` the
+/// irradiance integrated here from the two halves (photons only, then with next-event
+/// estimation, which samples the emitter's triangles by power and reads the texture at the
+/// sampled point); a camera looking up sees the two radiances themselves.
+pub fn emitter_texture(t: &mut dyn DynTracer) -> CaseResult {
+    let h = EMITTER_HEIGHT as f32;
+    let floor = scenes::quad("floor", Vec3::new(-10.0, 0.0, -10.0), Vec3::new(0.0, 0.0, 20.0), Vec3::new(20.0, 0.0, 0.0), 0);
+    // x × z = -y: emits downwards.
+    let mut light = scenes::quad("emitter", Vec3::new(-1.0, h, -1.0), Vec3::new(2.0, 0.0, 0.0), Vec3::new(0.0, 0.0, 2.0), 1);
+    light.uvs = Some(light.positions.iter().map(|p| Vec2::new((p.x + 1.0) / 2.0, (p.z + 1.0) / 2.0)).collect());
+    light.emission = Some(Vec3::ONE);
+    let texels = EMITTER_RADIANCE.map(|l| [l as f32; 3]).to_vec();
+    let bitmap = Texture::Bitmap(Bitmap { width: 2, height: 1, texels: Texels::Float(texels), filter: TextureFilter::Nearest, wrap: TextureWrap::Clamp, to_uv: UvTransform::IDENTITY });
+    let albedo = 0.8;
+    let down = scenes::camera(Vec3::new(0.0, 0.8, 0.0), Vec3::ZERO, Vec3::new(0.0, 0.0, -1.0), 2.0 * 0.5f32.atan().to_degrees(), SIZE);
+    let mut scene = Scene {
+        meshes: vec![floor, light],
+        materials: vec![scenes::diffuse(albedo as f32), scenes::diffuse(0.0)],
+        lights: vec![],
+        camera: down,
+        roughness_cutoff: 0.5,
+        textures: SceneTextures { textures: vec![bitmap], maps: vec![], emission: vec![None, Some(0)] },
+    };
+    let mut report = Vec::new();
+    let mut ok = true;
+    // Next-event estimation draws one point of the emitter per query point and iteration
+    // (the bright half lights the dim half's floor too): four times the iterations.
+    for (direct, iterations) in [(false, ITERATIONS), (true, 4 * ITERATIONS)] {
+        let (image, records) = render(t, &scene, direct, iterations)?;
+        let mut expected = vec![0.0; image.len()];
+        let mut x = vec![0.0f64; image.len()];
+        for rs in &records {
+            for r in rs {
+                if r.valid != 1 {
+                    return Err(format!("pixel {} has no query point on the floor", r.pixel));
+                }
+                let p = Vec3::from_array(r.position).as_dvec3();
+                let i = r.pixel as usize;
+                expected[i] += albedo / PI * emitter_irradiance(p) / iterations as f64;
+                x[i] = p.x;
+            }
+        }
+        let (errors, text) = compare(&image, &expected, &["under the bright half", "under the dim half"], |i| {
+            (x[i].abs() > 0.05).then_some(if x[i] < 0.0 { 0 } else { 1 })
+        });
+        ok &= errors.iter().all(|e| e.abs() < TOL_PERCENT);
+        report.push(format!("direct {} ({iterations} iterations): {text}", if direct { "on" } else { "off" }));
+    }
+    // Looking up from below: the pixels over each half see its radiance.
+    scene.camera = scenes::camera(Vec3::new(0.0, 0.5, 0.0), Vec3::new(0.0, 1.0, 0.0), Vec3::new(0.0, 0.0, -1.0), 2.0 * 0.5f32.atan().to_degrees(), SIZE);
+    let (image, _) = render(t, &scene, false, 1)?;
+    let (w, hgt) = (SIZE as usize, SIZE as usize);
+    // The camera's right is -x (looking up with up = -z): the left columns see x > 0.
+    let mean = |cols: std::ops::Range<usize>| {
+        let v: Vec<f64> = (hgt / 4..3 * hgt / 4).flat_map(|r| cols.clone().map(move |c| r * w + c)).map(|i| image[i].x as f64).collect();
+        v.iter().sum::<f64>() / v.len() as f64
+    };
+    let (left, right) = (mean(2..w / 2 - 2), mean(w / 2 + 2..w - 2));
+    let seen = [right, left];
+    let seen_ok = seen.iter().zip(EMITTER_RADIANCE).all(|(s, l)| (s / l - 1.0).abs() < 1e-4);
+    ok &= seen_ok;
+    report.push(format!("seen from below: {:.4} and {:.4} (expected {} and {})", seen[0], seen[1], EMITTER_RADIANCE[0], EMITTER_RADIANCE[1]));
+    let msg = format!("{} (tol ±{TOL_PERCENT}%, {ITERATIONS}×{PHOTONS} photons, {SIZE}² px)", report.join("; "));
+    if ok { Ok(msg) } else { Err(msg) }
 }

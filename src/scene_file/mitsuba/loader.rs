@@ -60,6 +60,8 @@ pub(super) struct Loader<'a> {
     pub(super) maps: Vec<MaterialMaps>,
     /// The scene's textures.
     pub(super) textures: Vec<Texture>,
+    /// Per mesh (aligned with `meshes`), the texture of its area emitter's radiance.
+    pub(super) emission_textures: Vec<Option<TextureId>>,
     /// Top-level textures by id.
     pub(super) texture_ids: HashMap<String, TextureId>,
     pub(super) meshes: Vec<TriangleMesh>,

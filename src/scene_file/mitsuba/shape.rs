@@ -90,12 +90,18 @@ impl Loader<'_> {
             return Err(self.invalid(emitters[1].line, "a shape can have only one <emitter>"));
         }
         let mut emission = None;
+        let mut emission_texture = None;
         if let Some(e) = emitters.first() {
             if e.attr("type") != Some("area") {
                 return Err(self.unsupported(e, "only 'area' emitters can be attached to shapes"));
             }
             let ep = self.props(e);
-            let radiance = self.emission(&ep, "radiance", None)?.ok_or_else(|| self.invalid(e.line, "area emitter lacks 'radiance'"))?;
+            // A textured radiance: the texture's values are the radiance (factor 1).
+            emission_texture = self.texture_of(&ep, "radiance")?;
+            let radiance = match emission_texture {
+                Some(_) => DVec3::ONE,
+                None => self.emission(&ep, "radiance", None)?.ok_or_else(|| self.invalid(e.line, "area emitter lacks 'radiance'"))?,
+            };
             self.finish(&ep);
             emission = Some(radiance);
         }
@@ -111,6 +117,7 @@ impl Loader<'_> {
         };
         let mesh = self.build_mesh(n, raw, &label, to_world, face_normals, normals, flip_normals, material, emission)?;
         self.meshes.push(mesh);
+        self.emission_textures.push(emission_texture);
         Ok(())
     }
 
