@@ -36,12 +36,12 @@ const SHARED: &[(&str, usize, usize, usize)] = &[
     ("veach-bidir", 11_544, 0, 2),
     ("sponza-standin", 66_454, 1, 0),
     ("cornell-caustic", 5_144, 0, 1),
+    ("crytek-sponza", 262_087, 1, 0),
 ];
 
 /// Shared scenes the loader cannot read yet, with what the refusal must name (the file's
-/// line and the element). crytek-sponza needs instancing (the second real-Mitsuba-scenes
-/// issue); once it loads, this entry fails the test and goes.
-const REFUSED: &[(&str, &str)] = &[("crytek-sponza", "scene.xml:76: unsupported <shape type=\"shapegroup\">")];
+/// line and the element); once one loads, its entry fails the test and goes.
+const REFUSED: &[(&str, &str)] = &[];
 
 #[test]
 fn every_shared_scene_loads_and_validates() {
@@ -596,6 +596,36 @@ fn meshes_without_normals_get_smooth_normals_as_in_mitsuba() {
     let s = load_in_tempdir(&xml, &[("r.obj", obj.as_bytes().to_vec())]).unwrap();
     assert!(close(s.scene.meshes[0].normals.as_ref().unwrap()[0], Vec3::Y, 1e-6));
     assert!(s.scene.meshes[1].normals.is_none());
+}
+
+/// `shapegroup`s are placed by their `instance`s (flattened: one mesh per copy, positions
+/// and normals transformed); what cannot be instanced is an error naming the line.
+#[test]
+fn shapegroups_are_placed_by_their_instances() {
+    let files = [("q.ply", ply(&QUAD, &[&[0, 1, 2, 3]], true))];
+    let group = r#"    <shape type="shapegroup" id="g"><shape type="ply"><string name="filename" value="q.ply"/></shape></shape>"#;
+    let xml = scene_xml(&format!(
+        r#"{group}
+    <shape type="instance"><ref id="g"/><transform name="to_world"><translate x="5"/></transform></shape>
+    <shape type="instance" id="turned"><ref id="g"/><transform name="to_world"><rotate z="1" angle="90"/></transform></shape>"#
+    ));
+    let s = load_in_tempdir(&xml, &files).unwrap();
+    let [a, b] = &s.scene.meshes[..] else { panic!("{} meshes: the group itself is not placed", s.scene.meshes.len()) };
+    assert!(a.positions.iter().zip(QUAD).all(|(p, q)| close(*p, vec3(q[0] + 5.0, q[1], q[2]), 1e-6)));
+    // +90° about z turns the +y normals into -x.
+    assert!(b.normals.as_ref().unwrap().iter().all(|n| close(*n, -Vec3::X, 1e-6)), "{:?}", b.normals);
+    assert!(close(geometric_normal(b, 0), -Vec3::X, 1e-6));
+    assert!(b.name.starts_with("turned"), "{}", b.name);
+    assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+    let err = |body: &str| expect_err(load_in_tempdir(&scene_xml(body), &files)).1;
+    let msg = err(r#"    <shape type="instance"><ref id="g"/></shape>"#);
+    assert!(msg.contains(":11:") && msg.contains("no shapegroup defined before"), "{msg}");
+    let msg = err(&format!("{group}\n    <shape type=\"instance\"/>"));
+    assert!(msg.contains(":12:") && msg.contains("exactly one <ref"), "{msg}");
+    let msg = err(r#"    <shape type="shapegroup" id="e"><shape type="rectangle"><emitter type="area"><rgb name="radiance" value="1"/></emitter></shape></shape>"#);
+    assert!(msg.contains(":11:") && msg.contains("cannot be instanced"), "{msg}");
+    let msg = err(r#"    <shape type="shapegroup" id="n"><shape type="shapegroup" id="m"/></shape>"#);
+    assert!(msg.contains(":11:") && msg.contains("shapegroup"), "{msg}");
 }
 
 /// `<path>` directories are searched before the scene's own directory, the last first.

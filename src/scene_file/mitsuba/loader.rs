@@ -65,6 +65,8 @@ pub(super) struct Loader<'a> {
     /// Top-level textures by id.
     pub(super) texture_ids: HashMap<String, TextureId>,
     pub(super) meshes: Vec<TriangleMesh>,
+    /// `shapegroup`s by id: their meshes, placed by each `instance` (flattened).
+    pub(super) shapegroups: HashMap<String, Vec<TriangleMesh>>,
     pub(super) lights: Vec<Light>,
     pub(super) camera: Option<(Camera, f64, FovAxis)>,
     pub(super) max_depth: Option<u32>,

@@ -129,6 +129,7 @@ pub(crate) fn load_str(text: &str, path: &Path, defines: &[(String, String)], re
         default_material: None,
         materials: Vec::new(),
         meshes: Vec::new(),
+        shapegroups: HashMap::new(),
         lights: Vec::new(),
         camera: None,
         max_depth: None,

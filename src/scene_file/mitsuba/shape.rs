@@ -13,6 +13,11 @@ use glam::{DMat3, DMat4, DVec3, Vec3};
 impl Loader<'_> {
     pub(super) fn shape(&mut self, n: &Node) -> R<()> {
         let ty = n.attr("type").unwrap_or("");
+        match ty {
+            "shapegroup" => return self.shapegroup(n),
+            "instance" => return self.instance(n),
+            _ => {}
+        }
         let p = self.props(n);
         let to_world = self.transform(&p, "to_world")?.unwrap_or(DMat4::IDENTITY);
         let face_normals = self.boolean(&p, "face_normals")?;
@@ -122,6 +127,76 @@ impl Loader<'_> {
     }
 
     #[allow(clippy::too_many_arguments)]
+    /// A `shapegroup`: its shapes are loaded but not placed in the scene; each `instance`
+    /// of it places a copy ([`Loader::instance`]). Emitters, nested groups and instances
+    /// inside a group are errors (Mitsuba instances neither).
+    fn shapegroup(&mut self, n: &Node) -> R<()> {
+        let id = n.attr("id").ok_or_else(|| self.invalid(n.line, "a shapegroup needs an 'id' for its instances to name"))?.to_string();
+        if self.shapegroups.contains_key(&id) || self.bsdfs.contains_key(&id) || self.texture_ids.contains_key(&id) {
+            return Err(self.invalid(n.line, format!("duplicate id '{id}'")));
+        }
+        let p = self.props(n);
+        let first = self.meshes.len();
+        for c in self.objects(&p, &["shape"]) {
+            if matches!(c.attr("type"), Some("shapegroup" | "instance")) {
+                return Err(self.unsupported(c, "not supported inside a shapegroup (Mitsuba nests neither)"));
+            }
+            self.shape(c)?;
+            if self.meshes.last().is_some_and(|m| m.emission.is_some()) {
+                return Err(self.invalid(c.line, "an area emitter inside a shapegroup: emitters cannot be instanced (as in Mitsuba); place the shape directly"));
+            }
+        }
+        self.finish(&p);
+        let meshes = self.meshes.split_off(first);
+        self.emission_textures.truncate(first);
+        if meshes.is_empty() {
+            self.warn(n.line, format!("shapegroup '{id}' has no shapes"));
+        }
+        self.shapegroups.insert(id, meshes);
+        Ok(())
+    }
+
+    /// An `instance`: a copy of the meshes of the `shapegroup` its `<ref>` names (defined
+    /// before it), placed by its `to_world` (positions transformed, normals by the inverse
+    /// transpose, in `f64`). Instances are flattened into the scene's meshes: every
+    /// backend's acceleration structures hold each copy.
+    fn instance(&mut self, n: &Node) -> R<()> {
+        let p = self.props(n);
+        let to_world = self.transform(&p, "to_world")?.unwrap_or(DMat4::IDENTITY);
+        let refs = self.objects(&p, &["ref"]);
+        self.objects(&p, &["bsdf", "emitter", "shape", "texture", "medium"]).iter().try_for_each(|c| Err(self.unsupported(c, "not supported inside an instance")))?;
+        let [r] = refs[..] else {
+            return Err(self.invalid(n.line, format!("an instance needs exactly one <ref id> to a shapegroup; it has {}", refs.len())));
+        };
+        let id = r.attr("id").ok_or_else(|| self.invalid(r.line, "<ref> lacks 'id'"))?;
+        let Some(group) = self.shapegroups.get(id) else {
+            return Err(self.invalid(r.line, format!("<ref id=\"{id}\"> names no shapegroup defined before this instance")));
+        };
+        let normal_matrix = DMat3::from_mat4(to_world).inverse().transpose();
+        let name = n.attr("id").unwrap_or(id).to_string();
+        let mut placed = Vec::with_capacity(group.len());
+        for m in group {
+            let positions: Vec<Vec3> = m.positions.iter().map(|v| to_world.transform_point3(v.as_dvec3()).as_vec3()).collect();
+            if let Some(v) = positions.iter().position(|v| !v.is_finite()) {
+                return Err(SceneFileError::Mesh { path: self.path.to_path_buf(), line: n.line, mesh: m.name.clone(), message: format!("vertex {v} is not finite after the instance's to_world") });
+            }
+            let normals = m.normals.as_ref().map(|ns| ns.iter().map(|v| (normal_matrix * v.as_dvec3()).normalize_or(DVec3::Y).as_vec3()).collect());
+            placed.push(TriangleMesh {
+                positions,
+                normals,
+                name: format!("{name}: {}", m.name),
+                uvs: m.uvs.clone(),
+                indices: m.indices.clone(),
+                material: m.material,
+                emission: m.emission,
+            });
+        }
+        self.finish(&p);
+        self.emission_textures.extend(placed.iter().map(|_| None));
+        self.meshes.extend(placed);
+        Ok(())
+    }
+
     #[allow(clippy::too_many_arguments)]
     pub(super) fn build_mesh(&mut self, n: &Node, raw: RawMesh, file: &str, to_world: DMat4, face_normals: bool, missing: MissingNormals, flip: bool, material: MaterialId, emission: Option<DVec3>) -> R<TriangleMesh> {
         let err = |message: String| SceneFileError::Mesh { path: self.path.to_path_buf(), line: n.line, mesh: file.to_string(), message };
