@@ -203,7 +203,7 @@ impl GpuScene {
         let tables = SceneTables::new(scene, &geometry.orders)?;
         let device = &ctx.device;
         let texture_bytes = 4 * tables.texture_words.len() as u64;
-        let max = u64::from(device.limits().max_storage_buffer_binding_size);
+        let max = device.limits().max_storage_buffer_binding_size;
         if texture_bytes > max {
             return Err(SceneUploadError::TexturesTooLarge { bytes: texture_bytes, max });
         }
