@@ -49,6 +49,7 @@ fn twin_cases() -> Vec<(Case, KernelBody)> {
             "twin-differential",
             "twin-emission",
             "twin-spot-falloff",
+            "twin-texture",
             "twin-reemission",
             "twin-lambertian",
             "twin-footprint",
