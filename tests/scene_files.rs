@@ -598,6 +598,29 @@ fn meshes_without_normals_get_smooth_normals_as_in_mitsuba() {
     assert!(s.scene.meshes[1].normals.is_none());
 }
 
+/// Mitsuba's principled BSDF maps onto the lobe its parameters make dominant, saying so.
+#[test]
+fn principled_maps_onto_its_dominant_lobe() {
+    let body = r#"
+    <shape type="rectangle"><bsdf type="principled"><rgb name="base_color" value="0.2, 0.4, 0.6"/></bsdf></shape>
+    <shape type="rectangle"><bsdf type="principled"><float name="metallic" value="0.9"/><float name="roughness" value="0.2"/></bsdf></shape>
+    <shape type="rectangle"><bsdf type="principled"><float name="spec_trans" value="1"/><float name="eta" value="1.33"/><float name="roughness" value="0.0"/><float name="clearcoat" value="0.5"/></bsdf></shape>
+    <shape type="rectangle"><bsdf type="principled"><float name="metallic" value="1"/><float name="roughness" value="0.7"/></bsdf></shape>"#;
+    let s = load_in_tempdir(&scene_xml(body), &[]).unwrap();
+    let m: Vec<Material> = s.scene.meshes.iter().map(|x| s.scene.materials[x.material as usize]).collect();
+    assert_eq!(m[0], Material::Diffuse { albedo: vec3(0.2, 0.4, 0.6) });
+    // alpha = roughness²: 0.04 (specular), 0.49 (diffuse by the cut-off).
+    assert!(matches!(m[1], Material::Conductor { reflectance, roughness } if reflectance == Vec3::splat(0.5) && (roughness - 0.04).abs() < 1e-6), "{:?}", m[1]);
+    assert!(matches!(m[2], Material::Dielectric { ior, roughness: 0.0, .. } if (ior - 1.33).abs() < 1e-6), "{:?}", m[2]);
+    assert!(matches!(m[3], Material::Conductor { roughness, .. } if (roughness - 0.49).abs() < 1e-6));
+    assert_eq!(m[3].scattering(s.scene.roughness_cutoff), arpa::core::render::scene::Scattering::Diffuse(Vec3::splat(0.5)));
+    let said = |line: usize, what: &str| s.warnings.iter().any(|w| w.line == line && w.message.contains(what));
+    assert!(said(12, "diffuse with base_color") && said(13, "a conductor") && said(14, "a dielectric of index 1.33") && said(14, "clearcoat"), "{:?}", s.warnings);
+    let bad = scene_xml(r#"    <shape type="rectangle"><bsdf type="principled"><float name="metallic" value="2"/></bsdf></shape>"#);
+    let (_, msg) = expect_err(load_in_tempdir(&bad, &[]));
+    assert!(msg.contains(":11:") && msg.contains("metallic"), "{msg}");
+}
+
 /// `shapegroup`s are placed by their `instance`s (flattened: one mesh per copy, positions
 /// and normals transformed); what cannot be instanced is an error naming the line.
 #[test]

@@ -198,7 +198,55 @@ impl Loader<'_> {
                 one_sided(self, albedo);
                 Material::Diffuse { albedo: albedo.as_vec3() }
             }
-            _ => return Err(self.unsupported(n, "supported bsdfs: diffuse, dielectric, roughdielectric, conductor, roughconductor, plastic, roughplastic, twosided, mask")),
+            "principled" => {
+                // Mitsuba's principled BSDF onto the lobe its parameters make dominant:
+                // spec_trans >= 0.5 a dielectric, else metallic >= 0.5 a conductor, else
+                // the diffuse base; the roughness (alpha = roughness², Mitsuba's) then
+                // picks smooth or diffuse by the cut-off, as for rough conductors.
+                let (base, texture) = self.fraction_or_texture(&p, "base_color", DVec3::splat(0.5))?;
+                maps.color = texture;
+                let roughness = self.scalar_or_mean(&p, "roughness", 0.5)?;
+                let metallic = self.scalar_or_mean(&p, "metallic", 0.0)?;
+                let spec_trans = self.scalar_or_mean(&p, "spec_trans", 0.0)?;
+                for (name, v) in [("roughness", roughness), ("metallic", metallic), ("spec_trans", spec_trans)] {
+                    if !(0.0..=1.0).contains(&v) {
+                        return Err(self.invalid(self.line_of(&p, name), format!("principled '{name}' {} is outside [0, 1]", num(v))));
+                    }
+                }
+                let eta = match (self.float(&p, "eta")?, self.float(&p, "specular")?) {
+                    (Some(e), _) => e,
+                    // Mitsuba's relation between `specular` and the index of refraction.
+                    (None, Some(sp)) => 2.0 / (1.0 - (0.08 * sp).max(0.0).sqrt()).max(1e-6) - 1.0,
+                    (None, None) => 1.5,
+                };
+                if !(eta.is_finite() && eta > 0.0) {
+                    return Err(self.invalid(n.line, format!("principled eta {} must be finite and positive", num(eta))));
+                }
+                let mut dropped = Vec::new();
+                for key in ["anisotropic", "spec_tint", "sheen", "sheen_tint", "flatness", "clearcoat", "clearcoat_gloss"] {
+                    if self.texture_of(&p, key)?.is_some() | self.find(&p, key).is_some() {
+                        dropped.push(key);
+                    }
+                }
+                for key in ["main_specular_sampling_rate", "clearcoat_sampling_rate", "diffuse_reflectance_sampling_rate"] {
+                    let _ = self.find(&p, key);
+                }
+                if !dropped.is_empty() {
+                    self.warn(n.line, format!("principled: {} not modelled by the photon mapper and ignored", dropped.join(", ")));
+                }
+                let alpha = roughness * roughness;
+                let (material, what) = if spec_trans >= 0.5 {
+                    (Material::Dielectric { ior: eta as f32, transmittance: base.as_vec3(), roughness: alpha as f32 }, format!("a dielectric of index {} tinted by base_color", num(eta)))
+                } else if metallic >= 0.5 {
+                    (Material::Conductor { reflectance: base.as_vec3(), roughness: alpha as f32 }, "a conductor of reflectance base_color".to_string())
+                } else {
+                    (Material::Diffuse { albedo: base.as_vec3() }, "diffuse with base_color (its specular lobe dropped)".to_string())
+                };
+                let rough = if matches!(material, Material::Diffuse { .. }) { String::new() } else { format!("; {}", rough_note(alpha)) };
+                self.warn(n.line, format!("principled (metallic {}, spec_trans {}, roughness {}) is rendered as {what}{rough}", num(metallic), num(spec_trans), num(roughness)));
+                material
+            }
+            _ => return Err(self.unsupported(n, "supported bsdfs: diffuse, dielectric, roughdielectric, conductor, roughconductor, plastic, roughplastic, principled, twosided, mask")),
         };
         self.objects(&p, &["texture"]).iter().try_for_each(|t| Err(self.unsupported(t, "a texture needs the name of the parameter it gives")))?;
         self.finish(&p);
@@ -232,6 +280,16 @@ impl Loader<'_> {
         if !(v.is_finite() && v > 0.0) {
             return Err(self.invalid(n.line, format!("'{name}' is {}; an index of refraction must be finite and positive", num(v))));
         }
+        Ok(v)
+    }
+
+    /// A scalar parameter that may be a texture (`default` when absent): a texture gives its
+    /// mean single value ([`arpa_core::render::texture::Texture::mean_1`]), with a warning,
+    /// for a parameter that picks one behaviour per material.
+    pub(super) fn scalar_or_mean(&mut self, p: &Props<'_>, name: &str, default: f64) -> R<f64> {
+        let Some(id) = self.texture_of(p, name)? else { return Ok(self.float(p, name)?.unwrap_or(default)) };
+        let v = self.textures[id as usize].mean_1() as f64;
+        self.warn(self.line_of(p, name), format!("texture '{name}': the material is rendered by its mean {v:.4} (one scattering kind per material)"));
         Ok(v)
     }
 
