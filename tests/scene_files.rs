@@ -357,8 +357,8 @@ fn unknown_shape_type_names_element_and_line() {
     let (e, s) = expect_err(load_in_tempdir(&scene_xml("    <shape type=\"bsplinecurve\"/>"), &[]));
     assert!(matches!(e, SceneFileError::Unsupported { line: 11, .. }), "{s}");
     assert!(s.contains("<shape type=\"bsplinecurve\">") && s.contains(":11:"), "{s}");
-    let (_, s) = expect_err(load_in_tempdir(&scene_xml("    <bsdf type=\"principled\" id=\"p\"/>"), &[]));
-    assert!(s.contains("<bsdf type=\"principled\">") && s.contains(":11:"), "{s}");
+    let (_, s) = expect_err(load_in_tempdir(&scene_xml("    <bsdf type=\"hair\" id=\"p\"/>"), &[]));
+    assert!(s.contains("<bsdf type=\"hair\">") && s.contains(":11:"), "{s}");
     let (_, s) = expect_err(load_in_tempdir(&scene_xml("    <emitter type=\"envmap\"/>"), &[]));
     assert!(s.contains("<emitter type=\"envmap\">"), "{s}");
     let (_, s) = expect_err(load_in_tempdir(&scene_xml("    <shape type=\"cube\"><ref id=\"nope\"/></shape>"), &[]));
