@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Fuzzes the scene-file loaders with cargo-fuzz (libFuzzer): targets scene_xml (Mitsuba
 # XML), ply (ASCII and binary), obj, serialized (Mitsuba's compressed meshes) and texture
-# (the image files of bitmap textures) in fuzz/,
+# (the image files of bitmap textures) and gltf (glTF JSON and GLB) in fuzz/,
 # each for EXECUTIONS runs (default 10^6).
 #
 #   scripts/fuzz.sh [EXECUTIONS] [TARGET...]
@@ -27,7 +27,7 @@ root=$PWD
 runs=${1:-1000000}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(scene_xml ply obj serialized texture)
+[ ${#targets[@]} -gt 0 ] || targets=(scene_xml ply obj serialized texture gltf)
 case $runs in '' | *[!0-9]*) echo "fuzz.sh: EXECUTIONS must be a number, got '$runs'" >&2; exit 2 ;; esac
 
 if ! cargo +nightly --version >/dev/null 2>&1; then
@@ -69,6 +69,7 @@ seed() {
     obj) pattern='*.obj' ;;
     serialized) pattern='*.serialized' ;;
     texture) pattern='*.png' ;;
+    gltf) pattern='*.gltf' ;;
   esac
   local n=0 f name
   while IFS= read -r -d '' f; do

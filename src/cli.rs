@@ -323,11 +323,21 @@ fn parse_save_every(s: &str) -> Result<SaveEvery, String> {
 /// Arguments of `arpa render`.
 #[derive(Debug, Args)]
 pub struct RenderArgs {
-    /// Mitsuba 3 XML scene file to render (see `arpa::scene_file` for the supported
-    /// subset); without it the embedded Cornell box with a glass sphere and a mirror block
-    /// is rendered.
+    /// Mitsuba 3 XML or glTF 2.0 (`.gltf`, `.glb`) scene file to render (see
+    /// `arpa::scene_file` for the supported subsets); without it the embedded Cornell box
+    /// with a glass sphere and a mirror block is rendered.
     #[arg(value_name = "SCENE")]
     pub scene: Option<PathBuf>,
+
+    /// glTF scenes: the camera to render through, by its name or its node's name [default:
+    /// the first camera].
+    #[arg(long, value_name = "NAME")]
+    pub camera: Option<String>,
+
+    /// glTF scenes: factor on every KHR_lights_punctual light, for files whose light units
+    /// are not the spec's candela and lux [default: 1].
+    #[arg(long, value_name = "FACTOR", default_value_t = 1.0)]
+    pub light_scale: f64,
 
     /// Overrides a `<default name=... value=...>` of the scene file (repeatable), e.g.
     /// `-D res_x=640` or `-Dres_x=640`.
@@ -704,7 +714,17 @@ pub fn run_bench(args: &BenchArgs) -> anyhow::Result<()> {
 pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
     let (mut scene, file_max_depth) = match &args.scene {
         Some(path) => {
-            let mut loaded = crate::scene_file::load_scene(path, &args.define).with_context(|| format!("cannot load scene file '{}'", path.display()))?;
+            let gltf = crate::scene_file::is_gltf(path);
+            if !gltf && (args.camera.is_some() || args.light_scale != 1.0) {
+                anyhow::bail!("--camera and --light-scale apply to glTF scenes; '{}' is not one", path.display());
+            }
+            let mut loaded = if gltf {
+                let options = crate::scene_file::GltfOptions { camera: args.camera.clone(), light_scale: args.light_scale };
+                crate::scene_file::load_gltf(path, &options)
+            } else {
+                crate::scene_file::load_scene(path, &args.define)
+            }
+            .with_context(|| format!("cannot load scene file '{}'", path.display()))?;
             for w in &loaded.warnings {
                 eprintln!("warning: {w}");
             }

@@ -10,7 +10,8 @@ use std::path::{Path, PathBuf};
 
 type Entry = fn(&[u8]) -> Result<LoadedScene, SceneFileError>;
 
-const TARGETS: [(&str, Entry); 5] = [("scene_xml", fuzzing::scene_xml), ("ply", fuzzing::ply), ("obj", fuzzing::obj), ("serialized", fuzzing::serialized), ("texture", fuzzing::texture)];
+const TARGETS: [(&str, Entry); 6] =
+    [("scene_xml", fuzzing::scene_xml), ("ply", fuzzing::ply), ("obj", fuzzing::obj), ("serialized", fuzzing::serialized), ("texture", fuzzing::texture), ("gltf", fuzzing::gltf)];
 
 fn files(dir_kind: &str, target: &str) -> Vec<PathBuf> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("fuzz").join(dir_kind).join(target);

@@ -62,6 +62,26 @@ pub fn decode(bytes: &[u8], path: &Path, raw: bool) -> Result<DecodedBitmap, Sce
     Ok(DecodedBitmap { width, height, texels })
 }
 
+/// The alpha channel of a PNG or JPEG image (`width`, `height`, one byte per texel from the
+/// top row; 255 where the image has no alpha): what a glTF material's `alphaMode` reads.
+pub fn decode_alpha(bytes: &[u8], path: &Path) -> Result<(u32, u32, Vec<u8>), SceneFileError> {
+    let err = |message: String| SceneFileError::Texture { path: path.to_path_buf(), message };
+    let format = image::guess_format(bytes).map_err(|_| err("not an image file arpa reads (PNG, JPEG)".into()))?;
+    if !matches!(format, image::ImageFormat::Png | image::ImageFormat::Jpeg) {
+        return Err(err(format!("{format:?} images have no alpha arpa reads (PNG, JPEG do)")));
+    }
+    let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), format);
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(MAX_TEXELS * 16);
+    reader.limits(limits);
+    let img = reader.decode().map_err(|e| err(format!("cannot decode: {e}")))?;
+    let (width, height) = (img.width(), img.height());
+    if width == 0 || height == 0 || width as u64 * height as u64 > MAX_TEXELS {
+        return Err(err(format!("{width}×{height} texels: empty or larger than {MAX_TEXELS}")));
+    }
+    Ok((width, height, img.to_rgba8().pixels().map(|p| p.0[3]).collect()))
+}
+
 /// The first RGB(A) layer of an OpenEXR file in memory, as linear floats (a grey layer
 /// gives equal RGB).
 fn decode_exr(bytes: &[u8], path: &Path) -> Result<DecodedBitmap, SceneFileError> {

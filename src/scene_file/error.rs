@@ -92,6 +92,15 @@ pub enum SceneFileError {
         /// What is wrong.
         message: String,
     },
+    /// A glTF file (or one of its buffers or images) is malformed, refers to data it does
+    /// not hold, or requires an extension the loader does not support.
+    #[error("glTF file '{}': {message}", path.display())]
+    Gltf {
+        /// The glTF file (or the buffer or image file named in the message).
+        path: PathBuf,
+        /// What is wrong, naming the accessor, image, material or node.
+        message: String,
+    },
     /// A mesh's data is unusable (non-finite vertex, index out of range, ...).
     #[error("mesh '{mesh}' ({}:{line}): {message}", path.display())]
     Mesh {

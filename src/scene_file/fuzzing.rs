@@ -146,6 +146,27 @@ pub fn serialized(data: &[u8]) -> Result<LoadedScene, SceneFileError> {
     mesh_file(data, "serialized", SERIALIZED_PATH)
 }
 
+/// Where the `gltf` target's file is (its relative URIs resolve next to it).
+pub const GLTF_PATH: &str = "fuzz/scene.gltf";
+
+/// The `gltf` target: `data` is a glTF JSON or GLB file; every `.bin` file it names is
+/// [`SMALL_GLTF_BIN`], every image file [`SMALL_PNG`], any other file does not exist.
+pub fn gltf(data: &[u8]) -> Result<LoadedScene, SceneFileError> {
+    let path = Path::new(GLTF_PATH);
+    let read = |p: &Path| match p.extension().and_then(|e| e.to_str()) {
+        Some("bin") => Ok(SMALL_GLTF_BIN.to_vec()),
+        Some("png" | "jpg" | "jpeg") => Ok(SMALL_PNG.to_vec()),
+        _ => Err(Error::new(ErrorKind::NotFound, "no such file (fuzzing serves only .bin buffers and images)")),
+    };
+    let loaded = super::load_gltf_bytes(data, path, &read, &super::GltfOptions::default())?;
+    PreparedScene::new(loaded.scene.clone()).map_err(|source| SceneFileError::Scene { path: path.to_path_buf(), source })?;
+    Ok(loaded)
+}
+
+/// The buffer the `gltf` target serves for every `.bin` file: a quad's positions, normals,
+/// texture coordinates (offsets 0, 48, 96) and six `u16` indices (offset 128), 140 bytes.
+pub const SMALL_GLTF_BIN: &[u8] = include_bytes!("../../tests/data/gltf/quad.bin");
+
 /// Whether the message of `e` names the file it concerns: the scene file, or a mesh file
 /// it names (every loader error must; the fuzz targets and their regression tests assert
 /// it). [`SceneFileError::BadDefine`] concerns a command-line argument, not a file, and the
@@ -163,6 +184,7 @@ pub fn error_names_file(e: &SceneFileError) -> bool {
         | E::Serialized { path, .. }
         | E::Texture { path, .. }
         | E::Mesh { path, .. }
+        | E::Gltf { path, .. }
         | E::Scene { path, .. } => path,
         E::BadDefine(_) => return false,
     };

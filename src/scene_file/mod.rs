@@ -4,6 +4,12 @@
 //! bsdf, emitter, shape, sensor and texture family under `mitsuba/`. The README's section
 //! "Mitsuba 3 scenes" lists every plugin and parameter in one table.
 //!
+//! **glTF 2.0** files (`.gltf` with its buffers and images, `.glb`) load to the same scene
+//! model ([`load_gltf`], and [`load_scene`] by the file's extension); the mapping of nodes,
+//! materials, alpha modes, punctual lights (photometric units at [`LUMENS_PER_WATT`]) and
+//! cameras is the table of the `gltf_scene` module (source `src/scene_file/gltf_scene.rs`),
+//! summarised in the README's section "glTF 2.0 scenes".
+//!
 //! ```no_run
 //! let loaded = arpa::scene_file::load_scene("scene.xml".as_ref(), &[("res_x".into(), "64".into())])?;
 //! for w in &loaded.warnings { eprintln!("warning: {w}"); }
@@ -78,6 +84,7 @@
 mod bitmap;
 mod error;
 pub mod fuzzing;
+mod gltf_scene;
 mod loaded;
 mod mesh;
 mod mitsuba;
@@ -90,6 +97,7 @@ pub mod transform;
 mod xml;
 
 pub use error::{SceneFileError, Warning};
+pub use gltf_scene::{is_gltf, GltfOptions, DEFAULT_WIDTH as GLTF_DEFAULT_WIDTH, LUMENS_PER_WATT};
 pub use loaded::{vertical_fov, FovAxis, LoadedScene};
 pub use mesh::{MeshReader, RawMesh};
 pub use mitsuba::ROUGHNESS_CUTOFF;
@@ -119,11 +127,27 @@ pub fn load_scene(path: &Path, defines: &[(String, String)]) -> Result<LoadedSce
     load_scene_bytes(&bytes, path, defines, &|p| std::fs::read(p))
 }
 
+/// Loads a glTF 2.0 file (`.gltf` with its buffers and images, or `.glb`) with `options`
+/// (the camera, a factor on its lights); see the `gltf_scene` table in the module docs.
+pub fn load_gltf(path: &Path, options: &GltfOptions) -> Result<LoadedScene, SceneFileError> {
+    let bytes = std::fs::read(path).map_err(|source| SceneFileError::Io { path: path.to_path_buf(), source })?;
+    gltf_scene::load(&bytes, path, &|p| std::fs::read(p), options)
+}
+
+/// Loads the bytes of a glTF or GLB file; `path` names it and resolves its relative URIs,
+/// which `read` reads ([`load_gltf`] without the file system).
+pub fn load_gltf_bytes(bytes: &[u8], path: &Path, read: MeshReader<'_>, options: &GltfOptions) -> Result<LoadedScene, SceneFileError> {
+    gltf_scene::load(bytes, path, read, options)
+}
+
 /// Loads a scene from the bytes of its XML file; `path` names it in messages and its
 /// directory resolves mesh file names, which `read_mesh` reads. This is [`load_scene`]
 /// without the file system: the `scene_xml` fuzz target and its regression tests load
 /// through it with in-memory meshes.
 pub fn load_scene_bytes(bytes: &[u8], path: &Path, defines: &[(String, String)], read_mesh: MeshReader<'_>) -> Result<LoadedScene, SceneFileError> {
+    if is_gltf(path) {
+        return gltf_scene::load(bytes, path, read_mesh, &GltfOptions::default());
+    }
     let text = std::str::from_utf8(bytes).map_err(|e| {
         let before = &bytes[..e.valid_up_to()];
         let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
