@@ -123,7 +123,8 @@ fn a_textured_quad_with_lights_and_cameras() {
     // The floor node's parent moves it to z = 5.
     assert!(m.positions.iter().all(|p| p.y == 0.0 && (p.z - 5.0).abs() <= 1.0 + 1e-6));
     assert_eq!(m.indices, vec![[0, 1, 2], [0, 2, 3]]);
-    assert_eq!(m.uvs.as_ref().unwrap()[2], glam::Vec2::new(1.0, 1.0));
+    // TEXCOORD_0 (1, 1) is (1, 0) in arpa's texture coordinates: v flipped.
+    assert_eq!(m.uvs.as_ref().unwrap()[2], glam::Vec2::new(1.0, 0.0));
     assert_eq!(scene.materials[m.material as usize], Material::Diffuse { albedo: vec3(0.5, 1.0, 1.0) });
     let Texture::Bitmap(b) = &scene.textures.textures[0] else { panic!() };
     assert_eq!((b.width, b.height, b.filter, b.wrap), (2, 1, TextureFilter::Nearest, TextureWrap::Mirror));
@@ -292,4 +293,17 @@ fn crytek_sponza_gltf() {
     assert!((c.vertical_fov - 60f32.to_radians()).abs() < 1e-5);
     let masks = s.scene.textures.maps.iter().filter(|m| m.opacity.is_some()).count();
     assert_eq!(masks, 3);
+}
+
+/// `KHR_texture_transform` (offset, scale) in arpa's flipped texture coordinates: the
+/// texture reads at `F T F (uv)`, `F(u, v) = (u, 1 − v)`.
+#[test]
+fn texture_transforms_follow_the_flip() {
+    let material = json!({"pbrMetallicRoughness": {"baseColorTexture": {"index": 0, "extensions": {"KHR_texture_transform": {"offset": [0.5, 0.0], "scale": [2.0, 2.0]}}}, "metallicFactor": 0.0}});
+    let mut doc = document(&data_uri(&quad_bin()), material, images(), [1.0; 3]);
+    doc["extensionsUsed"] = json!(["KHR_lights_punctual", "KHR_texture_transform"]);
+    let s = load(&doc, &[], &GltfOptions::default()).unwrap();
+    let Texture::Bitmap(b) = &s.scene.textures.textures[0] else { panic!() };
+    // glTF: (2u + 0.5, 2v); on v' = 1 − v: (2u + 0.5, 1 − 2(1 − v')) = (2u + 0.5, 2v' − 1).
+    assert_eq!(b.to_uv.rows, [[2.0, 0.0, 0.5], [0.0, 2.0, -1.0]]);
 }

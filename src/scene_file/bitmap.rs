@@ -26,23 +26,11 @@ pub const MAX_TEXELS: u64 = 1 << 28;
 /// Decodes the image file `bytes` (`path` names it in errors; its format comes from its
 /// content, not its name). `raw` turns off the sRGB decoding of integer images.
 pub fn decode(bytes: &[u8], path: &Path, raw: bool) -> Result<DecodedBitmap, SceneFileError> {
-    let err = |message: String| SceneFileError::Texture { path: path.to_path_buf(), message };
     if bytes.starts_with(&[0x76, 0x2f, 0x31, 0x01]) {
         return decode_exr(bytes, path);
     }
-    let format = image::guess_format(bytes).map_err(|_| err("not an image file arpa reads (PNG, JPEG, OpenEXR, Radiance HDR)".into()))?;
-    if !matches!(format, image::ImageFormat::Png | image::ImageFormat::Jpeg | image::ImageFormat::Hdr) {
-        return Err(err(format!("{format:?} images are not supported (PNG, JPEG, OpenEXR, Radiance HDR are)")));
-    }
-    let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), format);
-    let mut limits = image::Limits::default();
-    limits.max_alloc = Some(MAX_TEXELS * 16);
-    reader.limits(limits);
-    let img = reader.decode().map_err(|e| err(format!("cannot decode: {e}")))?;
+    let img = read_image(bytes, path, &[image::ImageFormat::Png, image::ImageFormat::Jpeg, image::ImageFormat::Hdr], "PNG, JPEG, OpenEXR, Radiance HDR")?;
     let (width, height) = (img.width(), img.height());
-    if width == 0 || height == 0 || width as u64 * height as u64 > MAX_TEXELS {
-        return Err(err(format!("{width}×{height} texels: empty or larger than {MAX_TEXELS}")));
-    }
     use image::DynamicImage as D;
     let texels = match img {
         D::ImageLuma8(_) | D::ImageLumaA8(_) | D::ImageRgb8(_) | D::ImageRgba8(_) => {
@@ -65,10 +53,17 @@ pub fn decode(bytes: &[u8], path: &Path, raw: bool) -> Result<DecodedBitmap, Sce
 /// The alpha channel of a PNG or JPEG image (`width`, `height`, one byte per texel from the
 /// top row; 255 where the image has no alpha): what a glTF material's `alphaMode` reads.
 pub fn decode_alpha(bytes: &[u8], path: &Path) -> Result<(u32, u32, Vec<u8>), SceneFileError> {
+    let img = read_image(bytes, path, &[image::ImageFormat::Png, image::ImageFormat::Jpeg], "PNG, JPEG")?;
+    Ok((img.width(), img.height(), img.to_rgba8().pixels().map(|p| p.0[3]).collect()))
+}
+
+/// Decodes `bytes` as one of `formats` (recognised by content; `names` lists them for the
+/// error), within [`MAX_TEXELS`] and a matching allocation limit.
+fn read_image(bytes: &[u8], path: &Path, formats: &[image::ImageFormat], names: &str) -> Result<image::DynamicImage, SceneFileError> {
     let err = |message: String| SceneFileError::Texture { path: path.to_path_buf(), message };
-    let format = image::guess_format(bytes).map_err(|_| err("not an image file arpa reads (PNG, JPEG)".into()))?;
-    if !matches!(format, image::ImageFormat::Png | image::ImageFormat::Jpeg) {
-        return Err(err(format!("{format:?} images have no alpha arpa reads (PNG, JPEG do)")));
+    let format = image::guess_format(bytes).map_err(|_| err(format!("not an image file arpa reads ({names})")))?;
+    if !formats.contains(&format) {
+        return Err(err(format!("{format:?} images are not supported here ({names} are)")));
     }
     let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), format);
     let mut limits = image::Limits::default();
@@ -79,7 +74,7 @@ pub fn decode_alpha(bytes: &[u8], path: &Path) -> Result<(u32, u32, Vec<u8>), Sc
     if width == 0 || height == 0 || width as u64 * height as u64 > MAX_TEXELS {
         return Err(err(format!("{width}×{height} texels: empty or larger than {MAX_TEXELS}")));
     }
-    Ok((width, height, img.to_rgba8().pixels().map(|p| p.0[3]).collect()))
+    Ok(img)
 }
 
 /// The first RGB(A) layer of an OpenEXR file in memory, as linear floats (a grey layer

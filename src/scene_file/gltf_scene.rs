@@ -10,6 +10,7 @@
 //! | `alphaMode` | `MASK`: opacity 1 where the base colour's alpha (texture × factor) reaches `alphaCutoff` (default ½), else 0, per texel; `BLEND`: that alpha as a stochastic opacity; `OPAQUE`: none |
 //! | `emissiveFactor` × `emissiveTexture` × `KHR_materials_emissive_strength` | an area light of that radiance (W/(m²·sr), taken as it is) |
 //! | `KHR_lights_punctual` | point (`intensity` cd → W/sr), spot (cones: `outerConeAngle` the cut-off, `innerConeAngle` the full-intensity width, smoothstep falloff), directional (lux → W/m²), at 683 lm/W, times `color`, times [`GltfOptions::light_scale`]; lights point along their node's −z; `range` is ignored |
+//! | `TEXCOORD_0` | `(u, 1 − v)` in arpa's (Mitsuba's) texture coordinates, as the shared Crytek Sponza's conversion to Mitsuba maps them |
 //! | cameras | the perspective camera [`GltfOptions::camera`] names, else the scene's first camera node in node order of camera index 0 (`yfov`; it looks along −z with +y up); the film is [`DEFAULT_WIDTH`] wide at the camera's aspect ratio (16:9 without one) |
 //! | samplers, `KHR_texture_transform` | `wrapS` (and `wrapT` where it differs, with a warning), `magFilter` nearest or linear; offset, rotation and scale become the texture's `to_uv` |
 //!
@@ -158,10 +159,13 @@ impl Loader<'_> {
         let to_uv = match transform {
             None => UvTransform::IDENTITY,
             Some(t) => {
-                // KHR_texture_transform: uv' = T(offset) R(rotation) S(scale) uv.
+                // KHR_texture_transform: uv' = T(offset) R(rotation) S(scale) uv in glTF's
+                // coordinates; on arpa's flipped ones (see `flip_v`) that is F T F with
+                // F(u, v) = (u, 1 − v).
                 let ([ox, oy], r, [sx, sy]) = (t.offset(), t.rotation(), t.scale());
                 let (c, sn) = (r.cos(), r.sin());
-                UvTransform { rows: [[c * sx, sn * sy, ox], [-sn * sx, c * sy, oy]] }
+                let [[a, b, e], [d, g, f]] = [[c * sx, sn * sy, ox], [-sn * sx, c * sy, oy]];
+                UvTransform { rows: [[a, -b, b + e], [-d, g, 1.0 - g - f]] }
             }
         };
         (filter, wrap(s.wrap_s()), to_uv)
@@ -263,6 +267,14 @@ impl Loader<'_> {
         self.material_ids.insert(m.index(), (id, emission));
         Ok((id, emission))
     }
+}
+
+/// A glTF `TEXCOORD_0` in arpa's texture coordinates: `(u, 1 − v)`, the conversion of
+/// `../shared/scenes/crytek-sponza/convert_gltf.py` (whose Mitsuba reference arpa's XML
+/// loader matches): with it the glTF and XML forms of the shared Crytek Sponza read the same
+/// texels.
+fn flip_v(t: [f32; 2]) -> Vec2 {
+    Vec2::new(t[0], 1.0 - t[1])
 }
 
 /// `%xx` escapes of a relative URI decoded (file names with spaces).
@@ -452,7 +464,7 @@ fn place_mesh(l: &mut Loader<'_>, walk: &mut Walk, node: &gltf::Node<'_>, mesh: 
             }
             None => None,
         };
-        let uvs = uvs.map(|v| v.iter().map(|t| Vec2::from_array(*t)).collect::<Vec<_>>()).filter(|v: &Vec<Vec2>| v.iter().all(|t| t.is_finite()));
+        let uvs = uvs.map(|v| v.iter().map(|t| flip_v(*t)).collect::<Vec<_>>()).filter(|v: &Vec<Vec2>| v.iter().all(|t| t.is_finite()));
         let (material, emission) = l.material(prim.material())?;
         walk.meshes.push(TriangleMesh {
             name: format!("{} {what}", node.name().unwrap_or("node")),
