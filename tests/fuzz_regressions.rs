@@ -61,7 +61,9 @@ fn regressions_give_ok_or_an_error_naming_the_file() {
 /// Each reproducer fuzzing found, with what its error must say.
 #[test]
 fn known_reproducers_give_their_errors() {
-    let cases: [(&str, Entry, &str, &[&str]); 2] = [
+    let cases: [(&str, Entry, &str, &[&str]); 3] = [
+        // gltf-json's validation indexed a primitive's POSITION accessor before checking it (panic).
+        ("gltf/position-accessor-out-of-range", fuzzing::gltf, fuzzing::GLTF_PATH, &["accessor", "does not exist"]),
         // tobj multiplied an out-of-range relative texture coordinate index (overflow).
         ("obj/relative_texcoord_index_overflow.obj", fuzzing::obj, fuzzing::OBJ_PATH, &["line 11", "relative texture coordinate index -4", "only 1 precede"]),
         // ply-rs unwrapped a header number too large for a u64 (panic).

@@ -310,7 +310,21 @@ struct Walk {
 /// Loads the glTF (or GLB) file `bytes`; `path` names it and resolves its relative URIs,
 /// which `read` reads.
 pub fn load(bytes: &[u8], path: &Path, read: MeshReader<'_>, options: &GltfOptions) -> R<LoadedScene> {
-    let gltf = gltf::Gltf::from_slice(bytes).map_err(|e| SceneFileError::Gltf { path: path.to_path_buf(), message: e.to_string() })?;
+    let parse_error = |e: gltf::Error| SceneFileError::Gltf { path: path.to_path_buf(), message: e.to_string() };
+    // The gltf crate's validation indexes a primitive's POSITION accessor before checking
+    // it exists (gltf-json 1.4.1, found by fuzzing): check the indices it uses first.
+    {
+        let unchecked = gltf::Gltf::from_slice_without_validation(bytes).map_err(parse_error)?;
+        let root = unchecked.document.as_json();
+        for (mi, m) in root.meshes.iter().enumerate() {
+            for (pi, p) in m.primitives.iter().enumerate() {
+                if let Some((_, a)) = p.attributes.iter().find(|(_, a)| a.value() >= root.accessors.len()) {
+                    return Err(SceneFileError::Gltf { path: path.to_path_buf(), message: format!("mesh {mi} primitive {pi}: accessor {} does not exist ({} accessors)", a.value(), root.accessors.len()) });
+                }
+            }
+        }
+    }
+    let gltf = gltf::Gltf::from_slice(bytes).map_err(parse_error)?;
     let doc = &gltf.document;
     let mut l = Loader {
         path,
