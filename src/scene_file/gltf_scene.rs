@@ -70,6 +70,7 @@ type LoadedMaterial = (u32, Option<(Vec3, Option<TextureId>)>);
 
 struct Loader<'a> {
     path: &'a Path,
+    doc: &'a gltf::Document,
     read: MeshReader<'a>,
     buffers: Vec<Vec<u8>>,
     warnings: Vec<Warning>,
@@ -131,13 +132,18 @@ impl Loader<'_> {
     /// An image's bytes and the path that names it in errors.
     fn image_bytes(&self, image: &gltf::Image<'_>) -> R<(Vec<u8>, PathBuf)> {
         let what = format!("image {}{}", image.index(), image.name().map(|n| format!(" '{n}'")).unwrap_or_default());
-        match image.source() {
-            gltf::image::Source::Uri { uri, .. } => self.uri_bytes(uri, &what),
-            gltf::image::Source::View { view, .. } => {
-                let b = self.buffers.get(view.buffer().index()).ok_or_else(|| self.err(format!("{what}: buffer missing")))?;
-                let end = view.offset().checked_add(view.length()).filter(|&e| e <= b.len()).ok_or_else(|| self.err(format!("{what}: its buffer view lies beyond its buffer")))?;
-                Ok((b[view.offset()..end].to_vec(), PathBuf::from(format!("{} ({what})", self.path.display()))))
-            }
+        // From the JSON: the crate's `Image::source` unwraps what validation lets through
+        // (a buffer view without a MIME type, neither a uri nor a view).
+        let json = self.doc.as_json().images.get(image.index()).ok_or_else(|| self.err(format!("{what} does not exist")))?;
+        if let Some(v) = &json.buffer_view {
+            let view = self.doc.views().nth(v.value()).ok_or_else(|| self.err(format!("{what}: buffer view {} does not exist", v.value())))?;
+            let b = self.buffers.get(view.buffer().index()).ok_or_else(|| self.err(format!("{what}: buffer missing")))?;
+            let end = view.offset().checked_add(view.length()).filter(|&e| e <= b.len()).ok_or_else(|| self.err(format!("{what}: its buffer view lies beyond its buffer")))?;
+            return Ok((b[view.offset()..end].to_vec(), PathBuf::from(format!("{} ({what})", self.path.display()))));
+        }
+        match &json.uri {
+            Some(uri) => self.uri_bytes(uri, &what),
+            None => Err(self.err(format!("{what} has neither a uri nor a buffer view"))),
         }
     }
 
@@ -328,6 +334,7 @@ pub fn load(bytes: &[u8], path: &Path, read: MeshReader<'_>, options: &GltfOptio
     let doc = &gltf.document;
     let mut l = Loader {
         path,
+        doc,
         read,
         buffers: Vec::new(),
         warnings: Vec::new(),
