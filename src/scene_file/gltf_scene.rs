@@ -317,6 +317,14 @@ struct Walk {
 /// which `read` reads.
 pub fn load(bytes: &[u8], path: &Path, read: MeshReader<'_>, options: &GltfOptions) -> R<LoadedScene> {
     let parse_error = |e: gltf::Error| SceneFileError::Gltf { path: path.to_path_buf(), message: e.to_string() };
+    // A GLB header whose length is below the header's own 12 bytes underflows in the gltf
+    // crate's reader (found by fuzzing).
+    if bytes.starts_with(b"glTF") {
+        let length = bytes.get(8..12).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]));
+        if length.is_none_or(|l| l < 12) {
+            return Err(SceneFileError::Gltf { path: path.to_path_buf(), message: format!("GLB header: length {length:?} is shorter than the 12-byte header") });
+        }
+    }
     // The gltf crate's validation indexes a primitive's POSITION accessor before checking
     // it exists (gltf-json 1.4.1, found by fuzzing): check the indices it uses first.
     {
