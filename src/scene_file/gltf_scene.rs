@@ -107,8 +107,11 @@ impl Loader<'_> {
 
     /// Checks that every element of `accessor` lies inside its buffer (the `gltf` crate's
     /// reader slices without checking).
-    fn check_accessor(&self, a: &gltf::Accessor<'_>, what: &str) -> R<()> {
+    fn check_accessor(&self, a: &gltf::Accessor<'_>, what: &str, kinds: &[(gltf::accessor::Dimensions, gltf::accessor::DataType)]) -> R<()> {
         let name = format!("{what} (accessor {})", a.index());
+        if !kinds.contains(&(a.dimensions(), a.data_type())) {
+            return Err(self.err(format!("{name}: {:?} of {:?} is not a type this attribute takes ({kinds:?})", a.dimensions(), a.data_type())));
+        }
         if a.sparse().is_some() {
             return Err(self.err(format!("{name}: sparse accessors are not supported")));
         }
@@ -120,6 +123,9 @@ impl Loader<'_> {
         }
         let size = a.size();
         let stride = view.stride().unwrap_or(size);
+        if stride < size {
+            return Err(self.err(format!("{name}: byte stride {stride} is below its element size {size}")));
+        }
         if a.count() > 0 {
             let need = a.offset().checked_add((a.count() - 1).saturating_mul(stride)).and_then(|x| x.checked_add(size));
             if need.is_none_or(|n| n > view.length()) {
@@ -443,18 +449,19 @@ fn place_mesh(l: &mut Loader<'_>, walk: &mut Walk, node: &gltf::Node<'_>, mesh: 
             l.warn(format!("{what}: mode {:?} is not triangles; skipped", prim.mode()));
             continue;
         }
+        use gltf::accessor::{DataType as T, Dimensions as D};
         let Some(pos) = prim.get(&gltf::Semantic::Positions) else { return Err(l.err(format!("{what}: no POSITION"))) };
-        l.check_accessor(&pos, &format!("{what} POSITION"))?;
+        l.check_accessor(&pos, &format!("{what} POSITION"), &[(D::Vec3, T::F32)])?;
         let normals_acc = prim.get(&gltf::Semantic::Normals);
         if let Some(a) = &normals_acc {
-            l.check_accessor(a, &format!("{what} NORMAL"))?;
+            l.check_accessor(a, &format!("{what} NORMAL"), &[(D::Vec3, T::F32)])?;
         }
         let uv_acc = prim.get(&gltf::Semantic::TexCoords(0));
         if let Some(a) = &uv_acc {
-            l.check_accessor(a, &format!("{what} TEXCOORD_0"))?;
+            l.check_accessor(a, &format!("{what} TEXCOORD_0"), &[(D::Vec2, T::F32), (D::Vec2, T::U8), (D::Vec2, T::U16)])?;
         }
         if let Some(a) = prim.indices() {
-            l.check_accessor(&a, &format!("{what} indices"))?;
+            l.check_accessor(&a, &format!("{what} indices"), &[(D::Scalar, T::U8), (D::Scalar, T::U16), (D::Scalar, T::U32)])?;
         }
         let buffers = &l.buffers;
         let reader = prim.reader(|b| buffers.get(b.index()).map(|v| &v[..]));
