@@ -61,7 +61,9 @@ fn regressions_give_ok_or_an_error_naming_the_file() {
 /// Each reproducer fuzzing found, with what its error must say.
 #[test]
 fn known_reproducers_give_their_errors() {
-    let cases: [(&str, Entry, &str, &[&str]); 6] = [
+    let cases: [(&str, Entry, &str, &[&str]); 7] = [
+        // gltf's reader subtracted 1 from an accessor count of 0 (overflow).
+        ("gltf/accessor-count-zero", fuzzing::gltf, fuzzing::GLTF_PATH, &["count 0"]),
         // gltf's reader asserted an accessor's element size it never checked (debug panic).
         ("gltf/position-accessor-of-another-type", fuzzing::gltf, fuzzing::GLTF_PATH, &["accessor"]),
         // gltf's GLB reader subtracted the header size from a shorter length (overflow).

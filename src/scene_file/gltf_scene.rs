@@ -112,6 +112,9 @@ impl Loader<'_> {
         if !kinds.contains(&(a.dimensions(), a.data_type())) {
             return Err(self.err(format!("{name}: {:?} of {:?} is not a type this attribute takes ({kinds:?})", a.dimensions(), a.data_type())));
         }
+        if a.count() == 0 {
+            return Err(self.err(format!("{name}: count 0 (the spec asks for at least 1)")));
+        }
         if a.sparse().is_some() {
             return Err(self.err(format!("{name}: sparse accessors are not supported")));
         }
