@@ -205,9 +205,9 @@ impl Loader<'_> {
                 // picks smooth or diffuse by the cut-off, as for rough conductors.
                 let (base, texture) = self.fraction_or_texture(&p, "base_color", DVec3::splat(0.5))?;
                 maps.color = texture;
-                let roughness = self.scalar_or_mean(&p, "roughness", 0.5)?;
-                let metallic = self.scalar_or_mean(&p, "metallic", 0.0)?;
-                let spec_trans = self.scalar_or_mean(&p, "spec_trans", 0.0)?;
+                let roughness = self.scalar_or_mean(&p, "roughness")?.unwrap_or(0.5);
+                let metallic = self.scalar_or_mean(&p, "metallic")?.unwrap_or(0.0);
+                let spec_trans = self.scalar_or_mean(&p, "spec_trans")?.unwrap_or(0.0);
                 for (name, v) in [("roughness", roughness), ("metallic", metallic), ("spec_trans", spec_trans)] {
                     if !(0.0..=1.0).contains(&v) {
                         return Err(self.invalid(self.line_of(&p, name), format!("principled '{name}' {} is outside [0, 1]", num(v))));
@@ -283,28 +283,22 @@ impl Loader<'_> {
         Ok(v)
     }
 
-    /// A scalar parameter that may be a texture (`default` when absent): a texture gives its
+    /// A scalar parameter that may be a texture (`None` when absent): a texture gives its
     /// mean single value ([`arpa_core::render::texture::Texture::mean_1`]), with a warning,
     /// for a parameter that picks one behaviour per material.
-    pub(super) fn scalar_or_mean(&mut self, p: &Props<'_>, name: &str, default: f64) -> R<f64> {
-        let Some(id) = self.texture_of(p, name)? else { return Ok(self.float(p, name)?.unwrap_or(default)) };
+    pub(super) fn scalar_or_mean(&mut self, p: &Props<'_>, name: &str) -> R<Option<f64>> {
+        let Some(id) = self.texture_of(p, name)? else { return self.float(p, name) };
         let v = self.textures[id as usize].mean_1() as f64;
         self.warn(self.line_of(p, name), format!("texture '{name}': the material is rendered by its mean {v:.4} (one scattering kind per material)"));
-        Ok(v)
+        Ok(Some(v))
     }
 
     /// A rough material's GGX `alpha` (`alpha`, or the mean of `alpha_u` and `alpha_v`;
-    /// Mitsuba's default 0.1). A roughness texture gives its mean ([`arpa_core::render::texture::Texture::mean_1`],
-    /// with a warning): the roughness only picks the material's one scattering kind.
+    /// Mitsuba's default 0.1). A roughness texture gives its mean ([`Loader::scalar_or_mean`]):
+    /// the roughness only picks the material's one scattering kind.
     pub(super) fn alpha(&mut self, p: &Props<'_>) -> R<f64> {
-        let value = |me: &mut Self, name: &str| -> R<Option<f64>> {
-            let Some(id) = me.texture_of(p, name)? else { return me.float(p, name) };
-            let a = me.textures[id as usize].mean_1() as f64;
-            me.warn(me.line_of(p, name), format!("roughness texture '{name}': the material is rendered by its mean alpha {a:.4} (one scattering kind per material)"));
-            Ok(Some(a))
-        };
-        let a = value(self, "alpha")?;
-        let (u, v) = (value(self, "alpha_u")?, value(self, "alpha_v")?);
+        let a = self.scalar_or_mean(p, "alpha")?;
+        let (u, v) = (self.scalar_or_mean(p, "alpha_u")?, self.scalar_or_mean(p, "alpha_v")?);
         let a = match (a, u, v) {
             (Some(a), _, _) => a,
             (None, Some(u), Some(v)) => 0.5 * (u + v),
