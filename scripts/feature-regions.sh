@@ -25,7 +25,7 @@ regions() {
 
 echo "| scene | backend | region | what | Mitsuba Y | arpa Y | ratio Y (R, G, B) |"
 echo "|---|---|---|---|---|---|---|"
-for scene in checkerboard bitmap mask serialized spectrum shapes; do
+for scene in checkerboard bitmap mask serialized spectrum shapes envmap; do
     ref=$(ls "$features/$scene"/reference/*.exr)
     for backend in "${backends[@]}"; do
         img="$out/$scene-$backend"

@@ -808,3 +808,45 @@ fn textures_and_masks_load() {
     assert!(matches!(s.scene.materials[0], Material::Conductor { roughness, .. } if (roughness - 0.3).abs() < 1e-6), "{:?}", s.scene.materials[0]);
     assert!(s.warnings.iter().any(|w| w.line == 11 && w.message.contains("texture 'alpha': the material is rendered by its mean 0.3000")), "{:?}", s.warnings);
 }
+
+/// `constant` and `envmap` load as the scene's one environment light: the constant's
+/// radiance, the map's scale, orientation and mean over the sphere (a grey map of value v
+/// has mean v); bad input (two environments, a map that does not decode, a singular
+/// to_world, a black map) is an error naming the file and line.
+#[test]
+fn environment_emitters_load() {
+    let shape = r#"    <shape type="rectangle"><bsdf type="twosided"><bsdf type="diffuse"/></bsdf></shape>"#;
+    let s = load_in_tempdir(&scene_xml(&format!("{shape}\n    <emitter type=\"constant\"><rgb name=\"radiance\" value=\"0.5, 1, 2\"/></emitter>")), &[]).unwrap();
+    let env: Vec<_> = s.scene.lights.iter().filter_map(|l| if let Light::Environment(e) = l { Some(*e) } else { None }).collect();
+    assert_eq!(env.len(), 1);
+    assert_eq!(env[0].radiance, glam::DVec3::new(0.5, 1.0, 2.0));
+    assert_eq!(env[0].mean, glam::DVec3::ONE);
+    assert!(s.scene.textures.environment.is_none());
+
+    let grey = png_rgb(8, 4, &[[128, 128, 128]; 32]);
+    let xml = scene_xml(&format!(
+        "{shape}\n    <emitter type=\"envmap\"><string name=\"filename\" value=\"sky.png\"/><float name=\"scale\" value=\"3\"/><transform name=\"to_world\"><rotate y=\"1\" angle=\"90\"/></transform></emitter>"
+    ));
+    let s = load_in_tempdir(&xml, &[("sky.png", grey.clone())]).unwrap();
+    let Some(Light::Environment(e)) = s.scene.lights.iter().find(|l| matches!(l, Light::Environment(_))) else { panic!("no environment") };
+    let v = arpa::core::render::texture::srgb_to_linear(128) as f64;
+    assert_eq!(e.radiance, glam::DVec3::splat(3.0));
+    assert!((e.mean - glam::DVec3::splat(v)).abs().max_element() < 1e-6, "{}", e.mean);
+    let map = s.scene.textures.environment.as_ref().expect("the map");
+    assert!((map.to_world.z_axis - glam::DVec3::new(1.0, 0.0, 0.0)).length() < 1e-9, "{:?}", map.to_world);
+    assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+    arpa::core::render::prepared_scene::PreparedScene::new(s.scene).unwrap();
+
+    let two = scene_xml(&format!("{shape}\n    <emitter type=\"constant\"/>\n    <emitter type=\"envmap\"><string name=\"filename\" value=\"sky.png\"/></emitter>"));
+    let (_, msg) = expect_err(load_in_tempdir(&two, &[("sky.png", grey.clone())]));
+    assert!(msg.contains("scene.xml:") && msg.contains("at most one environment"), "{msg}");
+    let bad = scene_xml(&format!("{shape}\n    <emitter type=\"envmap\"><string name=\"filename\" value=\"sky.png\"/></emitter>"));
+    let (_, msg) = expect_err(load_in_tempdir(&bad, &[("sky.png", b"not an image".to_vec())]));
+    assert!(msg.contains("sky.png"), "{msg}");
+    let singular = scene_xml(&format!("{shape}\n    <emitter type=\"envmap\"><string name=\"filename\" value=\"sky.png\"/><transform name=\"to_world\"><scale x=\"0\"/></transform></emitter>"));
+    let (_, msg) = expect_err(load_in_tempdir(&singular, &[("sky.png", grey)]));
+    assert!(msg.contains("singular"), "{msg}");
+    let black = scene_xml(&format!("{shape}\n    <emitter type=\"envmap\"><string name=\"filename\" value=\"sky.png\"/></emitter>"));
+    let (_, msg) = expect_err(load_in_tempdir(&black, &[("sky.png", png_rgb(4, 2, &[[0, 0, 0]; 8]))]));
+    assert!(msg.contains("sky.png") && msg.contains("black"), "{msg}");
+}

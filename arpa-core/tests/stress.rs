@@ -41,7 +41,7 @@ use arpa_core::propagate::differential::{
     refract_direction, reflect_direction, DifferentialError, NormalDifferential, RayDifferential, RefractionEvent, MIN_ABS_COS,
     MIN_REFRACTION_K,
 };
-use arpa_core::emit::emission::{
+use arpa_core::emit::emission::{EnvironmentLight, 
     DirectionalLight, EmissionError, EmissionParams, Light, LightError, PointLight, QuadLight, SpotFalloff, SpotLight, TriangleLight,
 };
 use arpa_core::gather::estimate::{gather_brute_force, IrradianceEstimate, QueryPoint};
@@ -1725,6 +1725,7 @@ fn light() -> BoxedStrategy<Light> {
         (triangle_points(), emission_color()).prop_map(|(p, radiance)| Light::Triangle(TriangleLight { p, radiance })),
         (any_vec(), pair(), emission_color())
             .prop_map(|(origin, (edge_u, edge_v, _), radiance)| Light::Quad(QuadLight { origin, edge_u, edge_v, radiance })),
+        (emission_color(), emission_color()).prop_map(|(radiance, mean)| Light::Environment(EnvironmentLight { radiance, mean })),
     ]
     .boxed()
 }
@@ -1758,6 +1759,7 @@ fn light_kind(l: &Light) -> usize {
         Light::Directional(_) => 2,
         Light::Triangle(_) => 3,
         Light::Quad(_) => 4,
+        Light::Environment(_) => 5,
     }
 }
 
@@ -1768,6 +1770,7 @@ fn emission(l: &Light) -> DVec3 {
         Light::Directional(l) => l.irradiance,
         Light::Triangle(l) => l.radiance,
         Light::Quad(l) => l.radiance,
+        Light::Environment(l) => l.radiance * l.mean,
     }
 }
 
@@ -1788,7 +1791,8 @@ fn check_emit((light, params, index, seed): EmitIn) -> Outcome {
     let radius = params.scene_sphere.1;
     let valid = light.validate(radius);
     let e = emission(&light);
-    if e.min_element() < 0.0 || e.max_element() <= 0.0 {
+    let env_factor_bad = matches!(light, Light::Environment(l) if l.mean.min_element() < 0.0 || l.mean.max_element() <= 0.0 || l.radiance.min_element() < 0.0 || l.radiance.max_element() <= 0.0);
+    if e.min_element() < 0.0 || e.max_element() <= 0.0 || env_factor_bad {
         prop_assert!(valid.is_err(), "negative or zero emission {} accepted", e);
     }
     let mut rng = Rng::new(seed, 1, index, StreamDomain::Photon);
@@ -1805,7 +1809,7 @@ fn check_emit((light, params, index, seed): EmitIn) -> Outcome {
         prop_assert!(matches!(res, Err(EmissionError::Params(_))), "invalid scale {} or shift {} gave {:?}", params.scale, params.lattice_shift, res);
         return Ok("invalid_params");
     }
-    if matches!(light, Light::Directional(_)) && !params.scene_sphere.0.is_finite() {
+    if matches!(light, Light::Directional(_) | Light::Environment(_)) && !params.scene_sphere.0.is_finite() {
         prop_assert_eq!(res, Err(EmissionError::Light(LightError::NoSceneBounds)));
         return Ok("invalid_params");
     }
@@ -1835,6 +1839,14 @@ fn check_emit((light, params, index, seed): EmitIn) -> Outcome {
             prop_assert!(close(pos_area, s2 * PI * radius * radius / n, 1e-9) && dir_area == 0.0);
             prop_assert!((ph.ray.d - l.direction.normalize()).length() <= 1e-15);
         }
+        Light::Environment(_) => {
+            prop_assert!(close(pos_area, s2 * PI * radius * radius / n, 1e-9) && dir_area == 0.0);
+            // Flux per photon: the power over N (a constant environment, uniform directions).
+            prop_assert!((ph.flux - power / n).abs().max_element() <= 1e-9 * (power / n).max_element(), "{} vs {}", ph.flux, power / n);
+            // Starts on the disc a radius out from the centre, heading in.
+            let rel = ph.ray.p - params.scene_sphere.0;
+            prop_assert!((rel.dot(ph.ray.d) + radius).abs() <= 1e-9 * (radius + params.scene_sphere.0.length()), "{} vs {}", rel.dot(ph.ray.d), -radius);
+        }
         Light::Triangle(_) | Light::Quad(_) => {
             prop_assert!(close(pos_area, s2 * light.area() / n, 1e-9), "{:e} vs {:e}", pos_area, s2 * light.area() / n);
             prop_assert!(close(dir_area, s2 * TAU / n, 1e-9));
@@ -1846,7 +1858,7 @@ fn check_emit((light, params, index, seed): EmitIn) -> Outcome {
             prop_assert!(ph.ray.d.dot(normal.normalize()) >= -1e-12, "area light emits backwards");
         }
     }
-    Ok(["point_ok", "spot_ok", "directional_ok", "triangle_ok", "quad_ok"][light_kind(&light)])
+    Ok(["point_ok", "spot_ok", "directional_ok", "triangle_ok", "quad_ok", "environment_ok"][light_kind(&light)])
 }
 
 stress!(
@@ -1854,7 +1866,7 @@ stress!(
     light_emit_cases_reach_every_outcome,
     (light(), emission_params(), any::<u32>(), any::<u32>()),
     check_emit,
-    ["point_ok", "spot_ok", "directional_ok", "triangle_ok", "quad_ok", "invalid_light", "no_photons", "invalid_params"]
+    ["point_ok", "spot_ok", "directional_ok", "triangle_ok", "quad_ok", "environment_ok", "invalid_light", "no_photons", "invalid_params"]
 );
 
 fn check_light_power((light, n, s, r, theta): (Light, u32, f64, f64, f64)) -> Outcome {
@@ -2590,6 +2602,11 @@ fn non_finite_light() -> BoxedStrategy<(Light, bool)> {
                     }
                     true
                 }
+                // The scene bounds are checked first.
+                Light::Environment(e) => {
+                    if field % 2 == 0 { e.radiance[i] = x } else { e.mean[i] = x }
+                    false
+                }
             };
             (l, exact)
         })
@@ -2606,7 +2623,7 @@ fn check_non_finite_light(((light, exact), params, index): ((Light, bool), Emiss
     let res = light.emit(index, &params, &mut rng);
     prop_assert_eq!(res, Err(EmissionError::Light(valid.unwrap_err())));
     prop_assert!(light.prepare(&params).is_err(), "a light with a NaN/Inf field prepares: {:?}", light);
-    Ok(["point_rejected", "spot_rejected", "directional_rejected", "triangle_rejected", "quad_rejected"][light_kind(&light)])
+    Ok(["point_rejected", "spot_rejected", "directional_rejected", "triangle_rejected", "quad_rejected", "environment_rejected"][light_kind(&light)])
 }
 
 stress!(
@@ -2614,7 +2631,7 @@ stress!(
     non_finite_light_cases_reach_every_outcome,
     (non_finite_light(), emission_params(), any::<u32>()),
     check_non_finite_light,
-    ["point_rejected", "spot_rejected", "directional_rejected", "triangle_rejected", "quad_rejected"]
+    ["point_rejected", "spot_rejected", "directional_rejected", "triangle_rejected", "quad_rejected", "environment_rejected"]
 );
 
 /// Which scene field a [`scene_input`] poisons, and with what.

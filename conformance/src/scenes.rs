@@ -552,3 +552,41 @@ pub fn bandwidth_plane(size: u32, occluded: bool) -> Scene {
         },
     )
 }
+
+/// Radiance of the environment-lit plane's constant environment (W/(m²·sr), grey).
+pub const ENVIRONMENT_RADIANCE: f64 = 0.8;
+
+/// A diffuse plane (2 × 2, albedo [`PLANE_ALBEDO`]) under a constant environment of
+/// radiance [`ENVIRONMENT_RADIANCE`] and nothing else, seen obliquely so that the top of
+/// the image shows the environment itself.
+pub fn environment_plane(size: u32) -> Scene {
+    let floor = quad("plane", Vec3::new(-1.0, 0.0, -1.0), Vec3::new(0.0, 0.0, 2.0), Vec3::new(2.0, 0.0, 0.0), 0);
+    scene(
+        vec![floor],
+        vec![diffuse(PLANE_ALBEDO as f32)],
+        vec![Light::Environment(arpa_core::emit::emission::EnvironmentLight { radiance: DVec3::splat(ENVIRONMENT_RADIANCE), mean: DVec3::ONE })],
+        camera(Vec3::new(0.0, 2.2, 2.2), Vec3::new(0.0, 0.0, -0.4), Vec3::Y, 40.0, size),
+    )
+}
+
+/// The environment-lit plane ([`environment_plane`]) under an environment map in place of
+/// the constant: 16 × 8 texels, a sky that brightens towards the horizon with a bright
+/// patch of 2 × 2 texels, turned 20° about x; scale [`ENVIRONMENT_RADIANCE`].
+pub fn environment_map_plane(size: u32) -> Scene {
+    use arpa_core::render::environment::EnvironmentMap;
+    use arpa_core::render::texture::{Bitmap, Texels, TextureFilter, TextureWrap, UvTransform};
+    let (w, h) = (16u32, 8u32);
+    let texels = (0..h)
+        .flat_map(|j| (0..w).map(move |i| (i, j)))
+        .map(|(i, j)| if (5..7).contains(&i) && (2..4).contains(&j) { [6.0, 5.0, 4.0] } else { [0.3 + 0.1 * j as f32, 0.4 + 0.05 * j as f32, 0.8 - 0.02 * i as f32] })
+        .collect();
+    let map = EnvironmentMap {
+        bitmap: Bitmap { width: w, height: h, texels: Texels::Float(texels), filter: TextureFilter::Bilinear, wrap: TextureWrap::Repeat, to_uv: UvTransform::default() },
+        to_world: arpa_core::glam::DMat3::from_rotation_x(20f64.to_radians()),
+    };
+    let mean = map.mean().expect("a valid map");
+    let mut s = environment_plane(size);
+    s.lights = vec![Light::Environment(arpa_core::emit::emission::EnvironmentLight { radiance: DVec3::splat(ENVIRONMENT_RADIANCE), mean })];
+    s.textures.environment = Some(map);
+    s
+}

@@ -436,7 +436,7 @@ pub fn load(bytes: &[u8], path: &Path, read: MeshReader<'_>, options: &GltfOptio
         lights: walk.lights,
         camera,
         roughness_cutoff: ROUGHNESS_CUTOFF,
-        textures: SceneTextures { textures: l.textures, maps: l.maps, emission: walk.emission_textures },
+        textures: SceneTextures { textures: l.textures, maps: l.maps, emission: walk.emission_textures, environment: None },
     };
     scene.validate().map_err(|source| SceneFileError::Scene { path: path.to_path_buf(), source })?;
     Ok(LoadedScene { scene, warnings: l.warnings, path: path.to_path_buf(), max_depth: None, sample_count: None, fov_degrees: yfov.to_degrees(), fov_axis: FovAxis::Y })

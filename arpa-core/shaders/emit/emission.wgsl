@@ -15,6 +15,7 @@ const ARPA_LIGHT_SPOT: u32 = 1u;
 const ARPA_LIGHT_DIRECTIONAL: u32 = 2u;
 const ARPA_LIGHT_TRIANGLE: u32 = 3u;
 const ARPA_LIGHT_QUAD: u32 = 4u;
+const ARPA_LIGHT_ENVIRONMENT: u32 = 5u;
 // Spot falloff curves (PackedLight::falloff).
 const ARPA_FALLOFF_LINEAR: u32 = 0u;
 const ARPA_FALLOFF_SMOOTHSTEP: u32 = 1u;
@@ -115,6 +116,17 @@ fn arpa_emission_slot(light: ArpaLight, index: u32, rng_in: ArpaRng) -> u32 {
     return arpa_round_robin(index, light.photon_count, light.cell_count, light.cell_offset).x;
 }
 
+// An environment photon (PreparedLight::emit_environment_in) travelling along unit `d`
+// from lattice point `u`: it starts on the disc of the scene's radius across `d`, a radius
+// out from the centre, with a directional light's positional differentials.
+fn arpa_environment_ray(light: ArpaLight, u: vec2<f32>, d: vec3<f32>) -> ArpaDiffResult {
+    let f = arpa_frame_from_normal(d);
+    let disc = arpa_uniform_disc(u) * light.scene_radius;
+    let origin = light.scene_centre - f.n * light.scene_radius + f.t * disc.x + f.b * disc.y;
+    let x = light.len_positional;
+    return arpa_ray_new(origin, f.n, f.t * x, f.b * x, vec3<f32>(0.0), vec3<f32>(0.0));
+}
+
 // Photon `index` of `light` (PreparedLight::emit_in) in projection cell `cell` (the entry
 // of arpa_emission_slot's slot; ignored when the light samples its whole domain).
 fn arpa_emit_in(light: ArpaLight, index: u32, rng: ptr<function, ArpaRng>, cell: u32) -> ArpaEmitted {
@@ -152,6 +164,9 @@ fn arpa_emit_in(light: ArpaLight, index: u32, rng: ptr<function, ArpaRng>, cell:
             let f = arpa_frame_from_normal(d);
             res = arpa_ray_new(light.p0, d, zero, zero, f.t * w, f.b * w);
             out.flux = light.flux * arpa_spot_falloff(light, theta);
+        }
+        case 5u: { // environment: a constant one's directions are uniform (one 2-D draw)
+            res = arpa_environment_ray(light, u, -arpa_uniform_sphere(arpa_rng_next_2d(rng)));
         }
         case 2u: { // directional
             let disc = arpa_uniform_disc(u) * light.scene_radius;

@@ -53,6 +53,56 @@ fn arpa_camera_visible(start: ArpaRayStart, to: vec3<f32>, rng: ptr<function, Ar
     return dist > 0.0 && !arpa_scene_occluded_masked(start, d / dist, dist * (1.0 - 1e-4), rng);
 }
 
+// Environment::radiance (W/(m^2 sr), RGB) arriving from unit world direction d: the
+// environment emitter's, zero without one.
+fn arpa_camera_environment_radiance(d: vec3<f32>) -> vec3<f32> {
+    for (var i = 0u; i < arpa_scene_info.delta_count; i++) {
+        let l = arpa_scene_emitters[i];
+        if l.kind == ARPA_LIGHT_ENVIRONMENT {
+            if l.emission_record != ARPA_NO_TEXTURE {
+                return l.color * arpa_env_value(l.emission_record, d);
+            }
+            return l.color;
+        }
+    }
+    return vec3<f32>(0.0);
+}
+
+// Environment::irradiance of the environment emitter l at the diffuse point p in the
+// shading frame sh: a constant environment by its cosine-weighted draw about the shading
+// normal alone (the second 2-D draw is drawn and not used), a map by that draw and one
+// from the map under the balance heuristic.
+fn arpa_camera_environment(l: ArpaSceneEmitter, p: vec3<f32>, shadow_origin: ArpaRayStart, sh: ArpaDiffuseShading, rng: ptr<function, ArpaRng>) -> vec3<f32> {
+    let cosine = arpa_rng_next_2d(rng);
+    let light = arpa_rng_next_2d(rng);
+    let n = sh.shading;
+    let f = arpa_frame_from_normal(n);
+    let by_cosine = arpa_frame_normalize_or(arpa_frame_to_world(f, arpa_cosine_hemisphere(cosine)), n);
+    let far = 4.0 * arpa_scene_info.sphere_radius + 1.0;
+    let r = l.emission_record;
+    if r == ARPA_NO_TEXTURE {
+        let cos = arpa_diffuse_cosine(sh, by_cosine);
+        let pdf = max(dot(by_cosine, n), 0.0) * ARPA_CAMERA_FRAC_1_PI;
+        if cos > 0.0 && pdf > 0.0 && arpa_camera_visible(shadow_origin, p + by_cosine * far, rng) {
+            return l.color * (cos / pdf);
+        }
+        return vec3<f32>(0.0);
+    }
+    let by_light = arpa_env_sample(r, light).xyz;
+    var e = vec3<f32>(0.0);
+    for (var k = 0u; k < 2u; k++) {
+        let d = select(by_light, by_cosine, k == 0u);
+        let cos = arpa_diffuse_cosine(sh, d);
+        if cos > 0.0 {
+            let pdf = max(dot(d, n), 0.0) * ARPA_CAMERA_FRAC_1_PI + arpa_env_pdf(r, d);
+            if pdf > 0.0 && arpa_camera_visible(shadow_origin, p + d * far, rng) {
+                e += l.color * arpa_env_value(r, d) * (cos / pdf);
+            }
+        }
+    }
+    return e;
+}
+
 // camera_path::direct_irradiance (W/m^2, RGB) at the diffuse point s in the shading frame sh:
 // every delta light exactly, then one area emitter picked by power with one sampled point.
 fn arpa_camera_direct(s: ArpaSurface, sh: ArpaDiffuseShading, rng: ptr<function, ArpaRng>) -> vec3<f32> {
@@ -62,7 +112,9 @@ fn arpa_camera_direct(s: ArpaSurface, sh: ArpaDiffuseShading, rng: ptr<function,
     let info = arpa_scene_info;
     for (var i = 0u; i < info.delta_count; i++) {
         let l = arpa_scene_emitters[i];
-        if l.kind == ARPA_LIGHT_DIRECTIONAL {
+        if l.kind == ARPA_LIGHT_ENVIRONMENT {
+            e += arpa_camera_environment(l, p, shadow_origin, sh, rng);
+        } else if l.kind == ARPA_LIGHT_DIRECTIONAL {
             let to_light = -l.p0;
             let cos = arpa_diffuse_cosine(sh, to_light);
             let far = p + to_light * (4.0 * info.sphere_radius + 1.0);
@@ -149,6 +201,7 @@ fn arpa_camera_trace(pixel: u32) -> ArpaQueryRecord {
     for (var depth = 0u; depth < c.max_depth; depth++) {
         let h = arpa_scene_intersect_masked(start, dir, ARPA_SCENE_T_MAX, &rng);
         if h.hit == 0u {
+            radiance += throughput * arpa_camera_environment_radiance(dir);
             break;
         }
         let s = arpa_scene_surface(h);

@@ -242,7 +242,14 @@ fn photon_trace(index: u32) -> u32 {
     if light.cell_count != 0u {
         cell = photon_cells[light.cell_first + arpa_emission_slot(light, local, rng)];
     }
-    let emitted = arpa_emit_in(light, local, &rng, cell);
+    // An environment map draws its photons' directions (a constant one's are uniform).
+    let mapped = light.kind == ARPA_LIGHT_ENVIRONMENT && light.emission_record != ARPA_NO_TEXTURE;
+    var emitted: ArpaEmitted;
+    if mapped {
+        emitted = arpa_env_emit(light, local, &rng, light.emission_record);
+    } else {
+        emitted = arpa_emit_in(light, local, &rng, cell);
+    }
     // A caustic-pass photon stores only caustic records and ends at its first diffuse hit;
     // every caustic record is weighted by the source's balance weight (PhotonWalk).
     let caustic_only = photon_ranges[e].caustic_only != 0u;
@@ -257,7 +264,7 @@ fn photon_trace(index: u32) -> u32 {
     var flux = emitted.flux;
     // A textured emitter's photon carries the texture at its origin over the texture's mean
     // over the triangle (PhotonWalk::start, PreparedScene::emission_factor_at).
-    if light.emission_record != ARPA_NO_TEXTURE {
+    if light.emission_record != ARPA_NO_TEXTURE && !mapped {
         let b = arpa_barycentric(light.p0, light.p1, light.p2, ray.p);
         flux *= arpa_emitter_texture_factor(light.emission_record, b.x, b.y);
     }

@@ -14,6 +14,7 @@
 //! | spot (cone `θ_c`, `Ω = 2π(1−cos θ_c)`) | 0 | `ℓ_ω = 2s√(Ω/(πN))` | `I f(θ) Ω/N` |
 //! | directional (irradiance `E`, W/m²) | `ℓ_x T₁, ℓ_x T₂` on the aperture disc of radius `R`, `ℓ_x = 2s√(πR²/(πN))` | 0 | `E πR²/N` |
 //! | area (radiance `L`, area `A`) | `ℓ_x = 2s√(A/(πN))` in the light plane | `ℓ_ω = 2s√(2π/(πN))` (hemisphere) | `π L A/N` |
+//! | environment (radiance `L m(ω)`) | as directional, on the disc across the sampled direction | 0 | `L m(ω) πR²/(N p(ω))` |
 //!
 //! Area lights carry both differentials at once (digest §3.1 option (c)): the footprint
 //! equals the light's share near the light and grows with distance like a point light's.
@@ -24,6 +25,12 @@
 //! differentials of the light's *directional* emission length `ℓ_ω` (ARPA §4.1); lights
 //! whose directional length is 0 (directional lights) use the hemisphere length
 //! `2s√(2/N)`. See [`EmissionLengths::reemission`].
+//!
+//! **Environment light.** Each photon draws the direction `ω` it comes from (uniform over
+//! the sphere for a constant environment, by the map's luminance for a map:
+//! [`PreparedLight::emit_environment_in`]) and then starts like a directional light's photon
+//! on the disc of radius `R` across `ω`: wherever they land the photons are `N/(πR²)` per
+//! unit area across their direction, the directional light's tiling, whatever `ω` is.
 
 use crate::propagate::differential::{DifferentialError, RayDifferential};
 use crate::base::frame::Frame;
@@ -77,6 +84,19 @@ pub struct DirectionalLight {
     pub irradiance: DVec3,
 }
 
+/// Light arriving from infinitely far away in every direction (Mitsuba's `constant` and
+/// `envmap`): radiance `radiance · m(ω)` from direction `ω`, where `m` is 1 for a constant
+/// environment and a map's value otherwise. The map itself, and the tables that sample
+/// it, live with the scene ([`crate::render::environment`]); the light keeps what its
+/// power needs.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct EnvironmentLight {
+    /// Radiance (W/(m²·sr), RGB) of a constant environment; the scale of a map.
+    pub radiance: DVec3,
+    /// Mean of `m` over the sphere, `∫ m dω / 4π` (RGB; 1 for a constant environment).
+    pub mean: DVec3,
+}
+
 /// A one-sided Lambertian triangle emitter; emits on the side of `(p1 − p0) × (p2 − p0)`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriangleLight {
@@ -113,6 +133,8 @@ pub enum Light {
     Triangle(TriangleLight),
     /// Parallelogram area light.
     Quad(QuadLight),
+    /// Environment light (at most one per scene).
+    Environment(EnvironmentLight),
 }
 
 /// Why a light cannot emit.
@@ -277,7 +299,7 @@ impl EmissionParams {
         if c.grid != 0 && !(c.grid <= crate::base::sampling::MAX_CELL_GRID && c.count >= 1 && c.count as u64 <= c.grid as u64 * c.grid as u64) {
             return Err(EmissionError::Params("cells: count must lie in 1..=grid² and grid in 0..=256"));
         }
-        if matches!(light, Light::Directional(_)) && !self.scene_sphere.0.is_finite() {
+        if matches!(light, Light::Directional(_) | Light::Environment(_)) && !self.scene_sphere.0.is_finite() {
             return Err(LightError::NoSceneBounds.into());
         }
         Ok(())
@@ -387,8 +409,8 @@ impl SpotFalloff {
 }
 
 impl Light {
-    /// GPU code of the light's kind: 0 point, 1 spot, 2 directional, 3 triangle, 4 quad
-    /// ([`PackedLight::kind`], `ARPA_LIGHT_*` in `emission.wgsl`).
+    /// GPU code of the light's kind: 0 point, 1 spot, 2 directional, 3 triangle, 4 quad, 5
+    /// environment ([`PackedLight::kind`], `ARPA_LIGHT_*` in `emission.wgsl`).
     pub fn kind_code(&self) -> u32 {
         match self {
             Light::Point(_) => 0,
@@ -396,10 +418,12 @@ impl Light {
             Light::Directional(_) => 2,
             Light::Triangle(_) => 3,
             Light::Quad(_) => 4,
+            Light::Environment(_) => 5,
         }
     }
 
-    /// Checks every parameter; `scene_sphere_radius` matters only for directional lights.
+    /// Checks every parameter; `scene_sphere_radius` matters only for directional and
+    /// environment lights.
     pub fn validate(&self, scene_sphere_radius: f64) -> Result<(), LightError> {
         match self {
             Light::Point(l) => {
@@ -446,6 +470,15 @@ impl Light {
                 check_emission(l.radiance)?;
                 if !(self.area() > 0.0) { Err(LightError::ZeroArea) } else { Ok(()) }
             }
+            Light::Environment(l) => {
+                if !(scene_sphere_radius > 0.0) || !scene_sphere_radius.is_finite() {
+                    return Err(LightError::NoSceneBounds);
+                }
+                check_emission(l.mean)?;
+                check_emission(l.radiance)?;
+                // Each may be positive in a channel where the other is zero.
+                check_emission(l.radiance * l.mean)
+            }
         }
     }
 
@@ -459,7 +492,8 @@ impl Light {
     }
 
     /// Total emitted power (W, RGB). A directional light's power is what crosses its
-    /// aperture disc of radius `scene_sphere_radius`.
+    /// aperture disc of radius `scene_sphere_radius`; an environment's what crosses that
+    /// disc from every direction, `4π L mean · πR²`.
     pub fn power(&self, scene_sphere_radius: f64) -> DVec3 {
         match self {
             Light::Point(l) => l.intensity * (4.0 * PI),
@@ -467,6 +501,7 @@ impl Light {
             Light::Directional(l) => l.irradiance * (PI * scene_sphere_radius * scene_sphere_radius),
             Light::Triangle(l) => l.radiance * (PI * self.area()),
             Light::Quad(l) => l.radiance * (PI * self.area()),
+            Light::Environment(l) => l.radiance * l.mean * (4.0 * PI * PI * scene_sphere_radius * scene_sphere_radius),
         }
     }
 
@@ -496,7 +531,7 @@ impl Light {
                 let w = tile(cone_solid_angle_from_angle(l.cutoff));
                 EmissionLengths { positional: 0.0, directional: w, reemission: w }
             }
-            Light::Directional(_) => EmissionLengths {
+            Light::Directional(_) | Light::Environment(_) => EmissionLengths {
                 positional: tile(PI * scene_sphere_radius * scene_sphere_radius),
                 directional: 0.0,
                 reemission: hemisphere,
@@ -525,10 +560,10 @@ impl Light {
     /// maps ([`crate::render::projection`]) map cells with: `+z` for a point light (whose
     /// directions are drawn in world space), the spot's axis, the directional light's
     /// direction of travel, the emitting side's normal of an area light (tangent `t` along
-    /// its first edge).
+    /// its first edge), `+z` for an environment (whose directions are drawn per photon).
     pub fn frame(&self) -> Frame {
         match self {
-            Light::Point(_) => Frame::from_normal(DVec3::Z),
+            Light::Point(_) | Light::Environment(_) => Frame::from_normal(DVec3::Z),
             Light::Spot(l) => Frame::from_normal(l.direction),
             Light::Directional(l) => Frame::from_normal(l.direction.normalize()),
             Light::Triangle(l) => Frame::from_normal_and_hint((l.p[1] - l.p[0]).cross(l.p[2] - l.p[0]), l.p[1] - l.p[0]),
@@ -551,6 +586,7 @@ impl Light {
             Light::Directional(l) => l.irradiance * (PI * radius * radius * per_photon),
             Light::Triangle(l) => l.radiance * (PI * self.area() * per_photon),
             Light::Quad(l) => l.radiance * (PI * self.area() * per_photon),
+            Light::Environment(_) => self.power(radius) * per_photon,
         };
         let frame = self.frame();
         let cos_cutoff = if let Light::Spot(l) = self { libm::cos(l.cutoff) } else { -1.0 };
@@ -617,6 +653,9 @@ impl PreparedLight {
     /// Fibonacci lattice of that cell's photons, for area lights the rest of the draw.
     #[inline]
     pub fn emit_in(&self, index: u32, rng: &mut Rng, cells: &[u32]) -> Result<EmittedPhoton, EmissionError> {
+        if let Light::Environment(_) = self.light {
+            return self.emit_environment_in(index, rng, |draw| (uniform_sphere(draw), DVec3::ONE));
+        }
         let params = &self.params;
         let domain = params.cells;
         // Only the length here: a scan of the list would cost O(cells) per photon; the one
@@ -663,8 +702,36 @@ impl PreparedLight {
                 self.area_photon(l.p[0] * b.x + l.p[1] * b.y + l.p[2] * b.z, rng, cells)?
             }
             Light::Quad(l) => self.area_photon(l.origin + l.edge_u * u.x + l.edge_v * u.y, rng, cells)?,
+            Light::Environment(_) => unreachable!("environment photons leave above"),
         };
         Ok(EmittedPhoton { ray, flux: flux * cell_weight, reemission_length: lengths.reemission, surface_normal })
+    }
+
+    /// Photon `index` of an environment light whose direction comes from `sample`. It is
+    /// handed the photon's first 2-D draw from `rng` and gives the unit direction `ω`
+    /// (world) the light arrives from and the flux factor `m(ω) / (4π p(ω) mean)` (RGB;
+    /// `p` the density of `ω` per steradian, so 1 for a constant environment sampled
+    /// uniformly, which is what [`PreparedLight::emit`] does). The photon starts at the
+    /// lattice point on the disc of radius `R` across `ω`, a distance `R` out from the
+    /// scene's centre, with a directional light's positional differentials. An environment
+    /// light has no projection cells (it samples its whole domain).
+    pub fn emit_environment_in(&self, index: u32, rng: &mut Rng, sample: impl FnOnce(DVec2) -> (DVec3, DVec3)) -> Result<EmittedPhoton, EmissionError> {
+        let params = &self.params;
+        if !matches!(self.light, Light::Environment(_)) {
+            return Err(EmissionError::Params("emit_environment_in: the light is not an environment"));
+        }
+        if params.cells.grid != 0 {
+            return Err(EmissionError::Params("cells: an environment light samples its whole domain"));
+        }
+        let u = crate::base::sampling::fibonacci_lattice(index, params.photon_count, params.lattice_shift);
+        let (from, factor) = sample(rng.next_2d());
+        let f = Frame::from_normal(-from);
+        let (centre, radius) = params.scene_sphere;
+        let disc = uniform_disc(u) * radius;
+        let origin = centre - f.n * radius + f.t * disc.x + f.b * disc.y;
+        let x = self.lengths.positional;
+        let ray = RayDifferential::new(origin, f.n, f.t * x, f.b * x, DVec3::ZERO, DVec3::ZERO)?;
+        Ok(EmittedPhoton { ray, flux: self.flux * factor, reemission_length: self.lengths.reemission, surface_normal: None })
     }
 
     #[inline(always)]
@@ -738,7 +805,7 @@ pub enum EmissionError {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct PackedLight {
-    /// 0 point, 1 spot, 2 directional, 3 triangle, 4 quad.
+    /// 0 point, 1 spot, 2 directional, 3 triangle, 4 quad, 5 environment.
     pub kind: u32,
     /// Spot falloff: 0 linear in angle, 1 smoothstep.
     pub falloff: u32,
@@ -816,6 +883,7 @@ impl PreparedLight {
             Light::Directional(_) => (zero, zero, zero, 0.0, 0.0, 0),
             Light::Triangle(l) => (f(l.p[0]), f(l.p[1]), f(l.p[2]), 0.0, 0.0, 0),
             Light::Quad(l) => (f(l.origin), f(l.edge_u), f(l.edge_v), 0.0, 0.0, 0),
+            Light::Environment(_) => (zero, zero, zero, 0.0, 0.0, 0),
         };
         let one_minus_cos_cutoff = if let Light::Spot(l) = &self.light { cone_solid_angle_from_angle(l.cutoff) / TAU } else { 2.0 };
         PackedLight {

@@ -51,6 +51,7 @@
 //! |---|---|---|
 //! | [`RECORDS`] | [`crate::gpu::layout`] | the records the kernels exchange (keyed footprints and photons, packed photons, query records, sort items) |
 //! | [`TEXTURE`] | [`crate::render::texture`] | bitmap and checkerboard lookups on the word table of [`crate::gpu::texture`] |
+//! | [`ENVIRONMENT`] | [`crate::render::environment`] | an environment map's value, density and sampling, and its photons, on the word table of [`crate::gpu::texture`] |
 //! | [`SCENE`] | [`crate::render::prepared_scene::PreparedScene`] | the scene tables of [`crate::gpu::scene::SceneTables`] (group 0), surface points with textured colours, alpha masks; ray casting by the backend |
 //! | [`CAMERA_PASS`] | [`crate::render::camera_path::trace_camera_path`] | one query record per pixel |
 //! | [`PHOTON_PASS`] | [`crate::render::photon_path::trace_photon`] | one invocation per photon of a batch, keyed footprints and photons appended |
@@ -166,6 +167,15 @@ pub const RECORDS: WgslFile = WgslFile { name: "path/records.wgsl", source: incl
 /// defines ([`SCENE`]: binding 5 of group 0).
 pub const TEXTURE: WgslFile = WgslFile { name: "path/texture.wgsl", source: include_str!("../../shaders/path/texture.wgsl"), deps: &[&MATH] };
 
+/// `path/environment.wgsl`: an environment map's value in a direction, its sampling
+/// density, a direction drawn by it and a photon drawn by it (`arpa_env_*`), on the texture
+/// words (the includer provides `arpa_texture_word`).
+pub const ENVIRONMENT: WgslFile = WgslFile {
+    name: "path/environment.wgsl",
+    source: include_str!("../../shaders/path/environment.wgsl"),
+    deps: &[&MATH, &RNG, &TEXTURE, &FRAME, &SAMPLING, &DIFFERENTIAL, &EMISSION],
+};
+
 /// `path/scene.wgsl`: bind group 0 of the camera and photon passes (bindings 1 to 5: the
 /// tables of [`crate::gpu::scene::SceneTables`]), `ArpaSceneHit`, `arpa_scene_hit`,
 /// `arpa_scene_miss`, `ArpaSurface`, `arpa_scene_surface`, `arpa_scene_triangle_vertices`,
@@ -184,7 +194,7 @@ pub const SCENE: WgslFile = WgslFile { name: "path/scene.wgsl", source: include_
 pub const CAMERA_PASS: WgslFile = WgslFile {
     name: "path/camera_pass.wgsl",
     source: include_str!("../../shaders/path/camera_pass.wgsl"),
-    deps: &[&MATH, &RNG, &DIFFERENTIAL, &FRESNEL, &FRAME, &SAMPLING, &EMISSION, &LAMBERTIAN, &RECORDS, &SCENE],
+    deps: &[&MATH, &RNG, &DIFFERENTIAL, &FRESNEL, &FRAME, &SAMPLING, &EMISSION, &LAMBERTIAN, &RECORDS, &SCENE, &ENVIRONMENT],
 };
 
 /// `path/photon_pass.wgsl`: per photon `photon_trace` (group 1:
@@ -195,7 +205,7 @@ pub const CAMERA_PASS: WgslFile = WgslFile {
 pub const PHOTON_PASS: WgslFile = WgslFile {
     name: "path/photon_pass.wgsl",
     source: include_str!("../../shaders/path/photon_pass.wgsl"),
-    deps: &[&MATH, &RNG, &DIFFERENTIAL, &FRESNEL, &FRAME, &SAMPLING, &EMISSION, &REEMISSION, &LAMBERTIAN, &RECORDS, &SCENE],
+    deps: &[&MATH, &RNG, &DIFFERENTIAL, &FRESNEL, &FRAME, &SAMPLING, &EMISSION, &REEMISSION, &LAMBERTIAN, &RECORDS, &SCENE, &ENVIRONMENT],
 };
 
 /// `path/store.wgsl`: entry points `store_keyed`, `photon_keys`, `pad_items`,
@@ -225,7 +235,7 @@ pub const TWIN: [&WgslFile; 16] =
     [&MATH, &RNG, &KERNEL, &FOOTPRINT, &RADIUS, &DIFFERENTIAL, &FRESNEL, &FRAME, &SAMPLING, &EMISSION, &HEURISTICS, &REEMISSION, &LAMBERTIAN, &AABB, &MORTON, &BANDWIDTH];
 
 /// The path-level files.
-pub const PATH: [&WgslFile; 9] = [&RECORDS, &TEXTURE, &SCENE, &CAMERA_PASS, &PHOTON_PASS, &STORE, &SORT, &GATHER, &ACCUMULATE];
+pub const PATH: [&WgslFile; 10] = [&RECORDS, &TEXTURE, &ENVIRONMENT, &SCENE, &CAMERA_PASS, &PHOTON_PASS, &STORE, &SORT, &GATHER, &ACCUMULATE];
 
 /// One WGSL file with the files it needs (WGSL has no imports: [`compose`] includes them).
 #[derive(Clone, Copy, Debug)]

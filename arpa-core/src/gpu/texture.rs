@@ -9,7 +9,9 @@
 //! | `256..512` | the linear value `c/255` of each 8-bit `raw` code |
 //! | [`TEXTURE_FIRST`]`..` | one [`TEXTURE_RECORD_WORDS`]-word record per texture, by [`TextureId`] |
 //! | then | one [`EMITTER_RECORD_WORDS`]-word record per textured emitter triangle ([`EmitterTexture`]), in the core's emitter order ([`emitter_records`]) |
+//! | then | with an environment map, its [`ENVIRONMENT_RECORD_WORDS`]-word record ([`emitter_records`] gives it for the environment emitter) |
 //! | then | the texels of every bitmap: 8-bit texels one word each (`r | g << 8 | b << 16`), so they stay 8-bit on the device; float texels three `f32` words each |
+//! | then | with an environment map, its texels (three `f32` each) and sampling tables (`f32`: the row CDF, the per-row patch CDFs, the patch densities; [`crate::render::environment::MapView`]) |
 //! | then | per mesh with texture coordinates, six `f32` words per triangle (`u0 v0 u1 v1 u2 v2`, the core's triangle order), from [`SceneMesh::uv_first`](crate::gpu::layout::SceneMesh::uv_first) |
 //!
 //! A texture record: `kind` ([`TEXTURE_BITMAP`] / [`TEXTURE_CHECKERBOARD`]), `width`,
@@ -18,11 +20,14 @@
 //! [`WRAP_CLAMP`]), the word index of its first texel, one padding word, the six `f32` of
 //! `to_uv` (row-major `[A | t]`), then a checkerboard's `color0` and `color1` (linear RGB).
 //! An emitter record: the texture id, the triangle's three texture coordinates (six `f32`),
-//! `1/mean` (three `f32`).
+//! `1/mean` (three `f32`). The environment record: `width`, `height`, the first words of
+//! its texels, row CDF, patch CDFs and densities, `to_world` and its inverse (nine `f32`
+//! each, column-major), the light's `mean` (three `f32`).
 //! The 8-bit decode tables make the device's texel values those of the core bit for bit.
 
 use alloc::vec::Vec;
 
+use crate::render::environment::MapView;
 use crate::render::prepared_scene::PreparedScene;
 use crate::render::scene::{EmitterTexture, Scene, TriangleMesh};
 use crate::render::texture::{srgb_to_linear, Texels, Texture, TextureFilter, TextureId, TextureWrap, UvTransform};
@@ -37,6 +42,8 @@ pub const TEXTURE_FIRST: u32 = 512;
 pub const TEXTURE_RECORD_WORDS: u32 = 20;
 /// `ARPA_EMITTER_RECORD_WORDS`: words per textured-emitter record.
 pub const EMITTER_RECORD_WORDS: u32 = 10;
+/// `ARPA_ENVIRONMENT_RECORD_WORDS`: words of the environment map's record.
+pub const ENVIRONMENT_RECORD_WORDS: u32 = 27;
 /// `ARPA_NO_TEXTURE`: no texture (a material parameter without one; a mesh without
 /// texture coordinates).
 pub const NO_TEXTURE: u32 = u32::MAX;
@@ -142,6 +149,8 @@ fn push_texels(words: &mut Vec<u32>, texels: &Texels) {
 /// [`TextureWords::new`], or [`NO_TEXTURE`] for an emitter without an emission texture.
 pub fn emitter_records(scene: &PreparedScene) -> Vec<u32> {
     let first = TEXTURE_FIRST as usize + scene.scene().textures.textures.len() * TEXTURE_RECORD_WORDS as usize;
+    let textured = (0..scene.emitters().len()).filter(|&i| scene.emitter_texture(i).is_some()).count();
+    let environment = scene.environment().filter(|e| e.map_view().is_some()).map(|e| e.emitter);
     let mut k = 0usize;
     (0..scene.emitters().len())
         .map(|i| match scene.emitter_texture(i) {
@@ -150,6 +159,7 @@ pub fn emitter_records(scene: &PreparedScene) -> Vec<u32> {
                 k += 1;
                 u32::try_from(w).unwrap_or(NO_TEXTURE)
             }
+            None if environment == Some(i) => u32::try_from(first + textured * EMITTER_RECORD_WORDS as usize).unwrap_or(NO_TEXTURE),
             None => NO_TEXTURE,
         })
         .collect()
@@ -170,7 +180,7 @@ pub fn emitter_record(t: &EmitterTexture) -> [u32; EMITTER_RECORD_WORDS as usize
 /// texels, without texture coordinates: the table [`TextureWords::new`] starts with
 /// (texture `id`'s record at `TEXTURE_FIRST + id · TEXTURE_RECORD_WORDS`, then the emitter
 /// records in order).
-pub fn texture_table(textures: &[Texture], emitters: &[EmitterTexture]) -> Result<Vec<u32>, TooManyTexels> {
+pub fn texture_table(textures: &[Texture], emitters: &[EmitterTexture], environment: Option<(MapView<'_>, glam::DVec3)>) -> Result<Vec<u32>, TooManyTexels> {
     let mut words: Vec<u32> = Vec::new();
     words.extend((0..=255u8).map(|c| srgb_to_linear(c).to_bits()));
     words.extend((0..=255u8).map(|c| (c as f32 / 255.0).to_bits()));
@@ -179,6 +189,10 @@ pub fn texture_table(textures: &[Texture], emitters: &[EmitterTexture]) -> Resul
     for e in emitters {
         words.extend(emitter_record(e));
     }
+    let environment_at = words.len();
+    if environment.is_some() {
+        words.resize(environment_at + ENVIRONMENT_RECORD_WORDS as usize, 0);
+    }
     for (id, t) in textures.iter().enumerate() {
         let first = index(words.len())?;
         if let Texture::Bitmap(b) = t {
@@ -186,6 +200,22 @@ pub fn texture_table(textures: &[Texture], emitters: &[EmitterTexture]) -> Resul
         }
         let at = TEXTURE_FIRST as usize + id * TEXTURE_RECORD_WORDS as usize;
         words[at..at + TEXTURE_RECORD_WORDS as usize].copy_from_slice(&texture_record(t, first));
+    }
+    if let Some((map, mean)) = environment {
+        let mut record = [0u32; ENVIRONMENT_RECORD_WORDS as usize];
+        record[0] = map.width;
+        record[1] = map.height;
+        record[2] = index(words.len())?;
+        words.extend(map.texels.iter().flat_map(|t| t.to_array()).map(f32::to_bits));
+        for (k, table) in [map.rows, map.columns, map.density].into_iter().enumerate() {
+            record[3 + k] = index(words.len())?;
+            words.extend(table.iter().map(|&x| (x as f32).to_bits()));
+        }
+        let mats = [map.to_world, map.from_world].map(|m| m.to_cols_array().map(|x| (x as f32).to_bits()));
+        record[6..15].copy_from_slice(&mats[0]);
+        record[15..24].copy_from_slice(&mats[1]);
+        record[24..27].copy_from_slice(&mean.to_array().map(|x| (x as f32).to_bits()));
+        words[environment_at..environment_at + ENVIRONMENT_RECORD_WORDS as usize].copy_from_slice(&record);
     }
     index(words.len())?;
     Ok(words)
@@ -200,7 +230,8 @@ impl TextureWords {
     pub fn new(prepared: &PreparedScene) -> Result<Self, TooManyTexels> {
         let scene: &Scene = prepared.scene();
         let emitters: Vec<EmitterTexture> = (0..prepared.emitters().len()).filter_map(|i| prepared.emitter_texture(i).copied()).collect();
-        let mut words = texture_table(&scene.textures.textures, &emitters)?;
+        let environment = prepared.environment().and_then(|e| e.map_view().map(|m| (m, e.light.mean)));
+        let mut words = texture_table(&scene.textures.textures, &emitters, environment)?;
         let mut uv_first = Vec::with_capacity(scene.meshes.len());
         for (mi, m) in scene.meshes.iter().enumerate() {
             let maps = scene.textures.maps(m.material);
@@ -264,7 +295,7 @@ mod tests {
             to_uv: UvTransform::IDENTITY,
         });
         let checker = Texture::Checkerboard { color0: Vec3::new(0.1, 0.2, 0.3), color1: Vec3::splat(0.9), to_uv: UvTransform::IDENTITY };
-        let words = texture_table(&[bitmap, checker, float], &[]).unwrap();
+        let words = texture_table(&[bitmap, checker, float], &[], None).unwrap();
         assert_eq!(f32::from_bits(words[128]), srgb_to_linear(128));
         assert_eq!(f32::from_bits(words[256 + 51]), 51.0 / 255.0);
         let texels = TEXTURE_FIRST + 3 * TEXTURE_RECORD_WORDS;

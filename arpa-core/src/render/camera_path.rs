@@ -2,7 +2,9 @@
 //! follows specular chains (mirrors, Fresnel-chosen reflection or refraction) to the first
 //! diffuse vertex, the *query point*. Emission seen along the way is added, and with
 //! direct lighting on, next-event estimation evaluates every delta light exactly and one
-//! area emitter chosen by power. Diffuse surfaces are two-sided Lambertian in the shading
+//! area emitter chosen by power, and the environment by two draws (one cosine-weighted, one
+//! from its own sampling) under the balance heuristic. A ray that leaves the scene sees the
+//! environment's radiance. Diffuse surfaces are two-sided Lambertian in the shading
 //! frame of their interpolated vertex normals, as in Mitsuba 3 ([`crate::propagate::lambertian`]).
 //!
 //! Camera paths carry *radiance*: crossing an interface from index `n_i` into `n_t`
@@ -35,7 +37,12 @@ pub fn trace_camera_path(scene: &PreparedScene, caster: &impl RayCaster, setting
     let mut radiance = DVec3::ZERO;
     let mut record = QueryRecord { pixel, ..QueryRecord::default() };
     for _ in 0..settings.max_depth {
-        let Some(hit) = scene.intersect(caster, start, dir.as_vec3(), f32::INFINITY, &mut rng) else { break };
+        let Some(hit) = scene.intersect(caster, start, dir.as_vec3(), f32::INFINITY, &mut rng) else {
+            if let Some(env) = scene.environment() {
+                radiance += throughput * env.radiance(dir);
+            }
+            break;
+        };
         scene.prefetch_hit(&hit);
         let s = scene.surface(&hit);
         let front = if dir.dot(s.geometric_normal) < 0.0 { s.geometric_normal } else { -s.geometric_normal };
@@ -101,7 +108,8 @@ fn shading_normal(scene: &PreparedScene, s: &SurfacePoint) -> DVec3 {
 /// Direct irradiance (W/m², RGB) at a diffuse point in the shading frame `shading` (seen
 /// from the viewer: [`DiffuseShading::new`] with the direction to the viewer): every delta
 /// light exactly, plus one area emitter picked by power with one uniformly sampled point
-/// (unbiased; one-sided emitters). The cosine at the point is taken about the shading
+/// (unbiased; one-sided emitters), and the environment's irradiance by
+/// [`crate::render::environment::Environment::irradiance`]. The cosine at the point is taken about the shading
 /// normal, and lights below the shading plane or behind the face give nothing
 /// ([`DiffuseShading::cosine`]), as in Mitsuba 3; with `shading.shading = shading.geometric`
 /// this is the plain `E = ∫ L cos θ dω`.
@@ -142,6 +150,13 @@ pub fn direct_irradiance(scene: &PreparedScene, caster: &impl RayCaster, s: &Sur
                 let far = p + to_light * (4.0 * scene.bounding_sphere().1 + 1.0);
                 if cos > 0.0 && visible(far, rng) {
                     e += l.irradiance * cos;
+                }
+            }
+            Light::Environment(_) => {
+                let (cosine, light) = (rng.next_2d(), rng.next_2d());
+                if let Some(env) = scene.environment() {
+                    let far = 4.0 * scene.bounding_sphere().1 + 1.0;
+                    e += env.irradiance(shading.shading, cosine, light, |d| shading.cosine(d), |d| visible(p + d * far, rng));
                 }
             }
             Light::Triangle(_) | Light::Quad(_) => {}

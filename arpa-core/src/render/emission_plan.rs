@@ -34,7 +34,8 @@ fn caustic_skip(scene: &PreparedScene) -> Option<PassSkip> {
         return Some(PassSkip::NoSpecularSurface);
     }
     if scene.projections().iter().all(|p| p.specular.is_empty()) {
-        return Some(PassSkip::SpecularUnreached);
+        let environment_only = scene.emitters().iter().all(|l| matches!(l, crate::emit::emission::Light::Environment(_)));
+        return Some(if environment_only { PassSkip::EnvironmentOnly } else { PassSkip::SpecularUnreached });
     }
     None
 }

@@ -4,6 +4,7 @@
 //! |---|---|
 //! | [`scene`], [`shapes`], [`texture`] | the scene model (meshes, materials, textures, lights, camera) and shape builders |
 //! | [`prepared_scene`] | a scene prepared for tracing: triangle tables, emitters, shading, projection maps |
+//! | [`environment`] | the environment light's radiance and direction sampling (constant or equirectangular map) |
 //! | [`projection`] | projection maps: which parts of each light's domain reach which targets |
 //! | [`emission_plan`] | one render's photon allocation and pass skips from the projection maps |
 //! | [`tracer`] | the backend trait, render settings, stage clock, statistics |
@@ -13,6 +14,7 @@
 pub mod brute_force;
 pub mod camera_path;
 pub mod emission_plan;
+pub mod environment;
 pub mod photon_path;
 pub mod prepared_scene;
 pub mod projection;

@@ -247,7 +247,11 @@ impl PhotonWalk {
         let (source, local) = setup.locate(index)?;
         let light = setup.lights[source].as_ref()?;
         let mut rng = Rng::new(settings.seed, setup.iteration, index, StreamDomain::Photon);
-        let mut emitted = light.emit_in(local, &mut rng, setup.cells(scene, source)).ok()?;
+        let mut emitted = match scene.environment() {
+            // The environment's directions by its map (uniform for a constant one).
+            Some(env) if setup.emitter_of(source) == env.emitter => light.emit_environment_in(local, &mut rng, |s| env.photon_direction(s)).ok()?,
+            _ => light.emit_in(local, &mut rng, setup.cells(scene, source)).ok()?,
+        };
         // A textured emitter's photon carries the texture at its origin over the texture's
         // mean over the triangle (which set the emitter's power).
         if let Some(emitter) = source.checked_rem(setup.emitters)

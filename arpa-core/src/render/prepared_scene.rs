@@ -5,6 +5,7 @@
 use crate::base::aabb::Aabb;
 use crate::propagate::differential::{DifferentialError, NormalDifferential};
 use crate::emit::emission::Light;
+use crate::render::environment::Environment;
 use crate::render::projection::{project, project_on, DomainCells, LightProjection, Targets, SPECULAR_AREA_GRID, SPECULAR_DELTA_GRID};
 use crate::base::prefetch::prefetch;
 use crate::base::rng::Rng;
@@ -45,6 +46,8 @@ pub struct PreparedScene {
     /// Whether a photon leaving a diffuse surface can hit another surface at all (some
     /// diffuse surface scatters and not all geometry lies in one plane).
     second_hit_possible: bool,
+    /// The environment light, with its map's sampling tables.
+    environment: Option<Environment>,
 }
 
 /// Most masks one ray passes through before the next surface stops it whatever it is (a
@@ -176,6 +179,13 @@ impl PreparedScene {
             acc += emitter_power[i];
             area_cdf.push(acc);
         }
+        let environment = match emitters.iter().position(|l| matches!(l, Light::Environment(_))) {
+            Some(i) => {
+                let Light::Environment(light) = emitters[i] else { unreachable!() };
+                Some(Environment::new(i, light, scene.textures.environment.as_ref())?)
+            }
+            None => None,
+        };
         let scattering: Vec<Scattering> = scene.materials.iter().map(|m| m.scattering(scene.roughness_cutoff)).collect();
         let vertices = |m: &crate::render::scene::TriangleMesh, idx: [u32; 3]| idx.map(|i| m.positions[i as usize].as_dvec3());
         let triangles: Vec<Vec<TriangleGeometry>> = scene
@@ -226,7 +236,11 @@ impl PreparedScene {
         let sphere = scene.bounding_sphere();
         let projections = emitters
             .iter()
-            .map(|l| LightProjection { geometry: project(l, sphere, &all_targets), specular: if has_specular { project_on(l, sphere, &specular_targets, SPECULAR_DELTA_GRID, SPECULAR_AREA_GRID) } else { DomainCells::none() } })
+            .map(|l| LightProjection {
+                geometry: project(l, sphere, &all_targets),
+                // An environment has no caustic pass: its caustics come from the global one.
+                specular: if has_specular && !matches!(l, Light::Environment(_)) { project_on(l, sphere, &specular_targets, SPECULAR_DELTA_GRID, SPECULAR_AREA_GRID) } else { DomainCells::none() },
+            })
             .collect();
         let scatters = scene.meshes.iter().any(|m| matches!(scattering.get(m.material as usize), Some(Scattering::Diffuse(a)) if a.max_element() > 0.0));
         let second_hit_possible = scatters && !coplanar_geometry;
@@ -247,7 +261,13 @@ impl PreparedScene {
             area_emitters,
             area_cdf,
             scattering,
+            environment,
         })
+    }
+
+    /// The environment light, if the scene has one.
+    pub fn environment(&self) -> Option<&Environment> {
+        self.environment.as_ref()
     }
 
     /// The scene.

@@ -22,6 +22,11 @@
 //! light's power per photon ([`crate::emit::emission::CellDomain`]); photons into the rest could
 //! not have reached a target, so what they would have stored is zero.
 //!
+//! **Environment lights** are not projected: a photon's direction and its start on the
+//! disc across it form a four-dimensional domain, and nearly every direction sees the
+//! scene. Their geometry domain is whole and they have no caustic pass; their caustics
+//! come from the global pass.
+//!
 //! The plan of a render's two photon passes built on the maps is
 //! [`crate::render::emission_plan`].
 
@@ -230,6 +235,8 @@ pub fn project_on(light: &Light, scene_sphere: (DVec3, f64), targets: &Targets, 
             let o = l.position;
             project_with(delta_grid, Space::Directions, &move |u| frame.to_world(uniform_cone(u, cos_cutoff)), targets, |t| seen_from_point(o, t))
         }
+        // Every direction of an environment may reach the scene: it is not projected.
+        Light::Environment(_) => DomainCells::whole(),
         Light::Directional(_) => {
             let frame = light.frame();
             let (centre, radius) = scene_sphere;

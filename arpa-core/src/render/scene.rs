@@ -8,6 +8,7 @@
 
 use crate::base::aabb::Aabb;
 use crate::emit::emission::{Light, LightError, TriangleLight};
+use crate::render::environment::EnvironmentMap;
 use crate::render::texture::{Texture, TextureId};
 use alloc::string::String;
 use alloc::vec::Vec;
@@ -253,6 +254,12 @@ pub enum SceneError {
     /// The scene has no light at all.
     #[error("the scene has no light (no analytic light and no emissive mesh)")]
     NoLights,
+    /// More than one environment light, or an environment map without one.
+    #[error("environment: {0}")]
+    Environment(&'static str),
+    /// The environment map cannot be used.
+    #[error(transparent)]
+    EnvironmentMap(#[from] crate::render::environment::EnvironmentError),
     /// The scene has no geometry.
     #[error("the scene has no geometry")]
     Empty,
@@ -315,6 +322,9 @@ pub struct SceneTextures {
     /// the texture multiplying the mesh's emitted radiance ([`TriangleMesh::emission`]) at
     /// each point (Mitsuba's textured `area` emitter).
     pub emission: Vec<Option<TextureId>>,
+    /// The map of the scene's environment light ([`Light::Environment`]), if it has one
+    /// (Mitsuba's `envmap`); the light's `mean` must be [`EnvironmentMap::mean`] of it.
+    pub environment: Option<EnvironmentMap>,
 }
 
 /// What an emitter triangle of a mesh with an emission texture reads: the radiance of its
@@ -472,6 +482,16 @@ impl Scene {
         let radius = self.bounding_sphere().1;
         for (index, l) in self.lights.iter().enumerate() {
             l.validate(radius).map_err(|source| SceneError::BadLight { index, source })?;
+        }
+        let environments = self.lights.iter().filter(|l| matches!(l, Light::Environment(_))).count();
+        if environments > 1 {
+            return Err(SceneError::Environment("a scene has at most one environment light"));
+        }
+        if let Some(map) = &self.textures.environment {
+            if environments == 0 {
+                return Err(SceneError::Environment("an environment map without an environment light"));
+            }
+            crate::render::environment::Environment::new(0, crate::emit::emission::EnvironmentLight { radiance: DVec3::ONE, mean: DVec3::ONE }, Some(map))?;
         }
         if self.emitters().is_empty() {
             return Err(SceneError::NoLights);

@@ -713,6 +713,9 @@ pub enum PassSkip {
     NoSpecularSurface,
     /// Caustic pass: no light's emission domain sees a mirror or glass surface.
     SpecularUnreached,
+    /// Caustic pass: the only light is an environment, which is not projected
+    /// ([`crate::render::projection`]): its caustics come from the global pass.
+    EnvironmentOnly,
     /// Caustic pass: the settings ask for no caustic photons (`--caustic-photons 0`).
     NoCausticPhotons,
     /// Caustic pass: so much of the light already heads for specular objects that aiming
@@ -732,6 +735,7 @@ impl PassSkip {
         match self {
             PassSkip::NoSpecularSurface => "no specular surface",
             PassSkip::SpecularUnreached => "no light reaches a specular surface",
+            PassSkip::EnvironmentOnly => "the environment light is not projected (its caustics come from the global pass)",
             PassSkip::NoCausticPhotons => "no caustic photons requested",
             PassSkip::LittleToGain => "a quarter or more of the light heads for specular objects already",
             PassSkip::NothingToBounceTo => "direct lighting on and nothing to bounce to",

@@ -10,6 +10,7 @@ pub mod bandwidth;
 pub mod bad_input;
 pub mod camera;
 pub mod determinism;
+pub mod environment;
 pub mod gather;
 pub mod open_mirror;
 pub mod optics;
@@ -63,6 +64,18 @@ pub fn all() -> Vec<Case> {
             title: "a textured area light (two radiances) lights the floor by its texture; seen, it shows it",
             needs: None,
             run: CaseBody::Tracer(textures::emitter_texture),
+        },
+        Case {
+            id: "environment-constant",
+            title: "a constant environment L over a diffuse plane: radiance ρL on it (NEE), L around it",
+            needs: None,
+            run: CaseBody::Tracer(environment::constant_environment),
+        },
+        Case {
+            id: "environment-map",
+            title: "an environment map over a diffuse plane: radiance ρE/π on it with E summed from the map (NEE and photons only)",
+            needs: None,
+            run: CaseBody::Tracer(environment::map_environment),
         },
         Case {
             id: "mask-plane",

@@ -1,10 +1,13 @@
-//! Emitter plugins: point, spot and directional lights (area emitters are read with
-//! their shape).
+//! Emitter plugins: point, spot and directional lights, and the environment (`constant`,
+//! `envmap`); area emitters are read with their shape.
 
 use super::loader::{num, Loader, Props, R};
 use super::super::xml::Node;
-use arpa_core::emit::emission::{DirectionalLight, Light, PointLight, SpotFalloff, SpotLight};
-use glam::{DMat4, DVec3};
+use super::super::bitmap;
+use arpa_core::emit::emission::{DirectionalLight, EnvironmentLight, Light, PointLight, SpotFalloff, SpotLight};
+use arpa_core::render::environment::EnvironmentMap;
+use arpa_core::render::texture::{Bitmap, TextureFilter, TextureWrap, UvTransform};
+use glam::{DMat3, DMat4, DVec3};
 
 impl Loader<'_> {
     /// The emission colour `name` of an analytic light (default 1): non-negative, finite
@@ -71,8 +74,13 @@ impl Loader<'_> {
                 }
                 Light::Directional(DirectionalLight { direction, irradiance })
             }
+            "constant" | "envmap" if self.lights.iter().any(|l| matches!(l, Light::Environment(_))) => {
+                return Err(self.invalid(n.line, format!("{}: a scene has at most one environment emitter (constant or envmap)", n.describe())));
+            }
+            "constant" => Light::Environment(EnvironmentLight { radiance: self.emitted(&p, "radiance")?, mean: DVec3::ONE }),
+            "envmap" => self.envmap(n, &p)?,
             "area" => return Err(self.unsupported(n, "an area emitter must be nested in a <shape>")),
-            _ => return Err(self.unsupported(n, "supported emitters: point, spot, directional, and area inside a shape")),
+            _ => return Err(self.unsupported(n, "supported emitters: point, spot, directional, constant, envmap, and area inside a shape")),
         };
         // What the per-field checks above cannot see (a position that overflows under
         // to_world, ...); the scene radius matters only to directional lights' bounds.
@@ -80,5 +88,28 @@ impl Loader<'_> {
         self.finish(&p);
         self.lights.push(light);
         Ok(())
+    }
+
+    /// Mitsuba's `envmap`: an equirectangular image (`filename`: EXR, HDR, PNG, JPEG; 8-bit
+    /// images are sRGB), `scale`, and `to_world` (its linear part orients the map).
+    fn envmap(&mut self, n: &Node, p: &Props<'_>) -> R<Light> {
+        let file = self.string(p, "filename")?.ok_or_else(|| self.invalid(n.line, format!("{} lacks <string name=\"filename\">", n.describe())))?;
+        let scale = self.float(p, "scale")?.unwrap_or(1.0);
+        if !(scale > 0.0) || !(scale as f32).is_finite() {
+            return Err(self.invalid(self.line_of(p, "scale"), format!("envmap scale {} is not a finite positive number", super::loader::num(scale))));
+        }
+        let m = self.transform(p, "to_world")?.unwrap_or(DMat4::IDENTITY);
+        let to_world = DMat3::from_mat4(m);
+        if !(to_world.determinant().abs() > 1e-12) {
+            return Err(self.invalid(self.line_of(p, "to_world"), "the envmap's to_world is singular"));
+        }
+        // Importance-sampling resolution and mipmapping: nothing for a photon mapper.
+        let _ = self.string(p, "filter_type")?;
+        let (path, bytes) = self.read_file(&file)?;
+        let d = bitmap::decode(&bytes, &path, false)?;
+        let map = EnvironmentMap { bitmap: Bitmap { width: d.width, height: d.height, texels: d.texels, filter: TextureFilter::Bilinear, wrap: TextureWrap::Repeat, to_uv: UvTransform::default() }, to_world };
+        let mean = map.mean().map_err(|e| self.invalid(n.line, format!("{}: {e}", path.display())))?;
+        self.environment = Some(map);
+        Ok(Light::Environment(EnvironmentLight { radiance: DVec3::splat(scale), mean }))
     }
 }

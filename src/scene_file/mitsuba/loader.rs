@@ -68,6 +68,8 @@ pub(super) struct Loader<'a> {
     /// `shapegroup`s by id: their meshes, placed by each `instance` (flattened).
     pub(super) shapegroups: HashMap<String, Vec<TriangleMesh>>,
     pub(super) lights: Vec<Light>,
+    /// The `envmap` emitter's map.
+    pub(super) environment: Option<arpa_core::render::environment::EnvironmentMap>,
     pub(super) camera: Option<(Camera, f64, FovAxis)>,
     pub(super) max_depth: Option<u32>,
     pub(super) sample_count: Option<u32>,

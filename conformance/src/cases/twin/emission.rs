@@ -17,12 +17,15 @@
 //! frame (built from the hint t); flux within 1e-5 relative plus the spot falloff's slope
 //! times the angle error; re-emission length and surface normal exactly as packed. Photons
 //! whose lattice point lies within 1e-5 of the unit square's edge are skipped (the wrap of
-//! the shifted lattice is decided by rounding there).
+//! the shifted lattice is decided by rounding there). Environment lights (whole domain only)
+//! draw their direction like a point light and hang the disc's frame on it, so their origin
+//! and positional differentials also move with the direction error: `4 R` and `4 ℓ_x` times
+//! it.
 
 use std::cell::Cell;
 
 use arpa_core::emit::emission::{
-    DirectionalLight, EmissionParams, Light, PackedLight, PointLight, QuadLight, SpotFalloff,
+    DirectionalLight, EmissionParams, EnvironmentLight, Light, PackedLight, PointLight, QuadLight, SpotFalloff,
     SpotLight, TriangleLight,
 };
 use arpa_core::glam::{DVec2, DVec3};
@@ -112,6 +115,10 @@ fn light() -> impl Strategy<Value = Light> {
                 edge_v,
                 radiance
             })),
+        (colour(), colour()).prop_map(|(radiance, mean)| Light::Environment(EnvironmentLight {
+            radiance,
+            mean
+        })),
     ]
 }
 
@@ -145,6 +152,8 @@ prop_compose! {
               shift in (0.0f64..1.0, 0.0f64..1.0), frac in 0.0f64..1.0, stream in (any::<u32>(), any::<u32>()),
               (grid, cells) in projection(), cell_offset in any::<u32>()) -> Case {
         let photon_count = 10f64.powf(n_exp) as u32;
+        // An environment samples its whole domain.
+        let (grid, cells) = if matches!(light, Light::Environment(_)) { (0, Vec::new()) } else { (grid, cells) };
         // The shift as the device sees it (f32), so both sides start from the same lattice.
         let lattice_shift = DVec2::new(shift.0, shift.1).as_vec2().as_dvec2();
         let params = EmissionParams { photon_count, scale, scene_sphere: (centre, 10f64.powf(r_exp) as f32 as f64), lattice_shift, ..EmissionParams::new(1) }
@@ -194,7 +203,7 @@ fn scale_of(l: &Light, p: &EmissionParams) -> f64 {
     match l {
         Light::Point(l) => l.position.length(),
         Light::Spot(l) => l.position.length(),
-        Light::Directional(_) => p.scene_sphere.0.length() + 2.0 * p.scene_sphere.1,
+        Light::Directional(_) | Light::Environment(_) => p.scene_sphere.0.length() + 2.0 * p.scene_sphere.1,
         Light::Triangle(l) => l.p.iter().map(|v| v.length()).sum(),
         Light::Quad(l) => l.origin.length() + l.edge_u.length() + l.edge_v.length(),
     }
@@ -292,7 +301,7 @@ fn random_lights(runner: &dyn KernelRunner) -> Result<String, String> {
             let t_hint = DVec3::from_array(packed.frame_t.map(f64::from));
             let d = w.ray.d;
             let (jacobian, frame_k) = match c.light {
-                Light::Point(_) => (
+                Light::Point(_) | Light::Environment(_) => (
                     std::f64::consts::TAU + 4.0 / d.cross(DVec3::Z).length().max(1e-9),
                     1.0,
                 ),
@@ -312,7 +321,10 @@ fn random_lights(runner: &dyn KernelRunner) -> Result<String, String> {
                 continue;
             }
             let dir_tol = DIR_TOL + DU * jacobian;
-            close("origin", v3(g, 0), w.ray.p, 64.0 * EPS * s.max(1e-30))?;
+            // An environment's disc turns with its direction.
+            let env = matches!(c.light, Light::Environment(_));
+            let turn = if env { 4.0 * dir_tol } else { 0.0 };
+            close("origin", v3(g, 0), w.ray.p, 64.0 * EPS * s.max(1e-30) + turn * c.params.scene_sphere.1)?;
             let dd = (v3(g, 3) - w.ray.d).length();
             worst_dir = worst_dir.max(dd / dir_tol);
             close("direction", v3(g, 3), w.ray.d, dir_tol)?;
@@ -321,13 +333,13 @@ fn random_lights(runner: &dyn KernelRunner) -> Result<String, String> {
                 "dP/du",
                 v3(g, 6),
                 w.ray.dp_du,
-                16.0 * EPS * lengths.positional,
+                (16.0 * EPS + turn) * lengths.positional,
             )?;
             close(
                 "dP/dv",
                 v3(g, 9),
                 w.ray.dp_dv,
-                16.0 * EPS * lengths.positional,
+                (16.0 * EPS + turn) * lengths.positional,
             )?;
             close(
                 "dD/du",

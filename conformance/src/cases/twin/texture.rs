@@ -129,7 +129,7 @@ pub fn matches_core(runner: &dyn KernelRunner) -> CaseResult {
     let totals = Cell::new((0usize, 0usize, 0usize));
     let worst = Cell::new(0.0f64);
     proptest_batches("twin-texture", BATCHES, &batch(), |(textures, lookups)| {
-        let table = texture_table(&textures, &[]).map_err(|e| TestCaseError::fail(e.to_string()))?;
+        let table = texture_table(&textures, &[], None).map_err(|e| TestCaseError::fail(e.to_string()))?;
         let mut input = table.clone();
         input.resize(table.len().div_ceil(STRIDE) * STRIDE, 0);
         let table_words = input.len();
