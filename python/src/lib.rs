@@ -235,6 +235,14 @@ struct State {
     steps: u32,
 }
 
+impl State {
+    /// Iterations accumulated: the tracer's once it holds the scene (before that it may
+    /// hold the smoothing pilot's iteration), else the resumed state's.
+    fn done(&self) -> u32 {
+        if self.uploaded { self.tracer.iterations() } else { self.resume.as_ref().map_or(0, |a| a.end() as u32) }
+    }
+}
+
 /// A progressive render of one scene with fixed settings: `step` adds iterations, `image`
 /// reads the image so far. See `arpa.Renderer` in the Python stubs for the arguments.
 #[pyclass(module = "arpa", name = "Renderer")]
@@ -407,7 +415,7 @@ impl Renderer {
         guarded(|| {
             let mut guard = self.state.lock().map_err(|_| RenderError::new_err("this Renderer failed in an earlier call and cannot go on"))?;
             let state = &mut *guard;
-            let done = state.resume.as_ref().map_or(0, |a| a.end() as u32).max(state.tracer.iterations());
+            let done = state.done();
             let budget = match (n, seconds) {
                 (Some(_), Some(_)) => return Err(PyValueError::new_err("give n or seconds, not both")),
                 (_, Some(t)) if !(t.is_finite() && t > 0.0) => return Err(PyValueError::new_err(format!("seconds must be positive, got {t}"))),
@@ -472,7 +480,7 @@ impl Renderer {
     #[getter]
     fn iterations(&self) -> PyResult<u32> {
         let state = self.state.lock().map_err(|_| RenderError::new_err("this Renderer failed in an earlier call"))?;
-        Ok(state.resume.as_ref().map_or(0, |a| a.end() as u32).max(state.tracer.iterations()))
+        Ok(state.done())
     }
 
     /// Statistics as a dict: iterations, render time, photons, smoothing, per-stage mean
@@ -487,7 +495,7 @@ impl Renderer {
         d.set_item("seed", state.settings.seed)?;
         d.set_item("photons_per_iteration", state.settings.photons_per_iteration)?;
         d.set_item("max_depth", state.settings.max_depth)?;
-        d.set_item("iterations", state.resume.as_ref().map_or(0, |a| a.end() as u32).max(state.tracer.iterations()))?;
+        d.set_item("iterations", state.done())?;
         d.set_item("iterations_rendered", state.totals.iterations)?;
         d.set_item("render_seconds", state.render_time.as_secs_f64())?;
         d.set_item("photons_emitted", state.totals.sum.photons_emitted)?;
@@ -541,7 +549,7 @@ impl Renderer {
 
     fn __repr__(&self) -> String {
         match self.state.lock() {
-            Ok(s) => format!("arpa.Renderer(backend='{}', method='{}', {} iterations)", s.backend.name(), s.settings.method.name(), s.tracer.iterations()),
+            Ok(s) => format!("arpa.Renderer(backend='{}', method='{}', {} iterations)", s.backend.name(), s.settings.method.name(), s.done()),
             Err(_) => "arpa.Renderer(failed)".into(),
         }
     }
