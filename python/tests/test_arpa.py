@@ -100,6 +100,17 @@ def test_render_equals_the_cli_bit_for_bit(cornell, tmp_path):
     ours = arpa.render(cornell, iterations=3, **FAST)
     assert from_cli.shape == ours.shape
     assert np.array_equal(bits(from_cli), bits(ours))
+    # State files are shared: a render checkpointed here continues in the CLI exactly.
+    r = arpa.Renderer(cornell, photons=4000, seed=7)
+    r.step(2)
+    r.save(tmp_path / "py.arpastate")
+    subprocess.run(
+        [str(cli), "render", str(CORNELL / "scene.xml"), "-D", "res_x=48", "-D", "res_y=48",
+         "--photons", "4000", "--iterations", "3", "--seed", "7", "--resume", str(tmp_path / "py.arpastate"),
+         "--out", str(tmp_path / "resumed")],
+        check=True, capture_output=True,
+    )
+    assert np.array_equal(bits(arpa.read_exr(tmp_path / "resumed.exr")), bits(ours))
 
 
 def test_renderer_steps_equal_one_render_and_resume_is_exact(cornell, tmp_path):
