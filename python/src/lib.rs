@@ -232,7 +232,8 @@ struct State {
     totals: StatTotals,
     render_time: Duration,
     interrupted: bool,
-    steps: u32,
+    /// A step failed: the tracer's state is unknown, so the renderer refuses to go on.
+    failed: bool,
 }
 
 impl State {
@@ -245,7 +246,7 @@ impl State {
 
 /// A progressive render of one scene with fixed settings: `step` adds iterations, `image`
 /// reads the image so far. See `arpa.Renderer` in the Python stubs for the arguments.
-#[pyclass(module = "arpa", name = "Renderer")]
+#[pyclass(module = "arpa", name = "Renderer", frozen)]
 struct Renderer {
     scene: Arc<CoreScene>,
     state: Mutex<State>,
@@ -398,7 +399,7 @@ impl Renderer {
                     totals: StatTotals::default(),
                     render_time: Duration::ZERO,
                     interrupted: false,
-                    steps: 0,
+                    failed: false,
                 })
             });
             let state = state.map_err(render_error_any)?;
@@ -415,6 +416,9 @@ impl Renderer {
         guarded(|| {
             let mut guard = self.state.lock().map_err(|_| RenderError::new_err("this Renderer failed in an earlier call and cannot go on"))?;
             let state = &mut *guard;
+            if state.failed {
+                return Err(RenderError::new_err("this Renderer failed in an earlier step and cannot go on; make a new one"));
+            }
             let done = state.done();
             let budget = match (n, seconds) {
                 (Some(_), Some(_)) => return Err(PyValueError::new_err("give n or seconds, not both")),
@@ -441,14 +445,13 @@ impl Renderer {
             let rendered = match rendered {
                 Ok(r) => r,
                 Err(e) => {
-                    // The tracer may be mid-iteration: upload afresh next time.
-                    state.uploaded = false;
+                    // The tracer may have stopped mid-iteration: nothing after this is exact.
+                    state.failed = true;
                     return Err(render_error_any(e));
                 }
             };
             state.uploaded = true;
             state.resume = None;
-            state.steps += 1;
             let t = &mut state.totals;
             let sum = rendered.totals;
             t.iterations += sum.iterations;
