@@ -179,6 +179,30 @@ def test_bad_arguments_raise_value_errors(cornell):
         arpa.render(cornell, iterations=2, seconds=1.0)
 
 
+def test_the_gil_is_released_while_rendering(cornell):
+    """Another Python thread runs while a render is under way."""
+    ticks = []
+    rendering = threading.Event()
+    done = threading.Event()
+
+    def count():
+        rendering.wait()
+        while not done.is_set():
+            ticks.append(time.monotonic())
+            time.sleep(0.001)
+
+    t = threading.Thread(target=count)
+    t.start()
+    r = arpa.Renderer(cornell, photons=4000, seed=7)
+    try:
+        rendering.set()
+        r.step(seconds=1.0)
+    finally:
+        done.set()
+        t.join()
+    assert len(ticks) > 50, len(ticks)
+
+
 def test_seconds_budget(cornell):
     t0 = time.monotonic()
     image = arpa.render(cornell, seconds=0.5, **FAST)
