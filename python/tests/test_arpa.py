@@ -39,7 +39,7 @@ def need(path: Path, what: str) -> None:
     if os.environ.get("CI"):
         pytest.fail(f"{message} (CI is set: the shared scenes are required)")
     print(f"\nSKIPPED LOUDLY: {message}", file=sys.stderr)
-    pytest.skip(message)
+    pytest.skip(f"LOUD SKIP: {message}")
 
 
 def bits(a: np.ndarray) -> np.ndarray:
@@ -246,7 +246,7 @@ def test_dict_renders_in_arpa_and_unchanged_in_mitsuba():
         import mitsuba as mi
     except ImportError:
         print("\nSKIPPED LOUDLY: mitsuba is not installed; the dict-in-both test needs `pip install mitsuba`", file=sys.stderr)
-        pytest.skip("mitsuba is not installed")
+        pytest.skip("LOUD SKIP: mitsuba is not installed (pip install mitsuba): the dict was not rendered in Mitsuba")
     mi.set_variant("scalar_rgb")
     d = cornell_caustic.scene_dict(str(CORNELL), width=64, height=64, spp=256, look_at_fn=mi.ScalarTransform4f.look_at)
     ours = arpa.render(arpa.load_dict(d), iterations=16, photons=100_000, seed=1, progress=False)
