@@ -129,6 +129,14 @@ def test_renderer_steps_equal_one_render_and_resume_is_exact(cornell, tmp_path):
     assert np.array_equal(bits(resumed), bits(whole))
     with pytest.raises(arpa.RenderError, match="seed"):
         arpa.Renderer(cornell, photons=4000, seed=8, resume=tmp_path / "part.arpastate")
+    # checkpoint= writes the state every checkpoint_every iterations and after each step.
+    c = arpa.Renderer(cornell, photons=4000, seed=7, checkpoint=tmp_path / "ck.arpastate", checkpoint_every=1)
+    c.step(1)
+    c.step(1)
+    resumed = arpa.render(cornell, iterations=3, resume=tmp_path / "ck.arpastate", **FAST)
+    assert np.array_equal(bits(resumed), bits(whole))
+    with pytest.raises(ValueError, match="checkpoint_every"):
+        arpa.Renderer(cornell, checkpoint=tmp_path / "x.arpastate", checkpoint_every="soon")
 
 
 def test_progress_callback_is_called_per_iteration(cornell):
