@@ -174,7 +174,7 @@ def test_bad_dict_raises_naming_the_key(tmp_path):
         arpa.load_dict({"type": "diffuse"})
     d = cornell_caustic.scene_dict(str(CORNELL))
     d["floor"]["filename"] = str(tmp_path / "nowhere.ply")
-    with pytest.raises(arpa.SceneError, match="nowhere.ply"):
+    with pytest.raises(arpa.SceneError, match=r"key 'floor\.filename'.*nowhere\.ply"):
         arpa.load_dict(d)
 
 

@@ -39,7 +39,7 @@ def load_dict(d: Dict[str, Any]) -> Scene:
     relative file names are resolved against the current directory, as Mitsuba does.
     Errors name the dict key path."""
     try:
-        xml, keys = _dict.to_xml(d)
+        xml, keys, strings = _dict.to_xml(d)
     except _dict.DictError as e:
         err = SceneError(str(e))
         err.file, err.line, err.key = None, None, e.key
@@ -54,6 +54,9 @@ def load_dict(d: Dict[str, Any]) -> Scene:
         for prefix in (f"{where}:{line}: ", f"{where}: "):
             message = message.replace(prefix, "")
         message = message.replace(where, "<dict>")
+        if key is None:
+            # Errors about a file (a mesh, a texture) name the file, not a line.
+            key = next((k for k, v in strings.items() if v and (f"'{v}'" in message or f"'{os.path.join(os.getcwd(), v)}'" in message)), None)
         err = SceneError(f"scene dict, key '{key}': {message}" if key else f"scene dict: {message}")
         err.file, err.line, err.key = None, None, key
         raise err from None

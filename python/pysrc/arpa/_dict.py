@@ -89,6 +89,8 @@ class _Writer:
     def __init__(self) -> None:
         self.lines: List[str] = ['<?xml version="1.0" encoding="utf-8"?>']
         self.keys: Dict[int, str] = {}
+        # String values by key path, to name the key of an error about a file (which has no line).
+        self.strings: Dict[str, str] = {}
 
     def line(self, depth: int, text: str, key: str) -> None:
         self.lines.append("    " * depth + text)
@@ -108,6 +110,7 @@ class _Writer:
                 raise DictError(key, f"{value!r} is not a finite number")
             self.line(depth, f'<float name={n} value="{_num(value)}"/>', key)
         elif isinstance(value, str):
+            self.strings[key] = value
             self.line(depth, f"<string name={n} value={quoteattr(value)}/>", key)
         elif hasattr(value, "matrix") or (name == "to_world" or name == "to_uv"):
             m = _matrix(value)
@@ -175,8 +178,9 @@ class _Writer:
         self.line(depth, f"</{tag}>", key)
 
 
-def to_xml(d: Dict[str, Any]) -> Tuple[str, Dict[int, str]]:
-    """The XML of scene dict ``d`` and, per 1-based line, the key path it came from."""
+def to_xml(d: Dict[str, Any]) -> Tuple[str, Dict[int, str], Dict[str, str]]:
+    """The XML of scene dict ``d``, the key path of each 1-based line, and the string values
+    by key path."""
     if not isinstance(d, dict):
         raise DictError("<root>", f"expected a dict, got {type(d).__name__}")
     if d.get("type") != "scene":
@@ -199,4 +203,4 @@ def to_xml(d: Dict[str, Any]) -> Tuple[str, Dict[int, str]]:
             raise DictError(k, "top-level entries of a scene are objects (dicts with a 'type')")
         w.obj(1, k, v, k, nested=False)
     w.line(0, "</scene>", "<root>")
-    return "\n".join(w.lines) + "\n", w.keys
+    return "\n".join(w.lines) + "\n", w.keys, w.strings
