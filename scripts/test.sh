@@ -51,4 +51,5 @@ python3 -m venv --clear "$venv"
 "$venv/bin/python" -m pip install --quiet --disable-pip-version-check maturin==1.16.0 numpy==2.4.6 pytest==9.2.0
 PATH="$(cd "$venv/bin" && pwd):$PATH" "$venv/bin/python" -m pip install --quiet --disable-pip-version-check \
     --no-build-isolation ./python --config-settings=build-args="--profile python-ci"
-ARPA_CLI="$(cd "$target_dir" && pwd)/debug/arpa" "$venv/bin/python" -m pytest -q -rs python/tests
+# Without LD_LIBRARY_PATH (env.sh sets it): the module must find Embree through its rpath.
+env -u LD_LIBRARY_PATH ARPA_CLI="$(cd "$target_dir" && pwd)/debug/arpa" "$venv/bin/python" -m pytest -q -rs python/tests
