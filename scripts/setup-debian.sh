@@ -11,6 +11,8 @@ bash scripts/install-embree4.sh
 bash scripts/install-lavapipe.sh
 # The Khronos validation layer (arpa-vk's tests), glslc and the SPIR-V tools (arpa-vk).
 bash scripts/install-vulkan-tools.sh
+# Python 3 with venv, for the Python package (python/) and its tests.
+bash scripts/install-python.sh
 # The equal-time peers of `arpa bench`, on request.
 for arg in "$@"; do
     case "$arg" in

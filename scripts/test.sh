@@ -29,10 +29,27 @@ cargo clippy --manifest-path arpa-core/tests/no-std-link/Cargo.toml -- -D warnin
 cargo clippy --workspace --all-targets -- -D warnings
 RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps
 # Unit, integration and benchmark targets (benchmarks run once each, as smoke tests).
-cargo test --workspace --all-targets
-cargo test --workspace --doc
+# arpa-python has no Rust tests (its tests are the pytest suite below); excluded, cargo does
+# not link a test harness of the extension module against libpython.
+cargo test --workspace --exclude arpa-python --all-targets
+cargo test --workspace --exclude arpa-python --doc
 # arpa-core's examples for renderer authors (built above, run here): each compares with an
 # exact answer and exits non-zero on a mismatch. wgsl_twin needs a wgpu adapter (lavapipe);
 # without one it skips, unless CI is set.
 cargo run -p arpa-core --example renderer_author
 cargo run -p arpa-core --example wgsl_twin
+# The Python package (python/, README "Python"): a fresh venv under the target directory
+# with pinned pip, maturin, numpy and pytest from PyPI; `pip install ./python` with the
+# `python-ci` profile (`pip install ./python` alone builds `release`; the package's feature
+# set differs from the workspace's, so its dependencies cannot reuse the builds above and
+# a cheap profile keeps that second build short); then its pytest suite, which compares
+# `arpa.render` with the CLI that `cargo test` built.
+target_dir="${CARGO_TARGET_DIR:-target}"
+venv="$target_dir/python-venv"
+python3 -m venv --clear "$venv"
+"$venv/bin/python" -m pip install --quiet --disable-pip-version-check pip==26.3
+"$venv/bin/python" -m pip install --quiet --disable-pip-version-check maturin==1.16.0 numpy==2.4.6 pytest==9.2.0
+PATH="$(cd "$venv/bin" && pwd):$PATH" "$venv/bin/python" -m pip install --quiet --disable-pip-version-check \
+    --no-build-isolation ./python --config-settings=build-args="--profile python-ci"
+# Without LD_LIBRARY_PATH (env.sh sets it): the module must find Embree through its rpath.
+env -u LD_LIBRARY_PATH ARPA_CLI="$(cd "$target_dir" && pwd)/debug/arpa" "$venv/bin/python" -m pytest -q -rs python/tests

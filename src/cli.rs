@@ -33,9 +33,8 @@ use crate::default_scene::default_scene;
 use crate::image_io;
 use anyhow::{Context, bail};
 use arpa_core::propagate::classify::Smoothing;
-use arpa_core::accumulate::radius::{ProgressiveConfig, RadiusSpec};
 use crate::backends::{self, BackendOptions};
-use crate::session::{Budget, CheckpointRow, Checkpoints, Hooks, Reference, Rendered, SaveEvery, SaveState, SessionOptions, StatTotals, auto_smoothing, render_with};
+use crate::session::{Budget, CheckpointRow, Checkpoints, Hooks, Reference, RenderOptions, Rendered, SaveEvery, SaveState, SessionOptions, StatTotals, auto_smoothing, render_with};
 use arpa_core::propagate::classify::AutoSmoothing;
 use crate::state_file::{RenderIdentity, StateFile};
 use arpa_core::accumulate::image::Accumulation;
@@ -46,12 +45,7 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-/// Default number of iterations when neither `--iterations` nor `--time` is given.
-pub const DEFAULT_ITERATIONS: u32 = 64;
-
-/// Default maximum number of surface interactions when neither `--max-depth` nor the
-/// scene file gives one.
-pub const DEFAULT_MAX_DEPTH: u32 = 10;
+pub use crate::session::{DEFAULT_ITERATIONS, DEFAULT_MAX_DEPTH};
 
 /// Largest accepted image side (pixels).
 pub const MAX_RESOLUTION: u32 = 16384;
@@ -488,38 +482,33 @@ impl RenderArgs {
         }
     }
 
-    /// The render settings these arguments select.
-    pub fn settings(&self) -> RenderSettings {
-        let defaults = RenderSettings::default();
-        RenderSettings {
+    /// The render options these arguments select (automatic smoothing aside: see
+    /// [`RenderArgs::auto_smoothing`]).
+    pub fn options(&self) -> RenderOptions {
+        RenderOptions {
             method: self.method.into(),
-            photons_per_iteration: self.photons,
+            photons: self.photons,
             seed: self.seed,
-            max_depth: self.max_depth.unwrap_or(DEFAULT_MAX_DEPTH),
+            max_depth: self.max_depth,
             direct_lighting: !self.no_direct,
             emission: self.emission.strategy(),
             bandwidth: self.bandwidth.into(),
             smoothing: Smoothing { caustic: self.smoothing_caustic.unwrap_or(1.0), global: self.smoothing_global.unwrap_or(1.0) },
-            radii: ProgressiveConfig {
-                caustic: self.radius_caustic.map_or(defaults.radii.caustic, RadiusSpec::Absolute),
-                global: self.radius_global.map_or(defaults.radii.global, RadiusSpec::Absolute),
-                ..defaults.radii
-            },
-            ..defaults
+            radius_caustic: self.radius_caustic,
+            radius_global: self.radius_global,
         }
+    }
+
+    /// The render settings these arguments select.
+    pub fn settings(&self) -> RenderSettings {
+        self.options().settings(None)
     }
 
     /// [`RenderArgs::settings`] for a scene file whose integrator asks for `max_depth`
     /// (Mitsuba's path depth in segments): without `--max-depth`, photon and camera paths
     /// get `max_depth - 1` surface interactions (at least 1).
     pub fn settings_for_file(&self, file_max_depth: Option<u32>) -> RenderSettings {
-        let mut s = self.settings();
-        if self.max_depth.is_none()
-            && let Some(d) = file_max_depth
-        {
-            s.max_depth = d.saturating_sub(1).clamp(1, 1024);
-        }
-        s
+        self.options().settings(file_max_depth)
     }
 
     /// The iteration or time budget ([`Budget::Iterations`] is the end of the range).
@@ -834,7 +823,7 @@ pub fn run_render(args: &RenderArgs) -> anyhow::Result<()> {
     };
     let progress = Progress::new(shown, std::io::stderr().is_terminal());
     let mut hooks = CliHooks { budget: shown, progress: &progress, csv };
-    let session = SessionOptions { budget, checkpoints, reference: reference.as_ref(), resume: start.as_ref(), save };
+    let session = SessionOptions { budget, checkpoints, reference: reference.as_ref(), resume: start.as_ref(), save, continued: false };
     let rendered = render_with(&mut tracer, &scene, &settings, &session, &mut hooks)?;
     progress.finish();
     if let Some(csv) = &mut hooks.csv {
@@ -958,6 +947,7 @@ impl MetricsCsv {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use arpa_core::accumulate::radius::RadiusSpec;
 
     #[test]
     fn summary_reports_counts_and_stage_times() {
@@ -979,6 +969,7 @@ mod tests {
             render_time: Duration::from_secs(1),
             checkpoint_time: Duration::ZERO,
             total_time: Duration::from_secs(1),
+            stopped: false,
         };
         let text = summary(&r, &RenderSettings::default());
         assert!(text.contains("rendered 5 iterations") && text.contains("10 footprints") && text.contains("gather 2.00 ms") && text.contains("backend 'cpu'"), "{text}");

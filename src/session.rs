@@ -14,6 +14,7 @@ use crate::metrics::{Metrics, compare_images};
 use crate::state_file::{RenderIdentity, StateFile};
 use anyhow::{Context, bail};
 use arpa_core::accumulate::image::Accumulation;
+use arpa_core::accumulate::radius::{ProgressiveConfig, RadiusSpec};
 use arpa_core::propagate::classify::{AutoSmoothing, Smoothing};
 use arpa_core::render::scene::Scene;
 use arpa_core::render::tracer::{Capabilities, Image, IterationStats, RenderSettings, StageTimes, Tracer};
@@ -27,6 +28,91 @@ pub enum Budget {
     Iterations(u32),
     /// Iterations until this much wall-clock time has passed (at least one).
     Time(Duration),
+}
+
+/// Default number of iterations of a render given neither an iteration count nor a time.
+pub const DEFAULT_ITERATIONS: u32 = 64;
+
+/// Default maximum number of surface interactions when neither the caller nor the scene
+/// file gives one.
+pub const DEFAULT_MAX_DEPTH: u32 = 10;
+
+/// The render settings a user chooses, as the CLI (`arpa render`) and the Python package
+/// take them; [`RenderOptions::settings`] turns them into [`RenderSettings`], so both give
+/// the same settings (and the same image) for the same choices.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RenderOptions {
+    /// Density-estimation method.
+    pub method: arpa_core::render::tracer::Method,
+    /// Photons emitted per iteration.
+    pub photons: u32,
+    /// Seed of every random stream.
+    pub seed: u32,
+    /// Maximum number of surface interactions; `None`: the scene file's integrator
+    /// `max_depth` minus one, or [`DEFAULT_MAX_DEPTH`].
+    pub max_depth: Option<u32>,
+    /// Next-event estimation.
+    pub direct_lighting: bool,
+    /// Projection maps and the caustic pass.
+    pub emission: arpa_core::render::tracer::EmissionStrategy,
+    /// Per-pixel or global bandwidth.
+    pub bandwidth: arpa_core::gather::scales::Bandwidth,
+    /// Fixed smoothing factors (the starting point of [`auto_smoothing`] when chosen
+    /// automatically).
+    pub smoothing: Smoothing,
+    /// Initial caustic radius of the progressive photons; `None`: the core's default.
+    pub radius_caustic: Option<f64>,
+    /// Initial global radius of the progressive photons; `None`: the core's default.
+    pub radius_global: Option<f64>,
+}
+
+impl Default for RenderOptions {
+    /// The CLI's defaults: ARPA, 250k photons, seed 0, next-event estimation, projection
+    /// maps, per-pixel bandwidth, `S = 1`.
+    fn default() -> Self {
+        RenderOptions {
+            method: arpa_core::render::tracer::Method::Arpa,
+            photons: 250_000,
+            seed: 0,
+            max_depth: None,
+            direct_lighting: true,
+            emission: arpa_core::render::tracer::EmissionStrategy::default(),
+            bandwidth: arpa_core::gather::scales::Bandwidth::PerPixel,
+            smoothing: Smoothing { caustic: 1.0, global: 1.0 },
+            radius_caustic: None,
+            radius_global: None,
+        }
+    }
+}
+
+impl RenderOptions {
+    /// The settings for a scene whose file asks for `file_max_depth` (Mitsuba's path depth
+    /// in segments): without [`RenderOptions::max_depth`], photon and camera paths get
+    /// `max_depth - 1` surface interactions (at least 1), else [`DEFAULT_MAX_DEPTH`].
+    pub fn settings(&self, file_max_depth: Option<u32>) -> RenderSettings {
+        let defaults = RenderSettings::default();
+        let max_depth = match (self.max_depth, file_max_depth) {
+            (Some(d), _) => d,
+            (None, Some(d)) => d.saturating_sub(1).clamp(1, 1024),
+            (None, None) => DEFAULT_MAX_DEPTH,
+        };
+        RenderSettings {
+            method: self.method,
+            photons_per_iteration: self.photons,
+            seed: self.seed,
+            max_depth,
+            direct_lighting: self.direct_lighting,
+            emission: self.emission,
+            bandwidth: self.bandwidth,
+            smoothing: self.smoothing,
+            radii: ProgressiveConfig {
+                caustic: self.radius_caustic.map_or(defaults.radii.caustic, RadiusSpec::Absolute),
+                global: self.radius_global.map_or(defaults.radii.global, RadiusSpec::Absolute),
+                ..defaults.radii
+            },
+            ..defaults
+        }
+    }
 }
 
 /// When to evaluate intermediate images (the final image is always evaluated).
@@ -181,6 +267,9 @@ pub struct Rendered {
     pub checkpoint_time: Duration,
     /// Wall-clock time of upload, iterations and read-back.
     pub total_time: Duration,
+    /// Whether [`Hooks::stop`] ended the render before its budget was spent (the image is
+    /// then that of the iterations done, and the state file, if any, holds them).
+    pub stopped: bool,
 }
 
 /// What a render looks at besides the scene and settings.
@@ -199,13 +288,18 @@ pub struct SessionOptions<'a> {
     /// Where and how often to write the render's state ([`StateFile`]); it is also written
     /// once at the end.
     pub save: Option<SaveState<'a>>,
+    /// The tracer already holds `scene` with `settings` and the accumulation of an earlier
+    /// [`render_with`] on it: render on from its iteration without uploading again (for
+    /// progressive use, e.g. the Python package's `Renderer.step`). [`SessionOptions::resume`]
+    /// must then be `None`.
+    pub continued: bool,
 }
 
 impl SessionOptions<'_> {
     /// `budget`, no intermediate checkpoints, no reference, a fresh accumulation, no state
-    /// file.
+    /// file, a fresh upload.
     pub fn budget(budget: Budget) -> Self {
-        SessionOptions { budget, checkpoints: Checkpoints::Never, reference: None, resume: None, save: None }
+        SessionOptions { budget, checkpoints: Checkpoints::Never, reference: None, resume: None, save: None, continued: false }
     }
 }
 
@@ -238,8 +332,16 @@ impl SaveState<'_> {
     }
 }
 
-/// Callbacks of [`render_with`], for progress display. Both default to doing nothing.
+/// Callbacks of [`render_with`], for progress display and cancellation. All default to
+/// doing nothing.
 pub trait Hooks {
+    /// Asked before each iteration: `true` ends the render there as if its budget were
+    /// spent (the image so far is read back and returned, the state file written), with
+    /// [`Rendered::stopped`] set. For cancellation, e.g. Ctrl-C in the Python package.
+    fn stop(&mut self) -> bool {
+        false
+    }
+
     /// After each iteration: iterations done, render time so far, the sums so far.
     fn iteration(&mut self, _iterations: u32, _render_time: Duration, _totals: &StatTotals) {}
 
@@ -324,7 +426,13 @@ pub fn render_with<T: Tracer, H: Hooks + ?Sized>(
     {
         bail!("backend '{}' accepts at most {max} photons per iteration, {} requested", capabilities.backend, settings.photons_per_iteration);
     }
-    tracer.upload_scene(scene, settings).with_context(|| format!("backend '{}' could not load the scene", capabilities.backend))?;
+    if options.continued {
+        if options.resume.is_some() {
+            bail!("a continued render cannot also resume a state (the tracer already holds its accumulation)");
+        }
+    } else {
+        tracer.upload_scene(scene, settings).with_context(|| format!("backend '{}' could not load the scene", capabilities.backend))?;
+    }
     if let Some(state) = options.resume {
         tracer
             .restore_accumulation(state)
@@ -337,6 +445,7 @@ pub fn render_with<T: Tracer, H: Hooks + ?Sized>(
     let mut rows = Vec::new();
     let mut iterations = 0u32;
     let mut checkpoint_time = Duration::ZERO;
+    let mut stopped = false;
     let rendering = |checkpoint_time: Duration| render_start.elapsed().saturating_sub(checkpoint_time);
     // Reads the image back, evaluates it and hands it to the hooks; returns the image.
     let checkpoint = |tracer: &T, hooks: &mut H, i: u32, at: Duration, totals: &StatTotals, rows: &mut Vec<CheckpointRow>| -> anyhow::Result<Image> {
@@ -371,6 +480,10 @@ pub fn render_with<T: Tracer, H: Hooks + ?Sized>(
             Budget::Time(t) => iterations == 0 || rendering(checkpoint_time) < t,
         };
         if !more {
+            break;
+        }
+        if hooks.stop() {
+            stopped = true;
             break;
         }
         // The iteration's 1-based index in the whole render.
@@ -415,7 +528,7 @@ pub fn render_with<T: Tracer, H: Hooks + ?Sized>(
         save.write(tracer)?;
         checkpoint_time += t0.elapsed();
     }
-    Ok(Rendered { image, iterations, totals, last, capabilities, rows, render_time, checkpoint_time, total_time: start.elapsed() })
+    Ok(Rendered { image, iterations, totals, last, capabilities, rows, render_time, checkpoint_time, total_time: start.elapsed(), stopped })
 }
 
 #[cfg(test)]

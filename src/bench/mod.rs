@@ -237,7 +237,7 @@ pub fn run_bench(cfg: &LoadedConfig, options: &BenchOptions) -> anyhow::Result<V
                         pilot_note = format!(" (pilot: overlap {:.2}/{:.2} at S = 1, S_c {:.3}, S_g {:.3})", pilot.overlap_at_one[0], pilot.overlap_at_one[1], pilot.smoothing.caustic, pilot.smoothing.global);
                     }
                     let mut hooks = RowHooks { reference_mean, bench_scene: scene, scene: &entry.name, kind: &kind, rows: Vec::new() };
-                    let session = SessionOptions { budget: Budget::Time(budget), checkpoints: Checkpoints::PowersOfTwo, reference: Some(&scene.reference), resume: None, save: None };
+                    let session = SessionOptions { budget: Budget::Time(budget), checkpoints: Checkpoints::PowersOfTwo, reference: Some(&scene.reference), resume: None, save: None, continued: false };
                     let rendered = render_with(tracer, &scene.scene, &settings, &session, &mut hooks).with_context(|| format!("{} {}", entry.name, kind.label()))?;
                     report::write_run_images(&options.out, &entry.name, &kind, &rendered.image, &scene.reference.image)?;
                     let last = hooks.rows.last().map_or(String::new(), |r| format!("NI {} relMSE {:.4e} SSIM {:.3}{pilot_note}", r.iteration, r.rel_mse, r.ssim));
