@@ -850,3 +850,17 @@ fn environment_emitters_load() {
     let (_, msg) = expect_err(load_in_tempdir(&black, &[("sky.png", png_rgb(4, 2, &[[0, 0, 0]; 8]))]));
     assert!(msg.contains("sky.png") && msg.contains("black"), "{msg}");
 }
+
+/// `thindielectric` loads as a thin sheet of relative index `int_ior / ext_ior` whose
+/// reflectance is Mitsuba's `2R/(1 + R)`.
+#[test]
+fn thin_dielectric_loads() {
+    use arpa::core::render::scene::thin_sheet_reflectance;
+    let xml = scene_xml(r#"    <shape type="rectangle"><bsdf type="thindielectric"><float name="int_ior" value="1.5"/><rgb name="specular_transmittance" value="0.9"/></bsdf></shape>"#);
+    let s = load_in_tempdir(&xml, &[]).unwrap();
+    let m = s.scene.materials[s.scene.meshes[0].material as usize];
+    assert!(matches!(m, Material::ThinDielectric { ior, transmittance } if (ior - 1.5 / 1.000277).abs() < 1e-6 && transmittance == Vec3::splat(0.9)), "{m:?}");
+    // Normal incidence: R = ((n - 1)/(n + 1))² = 0.04 for n = 1.5, R' = 0.08/1.04.
+    assert!((thin_sheet_reflectance(1.0, 1.5) - 0.08 / 1.04).abs() < 1e-12);
+    assert_eq!(thin_sheet_reflectance(-1.0, 1.5), thin_sheet_reflectance(1.0, 1.5));
+}

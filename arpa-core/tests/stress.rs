@@ -2715,6 +2715,7 @@ fn check_scene_input((material, poison): (usize, Poison)) -> Outcome {
                     3 => *ior = x,
                     _ => *roughness = x,
                 },
+                Material::ThinDielectric { ior, transmittance } => if f < 3 { transmittance[f] = x } else { *ior = x },
             }
             Some(|e| matches!(e, SceneError::BadMaterial { .. }))
         }

@@ -234,6 +234,14 @@ fn arpa_camera_trace(pixel: u32) -> ArpaQueryRecord {
             throughput *= s.color;
             dir = arpa_glam_normalize_or(arpa_reflect_direction(dir, n), dir);
             start = arpa_ray_start_leaving(s);
+        } else if s.kind == ARPA_SCATTER_THIN {
+            // A thin sheet reflects with its total reflectance, else passes straight on.
+            if arpa_rng_next_below(&rng, arpa_thin_sheet_reflectance(dot(dir, n), s.ior)) {
+                dir = arpa_glam_normalize_or(arpa_reflect_direction(dir, n), dir);
+            } else {
+                throughput *= s.color;
+            }
+            start = arpa_ray_start_leaving(s);
         } else {
             let fresnel = arpa_dielectric_reflectance(dot(dir, n), s.ior);
             // The core's `rng.next_f64() < fresnel`, exactly (rng.wgsl).

@@ -401,11 +401,20 @@ fn photon_trace(index: u32) -> u32 {
             if nd.ok {
                 n = nd.nd.n;
             }
-            let fresnel = arpa_dielectric_reflectance(dot(d, n), s.ior);
+            let thin = s.kind == ARPA_SCATTER_THIN;
+            var fresnel = arpa_dielectric_reflectance(dot(d, n), s.ior);
+            if thin {
+                fresnel = arpa_thin_sheet_reflectance(dot(d, n), s.ior);
+            }
             if arpa_rng_next_below(&rng, fresnel) {
                 let r = photon_reflect(at, valid, nd, s.geometric_normal);
                 ray = r.ray;
                 valid = r.valid;
+                start = arpa_ray_start_leaving(s);
+            } else if thin {
+                // Through a thin sheet: straight on, the differential as it arrived.
+                flux *= s.color;
+                ray = at;
                 start = arpa_ray_start_leaving(s);
             } else {
                 flux *= s.color;

@@ -30,6 +30,17 @@
 const ARPA_SCATTER_DIFFUSE: u32 = 0u;
 const ARPA_SCATTER_MIRROR: u32 = 1u;
 const ARPA_SCATTER_REFRACTIVE: u32 = 2u;
+const ARPA_SCATTER_THIN: u32 = 3u;
+
+// scene::thin_sheet_reflectance: a thin sheet's total reflectance 2R/(1 + R) for light at
+// cos_i to its normal (either side).
+fn arpa_thin_sheet_reflectance(cos_i: f32, ior: f32) -> f32 {
+    let r = arpa_dielectric_reflectance(-abs(cos_i), ior);
+    if r < 1.0 {
+        return 2.0 * r / (1.0 + r);
+    }
+    return 1.0;
+}
 
 // Ray extent standing for the core's unbounded rays (t_max = infinity): the largest
 // finite f32 (metres).

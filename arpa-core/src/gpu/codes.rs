@@ -40,6 +40,8 @@ pub const SCATTER_DIFFUSE: u32 = 0;
 pub const SCATTER_MIRROR: u32 = 1;
 /// `ARPA_SCATTER_REFRACTIVE` ([`crate::render::scene::Scattering::Refractive`]).
 pub const SCATTER_REFRACTIVE: u32 = 2;
+/// `ARPA_SCATTER_THIN` ([`crate::render::scene::Scattering::Thin`]).
+pub const SCATTER_THIN: u32 = 3;
 
 /// `ARPA_TRIANGLE_SHADED` of `scene.wgsl`: the triangle's vertex normals differ from its
 /// face normal ([`crate::render::prepared_scene::PreparedScene::has_shading_normals`]).

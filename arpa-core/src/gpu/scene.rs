@@ -9,7 +9,7 @@ use alloc::vec::Vec;
 use glam::{DVec3, Vec3};
 
 use crate::emit::emission::Light;
-use crate::gpu::codes::{SCATTER_DIFFUSE, SCATTER_MIRROR, SCATTER_REFRACTIVE, TRIANGLE_NORMALS, TRIANGLE_SHADED};
+use crate::gpu::codes::{SCATTER_DIFFUSE, SCATTER_MIRROR, SCATTER_REFRACTIVE, SCATTER_THIN, TRIANGLE_NORMALS, TRIANGLE_SHADED};
 use crate::gpu::layout::{SceneEmitter, SceneInfo, SceneMesh, SceneTriangle};
 use crate::gpu::texture::{TextureWords, TooManyTexels, NO_TEXTURE};
 use crate::base::morton::morton_code;
@@ -85,6 +85,7 @@ impl SceneTables {
                 Scattering::Diffuse(c) => (SCATTER_DIFFUSE, c, 1.0),
                 Scattering::Mirror(c) => (SCATTER_MIRROR, c, 1.0),
                 Scattering::Refractive(ior, c) => (SCATTER_REFRACTIVE, c, ior),
+                Scattering::Thin(ior, c) => (SCATTER_THIN, c, ior),
             };
             let first_triangle = u32::try_from(triangles.len()).map_err(|_| SceneTablesError::TooManyTriangles)?;
             let maps = s.textures.maps(m.material);

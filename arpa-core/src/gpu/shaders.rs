@@ -186,7 +186,7 @@ pub const ENVIRONMENT: WgslFile = WgslFile {
 /// (`arpa_scene_intersect_masked`, `arpa_scene_occluded_masked`). The backend's glue adds binding 0 (its
 /// acceleration structure over the triangles) and defines `arpa_scene_intersect` and
 /// `arpa_scene_occluded` with a `t_min` (the file states their contract).
-pub const SCENE: WgslFile = WgslFile { name: "path/scene.wgsl", source: include_str!("../../shaders/path/scene.wgsl"), deps: &[&MATH, &RNG, &RECORDS, &TEXTURE] };
+pub const SCENE: WgslFile = WgslFile { name: "path/scene.wgsl", source: include_str!("../../shaders/path/scene.wgsl"), deps: &[&MATH, &RNG, &FRESNEL, &RECORDS, &TEXTURE] };
 
 /// `path/camera_pass.wgsl`: per pixel `arpa_camera_trace` (group 1:
 /// [`crate::gpu::layout::CameraParams`] and the query records); the backend's entry point

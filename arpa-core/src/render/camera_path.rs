@@ -73,6 +73,17 @@ pub fn trace_camera_path(scene: &PreparedScene, caster: &impl RayCaster, setting
                 dir = reflect_direction(dir, n).normalize_or(dir);
                 start = s.leaving();
             }
+            // A thin sheet reflects with its total reflectance, else passes straight on
+            // (the same medium on both sides: no radiance scaling).
+            Scattering::Thin(ior, transmittance) => {
+                let n = shading_normal(scene, &s);
+                if rng.next_f64() < crate::render::scene::thin_sheet_reflectance(dir.dot(n), ior as f64) {
+                    dir = reflect_direction(dir, n).normalize_or(dir);
+                } else {
+                    throughput *= transmittance.as_dvec3();
+                }
+                start = s.leaving();
+            }
             Scattering::Refractive(ior, transmittance) => {
                 let ior = ior as f64;
                 let n = shading_normal(scene, &s);

@@ -418,17 +418,20 @@ impl PhotonWalk {
             // Mirrors and dielectrics share the transfer, the shading normal's derivative
             // and the reflection: one inlined copy of each in the compiled pass instead of
             // two, which keeps the CPU backend's photon loop smaller.
-            Scattering::Mirror(_) | Scattering::Refractive(..) => {
+            Scattering::Mirror(_) | Scattering::Refractive(..) | Scattering::Thin(..) => {
                 let ray_at_hit = st.at_hit(&s);
                 st.classifier.record(SurfaceInteraction::Specular);
                 let nd = scene.shading_normal(&s, ray_at_hit.dp_du, ray_at_hit.dp_dv);
                 let n = nd.map(|n| n.n).unwrap_or(s.geometric_normal);
                 // A mirror always reflects; a dielectric reflects with the Fresnel
                 // probability and otherwise refracts.
-                let refraction = if let Scattering::Refractive(ior, transmittance) = s.scattering {
+                let refraction = if let Scattering::Refractive(ior, transmittance) | Scattering::Thin(ior, transmittance) = s.scattering {
                     let ior = ior as f64;
-                    let fresnel = dielectric_reflectance(d.dot(n), ior);
-                    (!(rng.next_f64() < fresnel)).then_some((ior, transmittance))
+                    let reflectance = match s.scattering {
+                        Scattering::Thin(..) => crate::render::scene::thin_sheet_reflectance(d.dot(n), ior),
+                        _ => dielectric_reflectance(d.dot(n), ior),
+                    };
+                    (!(rng.next_f64() < reflectance)).then_some((ior, transmittance))
                 } else {
                     if let Scattering::Mirror(reflectance) = s.scattering {
                         st.flux *= reflectance.as_dvec3();
@@ -438,6 +441,12 @@ impl PhotonWalk {
                 match refraction {
                     None => {
                         st.reflect(&ray_at_hit, nd, n);
+                        self.start = s.leaving();
+                    }
+                    // Through a thin sheet: straight on, the differential as it arrived.
+                    Some((_, transmittance)) if matches!(s.scattering, Scattering::Thin(..)) => {
+                        st.flux *= transmittance.as_dvec3();
+                        st.ray = ray_at_hit;
                         self.start = s.leaving();
                     }
                     Some((ior, transmittance)) => {

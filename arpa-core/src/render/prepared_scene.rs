@@ -224,7 +224,7 @@ impl PreparedScene {
                 })
             })
             .collect();
-        let is_specular = |m: &crate::render::scene::TriangleMesh| matches!(scattering.get(m.material as usize), Some(Scattering::Mirror(_) | Scattering::Refractive(..)));
+        let is_specular = |m: &crate::render::scene::TriangleMesh| matches!(scattering.get(m.material as usize), Some(Scattering::Mirror(_) | Scattering::Refractive(..) | Scattering::Thin(..)));
         let all: Vec<[DVec3; 3]> = triangles.iter().flatten().map(TriangleGeometry::vertices).collect();
         let specular: Vec<[DVec3; 3]> = scene.meshes.iter().zip(&triangles).filter(|(m, _)| is_specular(m)).flat_map(|(_, t)| t.iter().map(TriangleGeometry::vertices)).collect();
         let all_groups: Vec<usize> = scene.meshes.iter().map(|m| m.indices.len()).collect();
@@ -355,6 +355,7 @@ impl PreparedScene {
                 Scattering::Diffuse(a) => Scattering::Diffuse(a * t),
                 Scattering::Mirror(r) => Scattering::Mirror(r * t),
                 Scattering::Refractive(ior, tr) => Scattering::Refractive(ior, tr * t),
+                Scattering::Thin(ior, tr) => Scattering::Thin(ior, tr * t),
             };
         }
         SurfacePoint {

@@ -45,6 +45,16 @@ pub enum Material {
         /// Roughness α (0 = smooth).
         roughness: f32,
     },
+    /// An infinitely thin dielectric sheet (Mitsuba's `thindielectric`: a window pane):
+    /// reflects with the sheet's total reflectance `R' = 2R/(1 + R)` over its two faces and
+    /// inter-reflections (`R` the interface's Fresnel reflectance), otherwise passes
+    /// straight through, scaled by `transmittance`.
+    ThinDielectric {
+        /// Index of the sheet over that of its surroundings.
+        ior: f32,
+        /// Multiplier of transmitted light (linear RGB, ≤ 1).
+        transmittance: Vec3,
+    },
 }
 
 /// How a material scatters light, after the roughness rule.
@@ -56,6 +66,17 @@ pub enum Scattering {
     Mirror(Vec3),
     /// Smooth dielectric: relative IOR (inside/outside) and transmittance.
     Refractive(f32, Vec3),
+    /// Thin dielectric sheet: relative IOR and transmittance ([`Material::ThinDielectric`]).
+    Thin(f32, Vec3),
+}
+
+/// The reflectance `R' = 2R/(1 + R)` of a thin dielectric sheet of relative index `ior` for
+/// light arriving at `cos_i` to its normal (either side): the interface's Fresnel `R` summed
+/// over the sheet's two faces and its inter-reflections (Mitsuba's `thindielectric`).
+#[inline]
+pub fn thin_sheet_reflectance(cos_i: f64, ior: f64) -> f64 {
+    let r = crate::propagate::fresnel::dielectric_reflectance(-cos_i.abs(), ior);
+    if r < 1.0 { 2.0 * r / (1.0 + r) } else { 1.0 }
 }
 
 impl Material {
@@ -69,6 +90,7 @@ impl Material {
             Material::Dielectric { ior, transmittance, roughness } => {
                 if roughness >= cutoff { Scattering::Diffuse(transmittance) } else { Scattering::Refractive(ior, transmittance) }
             }
+            Material::ThinDielectric { ior, transmittance } => Scattering::Thin(ior, transmittance),
         }
     }
 }
@@ -408,6 +430,9 @@ impl Scene {
                 }
                 Material::Dielectric { ior, transmittance, roughness } if !(ior > 0.0 && ior.is_finite() && finite_rgb_in(transmittance, 0.0, 1.0) && roughness >= 0.0 && roughness.is_finite()) => {
                     Some("dielectric IOR not finite and positive, transmittance outside [0, 1] or roughness negative or not finite")
+                }
+                Material::ThinDielectric { ior, transmittance } if !(ior > 0.0 && ior.is_finite() && finite_rgb_in(transmittance, 0.0, 1.0)) => {
+                    Some("thin dielectric IOR not finite and positive or transmittance outside [0, 1]")
                 }
                 _ => None,
             };

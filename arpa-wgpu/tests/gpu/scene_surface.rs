@@ -149,6 +149,7 @@ fn surfaces_match_prepared_scene() {
             Scattering::Diffuse(c) => (0, c, None),
             Scattering::Mirror(c) => (1, c, None),
             Scattering::Refractive(ior, c) => (2, c, Some(ior)),
+            Scattering::Thin(ior, c) => (3, c, Some(ior)),
         };
         kinds[kind as usize] += 1;
         assert_eq!(g[17], kind, "kind at {hit:?}");

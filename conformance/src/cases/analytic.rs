@@ -457,3 +457,90 @@ pub fn mirror_caustic_arpa(t: &mut dyn DynTracer) -> CaseResult {
 pub fn mirror_caustic_rtpm(t: &mut dyn DynTracer) -> CaseResult {
     super::common::with_and_without_projection(t, |t| mirror_caustic(t, Method::Rtpm))
 }
+
+/// Iterations of [`thin_sheet`].
+const THIN_ITERATIONS: u32 = 8;
+
+/// Height of the thin sheet in [`thin_sheet`] (m).
+const THIN_SHEET_HEIGHT: f32 = 0.5;
+
+/// A thin dielectric sheet (`Material::ThinDielectric`, index 1.5) at height 0.5 between
+/// the plane scene's point light (height 1) and its plane, photons only. A photon passes
+/// the sheet straight with probability `T(θ) = 1 − 2R/(1 + R)` (`R` the Fresnel reflectance
+/// of one face, [`super::optics::fresnel`]), so the plane's irradiance is
+/// `T(θ) I cos θ / d²`, θ the angle of the light at the query point. The camera looks
+/// through the sheet too, so its records carry its own pass-or-reflect choice: each ring's
+/// mean radiance must equal the mean over its pixels' query records of
+/// `weight · T(θ) I cos θ / d²` within [`PLANE_TOL_PERCENT`].
+fn thin_sheet(t: &mut dyn DynTracer, method: Method) -> CaseResult {
+    let mut scene = scenes::lit_plane(PLANE_SIZE);
+    scene.materials.push(arpa_core::render::scene::Material::ThinDielectric { ior: 1.5, transmittance: Vec3::ONE });
+    scene.meshes.push(scenes::quad("sheet", Vec3::new(-10.0, THIN_SHEET_HEIGHT, -10.0), Vec3::new(20.0, 0.0, 0.0), Vec3::new(0.0, 0.0, 20.0), 1));
+    let settings = RenderSettings {
+        method,
+        photons_per_iteration: 4 * PLANE_PHOTONS,
+        seed: 7,
+        // Sheet and plane: a photon ends where it is stored, before the light the plane
+        // reflects comes back off the sheet's underside (a few per cent more, not in the
+        // closed form).
+        max_depth: 2,
+        direct_lighting: false,
+        emission: super::common::emission(),
+        // The photons through the sheet are caustic ones, each tiling 1/N of the light's
+        // sphere, and the sheet's random reflections leave holes in the tiling that the
+        // plane case has none of: wider footprints (S_c = 4, one bandwidth for the image)
+        // and 4 × the photons over 8 iterations keep the ring means' noise inside the
+        // tolerance with projection off too.
+        smoothing: arpa_core::propagate::classify::Smoothing { caustic: 4.0, ..Default::default() },
+        bandwidth: arpa_core::gather::scales::Bandwidth::Global,
+        ..RenderSettings::default()
+    };
+    t.upload_scene(&scene, &settings).ctx("upload_scene")?;
+    let pixels = (PLANE_SIZE * PLANE_SIZE) as usize;
+    let mut expected = vec![0.0f64; pixels];
+    let mut ring = vec![None; pixels];
+    let mut passed = 0usize;
+    for_each_iteration(t, THIN_ITERATIONS, pixels, |it, records| {
+        for r in records {
+            let p = r.pixel as usize;
+            if r.valid == 1 {
+                passed += 1;
+                let q = Vec3::from_array(r.position).as_dvec3();
+                let to_light = DVec3::new(0.0, PLANE_LIGHT_HEIGHT, 0.0) - q;
+                let d = to_light.length();
+                let cos = PLANE_LIGHT_HEIGHT / d;
+                let fr = super::optics::fresnel(1.0, 1.5, cos.acos());
+                let transmitted = 1.0 - 2.0 * fr / (1.0 + fr);
+                expected[p] += r.weight[0] as f64 * transmitted * PLANE_INTENSITY * cos / (d * d) / THIN_ITERATIONS as f64;
+            }
+            if it == 0 {
+                let (x, z) = (r.pixel % PLANE_SIZE, r.pixel / PLANE_SIZE);
+                let (u, v) = ((x as f64 + 0.5) / PLANE_SIZE as f64 - 0.5, (z as f64 + 0.5) / PLANE_SIZE as f64 - 0.5);
+                // The camera sees [-1.5, 1.5]² of the plane: rings by the pixel centre's point.
+                ring[p] = Some((3.0 * u.hypot(v) / 0.5) as usize).filter(|&k| k < 3);
+            }
+        }
+        Ok(())
+    })?;
+    // Most camera rays pass the sheet (R' is about 8 % near normal incidence).
+    if passed < pixels * THIN_ITERATIONS as usize * 3 / 4 {
+        return Err(format!("only {passed} of {} camera rays passed the sheet", pixels * THIN_ITERATIONS as usize));
+    }
+    let image = t.read_image().ctx("read_image")?;
+    check_grey(&image)?;
+    let mut errors = Vec::new();
+    for k in 0..3 {
+        let members: Vec<usize> = (0..pixels).filter(|&i| ring[i] == Some(k)).collect();
+        let est = members.iter().map(|&i| image.pixels[i].x as f64).sum::<f64>();
+        let ana = members.iter().map(|&i| expected[i]).sum::<f64>();
+        errors.push((est / ana - 1.0) * 100.0);
+    }
+    let list = errors.iter().map(|e| format!("{e:+.2}%")).collect::<Vec<_>>().join(" / ");
+    let msg = format!("ring means r<0.5 / <1 / <1.5 through the sheet: {list} (tol ±{PLANE_TOL_PERCENT}%, {passed} of {} camera rays passed it)", pixels * THIN_ITERATIONS as usize);
+    if errors.iter().all(|e| e.abs() < PLANE_TOL_PERCENT) { Ok(msg) } else { Err(msg) }
+}
+
+/// The thin-sheet case with ARPA footprints, projection maps on and off.
+pub fn thin_sheet_arpa(t: &mut dyn DynTracer) -> CaseResult {
+    super::common::with_and_without_projection(t, |t| thin_sheet(t, Method::Arpa))
+}

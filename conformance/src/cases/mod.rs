@@ -96,6 +96,12 @@ pub fn all() -> Vec<Case> {
             run: CaseBody::Tracer(bandwidth::shadow_edge_case),
         },
         Case {
+            id: "analytic-thin-dielectric-arpa",
+            title: "point light, thin dielectric sheet, plane: the sheet passes T = 1 − 2R/(1 + R) straight (photons and camera rays)",
+            needs: None,
+            run: CaseBody::Tracer(analytic::thin_sheet_arpa),
+        },
+        Case {
             id: "analytic-plane-rtpm",
             title: "point light over plane, photons only (rtpm)",
             needs: None,

@@ -1,5 +1,5 @@
 //! Bsdf plugins: each Mitsuba bsdf mapped onto the materials the photon mapper models
-//! (diffuse, perfect mirror, smooth dielectric; rough ones by the roughness cut-off).
+//! (diffuse, perfect mirror, smooth dielectric, thin dielectric sheet; rough ones by the roughness cut-off).
 
 use super::loader::{num, Bsdf, Loader, Props, R};
 use super::super::spectrum::SpectrumUse;
@@ -145,6 +145,22 @@ impl Loader<'_> {
                 }
                 Material::Dielectric { ior, transmittance: transmittance.as_vec3(), roughness: roughness as f32 }
             }
+            "thindielectric" => {
+                let int = self.ior(&p, "int_ior", 1.5046)?;
+                let ext = self.ior(&p, "ext_ior", 1.000277)?;
+                let (transmittance, texture) = self.fraction_or_texture(&p, "specular_transmittance", DVec3::ONE)?;
+                maps.color = texture;
+                if let Some(r) = self.rgb(&p, "specular_reflectance", SpectrumUse::Reflectance)?
+                    && r != DVec3::ONE
+                {
+                    self.warn(n.line, "thindielectric specular_reflectance other than 1 is not supported and was ignored");
+                }
+                let ior = (int / ext) as f32;
+                if !(ior.is_finite() && ior > 0.0) {
+                    return Err(self.invalid(n.line, format!("int_ior / ext_ior = {} / {} is not a usable relative index of refraction (not a positive single-precision number)", num(int), num(ext))));
+                }
+                Material::ThinDielectric { ior, transmittance: transmittance.as_vec3() }
+            }
             "conductor" | "roughconductor" => {
                 let (specular, texture) = self.fraction_or_texture(&p, "specular_reflectance", DVec3::ONE)?;
                 maps.color = texture;
@@ -246,7 +262,7 @@ impl Loader<'_> {
                 self.warn(n.line, format!("principled (metallic {}, spec_trans {}, roughness {}) is rendered as {what}{rough}", num(metallic), num(spec_trans), num(roughness)));
                 material
             }
-            _ => return Err(self.unsupported(n, "supported bsdfs: diffuse, dielectric, roughdielectric, conductor, roughconductor, plastic, roughplastic, principled, twosided, mask")),
+            _ => return Err(self.unsupported(n, "supported bsdfs: diffuse, dielectric, roughdielectric, thindielectric, conductor, roughconductor, plastic, roughplastic, principled, twosided, mask")),
         };
         self.objects(&p, &["texture"]).iter().try_for_each(|t| Err(self.unsupported(t, "a texture needs the name of the parameter it gives")))?;
         self.finish(&p);

@@ -95,12 +95,13 @@ impl Loader<'_> {
     fn envmap(&mut self, n: &Node, p: &Props<'_>) -> R<Light> {
         let file = self.string(p, "filename")?.ok_or_else(|| self.invalid(n.line, format!("{} lacks <string name=\"filename\">", n.describe())))?;
         let scale = self.float(p, "scale")?.unwrap_or(1.0);
-        if !(scale > 0.0) || !(scale as f32).is_finite() {
+        if scale <= 0.0 || !(scale as f32).is_finite() {
             return Err(self.invalid(self.line_of(p, "scale"), format!("envmap scale {} is not a finite positive number", super::loader::num(scale))));
         }
         let m = self.transform(p, "to_world")?.unwrap_or(DMat4::IDENTITY);
         let to_world = DMat3::from_mat4(m);
-        if !(to_world.determinant().abs() > 1e-12) {
+        let det = to_world.determinant().abs();
+        if det.is_nan() || det <= 1e-12 {
             return Err(self.invalid(self.line_of(p, "to_world"), "the envmap's to_world is singular"));
         }
         // Importance-sampling resolution and mipmapping: nothing for a photon mapper.
