@@ -3,6 +3,7 @@
 # the region means of bench/scenes/features/README.md against each scene's Mitsuba reference,
 # as the table of bench/results/features.md:
 #   bash scripts/feature-regions.sh [SECONDS] [BACKEND...]     (default: 20 s, cpu wgpu vk)
+# SCENES="envmap mask" picks scenes (default: all of them).
 # Needs a release build (cargo build --release) and, for the GPU backends, a Vulkan device
 # (lavapipe is enough). Images go to ${OUT:-target/feature-regions}.
 set -euo pipefail
@@ -25,7 +26,7 @@ regions() {
 
 echo "| scene | backend | region | what | Mitsuba Y | arpa Y | ratio Y (R, G, B) |"
 echo "|---|---|---|---|---|---|---|"
-for scene in checkerboard bitmap mask serialized spectrum shapes envmap; do
+for scene in ${SCENES:-checkerboard bitmap mask serialized spectrum shapes thindielectric envmap}; do
     ref=$(ls "$features/$scene"/reference/*.exr)
     for backend in "${backends[@]}"; do
         img="$out/$scene-$backend"
