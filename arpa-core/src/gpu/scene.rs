@@ -167,7 +167,7 @@ impl SceneTables {
                     Light::Directional(l) => SceneEmitter { p0: f3(l.direction.normalize_or(DVec3::Z)), color: f3(l.irradiance), ..e },
                     Light::Triangle(l) => SceneEmitter { p0: f3(l.p[0]), p1: f3(l.p[1]), p2: f3(l.p[2]), color: f3(l.radiance), ..e },
                     Light::Quad(l) => SceneEmitter { p0: f3(l.origin), p1: f3(l.edge_u), p2: f3(l.edge_v), color: f3(l.radiance), ..e },
-                    Light::Environment(l) => SceneEmitter { color: f3(l.radiance), p0: f3(l.mean), ..e },
+                    Light::Environment(l) => SceneEmitter { color: f3(l.radiance), ..e },
                 }
             })
             .collect();

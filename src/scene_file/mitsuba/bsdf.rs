@@ -124,42 +124,18 @@ impl Loader<'_> {
                 Material::Diffuse { albedo: albedo.as_vec3() }
             }
             "dielectric" | "roughdielectric" => {
-                let int = self.ior(&p, "int_ior", 1.5046)?;
-                let ext = self.ior(&p, "ext_ior", 1.000277)?;
-                let (transmittance, texture) = self.fraction_or_texture(&p, "specular_transmittance", DVec3::ONE)?;
-                maps.color = texture;
-                if let Some(r) = self.rgb(&p, "specular_reflectance", SpectrumUse::Reflectance)?
-                    && r != DVec3::ONE
-                {
-                    self.warn(n.line, "dielectric specular_reflectance other than 1 is not supported and was ignored");
-                }
+                let (ior, transmittance) = self.dielectric_interface(&p, n, "dielectric", &mut maps)?;
                 let mut roughness = 0.0;
                 if ty == "roughdielectric" {
                     roughness = self.alpha(&p)?;
                     let _ = self.string(&p, "distribution")?;
                     self.warn(n.line, format!("roughdielectric: {}", rough_note(roughness)));
                 }
-                let ior = (int / ext) as f32;
-                if !(ior.is_finite() && ior > 0.0) {
-                    return Err(self.invalid(n.line, format!("int_ior / ext_ior = {} / {} is not a usable relative index of refraction (not a positive single-precision number)", num(int), num(ext))));
-                }
-                Material::Dielectric { ior, transmittance: transmittance.as_vec3(), roughness: roughness as f32 }
+                Material::Dielectric { ior, transmittance, roughness: roughness as f32 }
             }
             "thindielectric" => {
-                let int = self.ior(&p, "int_ior", 1.5046)?;
-                let ext = self.ior(&p, "ext_ior", 1.000277)?;
-                let (transmittance, texture) = self.fraction_or_texture(&p, "specular_transmittance", DVec3::ONE)?;
-                maps.color = texture;
-                if let Some(r) = self.rgb(&p, "specular_reflectance", SpectrumUse::Reflectance)?
-                    && r != DVec3::ONE
-                {
-                    self.warn(n.line, "thindielectric specular_reflectance other than 1 is not supported and was ignored");
-                }
-                let ior = (int / ext) as f32;
-                if !(ior.is_finite() && ior > 0.0) {
-                    return Err(self.invalid(n.line, format!("int_ior / ext_ior = {} / {} is not a usable relative index of refraction (not a positive single-precision number)", num(int), num(ext))));
-                }
-                Material::ThinDielectric { ior, transmittance: transmittance.as_vec3() }
+                let (ior, transmittance) = self.dielectric_interface(&p, n, "thindielectric", &mut maps)?;
+                Material::ThinDielectric { ior, transmittance }
             }
             "conductor" | "roughconductor" => {
                 let (specular, texture) = self.fraction_or_texture(&p, "specular_reflectance", DVec3::ONE)?;
@@ -284,6 +260,27 @@ impl Loader<'_> {
         }
         drop(warnings);
         Ok(b)
+    }
+
+    /// What `dielectric` and `thindielectric` share: the relative index `int_ior / ext_ior`
+    /// (Mitsuba's defaults; an error where it is not a positive `f32`) and
+    /// `specular_transmittance` (its texture into `maps.color`), with a warning for a
+    /// `specular_reflectance` other than 1 (`kind` names the plugin in it).
+    fn dielectric_interface(&mut self, p: &Props<'_>, n: &Node, kind: &str, maps: &mut MaterialMaps) -> R<(f32, Vec3)> {
+        let int = self.ior(p, "int_ior", 1.5046)?;
+        let ext = self.ior(p, "ext_ior", 1.000277)?;
+        let (transmittance, texture) = self.fraction_or_texture(p, "specular_transmittance", DVec3::ONE)?;
+        maps.color = texture;
+        if let Some(r) = self.rgb(p, "specular_reflectance", SpectrumUse::Reflectance)?
+            && r != DVec3::ONE
+        {
+            self.warn(n.line, format!("{kind} specular_reflectance other than 1 is not supported and was ignored"));
+        }
+        let ior = (int / ext) as f32;
+        if !(ior.is_finite() && ior > 0.0) {
+            return Err(self.invalid(n.line, format!("int_ior / ext_ior = {} / {} is not a usable relative index of refraction (not a positive single-precision number)", num(int), num(ext))));
+        }
+        Ok((ior, transmittance.as_vec3()))
     }
 
     pub(super) fn ior(&self, p: &Props<'_>, name: &str, default: f64) -> R<f64> {
