@@ -6,7 +6,7 @@
 //! |---|---|
 //! | the default scene's node tree | every node's world matrix (parent × local); each mesh primitive of each node is one [`TriangleMesh`] (instances are flattened), positions and normals transformed in `f64`, winding reversed under a mirroring matrix (as the spec defines front faces) |
 //! | primitives | triangles only (other modes are skipped with a warning); `u8`/`u16`/`u32` indices or none; `NORMAL` (else face normals, as the spec asks), `TEXCOORD_0` |
-//! | `pbrMetallicRoughness` | `baseColorFactor` × `baseColorTexture` (sRGB) as the colour; `KHR_materials_transmission` ≥ ½ a dielectric of `KHR_materials_ior` (default 1.5), else `metallicFactor` ≥ ½ a conductor, else diffuse, with `alpha = roughnessFactor²` through the roughness cut-off, as the XML loader's `principled`; metallic-roughness and normal textures are ignored (warning) |
+//! | `pbrMetallicRoughness` | `baseColorFactor` × `baseColorTexture` (sRGB) as the colour; `KHR_materials_transmission` ≥ ½ a dielectric of `KHR_materials_ior` (default 1.5), else `metallicFactor` ≥ ½ a conductor, else diffuse, with `alpha = roughnessFactor²` through the roughness cut-off, as the XML loader's `principled`; a `metallicRoughnessTexture` multiplies the factors by its means (blue and green channels; warning: one scattering kind per material); `normalTexture` (with `scale`) as a tangent-space normal map, its bitangent following `TEXCOORD_0`'s `v` (MikkTSpace's sign; no `TANGENT` attribute is read) |
 //! | `alphaMode` | `MASK`: opacity 1 where the base colour's alpha (texture × factor) reaches `alphaCutoff` (default ½), else 0, per texel; `BLEND`: that alpha as a stochastic opacity; `OPAQUE`: none |
 //! | `emissiveFactor` × `emissiveTexture` × `KHR_materials_emissive_strength` | an area light of that radiance (W/(m²·sr), taken as it is) |
 //! | `KHR_lights_punctual` | point (`intensity` cd → W/sr), spot (cones: `outerConeAngle` the cut-off, `innerConeAngle` the full-intensity width, smoothstep falloff), directional (lux → W/m²), at 683 lm/W, times `color`, times [`GltfOptions::light_scale`]; lights point along their node's −z; `range` is ignored |
@@ -24,7 +24,7 @@ use super::error::{SceneFileError, Warning};
 use super::loaded::{FovAxis, LoadedScene};
 use super::mesh::MeshReader;
 use arpa_core::emit::emission::{DirectionalLight, Light, PointLight, SpotFalloff, SpotLight};
-use arpa_core::render::scene::{Camera, Material, MaterialMaps, Opacity, Scene, SceneTextures, TriangleMesh};
+use arpa_core::render::scene::{Camera, Handedness, Material, MaterialMaps, NormalPerturbation, Opacity, Scene, SceneTextures, TriangleMesh};
 use arpa_core::render::texture::{Bitmap, Texels, Texture, TextureFilter, TextureId, TextureWrap, UvTransform};
 use glam::{DMat3, DMat4, DVec3, Vec2, Vec3};
 use std::collections::HashMap;
@@ -201,6 +201,15 @@ impl Loader<'_> {
         Ok(id)
     }
 
+    /// A texture read as stored (`raw`: 8-bit values as `c/255`), e.g. a normal map.
+    fn raw_texture(&mut self, texture: gltf::Texture<'_>, transform: Option<gltf::texture::TextureTransform<'_>>) -> R<TextureId> {
+        let (bytes, path) = self.image_bytes(&texture.source())?;
+        let d = bitmap::decode(&bytes, &path, true)?;
+        let (filter, wrap, to_uv) = self.sampling(&texture, transform);
+        self.textures.push(Texture::Bitmap(Bitmap { width: d.width, height: d.height, texels: d.texels, filter, wrap, to_uv }));
+        Ok((self.textures.len() - 1) as TextureId)
+    }
+
     /// The opacity of a material's alpha: per texel, `map(alpha · factor)`.
     fn alpha_texture(&mut self, texture: gltf::Texture<'_>, transform: Option<gltf::texture::TextureTransform<'_>>, factor: f32, map: impl Fn(f32) -> f32) -> R<TextureId> {
         let (bytes, path) = self.image_bytes(&texture.source())?;
@@ -245,13 +254,28 @@ impl Loader<'_> {
                 });
             }
         }
-        if m.normal_texture().is_some() {
-            self.warn(format!("{name}: its normal texture is ignored (shading uses the mesh normals)"));
+        if let Some(info) = m.normal_texture() {
+            if info.tex_coord() != 0 {
+                self.warn(format!("{name}: normalTexture reads TEXCOORD_{}; TEXCOORD_0 is used", info.tex_coord()));
+            }
+            let scale = info.scale();
+            if !scale.is_finite() {
+                return Err(self.err(format!("{name}: normalTexture scale {scale} is not finite")));
+            }
+            let texture = self.raw_texture(info.texture(), None)?;
+            maps.normal = Some(NormalPerturbation::NormalMap { texture, scale, handedness: Handedness::FollowTextureCoordinates });
         }
-        if pbr.metallic_roughness_texture().is_some() {
-            self.warn(format!("{name}: its metallicRoughnessTexture is ignored (metallicFactor and roughnessFactor are used)"));
+        let (mut metallic, mut roughness) = (pbr.metallic_factor().clamp(0.0, 1.0), pbr.roughness_factor().clamp(0.0, 1.0));
+        if let Some(info) = pbr.metallic_roughness_texture() {
+            // One scattering kind per material: the texture's means pick it.
+            let (bytes, path) = self.image_bytes(&info.texture().source())?;
+            let d = bitmap::decode(&bytes, &path, true)?;
+            let n = d.texels.len().max(1) as f64;
+            let (g, b) = (0..d.texels.len()).map(|i| d.texels.linear(i)).fold((0.0, 0.0), |(g, b), t| (g + t.y as f64, b + t.z as f64));
+            roughness = (roughness as f64 * g / n).clamp(0.0, 1.0) as f32;
+            metallic = (metallic as f64 * b / n).clamp(0.0, 1.0) as f32;
+            self.warn(format!("{name}: metallicRoughnessTexture is read by its means (metallic {metallic:.3}, roughness {roughness:.3}): one scattering kind per material"));
         }
-        let (metallic, roughness) = (pbr.metallic_factor().clamp(0.0, 1.0), pbr.roughness_factor().clamp(0.0, 1.0));
         let alpha = roughness * roughness;
         let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor());
         let material = if transmission >= 0.5 {

@@ -199,7 +199,9 @@ fn arpa_camera_trace(pixel: u32) -> ArpaQueryRecord {
     var radiance = vec3<f32>(0.0);
     var rec = ArpaQueryRecord(vec3<f32>(0.0), pixel, vec3<f32>(0.0), 0u, vec3<f32>(0.0), 0u, vec3<f32>(0.0), 0u);
     for (var depth = 0u; depth < c.max_depth; depth++) {
-        let h = arpa_scene_intersect_masked(start, dir, ARPA_SCENE_T_MAX, &rng);
+        var passed = vec3<f32>(0.0);
+        let h = arpa_scene_intersect_seen(start, dir, ARPA_SCENE_T_MAX, &rng, &passed);
+        radiance += throughput * passed;
         if h.hit == 0u {
             radiance += throughput * arpa_camera_environment_radiance(dir);
             break;

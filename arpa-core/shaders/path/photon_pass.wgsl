@@ -96,7 +96,8 @@ fn photon_lost(p: vec3<f32>, d: vec3<f32>) -> ArpaRayDiff {
 
 // PreparedScene::shading_normal: the interpolated unit shading normal with its derivatives
 // along dp_du, dp_dv (ShadedTriangle::normal_differential), oriented like the geometric
-// normal; flat (zero derivatives) for meshes without vertex normals.
+// normal and turned by the material's normal or bump map; flat (zero derivatives) for
+// meshes without vertex normals.
 struct PhotonNormal {
     nd: ArpaNormalDiff,
     ok: bool,
@@ -108,6 +109,7 @@ fn photon_shading_normal(s: ArpaSurface, dp_du: vec3<f32>, dp_dv: vec3<f32>) -> 
     out.nd = ArpaNormalDiff(s.geometric_normal, zero, zero);
     out.ok = true;
     if s.mesh_has_normals == 0u {
+        out.nd.n = arpa_scene_perturbed(s.mesh, s.triangle, s.geometric_normal, s.geometric_normal, s.uv);
         return out;
     }
     out.ok = false;
@@ -138,6 +140,8 @@ fn photon_shading_normal(s: ArpaSurface, dp_du: vec3<f32>, dp_dv: vec3<f32>) -> 
     if dot(nd.n, s.geometric_normal) < 0.0 {
         nd = ArpaNormalDiff(-nd.n, -nd.dn_du, -nd.dn_dv);
     }
+    // A normal or bump map turns the normal, not its derivatives (PreparedScene::shading_normal).
+    nd.n = arpa_scene_perturbed(s.mesh, s.triangle, nd.n, s.geometric_normal, s.uv);
     out.nd = nd;
     out.ok = true;
     return out;

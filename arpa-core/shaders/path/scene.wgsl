@@ -54,6 +54,12 @@ const ARPA_TRIANGLE_SHADED: u32 = 1u;
 // PreparedScene::shading_normal interpolates them (specular bounces).
 const ARPA_TRIANGLE_NORMALS: u32 = 2u;
 
+// Normal and bump maps (arpa_core::gpu::codes::NORMAL_MAP_*).
+const ARPA_NORMAL_MAP_NONE: u32 = 0u;
+const ARPA_NORMAL_MAP_TANGENT: u32 = 1u;
+const ARPA_NORMAL_MAP_TANGENT_UV: u32 = 2u;
+const ARPA_NORMAL_MAP_BUMP: u32 = 3u;
+
 // arpa_core::gpu::layout::SceneInfo (uniform, 32 bytes).
 struct ArpaSceneInfo {
     mesh_count: u32,
@@ -94,9 +100,12 @@ struct ArpaSceneMesh {
     uv_first: u32,
     // The texture multiplying `emission`, or ARPA_NO_TEXTURE.
     emission_texture: u32,
-    pad_a: u32,
-    pad_b: u32,
-    pad_c: u32,
+    // The normal or bump map, or ARPA_NO_TEXTURE.
+    normal_texture: u32,
+    // ARPA_NORMAL_MAP_*.
+    normal_kind: u32,
+    // The map's scale (NormalPerturbation::scale).
+    normal_scale: f32,
 }
 
 // layout::SceneTriangle (112 bytes).
@@ -346,7 +355,51 @@ fn arpa_scene_surface(h: ArpaSceneHit) -> ArpaSurface {
     s.triangle = h.triangle;
     s.barycentric = b;
     s.mesh_has_normals = m.has_normals;
+    if m.normal_kind != ARPA_NORMAL_MAP_NONE {
+        // Both normals turned by the map (PreparedScene::perturbed); a mesh without vertex
+        // normals starts from the face normal.
+        if m.has_normals == 0u {
+            s.shading_normal = t.normal;
+        }
+        s.shading_normal = arpa_scene_perturbed(h.mesh, h.triangle, s.shading_normal, t.normal, s.uv);
+        s.specular_normal = arpa_scene_perturbed(h.mesh, h.triangle, s.specular_normal, t.normal, s.uv);
+    }
     return s;
+}
+
+// PreparedScene::texture_derivatives: (dp/du, dp/dv) of a mesh's triangle from its
+// vertices and texture coordinates ((0, 0), (1, 0), (0, 1) without them).
+fn arpa_scene_texture_derivatives(mesh: u32, triangle: u32) -> ArpaTextureDerivatives {
+    let t = arpa_scene_triangles[arpa_scene_triangle_index(mesh, triangle)];
+    let first = arpa_scene_meshes[mesh].uv_first;
+    if first == ARPA_NO_TEXTURE {
+        return arpa_texture_derivatives(t.p0, t.p1, t.p2, vec2<f32>(0.0), vec2<f32>(1.0, 0.0), vec2<f32>(0.0, 1.0));
+    }
+    let w = first + 6u * triangle;
+    let uv0 = vec2<f32>(arpa_texture_f32(w), arpa_texture_f32(w + 1u));
+    let uv1 = vec2<f32>(arpa_texture_f32(w + 2u), arpa_texture_f32(w + 3u));
+    let uv2 = vec2<f32>(arpa_texture_f32(w + 4u), arpa_texture_f32(w + 5u));
+    return arpa_texture_derivatives(t.p0, t.p1, t.p2, uv0, uv1, uv2);
+}
+
+// PreparedScene::perturbed: the unit shading normal n (oriented like the unit geometric
+// normal g) turned by the normal or bump map of the mesh's material at uv; n without one.
+fn arpa_scene_perturbed(mesh: u32, triangle: u32, n: vec3<f32>, g: vec3<f32>, uv: vec2<f32>) -> vec3<f32> {
+    let m = arpa_scene_meshes[mesh];
+    if m.normal_kind == ARPA_NORMAL_MAP_NONE {
+        return n;
+    }
+    var d = arpa_scene_texture_derivatives(mesh, triangle);
+    if !d.ok {
+        let f = arpa_frame_from_normal(n);
+        d.dp_du = f.t;
+        d.dp_dv = f.b;
+    }
+    if m.normal_kind == ARPA_NORMAL_MAP_BUMP {
+        return arpa_bump_mapped(n, g, d.dp_du, d.dp_dv, arpa_texture_eval_1_grad(m.normal_texture, uv) * m.normal_scale);
+    }
+    let c = arpa_texture_eval(m.normal_texture, uv);
+    return arpa_normal_mapped(n, g, d.dp_du, d.dp_dv, c, m.normal_scale, m.normal_kind == ARPA_NORMAL_MAP_TANGENT_UV);
 }
 
 // A ray origin offset off the surface point p along the unit normal n (oriented to the side
@@ -447,6 +500,31 @@ fn arpa_scene_intersect_masked(start: ArpaRayStart, dir: vec3<f32>, t_max: f32, 
         let h = arpa_start_intersect(at, dir, left);
         if h.hit == 0u || arpa_stops_with(arpa_scene_opacity(h), rng) {
             return h;
+        }
+        left -= h.t;
+        at = arpa_ray_start_leaving_hit(h);
+    }
+    return arpa_start_intersect(at, dir, left);
+}
+
+// PreparedScene::intersect_seen: arpa_scene_intersect_masked for a camera ray, adding to
+// *seen the radiance of the area lights it passes that emit towards it.
+fn arpa_scene_intersect_seen(start: ArpaRayStart, dir: vec3<f32>, t_max: f32, rng: ptr<function, ArpaRng>, seen: ptr<function, vec3<f32>>) -> ArpaSceneHit {
+    if arpa_scene_info.has_masks == 0u {
+        return arpa_start_intersect(start, dir, t_max);
+    }
+    var at = start;
+    var left = t_max;
+    for (var i = 0u; i < ARPA_MAX_MASK_PASSES; i++) {
+        let h = arpa_start_intersect(at, dir, left);
+        if h.hit == 0u || arpa_stops_with(arpa_scene_opacity(h), rng) {
+            return h;
+        }
+        if arpa_scene_meshes[h.mesh].emissive != 0u {
+            let s = arpa_scene_surface(h);
+            if dot(dir, s.geometric_normal) < 0.0 {
+                *seen += s.emission;
+            }
         }
         left -= h.t;
         at = arpa_ray_start_leaving_hit(h);

@@ -168,3 +168,38 @@ fn arpa_emitter_texture_factor(r: u32, b1: f32, b2: f32) -> vec3<f32> {
     let uv = uv0 * (1.0 - b1 - b2) + uv1 * b1 + uv2 * b2;
     return max(arpa_texture_eval(arpa_texture_word(r), uv), vec3<f32>(0.0)) * arpa_texture_vec3(r + 7u);
 }
+
+// Texture::eval_1_grad: the gradient of the single value with respect to uv (before
+// to_uv): the bilinear interpolation's derivative inside the texel cell, scaled by the
+// resolution and multiplied by to_uv's transpose; zero for the nearest filter and a
+// checkerboard.
+fn arpa_texture_eval_1_grad(id: u32, uv: vec2<f32>) -> vec2<f32> {
+    let r = arpa_texture_record(id);
+    if arpa_texture_word(r) == ARPA_TEXTURE_CHECKERBOARD || arpa_texture_word(r + 4u) == ARPA_FILTER_NEAREST {
+        return vec2<f32>(0.0);
+    }
+    let t = arpa_texture_to_uv(r, uv);
+    let w = f32(arpa_texture_word(r + 1u));
+    let h = f32(arpa_texture_word(r + 2u));
+    let x = t.x * w - 0.5;
+    let y = t.y * h - 0.5;
+    var fx = x - floor(x);
+    var fy = y - floor(y);
+    if !arpa_finite(fx) {
+        fx = 0.0;
+    }
+    if !arpa_finite(fy) {
+        fy = 0.0;
+    }
+    let i = arpa_texture_floor_index(x);
+    let j = arpa_texture_floor_index(y);
+    let f00 = dot(arpa_texture_texel(r, i, j), ARPA_LUMINANCE);
+    let f10 = dot(arpa_texture_texel(r, i + 1, j), ARPA_LUMINANCE);
+    let f01 = dot(arpa_texture_texel(r, i, j + 1), ARPA_LUMINANCE);
+    let f11 = dot(arpa_texture_texel(r, i + 1, j + 1), ARPA_LUMINANCE);
+    let dx = (1.0 - fy) * (f10 - f00) + fy * (f11 - f01);
+    let dy = (1.0 - fx) * (f01 - f00) + fx * (f11 - f10);
+    let a = arpa_texture_vec3(r + 8u);
+    let b = arpa_texture_vec3(r + 11u);
+    return vec2<f32>(w * (a.x * dx) + h * (b.x * dy), w * (a.y * dx) + h * (b.y * dy));
+}

@@ -50,6 +50,18 @@ pub const TRIANGLE_SHADED: u32 = 1;
 /// so specular bounces interpolate them.
 pub const TRIANGLE_NORMALS: u32 = 2;
 
+/// `ARPA_NORMAL_MAP_NONE` of `scene.wgsl`: the mesh's material has no normal or bump map.
+pub const NORMAL_MAP_NONE: u32 = 0;
+/// `ARPA_NORMAL_MAP_TANGENT`: a tangent-space normal map, `t = n × s`
+/// ([`crate::render::scene::NormalPerturbation::NormalMap`] with
+/// [`crate::propagate::normal_map::Handedness::RightHanded`]).
+pub const NORMAL_MAP_TANGENT: u32 = 1;
+/// `ARPA_NORMAL_MAP_TANGENT_UV`: a tangent-space normal map whose `t` follows `∂p/∂v`
+/// ([`crate::propagate::normal_map::Handedness::FollowTextureCoordinates`]).
+pub const NORMAL_MAP_TANGENT_UV: u32 = 2;
+/// `ARPA_NORMAL_MAP_BUMP`: a bump map ([`crate::render::scene::NormalPerturbation::BumpMap`]).
+pub const NORMAL_MAP_BUMP: u32 = 3;
+
 /// `ARPA_STORE_OK` of `heuristics.wgsl`: the footprint is stored.
 pub const STORE_OK: u32 = 0;
 /// `ARPA_STORE_DEGENERATE`: replaced as degenerate.

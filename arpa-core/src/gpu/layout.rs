@@ -582,12 +582,18 @@ pub struct SceneMesh {
     /// The texture multiplying `emission` ([`crate::render::scene::SceneTextures::emission`]),
     /// or [`crate::gpu::texture::NO_TEXTURE`].
     pub emission_texture: u32,
-    /// Padding.
-    pub pad: [u32; 3],
+    /// The normal or bump map ([`crate::render::scene::MaterialMaps::normal`]), or
+    /// [`crate::gpu::texture::NO_TEXTURE`].
+    pub normal_texture: u32,
+    /// [`crate::gpu::codes::NORMAL_MAP_NONE`], `…_TANGENT`, `…_TANGENT_UV` or `…_BUMP`.
+    pub normal_kind: u32,
+    /// The map's scale ([`crate::render::scene::NormalPerturbation::scale`]).
+    pub normal_scale: f32,
 }
 layout!(SceneMesh, 80, {
     first_triangle: 0, triangle_count: 4, kind: 8, emissive: 12, color: 16, ior: 28, emission: 32, has_normals: 44,
-    color_texture: 48, opacity_texture: 52, opacity: 56, uv_first: 60, emission_texture: 64
+    color_texture: 48, opacity_texture: 52, opacity: 56, uv_first: 60, emission_texture: 64, normal_texture: 68,
+    normal_kind: 72, normal_scale: 76
 });
 
 /// `ArpaSceneTriangle` of `scene.wgsl` (112 bytes). The table is in the meshes' triangle

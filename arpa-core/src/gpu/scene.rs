@@ -9,13 +9,13 @@ use alloc::vec::Vec;
 use glam::{DVec3, Vec3};
 
 use crate::emit::emission::Light;
-use crate::gpu::codes::{SCATTER_DIFFUSE, SCATTER_MIRROR, SCATTER_REFRACTIVE, SCATTER_THIN, TRIANGLE_NORMALS, TRIANGLE_SHADED};
+use crate::gpu::codes::{NORMAL_MAP_BUMP, NORMAL_MAP_NONE, NORMAL_MAP_TANGENT, NORMAL_MAP_TANGENT_UV, SCATTER_DIFFUSE, SCATTER_MIRROR, SCATTER_REFRACTIVE, SCATTER_THIN, TRIANGLE_NORMALS, TRIANGLE_SHADED};
 use crate::gpu::layout::{SceneEmitter, SceneInfo, SceneMesh, SceneTriangle};
 use crate::gpu::texture::{TextureWords, TooManyTexels, NO_TEXTURE};
 use crate::base::morton::morton_code;
 use crate::render::prepared_scene::PreparedScene;
 use crate::render::ray_cast::RayHit;
-use crate::render::scene::{Opacity, Scattering, TriangleMesh};
+use crate::render::scene::{Handedness, NormalPerturbation, Opacity, Scattering, TriangleMesh};
 use crate::propagate::shading_normal::ShadedTriangle;
 
 /// The order in which a mesh's triangles go into its bottom-level acceleration structure:
@@ -108,7 +108,14 @@ impl SceneTables {
                 opacity,
                 uv_first: textures.uv_first[mi],
                 emission_texture: s.textures.emission_of(mi).unwrap_or(NO_TEXTURE),
-                ..SceneMesh::default()
+                normal_texture: maps.normal.map_or(NO_TEXTURE, |n| n.texture()),
+                normal_kind: match maps.normal {
+                    None => NORMAL_MAP_NONE,
+                    Some(NormalPerturbation::NormalMap { handedness: Handedness::RightHanded, .. }) => NORMAL_MAP_TANGENT,
+                    Some(NormalPerturbation::NormalMap { handedness: Handedness::FollowTextureCoordinates, .. }) => NORMAL_MAP_TANGENT_UV,
+                    Some(NormalPerturbation::BumpMap { .. }) => NORMAL_MAP_BUMP,
+                },
+                normal_scale: maps.normal.map_or(1.0, |n| n.scale()),
             });
             let order = triangle_orders.get(mi).map_or(&[][..], |o| &o[..]);
             for (ti, idx) in m.indices.iter().enumerate() {

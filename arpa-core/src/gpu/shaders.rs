@@ -39,6 +39,7 @@
 //! | [`EMISSION`] | [`crate::emit::emission`] | `PreparedLight::emit` from a [`crate::emit::emission::PackedLight`] (same 160-byte layout) |
 //! | [`REEMISSION`] | [`crate::propagate::reemission`] | virtual distance, `reemit`, cosine-distributed diffuse direction |
 //! | [`LAMBERTIAN`] | [`crate::propagate::lambertian`] | two-sided Lambertian shading frame: cosine, adjoint ratio, re-emission direction |
+//! | [`NORMAL_MAP`] | [`crate::propagate::normal_map`] | normal-mapped and bump-mapped shading normals, a triangle's texture-coordinate derivatives |
 //! | [`HEURISTICS`] | [`crate::store::heuristics`] | `ResolvedHeuristics::store` from a [`crate::store::heuristics::PackedHeuristics`]: dampening, H-max, degenerate removal, box, culling, record |
 //! | [`AABB`] | [`crate::base::aabb::Aabb::padded_f32`] | the padded acceleration-structure box of a record |
 //! | [`MORTON`] | [`crate::base::morton::morton_code`] | 30-bit Morton code (bit-exact) |
@@ -140,6 +141,10 @@ pub const REEMISSION: WgslFile = WgslFile { name: "propagate/reemission.wgsl", s
 /// `ARPA_MAX_ADJOINT_RATIO`. Unit vectors, world space.
 pub const LAMBERTIAN: WgslFile = WgslFile { name: "propagate/lambertian.wgsl", source: include_str!("../../shaders/propagate/lambertian.wgsl"), deps: &[&MATH, &FRAME, &SAMPLING] };
 
+/// [`crate::propagate::normal_map`]: `arpa_normal_mapped`, `arpa_bump_mapped`,
+/// `arpa_texture_derivatives`.
+pub const NORMAL_MAP: WgslFile = WgslFile { name: "propagate/normal_map.wgsl", source: include_str!("../../shaders/propagate/normal_map.wgsl"), deps: &[&MATH, &FRAME] };
+
 /// `store/aabb.wgsl`: `ArpaBox`, `arpa_padded_box(centre, half)`: the twin of
 /// [`crate::base::aabb::Aabb::padded_f32`] (metres; the file states the `f32` precision).
 pub const AABB: WgslFile = WgslFile { name: "store/aabb.wgsl", source: include_str!("../../shaders/store/aabb.wgsl"), deps: &[&FOOTPRINT] };
@@ -186,7 +191,7 @@ pub const ENVIRONMENT: WgslFile = WgslFile {
 /// (`arpa_scene_intersect_masked`, `arpa_scene_occluded_masked`). The backend's glue adds binding 0 (its
 /// acceleration structure over the triangles) and defines `arpa_scene_intersect` and
 /// `arpa_scene_occluded` with a `t_min` (the file states their contract).
-pub const SCENE: WgslFile = WgslFile { name: "path/scene.wgsl", source: include_str!("../../shaders/path/scene.wgsl"), deps: &[&MATH, &RNG, &FRESNEL, &RECORDS, &TEXTURE] };
+pub const SCENE: WgslFile = WgslFile { name: "path/scene.wgsl", source: include_str!("../../shaders/path/scene.wgsl"), deps: &[&MATH, &RNG, &FRESNEL, &RECORDS, &TEXTURE, &FRAME, &NORMAL_MAP] };
 
 /// `path/camera_pass.wgsl`: per pixel `arpa_camera_trace` (group 1:
 /// [`crate::gpu::layout::CameraParams`] and the query records); the backend's entry point
@@ -231,8 +236,8 @@ pub const ACCUMULATE: WgslFile = WgslFile { name: "path/accumulate.wgsl", source
 
 /// The twin files: every one is a function-level twin of the core, checked against it by
 /// the conformance suite's twin cases (which run them composed together).
-pub const TWIN: [&WgslFile; 16] =
-    [&MATH, &RNG, &KERNEL, &FOOTPRINT, &RADIUS, &DIFFERENTIAL, &FRESNEL, &FRAME, &SAMPLING, &EMISSION, &HEURISTICS, &REEMISSION, &LAMBERTIAN, &AABB, &MORTON, &BANDWIDTH];
+pub const TWIN: [&WgslFile; 17] =
+    [&MATH, &RNG, &KERNEL, &FOOTPRINT, &RADIUS, &DIFFERENTIAL, &FRESNEL, &FRAME, &SAMPLING, &EMISSION, &HEURISTICS, &REEMISSION, &LAMBERTIAN, &AABB, &MORTON, &BANDWIDTH, &NORMAL_MAP];
 
 /// The path-level files.
 pub const PATH: [&WgslFile; 10] = [&RECORDS, &TEXTURE, &ENVIRONMENT, &SCENE, &CAMERA_PASS, &PHOTON_PASS, &STORE, &SORT, &GATHER, &ACCUMULATE];

@@ -223,8 +223,8 @@ pub fn texture_table(textures: &[Texture], emitters: &[EmitterTexture], environm
 
 impl TextureWords {
     /// The table of `prepared`: its textures and textured emitters, then the texture
-    /// coordinates of every mesh that has them and reads a texture (colour, opacity or
-    /// emission); other meshes get
+    /// coordinates of every mesh that has them and reads a texture (colour, opacity, normal
+    /// or bump map, emission); other meshes get
     /// [`NO_TEXTURE`] (the device then uses the hit's `(b1, b2)`, as the core does without
     /// coordinates, which no lookup of theirs reads).
     pub fn new(prepared: &PreparedScene) -> Result<Self, TooManyTexels> {
@@ -237,6 +237,7 @@ impl TextureWords {
             let maps = scene.textures.maps(m.material);
             let reads = maps.color.is_some()
                 || matches!(maps.opacity, Some(crate::render::scene::Opacity::Texture(_)))
+                || maps.normal.is_some()
                 || scene.textures.emission_of(mi).is_some();
             match (&m.uvs, reads) {
                 (Some(_), true) => {

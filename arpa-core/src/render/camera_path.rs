@@ -1,6 +1,7 @@
 //! The camera pass of one pixel, as every backend must compute it: a jittered pinhole ray
 //! follows specular chains (mirrors, Fresnel-chosen reflection or refraction) to the first
-//! diffuse vertex, the *query point*. Emission seen along the way is added, and with
+//! diffuse vertex, the *query point*. Emission seen along the way is added (also that of
+//! area lights on masks and invisible surfaces the ray passes), and with
 //! direct lighting on, next-event estimation evaluates every delta light exactly and one
 //! area emitter chosen by power, and the environment by two draws (one cosine-weighted, one
 //! from its own sampling) under the balance heuristic. A ray that leaves the scene sees the
@@ -37,7 +38,9 @@ pub fn trace_camera_path(scene: &PreparedScene, caster: &impl RayCaster, setting
     let mut radiance = DVec3::ZERO;
     let mut record = QueryRecord { pixel, ..QueryRecord::default() };
     for _ in 0..settings.max_depth {
-        let Some(hit) = scene.intersect(caster, start, dir.as_vec3(), f32::INFINITY, &mut rng) else {
+        let (hit, passed) = scene.intersect_seen(caster, start, dir.as_vec3(), f32::INFINITY, &mut rng);
+        radiance += throughput * passed;
+        let Some(hit) = hit else {
             if let Some(env) = scene.environment() {
                 radiance += throughput * env.radiance(dir);
             }

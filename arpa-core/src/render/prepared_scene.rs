@@ -10,10 +10,12 @@ use crate::render::projection::{project, project_on, DomainCells, LightProjectio
 use crate::base::prefetch::prefetch;
 use crate::base::rng::Rng;
 use crate::render::ray_cast::{RayCaster, RayHit, RayStart, TriangleId};
-use crate::render::scene::{CameraFrame, EmitterTexture, Opacity, Scattering, Scene, SceneError};
+use crate::render::scene::{CameraFrame, EmitterTexture, NormalPerturbation, Opacity, Scattering, Scene, SceneError};
+use crate::propagate::normal_map::{bump_mapped, normal_mapped, texture_derivatives};
+use crate::base::frame::Frame;
 use crate::propagate::shading_normal::ShadedTriangle;
 use alloc::vec::Vec;
-use glam::{DVec3, Vec2, Vec3};
+use glam::{DVec2, DVec3, Vec2, Vec3};
 
 /// Luminance weights used to compare light powers.
 const LUMINANCE: DVec3 = DVec3::new(0.2126, 0.7152, 0.0722);
@@ -41,6 +43,8 @@ pub struct PreparedScene {
     has_specular: bool,
     /// Whether some material is a mask.
     has_masks: bool,
+    /// Per mesh, its material's normal or bump map (empty without any).
+    normal_maps: Vec<Option<NormalPerturbation>>,
     /// Per emitter, the texture of a textured emitter triangle.
     emitter_textures: Vec<Option<EmitterTexture>>,
     /// Whether a photon leaving a diffuse surface can hit another surface at all (some
@@ -188,10 +192,14 @@ impl PreparedScene {
         };
         let scattering: Vec<Scattering> = scene.materials.iter().map(|m| m.scattering(scene.roughness_cutoff)).collect();
         let vertices = |m: &crate::render::scene::TriangleMesh, idx: [u32; 3]| idx.map(|i| m.positions[i as usize].as_dvec3());
+        let normal_maps: Vec<Option<NormalPerturbation>> =
+            if scene.textures.maps.iter().any(|m| m.normal.is_some()) { scene.meshes.iter().map(|m| scene.textures.maps(m.material).normal).collect() } else { Vec::new() };
         let triangles: Vec<Vec<TriangleGeometry>> = scene
             .meshes
             .iter()
-            .map(|m| {
+            .enumerate()
+            .map(|(mesh, m)| {
+                let mapped = normal_maps.get(mesh).is_some_and(Option::is_some);
                 m.indices
                     .iter()
                     .map(|&idx| {
@@ -203,7 +211,7 @@ impl PreparedScene {
                             };
                             !(near(1.0) || near(-1.0))
                         });
-                        TriangleGeometry { p: idx.map(|i| m.positions[i as usize]), normal, shaded }
+                        TriangleGeometry { p: idx.map(|i| m.positions[i as usize]), normal, shaded: shaded || mapped }
                     })
                     .collect()
             })
@@ -248,6 +256,7 @@ impl PreparedScene {
             projections,
             has_specular,
             has_masks: scene.textures.any_opacity(),
+            normal_maps,
             second_hit_possible,
             triangles,
             shading,
@@ -458,6 +467,34 @@ impl PreparedScene {
         start.intersect(caster, direction, left)
     }
 
+    /// [`PreparedScene::intersect`] for a camera ray, with the radiance (W/(m²·sr)) of the
+    /// area lights it passes on the way: a ray passing a mask or an invisible (`null`) surface
+    /// that emits towards it sees that emission, as in Mitsuba 3 (the same random draws as
+    /// [`PreparedScene::intersect`]).
+    pub fn intersect_seen<C: RayCaster + ?Sized>(&self, caster: &C, start: RayStart, direction: Vec3, t_max: f32, rng: &mut Rng) -> (Option<RayHit>, DVec3) {
+        if !self.has_masks {
+            return (start.intersect(caster, direction, t_max), DVec3::ZERO);
+        }
+        let mut seen = DVec3::ZERO;
+        let mut start = start;
+        let mut left = t_max;
+        for _ in 0..MAX_MASK_PASSES {
+            let Some(hit) = start.intersect(caster, direction, left) else { return (None, seen) };
+            if self.stops(&hit, rng) {
+                return (Some(hit), seen);
+            }
+            if self.scene.meshes[hit.mesh as usize].emission.is_some() {
+                let s = self.surface(&hit);
+                if let Some(e) = s.emission.filter(|_| direction.as_dvec3().dot(s.geometric_normal) < 0.0) {
+                    seen += e.as_dvec3();
+                }
+            }
+            left -= hit.t;
+            start = self.leaving_hit(&hit);
+        }
+        (start.intersect(caster, direction, left), seen)
+    }
+
     /// Whether a ray from `start` along unit `direction` is stopped before `t_max`
     /// (metres), masks passed as in [`PreparedScene::intersect`]. Without masks this is
     /// [`RayStart::occluded`] and draws nothing.
@@ -489,7 +526,7 @@ impl PreparedScene {
     #[inline(always)]
     pub fn shading_normal(&self, s: &SurfacePoint, dp_du: DVec3, dp_dv: DVec3) -> Result<NormalDifferential, DifferentialError> {
         let Some(records) = &self.shading[s.mesh as usize] else {
-            return Ok(NormalDifferential::flat(s.geometric_normal));
+            return Ok(NormalDifferential::flat(self.perturbed(s, s.geometric_normal)));
         };
         let record = &records[s.triangle as usize];
         let tri = ShadedTriangle { p: self.triangle(s.mesh, s.triangle), n: record.normals() };
@@ -497,7 +534,49 @@ impl PreparedScene {
         if nd.n.dot(s.geometric_normal) < 0.0 {
             nd = NormalDifferential { n: -nd.n, dn_du: -nd.dn_du, dn_dv: -nd.dn_dv };
         }
+        // A normal or bump map turns the normal; its derivatives stay those of the
+        // interpolated normal (crate::propagate::normal_map).
+        nd.n = self.perturbed(s, nd.n);
         Ok(nd)
+    }
+
+    /// The unit shading normal `n` (oriented like the geometric normal) turned by the
+    /// normal or bump map of the material at `s`, if it has one
+    /// ([`crate::propagate::normal_map`]); `n` itself otherwise.
+    #[inline(always)]
+    pub fn perturbed(&self, s: &SurfacePoint, n: DVec3) -> DVec3 {
+        match self.normal_maps.get(s.mesh as usize) {
+            Some(Some(map)) => self.apply_normal_map(s, n, *map),
+            _ => n,
+        }
+    }
+
+    #[inline(never)]
+    fn apply_normal_map(&self, s: &SurfacePoint, n: DVec3, map: NormalPerturbation) -> DVec3 {
+        let (dp_du, dp_dv) = self.texture_derivatives(s.mesh, s.triangle).unwrap_or_else(|| {
+            let f = Frame::from_normal(n);
+            (f.t, f.b)
+        });
+        let texture = &self.scene.textures.textures[map.texture() as usize];
+        match map {
+            NormalPerturbation::NormalMap { scale, handedness, .. } => {
+                normal_mapped(n, s.geometric_normal, dp_du, dp_dv, texture.eval(s.uv).as_dvec3(), scale as f64, handedness)
+            }
+            NormalPerturbation::BumpMap { scale, .. } => bump_mapped(n, s.geometric_normal, dp_du, dp_dv, (texture.eval_1_grad(s.uv) * scale).as_dvec2()),
+        }
+    }
+
+    /// The texture-coordinate derivatives `(∂p/∂u, ∂p/∂v)` of a triangle (world space,
+    /// metres per unit; [`texture_derivatives`]) from its vertices and its mesh's texture
+    /// coordinates, or `(0, 0), (1, 0), (0, 1)` on a mesh without them; `None` where they
+    /// are degenerate.
+    pub fn texture_derivatives(&self, mesh: u32, triangle: u32) -> Option<(DVec3, DVec3)> {
+        let m = &self.scene.meshes[mesh as usize];
+        let uv = match &m.uvs {
+            Some(uvs) => m.indices[triangle as usize].map(|i| uvs[i as usize].as_dvec2()),
+            None => [DVec2::ZERO, DVec2::X, DVec2::Y],
+        };
+        texture_derivatives(self.triangle(mesh, triangle), uv)
     }
 
     /// Whether the triangle of `s` has vertex normals that differ from its face normal
@@ -516,17 +595,18 @@ impl PreparedScene {
         if !self.has_shading_normals(s) {
             return s.geometric_normal;
         }
-        let Some(records) = &self.shading[s.mesh as usize] else { return s.geometric_normal };
+        let Some(records) = &self.shading[s.mesh as usize] else { return self.perturbed(s, s.geometric_normal) };
         let b = s.barycentric;
         let v = records[s.triangle as usize].normals();
         let n = (v[0] * b.x + v[1] * b.y + v[2] * b.z).normalize_or_zero();
-        if n == DVec3::ZERO {
+        let n = if n == DVec3::ZERO {
             s.geometric_normal
         } else if n.dot(s.geometric_normal) < 0.0 {
             -n
         } else {
             n
-        }
+        };
+        self.perturbed(s, n)
     }
 
     /// Power of every emitter as the photon allocation and the area-emitter pick weigh

@@ -10,6 +10,7 @@ use crate::base::aabb::Aabb;
 use crate::emit::emission::{Light, LightError, TriangleLight};
 use crate::render::environment::EnvironmentMap;
 use crate::render::texture::{Texture, TextureId};
+pub use crate::propagate::normal_map::Handedness;
 use alloc::string::String;
 use alloc::vec::Vec;
 use glam::{DVec3, Vec2, Vec3};
@@ -330,6 +331,49 @@ pub struct MaterialMaps {
     pub color: Option<TextureId>,
     /// Makes the material a mask; `None` is opaque.
     pub opacity: Option<Opacity>,
+    /// Perturbs the material's shading normals; `None` keeps them.
+    pub normal: Option<NormalPerturbation>,
+}
+
+/// A texture that perturbs a material's shading normals
+/// ([`crate::propagate::normal_map`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum NormalPerturbation {
+    /// A tangent-space normal map: the texture's RGB value `c` is the normal `2c − 1` in the
+    /// frame of the shading normal and `∂p/∂u` (Mitsuba 3's `normalmap`, glTF's
+    /// `normalTexture`).
+    NormalMap {
+        /// The map (read as stored; normal maps are loaded `raw`).
+        texture: TextureId,
+        /// Multiplies the map's x and y components (glTF's `scale`; 1 for Mitsuba).
+        scale: f32,
+        /// How the frame's second tangent is oriented.
+        handedness: Handedness,
+    },
+    /// A height field: the texture's single value times `scale` displaces the surface
+    /// along its shading normal (Mitsuba 3's `bumpmap`).
+    BumpMap {
+        /// The height texture (a bitmap; its gradient is [`Texture::eval_1_grad`]).
+        texture: TextureId,
+        /// Height per unit of the texture's value (metres, with `uv` in texture units).
+        scale: f32,
+    },
+}
+
+impl NormalPerturbation {
+    /// The texture it reads.
+    pub fn texture(&self) -> TextureId {
+        match *self {
+            NormalPerturbation::NormalMap { texture, .. } | NormalPerturbation::BumpMap { texture, .. } => texture,
+        }
+    }
+
+    /// Its scale factor.
+    pub fn scale(&self) -> f32 {
+        match *self {
+            NormalPerturbation::NormalMap { scale, .. } | NormalPerturbation::BumpMap { scale, .. } => scale,
+        }
+    }
 }
 
 /// A scene's textures and, per material, the textures it reads.
@@ -394,7 +438,7 @@ impl SceneTextures {
     /// Whether some material reads a texture or has an opacity, or some mesh emits through
     /// a texture.
     pub fn any(&self) -> bool {
-        self.maps.iter().any(|m| m.color.is_some() || m.opacity.is_some()) || self.emission.iter().any(Option::is_some)
+        self.maps.iter().any(|m| m.color.is_some() || m.opacity.is_some() || m.normal.is_some()) || self.emission.iter().any(Option::is_some)
     }
 
     /// The emission texture of mesh `m`.
@@ -448,8 +492,10 @@ impl Scene {
             let bad_id = |id: TextureId| id as usize >= count;
             let why = if index >= self.materials.len() {
                 Some("maps given for a material that does not exist")
-            } else if maps.color.is_some_and(bad_id) || matches!(maps.opacity, Some(Opacity::Texture(id)) if bad_id(id)) {
+            } else if maps.color.is_some_and(bad_id) || matches!(maps.opacity, Some(Opacity::Texture(id)) if bad_id(id)) || maps.normal.is_some_and(|n| bad_id(n.texture())) {
                 Some("refers to a texture that does not exist")
+            } else if maps.normal.is_some_and(|n| !n.scale().is_finite()) {
+                Some("a normal or bump map's scale is not finite")
             } else if matches!(maps.opacity, Some(Opacity::Constant(o)) if !(0.0..=1.0).contains(&o)) {
                 Some("opacity outside [0, 1]")
             } else {

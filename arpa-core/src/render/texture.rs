@@ -228,6 +228,35 @@ impl Bitmap {
     }
 }
 
+impl Bitmap {
+    /// The gradient `(∂f/∂u, ∂f/∂v)` of the single value `f` ([`Texture::eval_1`], the
+    /// luminance) with respect to the texture coordinates before `to_uv`, as Mitsuba 3's
+    /// `bitmap` gives it to `bumpmap`: the derivative of the bilinear interpolation inside the
+    /// texel cell (scaled by the resolution and multiplied by `to_uv`'s transpose); zero for
+    /// the nearest filter.
+    pub fn eval_1_grad(&self, uv: Vec2) -> Vec2 {
+        if self.filter == TextureFilter::Nearest {
+            return Vec2::ZERO;
+        }
+        let t = self.to_uv.apply(uv);
+        let (w, h) = (self.width as f32, self.height as f32);
+        let (x, y) = (t.x * w - 0.5, t.y * h - 0.5);
+        let (fx, fy) = (x - libm::floorf(x), y - libm::floorf(y));
+        let (fx, fy) = (if fx.is_finite() { fx } else { 0.0 }, if fy.is_finite() { fy } else { 0.0 });
+        let (i, j) = (floor_index(x), floor_index(y));
+        let f = |x: i64, y: i64| self.texel(x, y).dot(LUMINANCE);
+        let f00 = f(i, j);
+        let f10 = f(i.saturating_add(1), j);
+        let f01 = f(i, j.saturating_add(1));
+        let f11 = f(i.saturating_add(1), j.saturating_add(1));
+        // Partials with respect to the texel coordinates x and y.
+        let dx = (1.0 - fy) * (f10 - f00) + fy * (f11 - f01);
+        let dy = (1.0 - fx) * (f01 - f00) + fx * (f11 - f10);
+        let [a, b] = self.to_uv.rows;
+        Vec2::new(w * (a[0] * dx) + h * (b[0] * dy), w * (a[1] * dx) + h * (b[1] * dy))
+    }
+}
+
 impl Texture {
     /// The linear RGB value at texture coordinates `uv`.
     pub fn eval(&self, uv: Vec2) -> Vec3 {
@@ -249,6 +278,16 @@ impl Texture {
             Texture::Checkerboard { color0, color1, to_uv } => {
                 if checker_same(to_uv.apply(uv)) { color1.dot(LUMINANCE) } else { color0.dot(LUMINANCE) }
             }
+        }
+    }
+
+    /// The gradient of [`Texture::eval_1`] with respect to `uv` ([`Bitmap::eval_1_grad`]);
+    /// zero for a checkerboard (piecewise constant; Mitsuba 3 gives it none, and the loaders
+    /// refuse a checkerboard as a bump map).
+    pub fn eval_1_grad(&self, uv: Vec2) -> Vec2 {
+        match self {
+            Texture::Bitmap(b) => b.eval_1_grad(uv),
+            Texture::Checkerboard { .. } => Vec2::ZERO,
         }
     }
 
@@ -346,6 +385,31 @@ mod tests {
 
     /// Mitsuba's checkerboard: colour0 on [0, ½)², colour1 beside it; its single value swaps
     /// the squares.
+    #[test]
+    fn gradient_is_the_bilinear_derivative() {
+        // A 3x2 bitmap under a sheared, scaled to_uv: the gradient matches central finite
+        // differences of eval_1 inside a texel cell, and is zero for the nearest filter.
+        let mut b = Bitmap {
+            width: 3,
+            height: 2,
+            texels: Texels::Float(vec![[0.1, 0.2, 0.3], [0.9, 0.1, 0.0], [0.4, 0.4, 0.4], [0.0, 0.7, 0.2], [0.5, 0.5, 0.1], [0.3, 0.0, 0.9]]),
+            filter: TextureFilter::Bilinear,
+            wrap: TextureWrap::Repeat,
+            to_uv: UvTransform { rows: [[1.5, 0.25, 0.1], [-0.3, 2.0, 0.05]] },
+        };
+        let t = Texture::Bitmap(b.clone());
+        for uv in [Vec2::new(0.21, 0.33), Vec2::new(0.47, 0.12), Vec2::new(-0.6, 1.7)] {
+            let g = t.eval_1_grad(uv);
+            let e = 1e-3;
+            let du = (t.eval_1(uv + Vec2::new(e, 0.0)) - t.eval_1(uv - Vec2::new(e, 0.0))) / (2.0 * e);
+            let dv = (t.eval_1(uv + Vec2::new(0.0, e)) - t.eval_1(uv - Vec2::new(0.0, e))) / (2.0 * e);
+            assert!((g.x - du).abs() < 2e-2 * (1.0 + du.abs()) && (g.y - dv).abs() < 2e-2 * (1.0 + dv.abs()), "{uv}: {g} vs ({du}, {dv})");
+            assert!(g.length() > 0.05, "a varying bitmap has a gradient");
+        }
+        b.filter = TextureFilter::Nearest;
+        assert_eq!(Texture::Bitmap(b).eval_1_grad(Vec2::new(0.3, 0.3)), Vec2::ZERO);
+    }
+
     #[test]
     fn checkerboard_is_mitsubas() {
         let c = Texture::Checkerboard { color0: Vec3::splat(0.4), color1: Vec3::splat(0.2), to_uv: UvTransform::IDENTITY };

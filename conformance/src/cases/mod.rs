@@ -12,6 +12,7 @@ pub mod camera;
 pub mod determinism;
 pub mod environment;
 pub mod gather;
+pub mod normal_maps;
 pub mod open_mirror;
 pub mod optics;
 pub mod reference;
@@ -58,6 +59,12 @@ pub fn all() -> Vec<Case> {
             title: "textured plane (checkerboard, sRGB bitmap) under a point light, photons only",
             needs: None,
             run: CaseBody::Tracer(textures::texture_plane),
+        },
+        Case {
+            id: "normal-map-plane",
+            title: "normal maps (both tangent frames) and a bump map tilt a lit plane's shading normal: radiance by the tilted cosine",
+            needs: None,
+            run: CaseBody::Tracer(normal_maps::normal_map_plane),
         },
         Case {
             id: "emitter-texture",

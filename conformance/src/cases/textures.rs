@@ -39,7 +39,7 @@ fn textured_plane(texture: Texture) -> Scene {
         m.uvs = Some(m.positions.iter().map(|p| Vec2::new((p.x + 10.0) / 20.0, (p.z + 10.0) / 20.0)).collect());
     }
     scene.materials[0] = scenes::diffuse(1.0);
-    scene.textures = SceneTextures { textures: vec![texture], maps: vec![MaterialMaps { color: Some(0), opacity: None }], emission: vec![], environment: None };
+    scene.textures = SceneTextures { textures: vec![texture], maps: vec![MaterialMaps { color: Some(0), ..MaterialMaps::default() }], emission: vec![], environment: None };
     scene
 }
 
@@ -212,7 +212,7 @@ pub fn mask_plane(t: &mut dyn DynTracer) -> CaseResult {
     let mask = scenes::quad("mask", Vec3::new(x0, MASK_HEIGHT as f32, z0), Vec3::new(0.0, 0.0, z1 - z0), Vec3::new(x1 - x0, 0.0, 0.0), 1);
     scene.meshes.push(mask);
     scene.materials.push(scenes::diffuse(0.0));
-    scene.textures = SceneTextures { textures: vec![], maps: vec![MaterialMaps::default(), MaterialMaps { color: None, opacity: Some(Opacity::Constant(MASK_OPACITY as f32)) }], emission: vec![], environment: None };
+    scene.textures = SceneTextures { textures: vec![], maps: vec![MaterialMaps::default(), MaterialMaps { opacity: Some(Opacity::Constant(MASK_OPACITY as f32)), ..MaterialMaps::default() }], emission: vec![], environment: None };
     let mut report = Vec::new();
     let mut ok = true;
     for (direct, iterations) in [(false, MASK_ITERATIONS), (true, 4 * MASK_ITERATIONS)] {
@@ -289,7 +289,7 @@ fn lit_mask(t: &mut dyn DynTracer) -> Result<(bool, String), String> {
     scene.meshes = vec![scenes::quad("mask", Vec3::new(x0, MASK_HEIGHT as f32, z0), Vec3::new(0.0, 0.0, z1 - z0), Vec3::new(x1 - x0, 0.0, 0.0), 0)];
     let albedo = 0.8;
     scene.materials = vec![scenes::diffuse(albedo as f32)];
-    scene.textures = SceneTextures { textures: vec![], maps: vec![MaterialMaps { color: None, opacity: Some(Opacity::Constant(MASK_OPACITY as f32)) }], emission: vec![], environment: None };
+    scene.textures = SceneTextures { textures: vec![], maps: vec![MaterialMaps { opacity: Some(Opacity::Constant(MASK_OPACITY as f32)), ..MaterialMaps::default() }], emission: vec![], environment: None };
     let (image, records) = render(t, &scene, false, MASK_ITERATIONS)?;
     let pixels = image.len();
     let mut expected = vec![0.0; pixels];

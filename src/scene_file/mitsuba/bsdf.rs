@@ -1,12 +1,16 @@
 //! Bsdf plugins: each Mitsuba bsdf mapped onto the materials the photon mapper models
-//! (diffuse, perfect mirror, smooth dielectric, thin dielectric sheet; rough ones by the roughness cut-off).
+//! (diffuse, perfect mirror, smooth dielectric, thin dielectric sheet; rough ones by the roughness cut-off),
+//! and the adapters that wrap one: `twosided`, `mask` (opacity), `normalmap` and `bumpmap`
+//! (shading normals, [`arpa_core::propagate::normal_map`]); `null` is a surface every ray
+//! passes (opacity 0), whose area light still shines and is seen.
 
 use super::loader::{num, Bsdf, Loader, Props, R};
 use super::super::spectrum::SpectrumUse;
 use super::super::transform;
 use super::super::xml::Node;
 use arpa_core::propagate::fresnel::conductor_albedo;
-use arpa_core::render::scene::{Material, MaterialId, MaterialMaps, Opacity};
+use arpa_core::render::scene::{Handedness, Material, MaterialId, MaterialMaps, NormalPerturbation, Opacity};
+use arpa_core::render::texture::{Texture, TextureId};
 use glam::{DVec3, Vec3};
 
 /// Roughness cut-off of loaded scenes, in GGX `alpha`: a rough conductor or dielectric
@@ -107,6 +111,37 @@ impl Loader<'_> {
                     return Err(self.unsupported(inner[0], "a mask inside a mask is not supported"));
                 }
                 b.maps.opacity = Some(opacity);
+                return Ok(b);
+            }
+            "null" => {
+                // Invisible: every ray passes it (a mask of opacity 0); an area light on it
+                // still emits and is seen by the camera rays passing it.
+                self.finish(&p);
+                maps.opacity = Some(Opacity::Constant(0.0));
+                return Ok(Bsdf { material: Material::Diffuse { albedo: Vec3::ZERO }, maps });
+            }
+            "normalmap" | "bumpmap" => {
+                let inner = self.objects(&p, &["bsdf"]);
+                if inner.len() != 1 {
+                    return Err(self.invalid(n.line, format!("{ty} needs exactly one nested <bsdf>")));
+                }
+                let map = if ty == "normalmap" {
+                    let id = self.texture_of(&p, "normalmap")?.ok_or_else(|| self.invalid(n.line, "normalmap lacks <texture name=\"normalmap\"> (the tangent-space normals)"))?;
+                    NormalPerturbation::NormalMap { texture: id, scale: 1.0, handedness: Handedness::RightHanded }
+                } else {
+                    let id = self.height_texture(&p, n)?;
+                    if matches!(self.textures[id as usize], Texture::Checkerboard { .. }) {
+                        return Err(self.unsupported(n, "bumpmap needs a bitmap height texture (a checkerboard has no gradient in Mitsuba 3 either)"));
+                    }
+                    let scale = self.float(&p, "scale")?.unwrap_or(1.0);
+                    NormalPerturbation::BumpMap { texture: id, scale: scale as f32 }
+                };
+                self.finish(&p);
+                let mut b = self.bsdf(inner[0])?;
+                if b.maps.normal.is_some() {
+                    return Err(self.unsupported(inner[0], "a normal or bump map inside another normal or bump map is not supported"));
+                }
+                b.maps.normal = Some(map);
                 return Ok(b);
             }
             "twosided" => {
@@ -238,7 +273,7 @@ impl Loader<'_> {
                 self.warn(n.line, format!("principled (metallic {}, spec_trans {}, roughness {}) is rendered as {what}{rough}", num(metallic), num(spec_trans), num(roughness)));
                 material
             }
-            _ => return Err(self.unsupported(n, "supported bsdfs: diffuse, dielectric, roughdielectric, thindielectric, conductor, roughconductor, plastic, roughplastic, principled, twosided, mask")),
+            _ => return Err(self.unsupported(n, "supported bsdfs: diffuse, dielectric, roughdielectric, thindielectric, conductor, roughconductor, plastic, roughplastic, principled, twosided, mask, normalmap, bumpmap, null")),
         };
         self.objects(&p, &["texture"]).iter().try_for_each(|t| Err(self.unsupported(t, "a texture needs the name of the parameter it gives")))?;
         self.finish(&p);
@@ -260,6 +295,28 @@ impl Loader<'_> {
         }
         drop(warnings);
         Ok(b)
+    }
+
+    /// A `bumpmap`'s height texture: its one nested `<texture>` (Mitsuba 3 takes it under
+    /// any name) or a `<ref>` to a texture.
+    fn height_texture(&mut self, p: &Props<'_>, n: &Node) -> R<TextureId> {
+        let candidates: Vec<usize> = p
+            .node
+            .children
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| c.tag == "texture" || c.tag == "ref" && c.attr("id").is_some_and(|id| self.texture_ids.contains_key(id)))
+            .map(|(i, _)| i)
+            .collect();
+        let [i] = candidates[..] else {
+            return Err(self.invalid(n.line, format!("bumpmap needs exactly one nested <texture> (the height), found {}", candidates.len())));
+        };
+        p.used[i].set(true);
+        let c = &p.node.children[i];
+        if c.tag == "texture" {
+            return self.texture(c);
+        }
+        Ok(self.texture_ids[c.attr("id").unwrap_or_default()])
     }
 
     /// What `dielectric` and `thindielectric` share: the relative index `int_ior / ext_ior`
