@@ -17,7 +17,7 @@ use arpa_core::accumulate::image::Accumulation;
 use arpa_core::accumulate::radius::{ProgressiveConfig, RadiusSpec};
 use arpa_core::propagate::classify::{AutoSmoothing, Smoothing};
 use arpa_core::render::scene::Scene;
-use arpa_core::render::tracer::{Capabilities, Image, IterationStats, RenderSettings, StageTimes, Tracer};
+use arpa_core::render::tracer::{Capabilities, DeviceTimes, Image, IterationStats, RenderSettings, StageTimes, Tracer};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -164,6 +164,15 @@ impl StatTotals {
         let t = &self.sum.times;
         StageTimes { camera: t.camera / n, photon: t.photon / n, build: t.build / n, gather: t.gather / n, accumulate: t.accumulate / n }
     }
+
+    /// Per-iteration mean device time of each stage (seconds): measured only when every
+    /// iteration summed was ([`DeviceTimes::accumulate`]).
+    pub fn mean_device_times(&self) -> DeviceTimes {
+        match self.sum.device_times {
+            DeviceTimes::Measured(t) => DeviceTimes::Measured(t.per(self.iterations)),
+            d => d,
+        }
+    }
 }
 
 /// An independent reference image the checkpoints are compared with.
@@ -207,8 +216,10 @@ pub struct CheckpointRow {
     pub iteration: u32,
     /// Render time up to this iteration (seconds), excluding checkpoints.
     pub seconds: f64,
-    /// Mean time per iteration of each stage so far (seconds).
+    /// Mean time per iteration of each stage so far (seconds, host wall clock).
     pub times: StageTimes,
+    /// Mean device time per iteration of each stage so far ([`StatTotals::mean_device_times`]).
+    pub device_times: DeviceTimes,
     /// Metrics against the [`Reference`], when there is one.
     pub metrics: Option<Metrics>,
     /// Gather candidates per valid query point so far, `[caustic, global]`
@@ -462,6 +473,7 @@ pub fn render_with<T: Tracer, H: Hooks + ?Sized>(
             iteration: i,
             seconds: at.as_secs_f64(),
             times: totals.mean_times(),
+            device_times: totals.mean_device_times(),
             metrics,
             candidates_per_query: totals.sum.candidates_per_query(),
             contributions_per_query: totals.sum.contributions_per_query(),
