@@ -104,6 +104,15 @@ pub struct BenchArgs {
     /// emission).
     #[arg(long)]
     pub no_peers: bool,
+
+    /// Overrides the config's size: render at 1/N of each scene's film size (and no
+    /// upscale), e.g. a paper-size config at a small size on lavapipe.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pub downscale: Option<u32>,
+
+    /// Overrides the config's photons per iteration (comma-separated, one run each).
+    #[arg(long, value_name = "N,...", value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..))]
+    pub photons: Option<Vec<u32>>,
 }
 
 /// How the smoothing factors are chosen (`--smoothing`).
@@ -704,7 +713,14 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 
 /// `arpa bench`.
 pub fn run_bench(args: &BenchArgs) -> anyhow::Result<()> {
-    let cfg = crate::bench::config::LoadedConfig::load(&args.config)?;
+    let mut cfg = crate::bench::config::LoadedConfig::load(&args.config)?;
+    if let Some(k) = args.downscale {
+        cfg.config.downscale = k;
+        cfg.config.upscale = 1;
+    }
+    if let Some(p) = &args.photons {
+        cfg.config.photons.clone_from(p);
+    }
     let options = crate::bench::BenchOptions {
         out: args.out.clone(),
         seconds: args.seconds,

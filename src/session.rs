@@ -182,6 +182,9 @@ pub struct Reference {
     pub image: Image,
     /// Where it was read from (for messages).
     pub path: PathBuf,
+    /// The render's size over the reference's (1: the same size): a render `scale` times
+    /// larger is box-averaged `scale × scale` before it is compared.
+    pub scale: u32,
 }
 
 impl Reference {
@@ -200,12 +203,23 @@ impl Reference {
                 image.height
             );
         }
-        Ok(Self { image, path: path.to_path_buf() })
+        Ok(Self { image, path: path.to_path_buf(), scale: 1 })
     }
 
-    /// relMSE, SSIM and FLIP of `image` against the reference.
+    /// `image` at the reference's size: box-averaged [`Reference::scale`]` × scale`
+    /// (borrowed as it is at scale 1).
+    pub fn at_reference_size<'a>(&self, image: &'a Image) -> anyhow::Result<std::borrow::Cow<'a, Image>> {
+        if self.scale <= 1 {
+            return Ok(std::borrow::Cow::Borrowed(image));
+        }
+        crate::metrics::downsample(image, self.scale).map(std::borrow::Cow::Owned).map_err(|e| anyhow::anyhow!("render for reference '{}': {e}", self.path.display()))
+    }
+
+    /// relMSE, SSIM and FLIP of `image` (at the reference's size, [`Reference::at_reference_size`])
+    /// against the reference.
     pub fn compare(&self, image: &Image) -> anyhow::Result<Metrics> {
-        compare_images(image, &self.image).with_context(|| format!("cannot compare with reference '{}'", self.path.display()))
+        let image = self.at_reference_size(image)?;
+        compare_images(&image, &self.image).with_context(|| format!("cannot compare with reference '{}'", self.path.display()))
     }
 }
 
@@ -704,8 +718,8 @@ mod tests {
         image_io::write_exr(&path, &Image { width: 4, height: 2, pixels: vec![Vec3::ONE; 8] }).unwrap();
         let e = Reference::load(&path, 8, 4).err().unwrap();
         assert!(format!("{e:#}").contains("is 4x2 pixels but the render is 8x4"), "{e:#}");
-        let grey = Reference { image: Image { width: 8, height: 4, pixels: vec![Vec3::splat(0.5); 32] }, path: path.clone() };
-        let double = Reference { image: Image { width: 8, height: 4, pixels: vec![Vec3::ONE; 32] }, path };
+        let grey = Reference { image: Image { width: 8, height: 4, pixels: vec![Vec3::splat(0.5); 32] }, path: path.clone(), scale: 1 };
+        let double = Reference { image: Image { width: 8, height: 4, pixels: vec![Vec3::ONE; 32] }, path, scale: 1 };
         let options = SessionOptions { checkpoints: Checkpoints::Every(2), reference: Some(&grey), ..SessionOptions::budget(Budget::Iterations(3)) };
         let r = render_with(&mut Mock::default(), &small_scene(), &RenderSettings::default(), &options, &mut NoHooks).unwrap();
         assert_eq!(r.rows.len(), 2);

@@ -182,3 +182,40 @@ fn a_bad_config_names_the_file_and_the_field() {
     assert!(!ok);
     assert!(err.contains("bad.toml") && err.contains("photons"), "{err}");
 }
+
+/// `bench/table2-gpu.toml` (the paper-size GPU sweep) at a small size on whatever adapter
+/// is present (lavapipe in CI): every run of both GPU backends writes rows whose device
+/// columns hold each stage's device time, each within the run's host time, and table.md
+/// has the device-time table. Timings are never asserted beyond that.
+#[cfg(all(feature = "wgpu", feature = "vk"))]
+#[test]
+fn gpu_table2_config_reports_device_time_per_stage() {
+    let Some(scenes) = shared_scenes() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("gpu");
+    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("bench/table2-gpu.toml");
+    let cmd = Command::new(env!("CARGO_BIN_EXE_arpa"))
+        .env("ARPA_SHARED_SCENES", &scenes)
+        .args(["bench", config.to_str().unwrap(), "--out", out.to_str().unwrap(), "--downscale", "4", "--photons", "20000", "--seconds", "0.2"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&cmd.stderr);
+    assert!(cmd.status.success(), "arpa bench failed: {err}");
+    let rows = csv_rows(&out.join("runs.csv"));
+    for scene in ["caustic-glass", "veach-bidir", "water-caustic", "crytek-sponza"] {
+        for backend in ["vk", "wgpu"] {
+            let mine: Vec<&Vec<String>> = rows.iter().filter(|r| r[0] == scene && r[2] == backend).collect();
+            assert!(!mine.is_empty(), "no rows for {scene} on {backend}");
+            for r in mine {
+                let num = |i: usize| r[i].parse::<f64>().unwrap_or_else(|_| panic!("column {i} of {r:?}"));
+                let (host, device): (f64, f64) = ((12..17).map(num).sum(), (17..22).map(num).sum());
+                assert!((17..22).all(|i| num(i).is_finite() && num(i) >= 0.0), "device ms {r:?}");
+                assert!(num(17) > 0.0 && num(18) > 0.0 && num(21) >= 0.0, "camera and photon passes take device time: {r:?}");
+                // The CSV rounds each column to 1 µs.
+                assert!(device <= host * 1.01 + 0.01, "device {device} ms over host {host} ms: {r:?}");
+            }
+        }
+    }
+    let table = std::fs::read_to_string(out.join("table.md")).unwrap();
+    assert!(table.contains("## Table 2 (vk)") && table.contains("## Table 2 (wgpu)") && table.contains("## Device time by stage"), "{table}");
+}

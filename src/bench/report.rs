@@ -162,7 +162,13 @@ pub fn table_text(header: &Header, cfg: &LoadedConfig, results: &[RunResult]) ->
     let _ = writeln!(
         s,
         "\nSSIM of the sRGB-encoded luminance (clamped to [0, 1], 11×11 Gaussian window, σ = 1.5 px); NI: iterations in the budget; ATI: mean ms per iteration. Reference: each scene's independent reference{}.\n",
-        if c.downscale > 1 { format!(", box-averaged {0}×{0} (renders at 1/{0} of the film size)", c.downscale) } else { String::new() }
+        if c.downscale > 1 {
+            format!(", box-averaged {0}×{0} (renders at 1/{0} of the film size)", c.downscale)
+        } else if c.upscale > 1 {
+            format!(" (renders at {0}× the film size, compared box-averaged {0}×{0}; images at the reference's size)", c.upscale)
+        } else {
+            String::new()
+        }
     );
     for &backend in &cfg.backends {
         let _ = writeln!(s, "## Table 2 ({backend})\n");
