@@ -38,7 +38,7 @@ use crate::session::{Budget, CheckpointRow, Checkpoints, Hooks, Reference, Rende
 use arpa_core::propagate::classify::AutoSmoothing;
 use crate::state_file::{RenderIdentity, StateFile};
 use arpa_core::accumulate::image::Accumulation;
-use arpa_core::render::tracer::{BackendKind, EmissionStrategy, Image, Method, RenderSettings};
+use arpa_core::render::tracer::{BackendKind, DeviceTimes, EmissionStrategy, Image, Method, RenderSettings, StageTimes};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use std::io::IsTerminal;
@@ -104,6 +104,15 @@ pub struct BenchArgs {
     /// emission).
     #[arg(long)]
     pub no_peers: bool,
+
+    /// Overrides the config's size: render at 1/N of each scene's film size (and no
+    /// upscale), e.g. a paper-size config at a small size on lavapipe.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pub downscale: Option<u32>,
+
+    /// Overrides the config's photons per iteration (comma-separated, one run each).
+    #[arg(long, value_name = "N,...", value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..))]
+    pub photons: Option<Vec<u32>>,
 }
 
 /// How the smoothing factors are chosen (`--smoothing`).
@@ -615,6 +624,26 @@ pub fn skipped_lines(k: &arpa_core::render::tracer::Skipped) -> Vec<String> {
     out
 }
 
+/// The summary's device-time line: per stage the device's mean milliseconds per iteration
+/// and the host's share of the iteration (host minus device time); `None` for a host
+/// backend (cpu), whose stage times are its device times.
+pub fn device_line(device: &DeviceTimes, host: &StageTimes) -> Option<String> {
+    match device {
+        DeviceTimes::Host => None,
+        DeviceTimes::Unavailable => Some("device time: not available on this adapter (no timestamp queries)".into()),
+        DeviceTimes::Measured(d) => Some(format!(
+            "device per iteration camera {:.2} ms, photons {:.2} ms, AS build {:.2} ms, gather {:.2} ms, accumulate {:.2} ms (total {:.2} ms; host share {:.2} ms)",
+            1e3 * d.camera,
+            1e3 * d.photon,
+            1e3 * d.build,
+            1e3 * d.gather,
+            1e3 * d.accumulate,
+            1e3 * d.total(),
+            1e3 * (host.total() - d.total())
+        )),
+    }
+}
+
 /// The human-readable statistics summary printed at the end of a render.
 pub fn summary(r: &Rendered, settings: &RenderSettings) -> String {
     let t = &r.totals.sum;
@@ -666,6 +695,9 @@ pub fn summary(r: &Rendered, settings: &RenderSettings) -> String {
         ms(t.times.gather),
         ms(t.times.accumulate)
     );
+    if let Some(line) = device_line(&r.totals.mean_device_times(), &r.totals.mean_times()) {
+        s += &format!("  {line}\n");
+    }
     s += &format!("  total time          {:.2} s (render {:.2} s)", r.total_time.as_secs_f64(), secs);
     s
 }
@@ -681,7 +713,14 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
 
 /// `arpa bench`.
 pub fn run_bench(args: &BenchArgs) -> anyhow::Result<()> {
-    let cfg = crate::bench::config::LoadedConfig::load(&args.config)?;
+    let mut cfg = crate::bench::config::LoadedConfig::load(&args.config)?;
+    if let Some(k) = args.downscale {
+        cfg.config.downscale = k;
+        cfg.config.upscale = 1;
+    }
+    if let Some(p) = &args.photons {
+        cfg.config.photons.clone_from(p);
+    }
     let options = crate::bench::BenchOptions {
         out: args.out.clone(),
         seconds: args.seconds,
@@ -973,6 +1012,17 @@ mod tests {
         };
         let text = summary(&r, &RenderSettings::default());
         assert!(text.contains("rendered 5 iterations") && text.contains("10 footprints") && text.contains("gather 2.00 ms") && text.contains("backend 'cpu'"), "{text}");
+        assert!(!text.contains("device"), "a host backend has no device line: {text}");
+    }
+
+    #[test]
+    fn device_line_gives_device_ms_and_the_host_share_or_says_it_is_unavailable() {
+        let host = StageTimes { camera: 0.001, photon: 0.004, build: 0.001, gather: 0.003, accumulate: 0.001 };
+        let device = StageTimes { camera: 0.0005, photon: 0.002, build: 0.0005, gather: 0.002, accumulate: 0.0 };
+        assert_eq!(device_line(&DeviceTimes::Host, &host), None);
+        let line = device_line(&DeviceTimes::Measured(device), &host).unwrap();
+        assert!(line.contains("camera 0.50 ms, photons 2.00 ms") && line.contains("total 5.00 ms; host share 5.00 ms"), "{line}");
+        assert_eq!(device_line(&DeviceTimes::Unavailable, &host).unwrap(), "device time: not available on this adapter (no timestamp queries)");
     }
 
     #[test]

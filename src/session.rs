@@ -17,7 +17,7 @@ use arpa_core::accumulate::image::Accumulation;
 use arpa_core::accumulate::radius::{ProgressiveConfig, RadiusSpec};
 use arpa_core::propagate::classify::{AutoSmoothing, Smoothing};
 use arpa_core::render::scene::Scene;
-use arpa_core::render::tracer::{Capabilities, Image, IterationStats, RenderSettings, StageTimes, Tracer};
+use arpa_core::render::tracer::{Capabilities, DeviceTimes, Image, IterationStats, RenderSettings, StageTimes, Tracer};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -164,6 +164,15 @@ impl StatTotals {
         let t = &self.sum.times;
         StageTimes { camera: t.camera / n, photon: t.photon / n, build: t.build / n, gather: t.gather / n, accumulate: t.accumulate / n }
     }
+
+    /// Per-iteration mean device time of each stage (seconds): measured only when every
+    /// iteration summed was ([`DeviceTimes::accumulate`]).
+    pub fn mean_device_times(&self) -> DeviceTimes {
+        match self.sum.device_times {
+            DeviceTimes::Measured(t) => DeviceTimes::Measured(t.per(self.iterations)),
+            d => d,
+        }
+    }
 }
 
 /// An independent reference image the checkpoints are compared with.
@@ -173,6 +182,9 @@ pub struct Reference {
     pub image: Image,
     /// Where it was read from (for messages).
     pub path: PathBuf,
+    /// The render's size over the reference's (1: the same size): a render `scale` times
+    /// larger is box-averaged `scale × scale` before it is compared.
+    pub scale: u32,
 }
 
 impl Reference {
@@ -191,12 +203,23 @@ impl Reference {
                 image.height
             );
         }
-        Ok(Self { image, path: path.to_path_buf() })
+        Ok(Self { image, path: path.to_path_buf(), scale: 1 })
     }
 
-    /// relMSE, SSIM and FLIP of `image` against the reference.
+    /// `image` at the reference's size: box-averaged [`Reference::scale`]` × scale`
+    /// (borrowed as it is at scale 1).
+    pub fn at_reference_size<'a>(&self, image: &'a Image) -> anyhow::Result<std::borrow::Cow<'a, Image>> {
+        if self.scale <= 1 {
+            return Ok(std::borrow::Cow::Borrowed(image));
+        }
+        crate::metrics::downsample(image, self.scale).map(std::borrow::Cow::Owned).map_err(|e| anyhow::anyhow!("render for reference '{}': {e}", self.path.display()))
+    }
+
+    /// relMSE, SSIM and FLIP of `image` (at the reference's size, [`Reference::at_reference_size`])
+    /// against the reference.
     pub fn compare(&self, image: &Image) -> anyhow::Result<Metrics> {
-        compare_images(image, &self.image).with_context(|| format!("cannot compare with reference '{}'", self.path.display()))
+        let image = self.at_reference_size(image)?;
+        compare_images(&image, &self.image).with_context(|| format!("cannot compare with reference '{}'", self.path.display()))
     }
 }
 
@@ -207,8 +230,10 @@ pub struct CheckpointRow {
     pub iteration: u32,
     /// Render time up to this iteration (seconds), excluding checkpoints.
     pub seconds: f64,
-    /// Mean time per iteration of each stage so far (seconds).
+    /// Mean time per iteration of each stage so far (seconds, host wall clock).
     pub times: StageTimes,
+    /// Mean device time per iteration of each stage so far ([`StatTotals::mean_device_times`]).
+    pub device_times: DeviceTimes,
     /// Metrics against the [`Reference`], when there is one.
     pub metrics: Option<Metrics>,
     /// Gather candidates per valid query point so far, `[caustic, global]`
@@ -462,6 +487,7 @@ pub fn render_with<T: Tracer, H: Hooks + ?Sized>(
             iteration: i,
             seconds: at.as_secs_f64(),
             times: totals.mean_times(),
+            device_times: totals.mean_device_times(),
             metrics,
             candidates_per_query: totals.sum.candidates_per_query(),
             contributions_per_query: totals.sum.contributions_per_query(),
@@ -692,8 +718,8 @@ mod tests {
         image_io::write_exr(&path, &Image { width: 4, height: 2, pixels: vec![Vec3::ONE; 8] }).unwrap();
         let e = Reference::load(&path, 8, 4).err().unwrap();
         assert!(format!("{e:#}").contains("is 4x2 pixels but the render is 8x4"), "{e:#}");
-        let grey = Reference { image: Image { width: 8, height: 4, pixels: vec![Vec3::splat(0.5); 32] }, path: path.clone() };
-        let double = Reference { image: Image { width: 8, height: 4, pixels: vec![Vec3::ONE; 32] }, path };
+        let grey = Reference { image: Image { width: 8, height: 4, pixels: vec![Vec3::splat(0.5); 32] }, path: path.clone(), scale: 1 };
+        let double = Reference { image: Image { width: 8, height: 4, pixels: vec![Vec3::ONE; 32] }, path, scale: 1 };
         let options = SessionOptions { checkpoints: Checkpoints::Every(2), reference: Some(&grey), ..SessionOptions::budget(Budget::Iterations(3)) };
         let r = render_with(&mut Mock::default(), &small_scene(), &RenderSettings::default(), &options, &mut NoHooks).unwrap();
         assert_eq!(r.rows.len(), 2);

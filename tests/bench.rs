@@ -41,10 +41,11 @@ fn csv_rows(path: &Path) -> Vec<Vec<String>> {
     }
     let mut lines = text.lines().filter(|l| !l.starts_with('#'));
     let columns: Vec<&str> = lines.next().expect("no column line").split(',').collect();
-    assert_eq!(columns.len(), 32, "{columns:?}");
-    assert_eq!(columns[21..27], ["region_relmse", "caustic_records_per_photon", "global_records_per_photon", "caustic_pass_photons", "global_pass_photons", "caustic_records_per_second"]);
-    assert_eq!(columns[27..], ["scale0_share", "scale1_share", "scale2_share", "scale3_share", "scale4_share"]);
-    lines.map(|l| l.split(',').map(str::to_owned).collect::<Vec<_>>()).inspect(|f| assert_eq!(f.len(), 32, "{f:?}")).collect()
+    assert_eq!(columns.len(), 37, "{columns:?}");
+    assert_eq!(columns[12..22], ["camera_ms", "photon_ms", "build_ms", "gather_ms", "accumulate_ms", "camera_device_ms", "photon_device_ms", "build_device_ms", "gather_device_ms", "accumulate_device_ms"]);
+    assert_eq!(columns[26..32], ["region_relmse", "caustic_records_per_photon", "global_records_per_photon", "caustic_pass_photons", "global_pass_photons", "caustic_records_per_second"]);
+    assert_eq!(columns[32..], ["scale0_share", "scale1_share", "scale2_share", "scale3_share", "scale4_share"]);
+    lines.map(|l| l.split(',').map(str::to_owned).collect::<Vec<_>>()).inspect(|f| assert_eq!(f.len(), 37, "{f:?}")).collect()
 }
 
 #[test]
@@ -81,23 +82,26 @@ fn smoke_config_writes_every_output() {
                 assert!(num(7) > 0.0 && num(8) >= 0.0 && (-1.0..=1.0).contains(&num(9)) && (0.0..=1.0).contains(&num(10)));
                 // The whole-image mean is near the reference's (a wrong image is far off).
                 assert!((0.8..1.25).contains(&num(11)), "mean ratio {r:?}");
-                assert!((12..21).all(|i| num(i) >= 0.0));
+                assert!((12..17).all(|i| num(i) >= 0.0));
+                // No device columns on the cpu backend (its host time is its device time).
+                assert!(r[17..22].iter().all(String::is_empty), "device ms on cpu: {r:?}");
+                assert!((22..26).all(|i| num(i) >= 0.0));
                 // Gather candidates and contributions per query point (RTPM: photons only).
-                assert!(num(17) >= num(18) && num(19) >= num(20) && num(19) > 0.0, "gather counts {r:?}");
+                assert!(num(22) >= num(23) && num(24) >= num(25) && num(24) > 0.0, "gather counts {r:?}");
                 // The region relMSE only where the config sets a caustic region.
                 if scene == "cornell-caustic" {
-                    assert!(num(21) >= 0.0, "region relMSE {r:?}");
+                    assert!(num(26) >= 0.0, "region relMSE {r:?}");
                 } else {
-                    assert_eq!(r[21], "", "no region: {r:?}");
+                    assert_eq!(r[26], "", "no region: {r:?}");
                 }
                 // Records per photon, photons per pass and caustic records per second.
-                assert!((22..27).all(|i| num(i) >= 0.0), "photon rates {r:?}");
+                assert!((27..32).all(|i| num(i) >= 0.0), "photon rates {r:?}");
                 // The share of pixels per scale: for the per-pixel runs only, summing to 1.
                 if run.starts_with("arpa-pp") {
-                    let total: f64 = (27..32).map(num).sum();
-                    assert!((27..32).all(|i| num(i) >= 0.0) && (total - 1.0).abs() < 1e-3, "scale shares {r:?}");
+                    let total: f64 = (32..37).map(num).sum();
+                    assert!((32..37).all(|i| num(i) >= 0.0) && (total - 1.0).abs() < 1e-3, "scale shares {r:?}");
                 } else {
-                    assert!(r[27..].iter().all(String::is_empty), "no scale shares: {r:?}");
+                    assert!(r[32..].iter().all(String::is_empty), "no scale shares: {r:?}");
                 }
             }
             let stem = format!("{scene}-{}-cpu", run.replace(' ', "-").replace("-E-", "-E"));
@@ -177,4 +181,41 @@ fn a_bad_config_names_the_file_and_the_field() {
     let (ok, err) = bench(&config, &dir.path().join("out"), &[]);
     assert!(!ok);
     assert!(err.contains("bad.toml") && err.contains("photons"), "{err}");
+}
+
+/// `bench/table2-gpu.toml` (the paper-size GPU sweep) at a small size on whatever adapter
+/// is present (lavapipe in CI): every run of both GPU backends writes rows whose device
+/// columns hold each stage's device time, each within the run's host time, and table.md
+/// has the device-time table. Timings are never asserted beyond that.
+#[cfg(all(feature = "wgpu", feature = "vk"))]
+#[test]
+fn gpu_table2_config_reports_device_time_per_stage() {
+    let Some(scenes) = shared_scenes() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("gpu");
+    let config = Path::new(env!("CARGO_MANIFEST_DIR")).join("bench/table2-gpu.toml");
+    let cmd = Command::new(env!("CARGO_BIN_EXE_arpa"))
+        .env("ARPA_SHARED_SCENES", &scenes)
+        .args(["bench", config.to_str().unwrap(), "--out", out.to_str().unwrap(), "--downscale", "4", "--photons", "20000", "--seconds", "0.2"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&cmd.stderr);
+    assert!(cmd.status.success(), "arpa bench failed: {err}");
+    let rows = csv_rows(&out.join("runs.csv"));
+    for scene in ["caustic-glass", "veach-bidir", "water-caustic", "crytek-sponza"] {
+        for backend in ["vk", "wgpu"] {
+            let mine: Vec<&Vec<String>> = rows.iter().filter(|r| r[0] == scene && r[2] == backend).collect();
+            assert!(!mine.is_empty(), "no rows for {scene} on {backend}");
+            for r in mine {
+                let num = |i: usize| r[i].parse::<f64>().unwrap_or_else(|_| panic!("column {i} of {r:?}"));
+                let (host, device): (f64, f64) = ((12..17).map(num).sum(), (17..22).map(num).sum());
+                assert!((17..22).all(|i| num(i).is_finite() && num(i) >= 0.0), "device ms {r:?}");
+                assert!(num(17) > 0.0 && num(18) > 0.0 && num(21) >= 0.0, "camera and photon passes take device time: {r:?}");
+                // The CSV rounds each column to 1 µs.
+                assert!(device <= host * 1.01 + 0.01, "device {device} ms over host {host} ms: {r:?}");
+            }
+        }
+    }
+    let table = std::fs::read_to_string(out.join("table.md")).unwrap();
+    assert!(table.contains("## Table 2 (vk)") && table.contains("## Table 2 (wgpu)") && table.contains("## Device time by stage"), "{table}");
 }

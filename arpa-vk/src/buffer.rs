@@ -270,7 +270,22 @@ impl VkContext {
         let begin = vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
         // SAFETY: a fresh command buffer, recorded under the submitter lock.
         unsafe { device.begin_command_buffer(cmd, &begin) }.vk("vkBeginCommandBuffer")?;
+        // The submission's device time (crate::timing): a timestamp before the commands and
+        // one after, in the pool only this lock's holder uses.
+        let timestamps = submitter.timestamps.zip(shared.timestamps);
+        if let Some((pool, _)) = timestamps {
+            // SAFETY: a pool of two timestamp queries of this device, reset before it is
+            // written; the queue family has timestamps (valid bits > 0).
+            unsafe {
+                device.cmd_reset_query_pool(cmd, pool, 0, 2);
+                device.cmd_write_timestamp(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, pool, 0);
+            }
+        }
         let out = record(cmd);
+        if let Some((pool, _)) = timestamps {
+            // SAFETY: as above.
+            unsafe { device.cmd_write_timestamp(cmd, vk::PipelineStageFlags::BOTTOM_OF_PIPE, pool, 1) };
+        }
         // SAFETY: as above.
         unsafe { device.end_command_buffer(cmd) }.vk("vkEndCommandBuffer")?;
         // SAFETY: a valid device.
@@ -282,6 +297,13 @@ impl VkContext {
         unsafe { device.queue_submit(submitter.queue, &[submit], shot.fence) }.vk("vkQueueSubmit")?;
         // SAFETY: the fence belongs to this device.
         unsafe { device.wait_for_fences(&[shot.fence], true, u64::MAX) }.vk("vkWaitForFences")?;
+        let seconds = timestamps.and_then(|(pool, ts)| {
+            let mut ticks = [0u64; 2];
+            // SAFETY: both queries were written by the submission the fence says is done.
+            let read = unsafe { device.get_query_pool_results(pool, 0, &mut ticks, vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT) };
+            read.ok().map(|()| ts.seconds(ticks[0], ticks[1]))
+        });
+        crate::timing::record(seconds);
         drop(shot);
         Ok(out)
     }

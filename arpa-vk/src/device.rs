@@ -16,6 +16,7 @@
 
 use crate::adapter::{AdapterSummary, DeviceType};
 use crate::error::{VkError, VkResultExt};
+use crate::timing::Timestamps;
 use ash::vk;
 use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
 use gpu_allocator::{AllocationSizes, AllocatorDebugSettings};
@@ -469,6 +470,9 @@ impl Drop for DeviceOwner {
 pub(crate) struct Submitter {
     pub(crate) queue: vk::Queue,
     pub(crate) pool: vk::CommandPool,
+    /// Two timestamp queries that frame each submission ([`crate::timing`]); `None` where
+    /// the queue family has no timestamps.
+    pub(crate) timestamps: Option<vk::QueryPool>,
 }
 
 /// Everything the context owns. Buffers hold an `Arc` of it, so the device and the allocator
@@ -488,6 +492,8 @@ pub(crate) struct Shared {
     pub(crate) memory: MemoryLimits,
     pub(crate) physical_device: vk::PhysicalDevice,
     pub(crate) queue_family_index: u32,
+    /// The queue family's timestamps (`None`: none).
+    pub(crate) timestamps: Option<Timestamps>,
     /// Dropped after the device (field order).
     instance: InstanceOwner,
 }
@@ -500,7 +506,11 @@ impl Drop for Shared {
         // as a field), the device before the instance.
         unsafe {
             let _ = device.device_wait_idle();
-            device.destroy_command_pool(self.submitter.get_mut().unwrap_or_else(|e| e.into_inner()).pool, None);
+            let submitter = self.submitter.get_mut().unwrap_or_else(|e| e.into_inner());
+            device.destroy_command_pool(submitter.pool, None);
+            if let Some(q) = submitter.timestamps {
+                device.destroy_query_pool(q, None);
+            }
             device.destroy_pipeline_cache(self.pipeline_cache, None);
             ManuallyDrop::drop(&mut self.allocator);
         }
@@ -594,9 +604,24 @@ impl VkContext {
             }
         };
         let debug_utils = options.validation.then(|| ash::ext::debug_utils::Device::new(inst, dev));
+        // Stage timestamps where the queue family has them (never assumed: the valid bits
+        // and the period are the adapter's).
+        // SAFETY: a valid physical device of this instance.
+        let families = unsafe { inst.get_physical_device_queue_family_properties(pd) };
+        // SAFETY: as above.
+        let period = unsafe { inst.get_physical_device_properties(pd) }.limits.timestamp_period;
+        let valid_bits = families.get(queue_family_index as usize).map_or(0, |f| f.timestamp_valid_bits);
+        let timestamps = Timestamps::new(valid_bits, period);
+        let query_pool = timestamps.and_then(|_| {
+            let info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(2);
+            // SAFETY: a valid device; the pool is destroyed with the context. Without it the
+            // submissions go untimed and the stats say so.
+            unsafe { dev.create_query_pool(&info, None) }.ok()
+        });
+        let timestamps = timestamps.filter(|_| query_pool.is_some());
         Ok(Self {
             shared: Arc::new(Shared {
-                submitter: Mutex::new(Submitter { queue, pool }),
+                submitter: Mutex::new(Submitter { queue, pool, timestamps: query_pool }),
                 pipeline_cache,
                 allocator: ManuallyDrop::new(Mutex::new(allocator)),
                 debug_utils,
@@ -606,6 +631,7 @@ impl VkContext {
                 memory,
                 physical_device: pd,
                 queue_family_index,
+                timestamps,
                 instance,
             }),
         })
@@ -644,6 +670,12 @@ impl VkContext {
     /// The physical device.
     pub fn physical_device(&self) -> vk::PhysicalDevice {
         self.shared.physical_device
+    }
+
+    /// The timestamps of the context's queue family (`None`: it has none, and device times
+    /// are not available; [`crate::timing`]).
+    pub fn timestamps(&self) -> Option<Timestamps> {
+        self.shared.timestamps
     }
 
     /// The family of the context's one compute queue.

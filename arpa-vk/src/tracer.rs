@@ -22,9 +22,10 @@ use arpa_core::render::prepared_scene::PreparedScene;
 use arpa_core::store::progressive_photon::PackedPhoton;
 use arpa_core::render::scene::{Scene, SceneError};
 use arpa_core::render::tracer::{
-    BackendKind, Call, Capabilities, Image, IterationStats, QueryRecord, RenderSettings, Stage, StageClock, StageError, Tracer,
-    prepare_upload, uploaded,
+    BackendKind, Call, Capabilities, DeviceTimes, Image, IterationStats, QueryRecord, RenderSettings, Stage, StageClock, StageError, StageTimes,
+    Tracer, prepare_upload, uploaded,
 };
+use crate::timing::DeviceClock;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 use std::ops::Range;
@@ -66,9 +67,12 @@ pub enum VkTracerError {
 /// | [`accumulate`](Tracer::accumulate) | compensated running sum of every plane ([`DeviceAccumulator`]) | the dispatch |
 ///
 /// Each stage is one submission (or two, for the photon pass's store and sort) that the host
-/// waits for: the stage times of [`IterationStats`] are the device's. Both readbacks of the
-/// photon pass stay because Vulkan's indirect build takes primitive counts from device
-/// memory but not the sizes of the structures, which must be allocated before the build.
+/// waits for: the stage times of [`IterationStats::times`] are the host's around them, and
+/// [`IterationStats::device_times`] the device's own, from a timestamp before and after
+/// every submission ([`crate::timing`]; where the queue family has no timestamps, they are
+/// [`DeviceTimes::Unavailable`]). Both readbacks of the photon pass stay because Vulkan's
+/// indirect build takes primitive counts from device memory but not the sizes of the
+/// structures, which must be allocated before the build.
 ///
 /// # Photon records and batches
 /// The photon pass's buffers start at [`arpa_core::gpu::batch::INITIAL_RECORDS_PER_PHOTON`]
@@ -243,6 +247,33 @@ impl VkTracer {
     }
 }
 
+/// Runs `stage` on `clock` ([`StageClock::run`]) and records its device time: the device
+/// time of the submissions this thread made during the stage ([`DeviceClock`]), or
+/// [`DeviceTimes::Unavailable`] where one of them was not timed. Each stage's time is known
+/// when the stage ends.
+fn timed<E: From<StageError>>(clock: &mut StageClock, stage: Stage, body: impl FnOnce(&mut StageClock) -> Result<(), E>) -> Result<(), E> {
+    let before = DeviceClock::now();
+    clock.run(stage, body)?;
+    let stats = clock.stats_mut();
+    match (DeviceClock::now().since(&before), &mut stats.device_times) {
+        (None, d) => *d = DeviceTimes::Unavailable,
+        (Some(_), DeviceTimes::Unavailable) => {}
+        (Some(seconds), DeviceTimes::Measured(t)) => {
+            if let Some(v) = t.of_mut(stage) {
+                *v = seconds;
+            }
+        }
+        (Some(seconds), d @ DeviceTimes::Host) => {
+            let mut t = StageTimes::default();
+            if let Some(v) = t.of_mut(stage) {
+                *v = seconds;
+            }
+            *d = DeviceTimes::Measured(t);
+        }
+    }
+    Ok(())
+}
+
 /// The pipelines of a context, once made.
 type PipelineSlot = Arc<Mutex<Option<Arc<PassPipelines>>>>;
 
@@ -397,7 +428,7 @@ impl Tracer for VkTracer {
 
     fn camera_pass(&mut self) -> Result<(), VkTracerError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::CameraPass)?;
-        st.clock.run(Stage::CameraPass, |clock| Ok(st.camera.run(&self.ctx, clock.completed())?))
+        timed(&mut st.clock, Stage::CameraPass, |clock| Ok(st.camera.run(&self.ctx, clock.completed())?))
     }
 
     fn photon_pass(&mut self) -> Result<(), VkTracerError> {
@@ -406,7 +437,7 @@ impl Tracer for VkTracer {
         let st = uploaded(self.state.as_deref_mut(), Stage::PhotonPass)?;
         // The batches read and write the whole state; the clock steps out of it meanwhile.
         let mut clock = std::mem::take(&mut st.clock);
-        let result = clock.run(Stage::PhotonPass, |clock| {
+        let result = timed(&mut clock, Stage::PhotonPass, |clock| {
             // The previous iteration's structures refer to the buffers the store rewrites.
             for b in &mut st.batches {
                 b.accel = None;
@@ -435,7 +466,7 @@ impl Tracer for VkTracer {
 
     fn build_acceleration_structure(&mut self) -> Result<(), VkTracerError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::BuildAccelerationStructure)?;
-        st.clock.run(Stage::BuildAccelerationStructure, |_| {
+        timed(&mut st.clock, Stage::BuildAccelerationStructure, |_| {
             for b in &mut st.batches[..st.batch_count] {
                 b.accel = None;
                 b.accel = Some(MapAccel::build(&self.ctx, b.store.footprint_boxes(), b.store.photon_boxes(), &b.counts)?);
@@ -446,7 +477,7 @@ impl Tracer for VkTracer {
 
     fn gather(&mut self) -> Result<(), VkTracerError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::Gather)?;
-        st.clock.run(Stage::Gather, |clock| {
+        timed(&mut st.clock, Stage::Gather, |clock| {
             let batches = st.batch_count;
             let (mut contributions, mut candidates, mut covered, mut query_points) = ([0u64; 2], [0u64; 2], [0u64; 2], 0u64);
             for (k, b) in st.batches[..batches].iter().enumerate() {
@@ -472,7 +503,7 @@ impl Tracer for VkTracer {
 
     fn accumulate(&mut self) -> Result<(), VkTracerError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::Accumulate)?;
-        st.clock.run(Stage::Accumulate, |_| Ok(st.accumulator.accumulate_and_wait(&self.ctx, &st.image)?))
+        timed(&mut st.clock, Stage::Accumulate, |_| Ok(st.accumulator.accumulate_and_wait(&self.ctx, &st.image)?))
     }
 
     fn iterations(&self) -> u32 {

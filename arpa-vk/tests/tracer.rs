@@ -202,3 +202,42 @@ fn per_pixel_planes_are_accumulated_and_resume_exactly() {
     assert!(e.contains("planes"), "{e}");
     assert_clean(&log, "while rendering per-pixel planes");
 }
+
+/// Device times of a finished iteration: measured on an adapter with timestamps (lavapipe
+/// has them), every stage finite and non-negative, the traced passes non-zero, each stage
+/// within the host time of its call and the total within the iteration's wall time (plus
+/// 1 ms and 1 % for the two clocks' rounding).
+fn check_device_times(stats: &IterationStats, wall: f64, has_timestamps: bool) {
+    use arpa_core::render::tracer::DeviceTimes;
+    let d = match stats.device_times {
+        DeviceTimes::Measured(d) => d,
+        other => {
+            assert!(!has_timestamps, "the adapter has timestamps but iteration {} has device times {other:?}", stats.iteration);
+            return;
+        }
+    };
+    let (host, slack) = (stats.times, |t: f64| t * 1.01 + 1e-3);
+    for (name, dev, host) in [("camera", d.camera, host.camera), ("photon", d.photon, host.photon), ("build", d.build, host.build), ("gather", d.gather, host.gather), ("accumulate", d.accumulate, host.accumulate)] {
+        assert!(dev.is_finite() && dev >= 0.0 && dev <= slack(host), "{name}: device {dev} s, host {host} s");
+    }
+    assert!(d.camera > 0.0 && d.photon > 0.0 && d.gather > 0.0, "the passes that trace take device time: {d:?}");
+    assert!(d.total() <= slack(wall), "device total {} s over the iteration's wall time {wall} s", d.total());
+}
+
+#[test]
+fn every_iteration_reports_device_time_per_stage() {
+    let Some(mut t) = tracer() else { return };
+    let has_timestamps = t.context().timestamps().is_some();
+    if t.context().is_lavapipe() {
+        let ts = t.context().timestamps().expect("lavapipe's queue has timestamps");
+        assert!(ts.valid_bits >= 36 && ts.period_ns > 0.0, "{ts:?}");
+    }
+    t.upload_scene(&scene(), &RenderSettings { photons_per_iteration: 20_000, seed: 3, ..RenderSettings::default() }).unwrap();
+    for _ in 0..3 {
+        let start = std::time::Instant::now();
+        t.iterate().unwrap();
+        let wall = start.elapsed().as_secs_f64();
+        check_device_times(&t.read_stats().unwrap(), wall, has_timestamps);
+    }
+    assert_clean(&t.context().validation_log(), "while timing stages");
+}

@@ -6,6 +6,7 @@
 //! (case-insensitive) part of its name. The device is created with
 //! [`wgpu::Features::EXPERIMENTAL_RAY_QUERY`] and the adapter's acceleration-structure limits.
 
+use crate::timing::{DeviceTimer, TIMER_FEATURES};
 use wgpu::{AdapterInfo, DeviceType, Features};
 
 /// The name part that identifies lavapipe (Mesa's software Vulkan driver).
@@ -151,6 +152,8 @@ pub struct GpuContext {
     pub device: wgpu::Device,
     /// Its queue.
     pub queue: wgpu::Queue,
+    /// Stage timestamps, where the adapter has [`crate::timing::TIMER_FEATURES`].
+    timer: Option<DeviceTimer>,
 }
 
 impl GpuContext {
@@ -184,10 +187,13 @@ impl GpuContext {
             ..wgpu::Limits::default()
         }
         .using_acceleration_structure_values(have);
+        // Timestamps only where the adapter has them (wgpu offers them on Vulkan queues
+        // with at least 36 valid timestamp bits); without them the stats say so.
+        let timestamps = adapter.features().contains(TIMER_FEATURES);
         let (device, queue) = adapter
             .request_device(&wgpu::DeviceDescriptor {
                 label: Some("arpa-wgpu"),
-                required_features: Features::EXPERIMENTAL_RAY_QUERY,
+                required_features: if timestamps { Features::EXPERIMENTAL_RAY_QUERY | TIMER_FEATURES } else { Features::EXPERIMENTAL_RAY_QUERY },
                 required_limits: limits,
                 // SAFETY: ray queries are an experimental wgpu feature; arpa-wgpu uses them
                 // only through validated WGSL and accepts wgpu's caveats for such features.
@@ -197,7 +203,13 @@ impl GpuContext {
             })
             .await
             .map_err(|source| DeviceError::RequestDevice { name: info.name.clone(), source })?;
-        Ok(Self { info, device, queue })
+        let timer = timestamps.then(|| DeviceTimer::new(&device, queue.get_timestamp_period()));
+        Ok(Self { info, device, queue, timer })
+    }
+
+    /// The stage timer (`None`: the adapter has no timestamp queries inside encoders).
+    pub fn timer(&self) -> Option<&DeviceTimer> {
+        self.timer.as_ref()
     }
 
     /// `true` when the device runs on lavapipe (software), not a GPU.

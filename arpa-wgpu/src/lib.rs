@@ -46,6 +46,7 @@ pub mod scene;
 pub mod shaders;
 pub mod sort;
 pub mod store;
+pub mod timing;
 pub mod tracer;
 
 pub use device::{AdapterChoice, DeviceError, GpuContext};

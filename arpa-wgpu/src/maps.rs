@@ -46,7 +46,7 @@ pub(crate) fn read_buffer(ctx: &GpuContext, stage: &'static str, buffer: &wgpu::
         });
         let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa read-back") });
         encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, bytes);
-        ctx.queue.submit([encoder.finish()]);
+        ctx.submit(encoder);
         Ok(staging)
     })?;
     let readback = |e: String| WgpuError::Readback { stage, message: e };
@@ -135,7 +135,7 @@ impl PhotonMaps {
         scoped(ctx, "store", || {
             let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa store") });
             store.encode_store(&ctx.queue, &self.pipelines, &mut encoder, settings).map_err(|e| WgpuError::Size(e.to_string()))?;
-            ctx.queue.submit([encoder.finish()]);
+            ctx.submit(encoder);
             Ok(())
         })?;
         let bytes = read_buffer(ctx, "store counts", store.counts_buffer(), size_of::<StoreCounts>() as u64)?;
@@ -189,7 +189,7 @@ impl PhotonMaps {
                     accel: None,
                 }
             };
-            ctx.queue.submit([encoder.finish()]);
+            ctx.submit(encoder);
             Ok(batch)
         })?;
         self.batches.push(batch);
@@ -219,7 +219,7 @@ impl PhotonMaps {
                 let accel = crate::accel::build(device, &mut encoder, &b.footprint_boxes, &b.photon_boxes, &b.counts).map_err(|e| WgpuError::Size(e.to_string()))?;
                 b.accel = Some(accel);
             }
-            ctx.queue.submit([encoder.finish()]);
+            ctx.submit(encoder);
             Ok(())
         })
     }

@@ -17,7 +17,7 @@ use arpa_core::render::prepared_scene::PreparedScene;
 use arpa_core::store::progressive_photon::PackedPhoton;
 use arpa_core::render::scene::Scene;
 use arpa_core::render::tracer::{
-    BackendKind, Call, Capabilities, Image, IterationStats, QueryRecord, RenderSettings, Stage, StageClock, StageError, Tracer,
+    BackendKind, Call, Capabilities, DeviceTimes, Image, IterationStats, QueryRecord, RenderSettings, Stage, StageClock, StageError, Tracer,
     prepare_upload, uploaded,
 };
 
@@ -38,7 +38,14 @@ const QUERY_BYTES: u64 = std::mem::size_of::<QueryRecord>() as u64;
 /// | [`photon_pass`](Tracer::photon_pass) | every photon batch of the iteration: photons traced into append buffers ([`PhotonPass`]), keyed store, sort and compaction into the batch's maps ([`crate::store::MapStore`], [`crate::maps::BatchMaps`]) | per batch, the pass's and the store's counters (overflow check, sizes for the sort and the build) |
 /// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | per batch, AABB BLAS per (kind, map) and one TLAS ([`crate::accel`]) | — |
 /// | [`gather`](Tracer::gather) | per pixel and scale `radiance + weight · E_k`, `E_k` summed over the batches in batch order, and the moment planes ([`crate::gather::ImageGather`]) | contribution and query-point counts (16 bytes) |
-/// | [`accumulate`](Tracer::accumulate) | compensated running sum of every plane | — |
+/// | [`accumulate`](Tracer::accumulate) | compensated running sum of every plane | the iteration's stage timestamps (8 bytes per timed submission, in the same wait) |
+///
+/// # Stage times
+/// [`IterationStats::times`] are the host's wall-clock time of each stage call (every stage
+/// waits for its submissions). Where the adapter has timestamp queries inside encoders,
+/// every submission of a stage is framed by two timestamps ([`crate::timing`]) and
+/// [`IterationStats::device_times`] holds the device's own time per stage once the
+/// iteration's accumulate has run; elsewhere it is [`DeviceTimes::Unavailable`].
 ///
 /// # Bandwidth
 /// The iteration image has [`arpa_core::gather::scales::Bandwidth::planes`] planes per pixel
@@ -203,6 +210,19 @@ impl WgpuTracer {
     }
 }
 
+/// Runs `stage` on `clock` ([`StageClock::run`]) with the device timer, where the adapter
+/// has one, timing the stage's submissions ([`crate::timing`]).
+fn timed<E: From<StageError>>(ctx: &GpuContext, clock: &mut StageClock, stage: Stage, body: impl FnOnce(&mut StageClock) -> Result<(), E>) -> Result<(), E> {
+    if let Some(t) = ctx.timer() {
+        t.begin_stage(stage, clock.completed());
+    }
+    let result = clock.run(stage, body);
+    if let Some(t) = ctx.timer() {
+        t.end_stage();
+    }
+    result
+}
+
 /// Waits until the device has finished the submitted work (stage timings).
 fn wait(ctx: &GpuContext, stage: &'static str) -> Result<(), WgpuError> {
     ctx.device.poll(wgpu::PollType::wait_indefinitely()).map(|_| ()).map_err(|e| WgpuError::Readback { stage, message: e.to_string() })
@@ -228,7 +248,7 @@ fn trace_batch(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, clock: 
         scoped(ctx, "photon_pass", || {
             let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa photon pass") });
             st.photon.encode_batch(ctx, &mut encoder, &st.scene, setup, range.clone(), &st.outputs)?;
-            ctx.queue.submit([encoder.finish()]);
+            ctx.submit(encoder);
             Ok(())
         })?;
         let c: PhotonCounters = bytemuck::pod_read_unaligned(&read_buffer(ctx, "photon counters", st.outputs.counters(), std::mem::size_of::<PhotonCounters>() as u64)?);
@@ -350,11 +370,11 @@ impl Tracer for WgpuTracer {
     fn camera_pass(&mut self) -> Result<(), WgpuError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::CameraPass)?;
         let ctx = &self.ctx;
-        st.clock.run(Stage::CameraPass, |clock| {
+        timed(ctx, &mut st.clock, Stage::CameraPass, |clock| {
             scoped(ctx, "camera_pass", || {
                 let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa camera pass") });
                 st.camera.encode(&mut encoder, clock.completed(), &st.queries);
-                ctx.queue.submit([encoder.finish()]);
+                ctx.submit(encoder);
                 Ok(())
             })?;
             wait(ctx, "camera_pass")
@@ -366,7 +386,7 @@ impl Tracer for WgpuTracer {
         let (ctx, maps) = (&self.ctx, &mut self.maps);
         // The batches read and write the whole state; the clock steps out of it meanwhile.
         let mut clock = std::mem::take(&mut st.clock);
-        let result = clock.run(Stage::PhotonPass, |clock| {
+        let result = timed(ctx, &mut clock, Stage::PhotonPass, |clock| {
             let setup = PhotonPassSetup::new(&st.prepared, &st.settings, clock.completed());
             let n = setup.photon_count();
             clock.stats_mut().overflowed = 0;
@@ -391,7 +411,7 @@ impl Tracer for WgpuTracer {
 
     fn build_acceleration_structure(&mut self) -> Result<(), WgpuError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::BuildAccelerationStructure)?;
-        st.clock.run(Stage::BuildAccelerationStructure, |_| {
+        timed(&self.ctx, &mut st.clock, Stage::BuildAccelerationStructure, |_| {
             self.maps.build(&self.ctx)?;
             wait(&self.ctx, "build_acceleration_structure")
         })
@@ -401,13 +421,13 @@ impl Tracer for WgpuTracer {
         let st = uploaded(self.state.as_deref_mut(), Stage::Gather)?;
         let ctx = &self.ctx;
         let maps = &self.maps;
-        st.clock.run(Stage::Gather, |clock| {
+        timed(ctx, &mut st.clock, Stage::Gather, |clock| {
             // One submission per batch: each writes its gather parameters through the queue.
             for k in 0..maps.batch_count() {
                 scoped(ctx, "gather", || {
                     let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa gather") });
                     maps.encode_gather(ctx, &mut encoder, k, &st.queries, &st.image, &st.irradiance, st.settings.kernel, st.settings.bandwidth, st.pixels)?;
-                    ctx.queue.submit([encoder.finish()]);
+                    ctx.submit(encoder);
                     Ok(())
                 })?;
             }
@@ -425,14 +445,21 @@ impl Tracer for WgpuTracer {
     fn accumulate(&mut self) -> Result<(), WgpuError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::Accumulate)?;
         let ctx = &self.ctx;
-        st.clock.run(Stage::Accumulate, |_| {
+        timed(ctx, &mut st.clock, Stage::Accumulate, |clock| {
             scoped(ctx, "accumulate", || {
                 let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa accumulate") });
                 st.accumulator.encode(&ctx.device, &mut encoder, &st.image);
-                ctx.queue.submit([encoder.finish()]);
+                ctx.submit(encoder);
                 Ok(())
             })?;
-            wait(ctx, "accumulate")
+            // The iteration's timestamps come back in the same wait as the accumulation.
+            let timestamps = ctx.timer().map(|t| (t, t.resolve(&ctx.device, &ctx.queue)));
+            wait(ctx, "accumulate")?;
+            clock.stats_mut().device_times = match timestamps {
+                Some((timer, pending)) => timer.read(pending)?,
+                None => DeviceTimes::Unavailable,
+            };
+            Ok(())
         })
     }
 

@@ -41,6 +41,11 @@ pub struct BenchConfig {
     /// box-averaged `downscale × downscale` (1: full size).
     #[serde(default = "default_downscale")]
     pub downscale: u32,
+    /// Render at `upscale` times each scene's film size and compare the render box-averaged
+    /// `upscale × upscale` with the reference (1: full size; with `downscale` 1 only). For
+    /// timing at sizes beyond the references' (the paper's 1920×1080).
+    #[serde(default = "default_downscale")]
+    pub upscale: u32,
     /// The scenes.
     #[serde(rename = "scene")]
     pub scenes: Vec<SceneEntry>,
@@ -194,8 +199,11 @@ impl LoadedConfig {
         if config.scenes.is_empty() {
             return bad("no [[scene]]".into());
         }
-        if config.downscale == 0 {
-            return bad("downscale must be at least 1".into());
+        if config.downscale == 0 || config.upscale == 0 {
+            return bad("downscale and upscale must be at least 1".into());
+        }
+        if config.downscale > 1 && config.upscale > 1 {
+            return bad(format!("downscale {} and upscale {}: set one of them", config.downscale, config.upscale));
         }
         if config.threads == Some(0) {
             return bad("threads must be at least 1".into());
@@ -280,6 +288,7 @@ smoothing_caustic = 0.5
     fn a_config_loads_with_defaults_and_a_hash() {
         let c = load(OK).unwrap();
         assert_eq!(c.config.seconds, 10.0);
+        assert_eq!((c.config.downscale, c.config.upscale), (1, 1));
         assert_eq!(c.methods, vec![BenchMethod::Arpa, BenchMethod::Rtpm]);
         assert_eq!(c.hash.len(), 64);
         assert_eq!(c.config.scenes[0].smoothing_caustic, Some(0.5));
@@ -315,6 +324,8 @@ smoothing_caustic = 0.5
             (OK.replace("smoothing_caustic = 0.5", "caustic_region = [0, 9, 5, 3]"), "caustic_region [0, 9, 5, 3] is empty"),
             (OK.replace("smoothing_caustic = 0.5", "caustic_region = [0, 1, 2]"), "caustic_region"),
             (OK.replace("smoothing_caustic = 0.5", "caustic_region = [-1, 0, 2, 2]"), "caustic_region"),
+            (OK.replace("name = \"t\"", "name = \"t\"\nupscale = 0"), "upscale must be at least 1"),
+            (OK.replace("name = \"t\"", "name = \"t\"\nupscale = 6\ndownscale = 2"), "downscale 2 and upscale 6: set one of them"),
         ] {
             let e = format!("{:#}", load(&text).unwrap_err());
             assert!(e.contains(needle) && e.contains("b.toml"), "{needle}: {e}");

@@ -93,6 +93,7 @@ impl Hooks for RowHooks<'_> {
             flip: m.flip,
             mean_ratio: metrics::mean(image) / self.reference_mean,
             times: row.times,
+            device_times: row.device_times,
             candidates_per_query: row.candidates_per_query,
             contributions_per_query: row.contributions_per_query,
             region_rel_mse: self.bench_scene.region_rel_mse(image)?,
@@ -119,6 +120,7 @@ impl PreparedBenchScene {
     /// relMSE of `image` inside the caustic region, if the scene has one.
     fn region_rel_mse(&self, image: &Image) -> anyhow::Result<Option<f64>> {
         let Some(rect) = self.region else { return Ok(None) };
+        let image = self.reference.at_reference_size(image)?;
         metrics::check_sizes(image.width, image.height, self.reference.image.width, self.reference.image.height)?;
         let e = metrics::rel_mse_in(&image.pixels, &self.reference.image.pixels, image.width, image.height, rect)
             .with_context(|| format!("caustic region of scene '{}' against reference '{}'", self.entry.name, self.reference.path.display()))?;
@@ -132,11 +134,14 @@ fn prepare_scene(cfg: &LoadedConfig, entry: &SceneEntry) -> anyhow::Result<Prepa
     let mut loaded = load_scene(&file, &[]).with_context(|| format!("cannot load scene file '{}'", file.display()))?;
     let ref_path = dir.join(&entry.reference);
     let full = crate::image_io::read_exr(&ref_path).with_context(|| format!("cannot read reference image '{}'", ref_path.display()))?;
-    let k = cfg.config.downscale;
+    let (k, up) = (cfg.config.downscale, cfg.config.upscale);
     let image = metrics::downsample(&full, k).map_err(|e| anyhow::anyhow!("reference '{}': {e}", ref_path.display()))?;
-    loaded.set_resolution(image.width, image.height);
-    let camera = &loaded.scene.camera;
-    if (full.width / k, full.height / k) != (camera.width, camera.height) {
+    let (width, height) = match (image.width.checked_mul(up), image.height.checked_mul(up)) {
+        (Some(w), Some(h)) => (w, h),
+        _ => bail!("bench config '{}': upscale {up} of scene '{}' overflows the film size", cfg.path.display(), entry.name),
+    };
+    loaded.set_resolution(width, height);
+    if (width, height) != (loaded.scene.camera.width, loaded.scene.camera.height) {
         bail!("reference '{}' does not match the scene's film", ref_path.display());
     }
     loaded.scene.validate().with_context(|| format!("scene file '{}' is invalid", file.display()))?;
@@ -146,7 +151,7 @@ fn prepare_scene(cfg: &LoadedConfig, entry: &SceneEntry) -> anyhow::Result<Prepa
         }
         r => r.map(|r| r.downscaled(k)),
     };
-    Ok(PreparedBenchScene { entry: entry.clone(), file, scene: loaded.scene, max_depth: loaded.max_depth, reference: Reference { image, path: ref_path }, region })
+    Ok(PreparedBenchScene { entry: entry.clone(), file, scene: loaded.scene, max_depth: loaded.max_depth, reference: Reference { image, path: ref_path, scale: up }, region })
 }
 
 fn settings_for(s: &PreparedBenchScene, method: Method, photons: u32, seed: u32) -> RenderSettings {
@@ -239,7 +244,9 @@ pub fn run_bench(cfg: &LoadedConfig, options: &BenchOptions) -> anyhow::Result<V
                     let mut hooks = RowHooks { reference_mean, bench_scene: scene, scene: &entry.name, kind: &kind, rows: Vec::new() };
                     let session = SessionOptions { budget: Budget::Time(budget), checkpoints: Checkpoints::PowersOfTwo, reference: Some(&scene.reference), resume: None, save: None, continued: false };
                     let rendered = render_with(tracer, &scene.scene, &settings, &session, &mut hooks).with_context(|| format!("{} {}", entry.name, kind.label()))?;
-                    report::write_run_images(&options.out, &entry.name, &kind, &rendered.image, &scene.reference.image)?;
+                    // At the reference's size (box-averaged when the sweep renders larger).
+                    let image = scene.reference.at_reference_size(&rendered.image)?;
+                    report::write_run_images(&options.out, &entry.name, &kind, &image, &scene.reference.image)?;
                     let last = hooks.rows.last().map_or(String::new(), |r| format!("NI {} relMSE {:.4e} SSIM {:.3}{pilot_note}", r.iteration, r.rel_mse, r.ssim));
                     progress(&format!("{} {} ({kind_backend})", entry.name, kind.label()), &last);
                     let rows = hooks.rows;
@@ -330,6 +337,7 @@ fn run_peer(
                     flip: m.flip,
                     mean_ratio: metrics::mean(&image) / reference_mean,
                     times: StageTimes::default(),
+                    device_times: arpa_core::render::tracer::DeviceTimes::Host,
                     candidates_per_query: [0.0; 2],
                     contributions_per_query: [0.0; 2],
                     scale_share: None,
@@ -347,6 +355,6 @@ fn run_peer(
     let Some(image) = last_image else {
         return skipped(format!("the peer wrote no image ({})", String::from_utf8_lossy(&out.stderr).lines().last().unwrap_or("no message")));
     };
-    report::write_run_images(&options.out, name, kind, &image, &scene.reference.image)?;
+    report::write_run_images(&options.out, name, kind, &*scene.reference.at_reference_size(&image)?, &scene.reference.image)?;
     Ok(RunResult { scene: name.clone(), kind: kind.clone(), rows, skipped: None })
 }

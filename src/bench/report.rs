@@ -6,7 +6,7 @@ use super::results::{BenchRow, Header, RunKind, RunResult, budget_label};
 use crate::image_io;
 use crate::metrics;
 use anyhow::{Context, anyhow};
-use arpa_core::render::tracer::Image;
+use arpa_core::render::tracer::{DeviceTimes, Image};
 use plotters::prelude::*;
 use plotters::style::colors::colormaps::ViridisRGB;
 use std::fmt::Write as _;
@@ -62,12 +62,16 @@ pub fn write_all(out: &Path, header: &Header, cfg: &LoadedConfig, results: &[Run
     Ok(())
 }
 
-/// The CSV columns. `region_relmse` is the relMSE inside the scene's caustic region (empty
-/// without one). The last five are the photon passes' sums up to the checkpoint (empty for
+/// The CSV columns. `camera_ms` … `accumulate_ms` are the host's mean wall-clock time per
+/// iteration of each stage, `camera_device_ms` … `accumulate_device_ms` the device's own
+/// time of the same stages from timestamp queries (empty for the cpu backend, whose host
+/// time is its device time, for the peers, and where the adapter has no timestamps);
+/// host minus device is the host's share. `region_relmse` is the relMSE inside the scene's
+/// caustic region (empty without one). The last five are the photon passes' sums up to the checkpoint (empty for
 /// peers): records stored per photon emitted in the caustic and the global map, mean
 /// photons emitted per iteration by the caustic and the global pass, and caustic-map
 /// records stored per second of render time.
-pub const CSV_COLUMNS: &str = "scene,run,backend,method,photons,status,iteration,seconds,relmse,ssim,flip,mean_ratio,camera_ms,photon_ms,build_ms,gather_ms,accumulate_ms,caustic_candidates_per_query,caustic_contributions_per_query,global_candidates_per_query,global_contributions_per_query,region_relmse,caustic_records_per_photon,global_records_per_photon,caustic_pass_photons,global_pass_photons,caustic_records_per_second,scale0_share,scale1_share,scale2_share,scale3_share,scale4_share";
+pub const CSV_COLUMNS: &str = "scene,run,backend,method,photons,status,iteration,seconds,relmse,ssim,flip,mean_ratio,camera_ms,photon_ms,build_ms,gather_ms,accumulate_ms,camera_device_ms,photon_device_ms,build_device_ms,gather_device_ms,accumulate_device_ms,caustic_candidates_per_query,caustic_contributions_per_query,global_candidates_per_query,global_contributions_per_query,region_relmse,caustic_records_per_photon,global_records_per_photon,caustic_pass_photons,global_pass_photons,caustic_records_per_second,scale0_share,scale1_share,scale2_share,scale3_share,scale4_share";
 
 /// `{:.9e}` of a value, or nothing.
 fn optional_sci(v: Option<f64>) -> String {
@@ -105,9 +109,13 @@ pub fn csv_text(header: &Header, results: &[RunResult]) -> String {
             );
             // Per-scale share of the pixels (per-pixel bandwidth runs; empty otherwise).
             let shares = row.scale_share.map_or_else(|| ",".repeat(arpa_core::gather::scales::SCALES - 1), |sh| sh.map(|v| format!("{v:.4}")).join(","));
+            let device = row.device_times.measured().map_or_else(
+                || ",,,,".to_string(),
+                |d| format!("{:.3},{:.3},{:.3},{:.3},{:.3}", d.camera * 1e3, d.photon * 1e3, d.build * 1e3, d.gather * 1e3, d.accumulate * 1e3),
+            );
             let _ = writeln!(
                 s,
-                "{},{run},{backend},{method},{photons},ok,{},{:.6},{:.9e},{:.9},{:.9},{:.6},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{:.3},{},{rates},{shares}",
+                "{},{run},{backend},{method},{photons},ok,{},{:.6},{:.9e},{:.9},{:.9},{:.6},{:.3},{:.3},{:.3},{:.3},{:.3},{device},{:.3},{:.3},{:.3},{:.3},{},{rates},{shares}",
                 r.scene,
                 row.iteration,
                 row.seconds,
@@ -154,7 +162,13 @@ pub fn table_text(header: &Header, cfg: &LoadedConfig, results: &[RunResult]) ->
     let _ = writeln!(
         s,
         "\nSSIM of the sRGB-encoded luminance (clamped to [0, 1], 11×11 Gaussian window, σ = 1.5 px); NI: iterations in the budget; ATI: mean ms per iteration. Reference: each scene's independent reference{}.\n",
-        if c.downscale > 1 { format!(", box-averaged {0}×{0} (renders at 1/{0} of the film size)", c.downscale) } else { String::new() }
+        if c.downscale > 1 {
+            format!(", box-averaged {0}×{0} (renders at 1/{0} of the film size)", c.downscale)
+        } else if c.upscale > 1 {
+            format!(" (renders at {0}× the film size, compared box-averaged {0}×{0}; images at the reference's size)", c.upscale)
+        } else {
+            String::new()
+        }
     );
     for &backend in &cfg.backends {
         let _ = writeln!(s, "## Table 2 ({backend})\n");
@@ -259,6 +273,42 @@ pub fn table_text(header: &Header, cfg: &LoadedConfig, results: &[RunResult]) ->
             t.accumulate * 1e3,
             ati_ms(l)
         );
+    }
+    let gpu_runs: Vec<(&RunResult, &str, &BenchRow)> = results
+        .iter()
+        .filter_map(|r| match (&r.kind, r.last()) {
+            (RunKind::Arpa { backend, .. }, Some(l)) if l.device_times != DeviceTimes::Host => Some((r, backend.as_str(), l)),
+            _ => None,
+        })
+        .collect();
+    if !gpu_runs.is_empty() {
+        let _ = writeln!(
+            s,
+            "\n## Device time by stage (ms per iteration, from timestamp queries; host share = ATI − device total)\n\n| scene | run | backend | camera | photons | AS build | gather | accumulate | device total | ATI | host share |\n|---|---|---|---|---|---|---|---|---|---|---|"
+        );
+        for (r, backend, l) in gpu_runs {
+            match l.device_times.measured() {
+                Some(d) => {
+                    let _ = writeln!(
+                        s,
+                        "| {} | {} | {backend} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} | {:.1} |",
+                        r.scene,
+                        r.kind.label(),
+                        d.camera * 1e3,
+                        d.photon * 1e3,
+                        d.build * 1e3,
+                        d.gather * 1e3,
+                        d.accumulate * 1e3,
+                        d.total() * 1e3,
+                        ati_ms(l),
+                        ati_ms(l) - d.total() * 1e3
+                    );
+                }
+                None => {
+                    let _ = writeln!(s, "| {} | {} | {backend} | device time: not available on this adapter | | | | | | {:.1} | |", r.scene, r.kind.label(), ati_ms(l));
+                }
+            }
+        }
     }
     let _ = writeln!(
         s,

@@ -3,7 +3,7 @@
 
 use super::config::BenchMethod;
 use crate::session::CheckpointRow;
-use arpa_core::render::tracer::StageTimes;
+use arpa_core::render::tracer::{DeviceTimes, StageTimes};
 
 /// What produced a row: one of ours or a peer.
 #[derive(Clone, Debug, PartialEq)]
@@ -67,8 +67,11 @@ pub struct BenchRow {
     pub flip: f64,
     /// Whole-image mean over the reference's.
     pub mean_ratio: f64,
-    /// Mean per-iteration stage times (seconds; zero for peers).
+    /// Mean per-iteration stage times (seconds, host wall clock; zero for peers).
     pub times: StageTimes,
+    /// Mean per-iteration device time of each stage ([`DeviceTimes::Host`] for the cpu
+    /// backend and the peers).
+    pub device_times: DeviceTimes,
     /// Gather candidates per valid query point, `[caustic, global]` (zero for peers).
     pub candidates_per_query: [f64; 2],
     /// Gather contributions per valid query point, `[caustic, global]` (zero for peers).

@@ -672,8 +672,49 @@ pub struct IterationStats {
     pub covered: [u64; 2],
     /// Progressive radii used, `[caustic, global]` (metres).
     pub radii: [f64; 2],
-    /// Stage timings.
+    /// Stage timings: host wall-clock time of each stage call (seconds).
     pub times: StageTimes,
+    /// Device time of each stage, from the device's timestamps ([`DeviceTimes`]).
+    pub device_times: DeviceTimes,
+}
+
+/// The device's own time for the stages of an iteration, next to the host's
+/// [`IterationStats::times`]: the difference is the host's share (submission, waits,
+/// readbacks, bookkeeping).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum DeviceTimes {
+    /// The backend computes on the host (cpu): the host times are its device times.
+    #[default]
+    Host,
+    /// The adapter cannot time its work (no timestamp queries on its queue), or a
+    /// timestamp of this iteration was lost (a wrapped or out-of-order pair); the summary
+    /// says "device time: not available on this adapter".
+    Unavailable,
+    /// Seconds the device spent per stage: for every submission of the stage, the time
+    /// from a timestamp written before its commands to one written after them, summed
+    /// (time the device waits for the host between submissions is not counted). The GPU
+    /// backends fill it in once the iteration's accumulate has run.
+    Measured(StageTimes),
+}
+
+impl DeviceTimes {
+    /// The measured times, if any.
+    pub fn measured(&self) -> Option<&StageTimes> {
+        match self {
+            DeviceTimes::Measured(t) => Some(t),
+            DeviceTimes::Host | DeviceTimes::Unavailable => None,
+        }
+    }
+
+    /// Adds `other` (to total several iterations): measured times add up; a total over
+    /// iterations of which one is unavailable is unavailable; `Host` adds nothing.
+    pub fn accumulate(&mut self, other: &DeviceTimes) {
+        match (&mut *self, other) {
+            (_, DeviceTimes::Host) | (DeviceTimes::Unavailable, _) => {}
+            (DeviceTimes::Measured(a), DeviceTimes::Measured(b)) => a.accumulate(b),
+            (DeviceTimes::Host, o) | (DeviceTimes::Measured(_), o @ DeviceTimes::Unavailable) => *self = *o,
+        }
+    }
 }
 
 impl StageTimes {
@@ -688,6 +729,23 @@ impl StageTimes {
             Stage::Gather => Some(&mut self.gather),
             Stage::Accumulate => Some(&mut self.accumulate),
         }
+    }
+
+    /// The time of `stage` (seconds); `None` for [`Stage::UploadScene`].
+    pub fn of(&self, stage: Stage) -> Option<f64> {
+        let mut t = *self;
+        t.of_mut(stage).map(|v| *v)
+    }
+
+    /// The sum of the five stages (seconds).
+    pub fn total(&self) -> f64 {
+        self.camera + self.photon + self.build + self.gather + self.accumulate
+    }
+
+    /// Every stage's time divided by `n` (a mean over `n` iterations; `n = 0` divides by 1).
+    pub fn per(&self, n: u32) -> StageTimes {
+        let n = f64::from(n.max(1));
+        StageTimes { camera: self.camera / n, photon: self.photon / n, build: self.build / n, gather: self.gather / n, accumulate: self.accumulate / n }
     }
 
     /// Adds `other`'s times (non-finite ones are skipped).
@@ -849,6 +907,7 @@ impl IterationStats {
             self.covered[m] += other.covered[m];
         }
         self.times.accumulate(&other.times);
+        self.device_times.accumulate(&other.device_times);
     }
 }
 
@@ -1011,6 +1070,24 @@ mod tests {
         c.begin(CameraPass).unwrap();
         assert_eq!(c.stats().gathered(), 0, "a new iteration starts new counts");
         assert_eq!(c.stats().iteration, 1);
+    }
+
+    #[test]
+    fn device_times_total_only_when_every_iteration_was_measured() {
+        let m = |ms: f64| DeviceTimes::Measured(StageTimes { camera: ms, photon: 2.0 * ms, build: 0.0, gather: 0.0, accumulate: 0.0 });
+        let mut sum = IterationStats::default();
+        sum.accumulate(&IterationStats::default());
+        assert_eq!(sum.device_times, DeviceTimes::Host, "a host backend stays host");
+        for ms in [1.0, 2.0] {
+            sum.accumulate(&IterationStats { device_times: m(ms), ..Default::default() });
+        }
+        assert_eq!(sum.device_times, m(3.0));
+        assert_eq!(sum.device_times.measured().map(StageTimes::total), Some(9.0));
+        sum.accumulate(&IterationStats { device_times: DeviceTimes::Unavailable, ..Default::default() });
+        sum.accumulate(&IterationStats { device_times: m(1.0), ..Default::default() });
+        assert_eq!(sum.device_times, DeviceTimes::Unavailable, "one unmeasured iteration makes the total unavailable");
+        assert_eq!(m(4.0).measured().unwrap().per(2).photon, 4.0);
+        assert_eq!(m(4.0).measured().unwrap().of(Stage::PhotonPass), Some(8.0));
     }
 
     #[cfg(feature = "std")]

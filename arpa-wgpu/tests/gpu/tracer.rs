@@ -405,3 +405,37 @@ fn planes_beyond_one_binding_are_refused() {
     assert!(matches!(e, WgpuError::Size(_)) && e.to_string().contains("--bandwidth global"), "{e}");
     t.upload_scene(&cornell(side), &RenderSettings { bandwidth: Bandwidth::Global, ..settings(Method::Arpa, 0) }).unwrap();
 }
+
+/// Device times of a finished iteration: measured on an adapter with timestamp queries
+/// inside encoders (lavapipe has them), every stage finite and non-negative, the traced
+/// passes non-zero, each stage within the host time of its call and the total within the
+/// iteration's wall time (plus 1 ms and 1 % for the two clocks' rounding).
+#[test]
+fn every_iteration_reports_device_time_per_stage() {
+    use arpa_core::render::tracer::DeviceTimes;
+    let Some(mut t) = tracer() else { return };
+    let has_timestamps = t.context().timer().is_some();
+    assert!(has_timestamps || !t.context().is_lavapipe(), "lavapipe has timestamp queries inside encoders");
+    // Two photon batches: the photon pass makes several timed submissions.
+    t.set_batch_photons(Some(2000));
+    t.upload_scene(&cornell(24), &settings(Method::Arpa, 5)).unwrap();
+    for _ in 0..3 {
+        let start = std::time::Instant::now();
+        t.iterate().unwrap();
+        let wall = start.elapsed().as_secs_f64();
+        let stats = t.read_stats().unwrap();
+        let d = match stats.device_times {
+            DeviceTimes::Measured(d) => d,
+            other => {
+                assert!(!has_timestamps, "the adapter has timestamps but iteration {} has device times {other:?}", stats.iteration);
+                continue;
+            }
+        };
+        let (host, slack) = (stats.times, |t: f64| t * 1.01 + 1e-3);
+        for (name, dev, host) in [("camera", d.camera, host.camera), ("photon", d.photon, host.photon), ("build", d.build, host.build), ("gather", d.gather, host.gather), ("accumulate", d.accumulate, host.accumulate)] {
+            assert!(dev.is_finite() && dev >= 0.0 && dev <= slack(host), "{name}: device {dev} s, host {host} s");
+        }
+        assert!(d.camera > 0.0 && d.photon > 0.0 && d.gather > 0.0, "the passes that trace take device time: {d:?}");
+        assert!(d.total() <= slack(wall), "device total {} s over the iteration's wall time {wall} s", d.total());
+    }
+}
