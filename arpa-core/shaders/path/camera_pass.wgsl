@@ -206,7 +206,8 @@ fn arpa_camera_trace(pixel: u32) -> ArpaQueryRecord {
             radiance += throughput * arpa_camera_environment_radiance(dir);
             break;
         }
-        let s = arpa_scene_surface(h);
+        var s = arpa_scene_surface(h);
+        _ = arpa_scene_choose_blend(&s, &rng);
         let facing = dot(dir, s.geometric_normal) < 0.0;
         let front = select(-s.geometric_normal, s.geometric_normal, facing);
         if s.emissive != 0u && facing {

@@ -109,7 +109,8 @@ fn photon_shading_normal(s: ArpaSurface, dp_du: vec3<f32>, dp_dv: vec3<f32>) -> 
     out.nd = ArpaNormalDiff(s.geometric_normal, zero, zero);
     out.ok = true;
     if s.mesh_has_normals == 0u {
-        out.nd.n = arpa_scene_perturbed(s.mesh, s.triangle, s.geometric_normal, s.geometric_normal, s.uv);
+        // The face normal turned by a normal or bump map (arpa_scene_surface computed it).
+        out.nd.n = s.specular_normal;
         return out;
     }
     out.ok = false;
@@ -140,8 +141,11 @@ fn photon_shading_normal(s: ArpaSurface, dp_du: vec3<f32>, dp_dv: vec3<f32>) -> 
     if dot(nd.n, s.geometric_normal) < 0.0 {
         nd = ArpaNormalDiff(-nd.n, -nd.dn_du, -nd.dn_dv);
     }
-    // A normal or bump map turns the normal, not its derivatives (PreparedScene::shading_normal).
-    nd.n = arpa_scene_perturbed(s.mesh, s.triangle, nd.n, s.geometric_normal, s.uv);
+    // A normal or bump map turns the normal, not its derivatives (PreparedScene::shading_normal):
+    // arpa_scene_surface turned the same interpolated normal (up to rounding) already.
+    if arpa_scene_meshes[s.mesh].normal_kind != ARPA_NORMAL_MAP_NONE {
+        nd.n = s.specular_normal;
+    }
     out.nd = nd;
     out.ok = true;
     return out;
@@ -308,7 +312,8 @@ fn photon_trace(index: u32) -> u32 {
         if hit.hit == 0u {
             break;
         }
-        let s = arpa_scene_surface(hit);
+        var s = arpa_scene_surface(hit);
+        let blend_weight = arpa_scene_choose_blend(&s, &rng);
         let t = max(dot(s.position - ray.p, d), 0.0);
         var at: ArpaRayDiff;
         var moved_ok = false;
@@ -357,7 +362,7 @@ fn photon_trace(index: u32) -> u32 {
                 if map == 0u {
                     stored_flux = flux * caustic_weight;
                 }
-                photon_store(at, s.geometric_normal, stored_flux * record_weight, map, valid, below, key);
+                photon_store(at, s.geometric_normal, stored_flux * (record_weight * blend_weight), map, valid, below, key);
             }
             if caustic_only {
                 break;

@@ -74,7 +74,7 @@ struct ArpaSceneInfo {
     sphere_radius: f32,
 }
 
-// layout::SceneMesh (80 bytes).
+// layout::SceneMesh (96 bytes).
 struct ArpaSceneMesh {
     first_triangle: u32,
     triangle_count: u32,
@@ -106,6 +106,14 @@ struct ArpaSceneMesh {
     normal_kind: u32,
     // The map's scale (NormalPerturbation::scale).
     normal_scale: f32,
+    // A blend's record of the other material (kind, color, ior, color_texture), after the
+    // scene's meshes; ARPA_NO_TEXTURE: not a blend.
+    blend_record: u32,
+    // The blend's constant weight, where blend_weight_texture is none.
+    blend_weight: f32,
+    // The texture whose single value is the blend's weight, or ARPA_NO_TEXTURE.
+    blend_weight_texture: u32,
+    pad_a: u32,
 }
 
 // layout::SceneTriangle (112 bytes).
@@ -361,10 +369,51 @@ fn arpa_scene_surface(h: ArpaSceneHit) -> ArpaSurface {
         if m.has_normals == 0u {
             s.shading_normal = t.normal;
         }
-        s.shading_normal = arpa_scene_perturbed(h.mesh, h.triangle, s.shading_normal, t.normal, s.uv);
-        s.specular_normal = arpa_scene_perturbed(h.mesh, h.triangle, s.specular_normal, t.normal, s.uv);
+        let both = arpa_scene_perturbed_pair(h.mesh, h.triangle, s.shading_normal, s.specular_normal, t.normal, s.uv);
+        s.shading_normal = both[0];
+        s.specular_normal = both[1];
     }
     return s;
+}
+
+// PreparedScene::choose_blend: where the mesh's material is a blend, the surface scatters as
+// the blend's other material with probability its weight at the surface (arpa_stops_with:
+// one draw for a weight strictly between 0 and 1). Returns the weight of a photon record
+// stored there: 1/P(the choice is diffuse) where it is, else 1.
+fn arpa_scene_choose_blend(s: ptr<function, ArpaSurface>, rng: ptr<function, ArpaRng>) -> f32 {
+    let m = arpa_scene_meshes[(*s).mesh];
+    if m.blend_record == ARPA_NO_TEXTURE {
+        return 1.0;
+    }
+    var w = m.blend_weight;
+    if m.blend_weight_texture != ARPA_NO_TEXTURE {
+        w = arpa_texture_eval_1(m.blend_weight_texture, (*s).uv);
+        if (bitcast<u32>(w) & 0x7fffffffu) > 0x7f800000u {
+            w = 0.0;
+        }
+        w = clamp(w, 0.0, 1.0);
+    }
+    let o = arpa_scene_meshes[m.blend_record];
+    let first_diffuse = (*s).kind == ARPA_SCATTER_DIFFUSE;
+    let other_diffuse = o.kind == ARPA_SCATTER_DIFFUSE;
+    if arpa_stops_with(w, rng) {
+        (*s).kind = o.kind;
+        (*s).ior = o.ior;
+        (*s).color = o.color;
+        if o.color_texture != ARPA_NO_TEXTURE {
+            (*s).color *= max(arpa_texture_eval(o.color_texture, (*s).uv), vec3<f32>(0.0));
+        }
+    }
+    var p_diffuse = 1.0;
+    if first_diffuse && !other_diffuse {
+        p_diffuse = 1.0 - w;
+    } else if other_diffuse && !first_diffuse {
+        p_diffuse = w;
+    }
+    if (*s).kind == ARPA_SCATTER_DIFFUSE && p_diffuse > 0.0 {
+        return 1.0 / p_diffuse;
+    }
+    return 1.0;
 }
 
 // PreparedScene::texture_derivatives: (dp/du, dp/dv) of a mesh's triangle from its
@@ -382,24 +431,35 @@ fn arpa_scene_texture_derivatives(mesh: u32, triangle: u32) -> ArpaTextureDeriva
     return arpa_texture_derivatives(t.p0, t.p1, t.p2, uv0, uv1, uv2);
 }
 
-// PreparedScene::perturbed: the unit shading normal n (oriented like the unit geometric
-// normal g) turned by the normal or bump map of the mesh's material at uv; n without one.
-fn arpa_scene_perturbed(mesh: u32, triangle: u32, n: vec3<f32>, g: vec3<f32>, uv: vec2<f32>) -> vec3<f32> {
+// PreparedScene::perturbed of two unit shading normals at once (the diffuse one a and the
+// specular one b, oriented like the unit geometric normal g): each turned by the normal or
+// bump map of the mesh's material at uv, or kept without one. The texture is read once (one
+// copy of the lookup where the shader compiler inlines it).
+fn arpa_scene_perturbed_pair(mesh: u32, triangle: u32, a: vec3<f32>, b: vec3<f32>, g: vec3<f32>, uv: vec2<f32>) -> array<vec3<f32>, 2> {
     let m = arpa_scene_meshes[mesh];
     if m.normal_kind == ARPA_NORMAL_MAP_NONE {
-        return n;
+        return array<vec3<f32>, 2>(a, b);
     }
     var d = arpa_scene_texture_derivatives(mesh, triangle);
-    if !d.ok {
-        let f = arpa_frame_from_normal(n);
-        d.dp_du = f.t;
-        d.dp_dv = f.b;
+    let bump = m.normal_kind == ARPA_NORMAL_MAP_BUMP;
+    let lookup = arpa_texture_eval_and_grad(m.normal_texture, uv);
+    var out: array<vec3<f32>, 2>;
+    for (var i = 0u; i < 2u; i++) {
+        let n = select(b, a, i == 0u);
+        var du = d.dp_du;
+        var dv = d.dp_dv;
+        if !d.ok {
+            let f = arpa_frame_from_normal(n);
+            du = f.t;
+            dv = f.b;
+        }
+        if bump {
+            out[i] = arpa_bump_mapped(n, g, du, dv, lookup.grad * m.normal_scale);
+        } else {
+            out[i] = arpa_normal_mapped(n, g, du, dv, lookup.value, m.normal_scale, m.normal_kind == ARPA_NORMAL_MAP_TANGENT_UV);
+        }
     }
-    if m.normal_kind == ARPA_NORMAL_MAP_BUMP {
-        return arpa_bump_mapped(n, g, d.dp_du, d.dp_dv, arpa_texture_eval_1_grad(m.normal_texture, uv) * m.normal_scale);
-    }
-    let c = arpa_texture_eval(m.normal_texture, uv);
-    return arpa_normal_mapped(n, g, d.dp_du, d.dp_dv, c, m.normal_scale, m.normal_kind == ARPA_NORMAL_MAP_TANGENT_UV);
+    return out;
 }
 
 // A ray origin offset off the surface point p along the unit normal n (oriented to the side
@@ -520,11 +580,13 @@ fn arpa_scene_intersect_seen(start: ArpaRayStart, dir: vec3<f32>, t_max: f32, rn
         if h.hit == 0u || arpa_stops_with(arpa_scene_opacity(h), rng) {
             return h;
         }
-        if arpa_scene_meshes[h.mesh].emissive != 0u {
-            let s = arpa_scene_surface(h);
-            if dot(dir, s.geometric_normal) < 0.0 {
-                *seen += s.emission;
+        let m = arpa_scene_meshes[h.mesh];
+        if m.emissive != 0u && dot(dir, arpa_scene_triangles[m.first_triangle + h.triangle].normal) < 0.0 {
+            var e = m.emission;
+            if m.emission_texture != ARPA_NO_TEXTURE {
+                e *= max(arpa_texture_eval(m.emission_texture, arpa_scene_uv(h)), vec3<f32>(0.0));
             }
+            *seen += e;
         }
         left -= h.t;
         at = arpa_ray_start_leaving_hit(h);

@@ -3,7 +3,7 @@
 // 8-bit sRGB texels decoded before they are interpolated, eval_1 as luminance with the
 // checkerboard's swapped squares). The texture words are laid out by
 // arpa_core::gpu::texture (decode tables, one 20-word record per texture, texels: 8-bit
-// ones one word each, so they stay 8-bit on the device). Needs math.wgsl and, from the
+// ones three bytes each, so they stay 8-bit on the device). Needs math.wgsl and, from the
 // file that includes it, the word table:
 //   fn arpa_texture_word(i: u32) -> u32
 // (path/scene.wgsl: binding 5 of group 0; the twin cases: their input buffer).
@@ -90,7 +90,14 @@ fn arpa_texture_texel(r: u32, x: i32, y: i32) -> vec3<f32> {
     if encoding == ARPA_TEXELS_FLOAT {
         return arpa_texture_vec3(first + 3u * k);
     }
-    let p = arpa_texture_word(first + k);
+    // Texel k's bytes r g b start at byte 3k of the texels (packed little-endian).
+    let byte = 3u * k;
+    let w = first + byte / 4u;
+    let sh = (byte % 4u) * 8u;
+    var p = arpa_texture_word(w) >> sh;
+    if sh > 8u {
+        p = p | (arpa_texture_word(w + 1u) << (32u - sh));
+    }
     let c = vec3<u32>(p & 0xffu, (p >> 8u) & 0xffu, (p >> 16u) & 0xffu);
     var table = ARPA_TEXTURE_SRGB_TABLE;
     if encoding == ARPA_TEXELS_LINEAR8 {
@@ -169,18 +176,32 @@ fn arpa_emitter_texture_factor(r: u32, b1: f32, b2: f32) -> vec3<f32> {
     return max(arpa_texture_eval(arpa_texture_word(r), uv), vec3<f32>(0.0)) * arpa_texture_vec3(r + 7u);
 }
 
-// Texture::eval_1_grad: the gradient of the single value with respect to uv (before
-// to_uv): the bilinear interpolation's derivative inside the texel cell, scaled by the
-// resolution and multiplied by to_uv's transpose; zero for the nearest filter and a
-// checkerboard.
-fn arpa_texture_eval_1_grad(id: u32, uv: vec2<f32>) -> vec2<f32> {
+// A texture's value and its single value's gradient at uv, from one set of texel reads.
+struct ArpaTextureLookup {
+    // Texture::eval.
+    value: vec3<f32>,
+    // Texture::eval_1_grad: the gradient of the single value with respect to uv (before
+    // to_uv): the bilinear interpolation's derivative inside the texel cell, scaled by the
+    // resolution and multiplied by to_uv's transpose; zero for the nearest filter and a
+    // checkerboard.
+    grad: vec2<f32>,
+}
+
+fn arpa_texture_eval_and_grad(id: u32, uv: vec2<f32>) -> ArpaTextureLookup {
     let r = arpa_texture_record(id);
-    if arpa_texture_word(r) == ARPA_TEXTURE_CHECKERBOARD || arpa_texture_word(r + 4u) == ARPA_FILTER_NEAREST {
-        return vec2<f32>(0.0);
-    }
+    var out: ArpaTextureLookup;
+    out.grad = vec2<f32>(0.0);
     let t = arpa_texture_to_uv(r, uv);
+    if arpa_texture_word(r) == ARPA_TEXTURE_CHECKERBOARD {
+        out.value = select(arpa_texture_vec3(r + 17u), arpa_texture_vec3(r + 14u), arpa_texture_checker_same(t));
+        return out;
+    }
     let w = f32(arpa_texture_word(r + 1u));
     let h = f32(arpa_texture_word(r + 2u));
+    if arpa_texture_word(r + 4u) == ARPA_FILTER_NEAREST {
+        out.value = arpa_texture_texel(r, arpa_texture_floor_index(t.x * w), arpa_texture_floor_index(t.y * h));
+        return out;
+    }
     let x = t.x * w - 0.5;
     let y = t.y * h - 0.5;
     var fx = x - floor(x);
@@ -193,13 +214,24 @@ fn arpa_texture_eval_1_grad(id: u32, uv: vec2<f32>) -> vec2<f32> {
     }
     let i = arpa_texture_floor_index(x);
     let j = arpa_texture_floor_index(y);
-    let f00 = dot(arpa_texture_texel(r, i, j), ARPA_LUMINANCE);
-    let f10 = dot(arpa_texture_texel(r, i + 1, j), ARPA_LUMINANCE);
-    let f01 = dot(arpa_texture_texel(r, i, j + 1), ARPA_LUMINANCE);
-    let f11 = dot(arpa_texture_texel(r, i + 1, j + 1), ARPA_LUMINANCE);
+    let t00 = arpa_texture_texel(r, i, j);
+    let t10 = arpa_texture_texel(r, i + 1, j);
+    let t01 = arpa_texture_texel(r, i, j + 1);
+    let t11 = arpa_texture_texel(r, i + 1, j + 1);
+    out.value = (t00 * (1.0 - fx) + t10 * fx) * (1.0 - fy) + (t01 * (1.0 - fx) + t11 * fx) * fy;
+    let f00 = dot(t00, ARPA_LUMINANCE);
+    let f10 = dot(t10, ARPA_LUMINANCE);
+    let f01 = dot(t01, ARPA_LUMINANCE);
+    let f11 = dot(t11, ARPA_LUMINANCE);
     let dx = (1.0 - fy) * (f10 - f00) + fy * (f11 - f01);
     let dy = (1.0 - fx) * (f01 - f00) + fx * (f11 - f10);
     let a = arpa_texture_vec3(r + 8u);
     let b = arpa_texture_vec3(r + 11u);
-    return vec2<f32>(w * (a.x * dx) + h * (b.x * dy), w * (a.y * dx) + h * (b.y * dy));
+    out.grad = vec2<f32>(w * (a.x * dx) + h * (b.x * dy), w * (a.y * dx) + h * (b.y * dy));
+    return out;
+}
+
+// Texture::eval_1_grad (ArpaTextureLookup::grad).
+fn arpa_texture_eval_1_grad(id: u32, uv: vec2<f32>) -> vec2<f32> {
+    return arpa_texture_eval_and_grad(id, uv).grad;
 }

@@ -549,7 +549,7 @@ pub struct SceneInfo {
 }
 layout!(SceneInfo, 32, { mesh_count: 0, delta_count: 4, area_count: 8, has_masks: 12, sphere_centre: 16, sphere_radius: 28 });
 
-/// `ArpaSceneMesh` of `scene.wgsl` (80 bytes).
+/// `ArpaSceneMesh` of `scene.wgsl` (96 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct SceneMesh {
@@ -589,11 +589,22 @@ pub struct SceneMesh {
     pub normal_kind: u32,
     /// The map's scale ([`crate::render::scene::NormalPerturbation::scale`]).
     pub normal_scale: f32,
+    /// Where the material is a blend ([`crate::render::scene::MaterialMaps::blend`]): the
+    /// index of the record, after the scene's meshes, whose `kind`, `color`, `ior` and
+    /// `color_texture` are the other material's; else [`crate::gpu::texture::NO_TEXTURE`].
+    pub blend_record: u32,
+    /// The blend's constant weight (where `blend_weight_texture` is none).
+    pub blend_weight: f32,
+    /// The texture whose single value is the blend's weight, or
+    /// [`crate::gpu::texture::NO_TEXTURE`].
+    pub blend_weight_texture: u32,
+    /// Padding.
+    pub pad: u32,
 }
-layout!(SceneMesh, 80, {
+layout!(SceneMesh, 96, {
     first_triangle: 0, triangle_count: 4, kind: 8, emissive: 12, color: 16, ior: 28, emission: 32, has_normals: 44,
     color_texture: 48, opacity_texture: 52, opacity: 56, uv_first: 60, emission_texture: 64, normal_texture: 68,
-    normal_kind: 72, normal_scale: 76
+    normal_kind: 72, normal_scale: 76, blend_record: 80, blend_weight: 84, blend_weight_texture: 88
 });
 
 /// `ArpaSceneTriangle` of `scene.wgsl` (112 bytes). The table is in the meshes' triangle

@@ -15,7 +15,7 @@ use crate::gpu::texture::{TextureWords, TooManyTexels, NO_TEXTURE};
 use crate::base::morton::morton_code;
 use crate::render::prepared_scene::PreparedScene;
 use crate::render::ray_cast::RayHit;
-use crate::render::scene::{Handedness, NormalPerturbation, Opacity, Scattering, TriangleMesh};
+use crate::render::scene::{BlendWeight, Handedness, NormalPerturbation, Opacity, Scattering, TriangleMesh};
 use crate::propagate::shading_normal::ShadedTriangle;
 
 /// The order in which a mesh's triangles go into its bottom-level acceleration structure:
@@ -56,7 +56,8 @@ pub enum SceneTablesError {
 pub struct SceneTables {
     /// Counts and the bounding sphere (uniform).
     pub info: SceneInfo,
-    /// One record per mesh.
+    /// One record per mesh, then one per blend mesh for its other material
+    /// ([`SceneMesh::blend_record`]).
     pub meshes: Vec<SceneMesh>,
     /// One record per triangle, mesh after mesh in the meshes' triangle order.
     pub triangles: Vec<SceneTriangle>,
@@ -70,6 +71,16 @@ pub struct SceneTables {
     pub texture_words: Vec<u32>,
 }
 
+/// `kind`, `color` and `ior` of a mesh record scattering as `s`.
+fn scatter_fields(s: Scattering) -> (u32, Vec3, f32) {
+    match s {
+        Scattering::Diffuse(c) => (SCATTER_DIFFUSE, c, 1.0),
+        Scattering::Mirror(c) => (SCATTER_MIRROR, c, 1.0),
+        Scattering::Refractive(ior, c) => (SCATTER_REFRACTIVE, c, ior),
+        Scattering::Thin(ior, c) => (SCATTER_THIN, c, ior),
+    }
+}
+
 impl SceneTables {
     /// The tables of `scene` whose mesh `m`'s bottom-level structure holds, at primitive
     /// `i`, the mesh's triangle `triangle_orders[m][i]` ([`morton_triangle_order`]).
@@ -81,12 +92,7 @@ impl SceneTables {
         let mut meshes = Vec::with_capacity(s.meshes.len());
         let mut triangles = Vec::new();
         for (mi, m) in s.meshes.iter().enumerate() {
-            let (kind, color, ior) = match s.materials[m.material as usize].scattering(s.roughness_cutoff) {
-                Scattering::Diffuse(c) => (SCATTER_DIFFUSE, c, 1.0),
-                Scattering::Mirror(c) => (SCATTER_MIRROR, c, 1.0),
-                Scattering::Refractive(ior, c) => (SCATTER_REFRACTIVE, c, ior),
-                Scattering::Thin(ior, c) => (SCATTER_THIN, c, ior),
-            };
+            let (kind, color, ior) = scatter_fields(s.materials[m.material as usize].scattering(s.roughness_cutoff));
             let first_triangle = u32::try_from(triangles.len()).map_err(|_| SceneTablesError::TooManyTriangles)?;
             let maps = s.textures.maps(m.material);
             let (opacity_texture, opacity) = match maps.opacity {
@@ -116,6 +122,10 @@ impl SceneTables {
                     Some(NormalPerturbation::BumpMap { .. }) => NORMAL_MAP_BUMP,
                 },
                 normal_scale: maps.normal.map_or(1.0, |n| n.scale()),
+                blend_record: NO_TEXTURE,
+                blend_weight: 0.0,
+                blend_weight_texture: NO_TEXTURE,
+                ..SceneMesh::default()
             });
             let order = triangle_orders.get(mi).map_or(&[][..], |o| &o[..]);
             for (ti, idx) in m.indices.iter().enumerate() {
@@ -178,6 +188,20 @@ impl SceneTables {
                 }
             })
             .collect();
+        // A blend's other material: one record after the meshes per blend mesh.
+        for (mi, m) in s.meshes.iter().enumerate() {
+            let Some(b) = s.textures.maps(m.material).blend else { continue };
+            let (kind, color, ior) = scatter_fields(s.materials[b.other as usize].scattering(s.roughness_cutoff));
+            let record = u32::try_from(meshes.len()).map_err(|_| SceneTablesError::TooManyTriangles)?;
+            let (weight, texture) = match b.weight {
+                BlendWeight::Constant(w) => (w, NO_TEXTURE),
+                BlendWeight::Texture(id) => (0.0, id),
+            };
+            meshes.push(SceneMesh { kind, color: color.to_array(), ior, color_texture: s.textures.maps(b.other).color.unwrap_or(NO_TEXTURE), ..meshes[mi] });
+            meshes[mi].blend_record = record;
+            meshes[mi].blend_weight = weight;
+            meshes[mi].blend_weight_texture = texture;
+        }
         let (centre, radius) = scene.bounding_sphere();
         let info = SceneInfo {
             mesh_count: s.meshes.len() as u32,

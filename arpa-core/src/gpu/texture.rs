@@ -10,7 +10,7 @@
 //! | [`TEXTURE_FIRST`]`..` | one [`TEXTURE_RECORD_WORDS`]-word record per texture, by [`TextureId`] |
 //! | then | one [`EMITTER_RECORD_WORDS`]-word record per textured emitter triangle ([`EmitterTexture`]), in the core's emitter order ([`emitter_records`]) |
 //! | then | with an environment map, its [`ENVIRONMENT_RECORD_WORDS`]-word record ([`emitter_records`] gives it for the environment emitter) |
-//! | then | the texels of every bitmap: 8-bit texels one word each (`r | g << 8 | b << 16`), so they stay 8-bit on the device; float texels three `f32` words each |
+//! | then | the texels of every bitmap: 8-bit texels three bytes each (`r g b`, packed little-endian four bytes a word, then a padding word), so they stay 8-bit on the device; float texels three `f32` words each |
 //! | then | with an environment map, its texels (three `f32` each) and sampling tables (`f32`: the row CDF, the per-row patch CDFs, the patch densities; [`crate::render::environment::MapView`]) |
 //! | then | per mesh with texture coordinates, six `f32` words per triangle (`u0 v0 u1 v1 u2 v2`, the core's triangle order), from [`SceneMesh::uv_first`](crate::gpu::layout::SceneMesh::uv_first) |
 //!
@@ -136,11 +136,16 @@ pub fn texture_record(texture: &Texture, first_texel: u32) -> [u32; TEXTURE_RECO
     r
 }
 
-/// Appends a bitmap's texels as the module docs lay them out.
+/// Appends a bitmap's texels as the module docs lay them out: 8-bit texels as their bytes
+/// `r g b r g b …` packed little-endian into words, plus one word of padding (a texel's three
+/// bytes may straddle two words, and the device reads both).
 fn push_texels(words: &mut Vec<u32>, texels: &Texels) {
-    let pack = |c: &[u8; 3]| c[0] as u32 | (c[1] as u32) << 8 | (c[2] as u32) << 16;
     match texels {
-        Texels::Srgb8(t) | Texels::Linear8(t) => words.extend(t.iter().map(pack)),
+        Texels::Srgb8(t) | Texels::Linear8(t) => {
+            let bytes: Vec<u8> = t.iter().flatten().copied().collect();
+            words.extend(bytes.chunks(4).map(|c| c.iter().enumerate().fold(0u32, |w, (i, &b)| w | (b as u32) << (8 * i))));
+            words.push(0);
+        }
         Texels::Float(t) => words.extend(t.iter().flatten().map(|x| x.to_bits())),
     }
 }
@@ -224,7 +229,7 @@ pub fn texture_table(textures: &[Texture], emitters: &[EmitterTexture], environm
 impl TextureWords {
     /// The table of `prepared`: its textures and textured emitters, then the texture
     /// coordinates of every mesh that has them and reads a texture (colour, opacity, normal
-    /// or bump map, emission); other meshes get
+    /// or bump map, blend, emission); other meshes get
     /// [`NO_TEXTURE`] (the device then uses the hit's `(b1, b2)`, as the core does without
     /// coordinates, which no lookup of theirs reads).
     pub fn new(prepared: &PreparedScene) -> Result<Self, TooManyTexels> {
@@ -238,6 +243,7 @@ impl TextureWords {
             let reads = maps.color.is_some()
                 || matches!(maps.opacity, Some(crate::render::scene::Opacity::Texture(_)))
                 || maps.normal.is_some()
+                || maps.blend.is_some()
                 || scene.textures.emission_of(mi).is_some();
             match (&m.uvs, reads) {
                 (Some(_), true) => {
@@ -303,13 +309,14 @@ mod tests {
         let r0 = &words[TEXTURE_FIRST as usize..][..20];
         assert_eq!(&r0[..7], &[TEXTURE_BITMAP, 2, 1, TEXELS_SRGB8, FILTER_NEAREST, WRAP_MIRROR, texels]);
         assert_eq!(f32::from_bits(r0[10]), 0.5);
-        assert_eq!(words[texels as usize..][..2], [1 | 2 << 8 | 3 << 16, 255 | 128 << 8]);
+        // The six bytes 1 2 3 255 128 0, little-endian, then a padding word.
+        assert_eq!(words[texels as usize..][..3], [1 | 2 << 8 | 3 << 16 | 255 << 24, 128, 0]);
         let r1 = &words[(TEXTURE_FIRST + TEXTURE_RECORD_WORDS) as usize..][..20];
         assert_eq!(r1[0], TEXTURE_CHECKERBOARD);
         assert_eq!(f32::from_bits(r1[15]), 0.2);
         let r2 = &words[(TEXTURE_FIRST + 2 * TEXTURE_RECORD_WORDS) as usize..][..20];
-        assert_eq!(r2[6], texels + 2, "the float bitmap's texels follow the first bitmap's two");
+        assert_eq!(r2[6], texels + 3, "the float bitmap's texels follow the first bitmap's three words");
         assert_eq!(words[r2[6] as usize + 1], 1.5f32.to_bits());
-        assert_eq!(words.len() as u32, texels + 2 + 3);
+        assert_eq!(words.len() as u32, texels + 3 + 3);
     }
 }

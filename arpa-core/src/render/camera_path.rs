@@ -47,7 +47,8 @@ pub fn trace_camera_path(scene: &PreparedScene, caster: &impl RayCaster, setting
             break;
         };
         scene.prefetch_hit(&hit);
-        let s = scene.surface(&hit);
+        let mut s = scene.surface(&hit);
+        let _ = scene.choose_blend(&mut s, &mut rng);
         let front = if dir.dot(s.geometric_normal) < 0.0 { s.geometric_normal } else { -s.geometric_normal };
         if let Some(e) = s.emission.filter(|_| dir.dot(s.geometric_normal) < 0.0) {
             radiance += throughput * e.as_dvec3();

@@ -348,7 +348,8 @@ impl PhotonWalk {
         let st = &mut self.st;
         let rng = &mut self.rng;
         let d = st.ray.d;
-        let s = scene.surface(hit);
+        let mut s = scene.surface(hit);
+        let blend_weight = scene.choose_blend(&mut s, rng);
         // Side the photon arrives from.
         let front = if d.dot(s.geometric_normal) < 0.0 { s.geometric_normal } else { -s.geometric_normal };
         match s.scattering {
@@ -391,7 +392,7 @@ impl PhotonWalk {
                     // stored with its orientation flipped, so that only query points seen
                     // from below the shading plane too gather it (crate::propagate::lambertian).
                     let below = shading.as_ref().is_some_and(DiffuseShading::below_shading_plane);
-                    let flux = if map == PhotonMap::Caustic { st.flux * self.caustic_weight } else { st.flux } * self.record_weight;
+                    let flux = if map == PhotonMap::Caustic { st.flux * self.caustic_weight } else { st.flux } * (self.record_weight * blend_weight);
                     sink(store(&ray_at_hit, &s.geometric_normal, flux, map, st.differential_valid, below, settings, setup));
                     self.stats.stored += 1;
                     if self.caustic_only || !(rng.next_f64() < survive) {

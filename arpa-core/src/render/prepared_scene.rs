@@ -10,7 +10,7 @@ use crate::render::projection::{project, project_on, DomainCells, LightProjectio
 use crate::base::prefetch::prefetch;
 use crate::base::rng::Rng;
 use crate::render::ray_cast::{RayCaster, RayHit, RayStart, TriangleId};
-use crate::render::scene::{CameraFrame, EmitterTexture, NormalPerturbation, Opacity, Scattering, Scene, SceneError};
+use crate::render::scene::{BlendWeight, CameraFrame, EmitterTexture, NormalPerturbation, Opacity, Scattering, Scene, SceneError};
 use crate::propagate::normal_map::{bump_mapped, normal_mapped, texture_derivatives};
 use crate::base::frame::Frame;
 use crate::propagate::shading_normal::ShadedTriangle;
@@ -43,6 +43,8 @@ pub struct PreparedScene {
     has_specular: bool,
     /// Whether some material is a mask.
     has_masks: bool,
+    /// Whether some material is a blend.
+    has_blends: bool,
     /// Per mesh, its material's normal or bump map (empty without any).
     normal_maps: Vec<Option<NormalPerturbation>>,
     /// Per emitter, the texture of a textured emitter triangle.
@@ -256,6 +258,7 @@ impl PreparedScene {
             projections,
             has_specular,
             has_masks: scene.textures.any_opacity(),
+            has_blends: scene.textures.maps.iter().any(|m| m.blend.is_some()),
             normal_maps,
             second_hit_possible,
             triangles,
@@ -357,16 +360,7 @@ impl PreparedScene {
         let tri = &self.triangles[hit.mesh as usize][hit.triangle as usize];
         let (position, b) = self.hit_point(hit);
         let uv = self.uv(hit);
-        let mut scattering = self.scattering[m.material as usize];
-        if let Some(id) = self.scene.textures.maps(m.material).color {
-            let t = self.scene.textures.textures[id as usize].eval(uv).max(Vec3::ZERO);
-            scattering = match scattering {
-                Scattering::Diffuse(a) => Scattering::Diffuse(a * t),
-                Scattering::Mirror(r) => Scattering::Mirror(r * t),
-                Scattering::Refractive(ior, tr) => Scattering::Refractive(ior, tr * t),
-                Scattering::Thin(ior, tr) => Scattering::Thin(ior, tr * t),
-            };
-        }
+        let scattering = self.scattering_at(m.material, uv);
         SurfacePoint {
             position,
             geometric_normal: tri.normal,
@@ -380,6 +374,57 @@ impl PreparedScene {
             mesh: hit.mesh,
             triangle: hit.triangle,
         }
+    }
+
+    /// How material `material` scatters at texture coordinates `uv`: its scattering times its
+    /// colour texture there.
+    #[inline]
+    fn scattering_at(&self, material: u32, uv: Vec2) -> Scattering {
+        let scattering = self.scattering[material as usize];
+        let Some(id) = self.scene.textures.maps(material).color else { return scattering };
+        let t = self.scene.textures.textures[id as usize].eval(uv).max(Vec3::ZERO);
+        match scattering {
+            Scattering::Diffuse(a) => Scattering::Diffuse(a * t),
+            Scattering::Mirror(r) => Scattering::Mirror(r * t),
+            Scattering::Refractive(ior, tr) => Scattering::Refractive(ior, tr * t),
+            Scattering::Thin(ior, tr) => Scattering::Thin(ior, tr * t),
+        }
+    }
+
+    /// The per-hit choice of a blend material (Mitsuba's `blendbsdf`): where the material at
+    /// `s` is a blend, `s` scatters as the blend's other material with probability its weight
+    /// at `s` ([`stops_with`]: one draw where the weight is strictly between 0 and 1, none
+    /// otherwise). Scenes without blends draw nothing.
+    ///
+    /// Returns the weight of a photon record stored at `s`: `1/P`, with `P` the probability
+    /// that the choice is diffuse, where it is (the irradiance a record measures does not
+    /// depend on the choice, which only decides how the photon goes on); 1 otherwise.
+    #[inline]
+    pub fn choose_blend(&self, s: &mut SurfacePoint, rng: &mut Rng) -> f64 {
+        if !self.has_blends {
+            return 1.0;
+        }
+        let material = self.scene.meshes[s.mesh as usize].material;
+        let Some(b) = self.scene.textures.maps(material).blend else { return 1.0 };
+        let w = match b.weight {
+            BlendWeight::Constant(w) => w,
+            BlendWeight::Texture(id) => {
+                let w = self.scene.textures.textures[id as usize].eval_1(s.uv);
+                if w.is_nan() { 0.0 } else { w.clamp(0.0, 1.0) }
+            }
+        };
+        let first_diffuse = matches!(s.scattering, Scattering::Diffuse(_));
+        let other_diffuse = matches!(self.scattering[b.other as usize], Scattering::Diffuse(_));
+        if stops_with(w, rng) {
+            s.scattering = self.scattering_at(b.other, s.uv);
+        }
+        let p_diffuse = match (first_diffuse, other_diffuse) {
+            (true, true) => 1.0,
+            (true, false) => 1.0 - w as f64,
+            (false, true) => w as f64,
+            (false, false) => 1.0,
+        };
+        if matches!(s.scattering, Scattering::Diffuse(_)) && p_diffuse > 0.0 { 1.0 / p_diffuse } else { 1.0 }
     }
 
     /// The position of a hit interpolated from its triangle's vertices (metres), and its

@@ -333,6 +333,28 @@ pub struct MaterialMaps {
     pub opacity: Option<Opacity>,
     /// Perturbs the material's shading normals; `None` keeps them.
     pub normal: Option<NormalPerturbation>,
+    /// Makes the material a blend (Mitsuba's `blendbsdf`): at each hit it scatters as
+    /// [`Blend::other`] with probability [`Blend::weight`], else as itself.
+    pub blend: Option<Blend>,
+}
+
+/// The second material of a blend and its weight ([`MaterialMaps::blend`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Blend {
+    /// The material a hit scatters as with probability `weight`: its scattering and its
+    /// colour texture (its own maps may not hold an opacity, a normal map or a blend).
+    pub other: MaterialId,
+    /// The probability of `other`.
+    pub weight: BlendWeight,
+}
+
+/// A blend's weight.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum BlendWeight {
+    /// The same everywhere, in `[0, 1]`.
+    Constant(f32),
+    /// A texture's single value ([`Texture::eval_1`]), clamped to `[0, 1]` (NaN: 0).
+    Texture(TextureId),
 }
 
 /// A texture that perturbs a material's shading normals
@@ -438,7 +460,7 @@ impl SceneTextures {
     /// Whether some material reads a texture or has an opacity, or some mesh emits through
     /// a texture.
     pub fn any(&self) -> bool {
-        self.maps.iter().any(|m| m.color.is_some() || m.opacity.is_some() || m.normal.is_some()) || self.emission.iter().any(Option::is_some)
+        self.maps.iter().any(|m| m.color.is_some() || m.opacity.is_some() || m.normal.is_some() || m.blend.is_some()) || self.emission.iter().any(Option::is_some)
     }
 
     /// The emission texture of mesh `m`.
@@ -496,6 +518,19 @@ impl Scene {
                 Some("refers to a texture that does not exist")
             } else if maps.normal.is_some_and(|n| !n.scale().is_finite()) {
                 Some("a normal or bump map's scale is not finite")
+            } else if let Some(b) = maps.blend {
+                let other = self.textures.maps(b.other);
+                if b.other as usize >= self.materials.len() || b.other as usize == index {
+                    Some("a blend's other material does not exist or is the material itself")
+                } else if matches!(b.weight, BlendWeight::Texture(id) if bad_id(id)) {
+                    Some("refers to a texture that does not exist")
+                } else if matches!(b.weight, BlendWeight::Constant(w) if !(0.0..=1.0).contains(&w)) {
+                    Some("a blend's weight is outside [0, 1]")
+                } else if other.opacity.is_some() || other.normal.is_some() || other.blend.is_some() {
+                    Some("a blend's other material has an opacity, a normal map or a blend of its own")
+                } else {
+                    None
+                }
             } else if matches!(maps.opacity, Some(Opacity::Constant(o)) if !(0.0..=1.0).contains(&o)) {
                 Some("opacity outside [0, 1]")
             } else {

@@ -7,6 +7,7 @@ use crate::suite::{Case, CaseBody};
 pub mod analytic;
 pub mod common;
 pub mod bandwidth;
+pub mod blend;
 pub mod bad_input;
 pub mod camera;
 pub mod determinism;
@@ -65,6 +66,12 @@ pub fn all() -> Vec<Case> {
             title: "normal maps (both tangent frames) and a bump map tilt a lit plane's shading normal: radiance by the tilted cosine",
             needs: None,
             run: CaseBody::Tracer(normal_maps::normal_map_plane),
+        },
+        Case {
+            id: "blend-plane",
+            title: "a blend of white diffuse and a mirror (constant and textured weight) lights a plane by (1 − w) of the closed form",
+            needs: None,
+            run: CaseBody::Tracer(blend::blend_plane),
         },
         Case {
             id: "emitter-texture",

@@ -2,14 +2,15 @@
 //! (diffuse, perfect mirror, smooth dielectric, thin dielectric sheet; rough ones by the roughness cut-off),
 //! and the adapters that wrap one: `twosided`, `mask` (opacity), `normalmap` and `bumpmap`
 //! (shading normals, [`arpa_core::propagate::normal_map`]); `null` is a surface every ray
-//! passes (opacity 0), whose area light still shines and is seen.
+//! passes (opacity 0), whose area light still shines and is seen; `blendbsdf` scatters each
+//! hit as one of its two bsdfs, the second with probability `weight`.
 
 use super::loader::{num, Bsdf, Loader, Props, R};
 use super::super::spectrum::SpectrumUse;
 use super::super::transform;
 use super::super::xml::Node;
 use arpa_core::propagate::fresnel::conductor_albedo;
-use arpa_core::render::scene::{Handedness, Material, MaterialId, MaterialMaps, NormalPerturbation, Opacity};
+use arpa_core::render::scene::{Blend, BlendWeight, Handedness, Material, MaterialId, MaterialMaps, NormalPerturbation, Opacity};
 use arpa_core::render::texture::{Texture, TextureId};
 use glam::{DVec3, Vec3};
 
@@ -111,6 +112,34 @@ impl Loader<'_> {
                     return Err(self.unsupported(inner[0], "a mask inside a mask is not supported"));
                 }
                 b.maps.opacity = Some(opacity);
+                return Ok(b);
+            }
+            "blendbsdf" => {
+                let inner = self.objects(&p, &["bsdf"]);
+                if inner.len() != 2 {
+                    return Err(self.invalid(n.line, format!("blendbsdf needs exactly two nested <bsdf>, found {}", inner.len())));
+                }
+                let weight = match self.texture_of(&p, "weight")? {
+                    Some(id) => BlendWeight::Texture(id),
+                    None => {
+                        let w = self.float(&p, "weight")?.unwrap_or(0.5);
+                        if !(0.0..=1.0).contains(&w) {
+                            return Err(self.invalid(self.line_of(&p, "weight"), format!("blendbsdf weight {} is outside [0, 1]", num(w))));
+                        }
+                        BlendWeight::Constant(w as f32)
+                    }
+                };
+                self.finish(&p);
+                let first = self.bsdf(inner[0])?;
+                let second = self.bsdf(inner[1])?;
+                for (b, node) in [(&first, inner[0]), (&second, inner[1])] {
+                    if b.maps.opacity.is_some() || b.maps.normal.is_some() || b.maps.blend.is_some() {
+                        return Err(self.unsupported(node, "a mask, normal map, bump map or blend inside a blendbsdf is not supported (wrap the blendbsdf instead)"));
+                    }
+                }
+                let other = self.push_material(&second);
+                let mut b = first;
+                b.maps.blend = Some(Blend { other, weight });
                 return Ok(b);
             }
             "null" => {
@@ -273,7 +302,7 @@ impl Loader<'_> {
                 self.warn(n.line, format!("principled (metallic {}, spec_trans {}, roughness {}) is rendered as {what}{rough}", num(metallic), num(spec_trans), num(roughness)));
                 material
             }
-            _ => return Err(self.unsupported(n, "supported bsdfs: diffuse, dielectric, roughdielectric, thindielectric, conductor, roughconductor, plastic, roughplastic, principled, twosided, mask, normalmap, bumpmap, null")),
+            _ => return Err(self.unsupported(n, "supported bsdfs: diffuse, dielectric, roughdielectric, thindielectric, conductor, roughconductor, plastic, roughplastic, principled, twosided, mask, normalmap, bumpmap, blendbsdf, null")),
         };
         self.objects(&p, &["texture"]).iter().try_for_each(|t| Err(self.unsupported(t, "a texture needs the name of the parameter it gives")))?;
         self.finish(&p);
