@@ -64,6 +64,7 @@ fn scene() -> Scene {
             height: 8,
         },
         roughness_cutoff: 0.5,
+        instancing: None,
     }
 }
 

@@ -71,6 +71,7 @@ fn scene(
         lights,
         camera,
         roughness_cutoff: 0.5,
+        instancing: None,
     }
 }
 

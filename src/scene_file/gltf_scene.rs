@@ -436,6 +436,7 @@ pub fn load(bytes: &[u8], path: &Path, read: MeshReader<'_>, options: &GltfOptio
         lights: walk.lights,
         camera,
         roughness_cutoff: ROUGHNESS_CUTOFF,
+        instancing: None,
         textures: SceneTextures { textures: l.textures, maps: l.maps, emission: walk.emission_textures, environment: None },
     };
     scene.validate().map_err(|source| SceneFileError::Scene { path: path.to_path_buf(), source })?;

@@ -37,6 +37,7 @@ fn scene() -> Scene {
         lights: vec![Light::Point(PointLight { position: DVec3::new(0.0, 1.5, 0.0), intensity: DVec3::ONE })],
         camera: Camera { position: Vec3::new(0.0, 1.0, 0.9), target: Vec3::new(0.0, 1.0, 0.0), up: Vec3::Y, vertical_fov: 1.0, width: 8, height: 8 },
         roughness_cutoff: 0.5,
+        instancing: None,
     }
 }
 
