@@ -397,6 +397,39 @@ impl Instancing {
         out
     }
 
+    /// This without the prototypes placed fewer than twice (and their instances), or
+    /// `None` if no prototype is placed twice: for loaders that record every placement
+    /// of a mesh, not only the shared ones.
+    pub fn shared_only(mut self) -> Option<Self> {
+        let mut uses = alloc::vec![0u32; self.prototypes.len()];
+        for inst in &self.instances {
+            if let Some(u) = uses.get_mut(inst.prototype as usize) {
+                *u += 1;
+            }
+        }
+        let mut new_index = alloc::vec![u32::MAX; self.prototypes.len()];
+        let mut kept = 0u32;
+        for (p, &u) in uses.iter().enumerate() {
+            if u >= 2 {
+                new_index[p] = kept;
+                kept += 1;
+            }
+        }
+        let mut p = 0;
+        self.prototypes.retain(|_| {
+            p += 1;
+            uses[p - 1] >= 2
+        });
+        self.instances.retain_mut(|inst| match new_index.get(inst.prototype as usize) {
+            Some(&n) if n != u32::MAX => {
+                inst.prototype = n;
+                true
+            }
+            _ => false,
+        });
+        (!self.instances.is_empty()).then_some(self)
+    }
+
     /// Adds `group` (meshes in object space) as a prototype named `name`; returns its
     /// index for [`Instancing::place`].
     pub fn add_prototype(&mut self, name: &str, group: &[TriangleMesh]) -> u32 {
