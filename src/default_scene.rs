@@ -96,6 +96,7 @@ pub fn default_scene() -> Scene {
             height: DEFAULT_RESOLUTION.1,
         },
         roughness_cutoff: 0.5,
+        instancing: None,
     }
 }
 

@@ -25,6 +25,7 @@ fn scene() -> Scene {
         lights: vec![Light::Point(PointLight { position: DVec3::new(0.0, 1.0, 0.0), intensity: DVec3::splat(10.0) })],
         camera: Camera { position: Vec3::new(0.0, 3.0, 0.01), target: Vec3::ZERO, up: Vec3::Y, vertical_fov: 0.6, width: 48, height: 48 },
         roughness_cutoff: 0.5,
+        instancing: None,
     }
 }
 

@@ -199,6 +199,29 @@ fn mirroring_transforms_keep_the_front_face() {
     assert!(m.normals.as_ref().unwrap().iter().all(|v| close(*v, Vec3::Y, 1e-6)));
 }
 
+/// A mesh that several nodes place is recorded as instanced: one prototype per mesh and
+/// handedness (a mirrored placement has the reversed winding), kept where it is placed at
+/// least twice; the copies stay the scene's meshes.
+#[test]
+fn reused_meshes_are_recorded_as_instances() {
+    let plain = load(&document(&data_uri(&quad_bin()), textured("OPAQUE"), images(), [1.0; 3]), &[], &GltfOptions::default()).unwrap();
+    assert_eq!(plain.scene.instancing, None, "one placement: nothing to share");
+    let mut doc = document(&data_uri(&quad_bin()), textured("OPAQUE"), images(), [1.0; 3]);
+    doc["nodes"].as_array_mut().unwrap().extend([
+        json!({"name": "again", "mesh": 0, "translation": [3.0, 0.5, 0.0], "rotation": [0.0, 0.38268343, 0.0, 0.92387953]}),
+        json!({"name": "mirrored", "mesh": 0, "scale": [-1.0, 1.0, 1.0]}),
+    ]);
+    doc["scenes"][0]["nodes"].as_array_mut().unwrap().extend([json!(6), json!(7)]);
+    let s = load(&doc, &[], &GltfOptions::default()).unwrap();
+    assert_eq!(s.scene.meshes.len(), 3, "every placement is a mesh");
+    let inst = s.scene.instancing.as_ref().expect("mesh 0 is placed twice unmirrored");
+    let [proto] = &inst.prototypes[..] else { panic!("{:?}", inst.prototypes) };
+    assert_eq!(proto.meshes[0].positions[0], vec3(-1.0, 0.0, -1.0), "the prototype is in the mesh's own space");
+    assert_eq!(inst.instances.iter().map(|i| i.meshes.clone()).collect::<Vec<_>>(), [vec![0], vec![1]], "the mirrored placement stays a mesh of its own");
+    assert_eq!(inst.instances[0].to_world.translation, glam::dvec3(0.0, 0.0, 5.0));
+    assert_eq!(s.scene.validate(), Ok(()));
+}
+
 #[test]
 fn external_buffers_and_glb() {
     let doc = document("quad.bin", textured("OPAQUE"), images(), [1.0; 3]);
@@ -286,6 +309,8 @@ fn crytek_sponza_gltf() {
     let Some(dir) = shared_scenes() else { return };
     let s = load_gltf(&dir.join("crytek-sponza/gltf/Sponza.gltf"), &GltfOptions::default()).unwrap();
     assert_eq!(s.triangle_count(), 262_087);
+    let inst = s.scene.instancing.as_ref().expect("Sponza places some meshes several times");
+    assert!(inst.instances.len() >= 2 * inst.prototypes.len(), "{} instances of {} prototypes", inst.instances.len(), inst.prototypes.len());
     let [Light::Directional(sun)] = s.scene.lights[..] else { panic!("{:?}", s.scene.lights) };
     assert!(close(sun.irradiance.as_vec3(), vec3(10.0, 9.5, 9.0), 1e-4), "{sun:?}");
     let c = &s.scene.camera;

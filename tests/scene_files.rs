@@ -621,8 +621,10 @@ fn principled_maps_onto_its_dominant_lobe() {
     assert!(msg.contains(":11:") && msg.contains("metallic"), "{msg}");
 }
 
-/// `shapegroup`s are placed by their `instance`s (flattened: one mesh per copy, positions
-/// and normals transformed); what cannot be instanced is an error naming the line.
+/// `shapegroup`s are placed by their `instance`s (one mesh per copy, positions and normals
+/// transformed, what shading reads) and recorded as the scene's instancing (the group in
+/// its own space, each instance's transform and copies, for the backends' acceleration
+/// structures); what cannot be instanced is an error naming the line.
 #[test]
 fn shapegroups_are_placed_by_their_instances() {
     let files = [("q.ply", ply(&QUAD, &[&[0, 1, 2, 3]], true))];
@@ -640,6 +642,18 @@ fn shapegroups_are_placed_by_their_instances() {
     assert!(close(geometric_normal(b, 0), -Vec3::X, 1e-6));
     assert!(b.name.starts_with("turned"), "{}", b.name);
     assert!(s.warnings.is_empty(), "{:?}", s.warnings);
+    let inst = s.scene.instancing.as_ref().expect("the instances are recorded");
+    let [proto] = &inst.prototypes[..] else { panic!("{} prototypes", inst.prototypes.len()) };
+    assert_eq!(proto.name, "g");
+    assert!(proto.meshes[0].positions.iter().zip(QUAD).all(|(p, q)| *p == vec3(q[0], q[1], q[2])), "the group stays in its own space");
+    assert_eq!(proto.meshes[0].indices, a.indices);
+    assert_eq!(inst.instances.iter().map(|i| (i.prototype, i.meshes.clone())).collect::<Vec<_>>(), [(0, vec![0]), (0, vec![1])]);
+    assert_eq!(inst.instances[0].to_world.translation, glam::dvec3(5.0, 0.0, 0.0));
+    assert!((inst.instances[1].to_world.transform_vector3(glam::DVec3::X) - glam::DVec3::Y).length() < 1e-12);
+    assert_eq!(inst.copies(2), [Some((0, 0)), Some((1, 0))]);
+    // Without instances nothing is recorded.
+    let plain = load_in_tempdir(&scene_xml(r#"    <shape type="ply"><string name="filename" value="q.ply"/></shape>"#), &files).unwrap();
+    assert_eq!(plain.scene.instancing, None);
     let err = |body: &str| expect_err(load_in_tempdir(&scene_xml(body), &files)).1;
     let msg = err(r#"    <shape type="instance"><ref id="g"/></shape>"#);
     assert!(msg.contains(":11:") && msg.contains("no shapegroup defined before"), "{msg}");

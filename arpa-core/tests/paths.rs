@@ -34,6 +34,7 @@ fn plane_scene(size: u32) -> Scene {
         lights: vec![Light::Point(PointLight { position: DVec3::new(0.0, 1.0, 0.0), intensity: DVec3::splat(INTENSITY) })],
         camera: Camera { position: Vec3::new(0.0, 3.0, 0.0), target: Vec3::ZERO, up: Vec3::Z, vertical_fov: 60f32.to_radians(), width: size, height: size },
         roughness_cutoff: 0.5,
+        instancing: None,
     }
 }
 

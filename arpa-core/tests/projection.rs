@@ -217,6 +217,7 @@ fn open_scene(mirror: bool) -> Scene {
         lights: vec![Light::Point(PointLight { position: DVec3::new(0.0, H, 0.0), intensity: DVec3::splat(I) })],
         camera: Camera { position: Vec3::new(0.0, 3.0, 3.0), target: Vec3::ZERO, up: Vec3::Y, vertical_fov: 60f32.to_radians(), width: 8, height: 8 },
         roughness_cutoff: 0.5,
+        instancing: None,
     }
 }
 

@@ -2690,6 +2690,7 @@ fn check_scene_input((material, poison): (usize, Poison)) -> Outcome {
         lights: vec![Light::Point(PointLight { position: DVec3::new(0.0, 0.0, 1.0), intensity: DVec3::ONE })],
         camera: Camera { position: Vec3::new(0.0, 0.0, 5.0), target: Vec3::ZERO, up: Vec3::Y, vertical_fov: 0.8, width: 8, height: 6 },
         roughness_cutoff: 0.25,
+        instancing: None,
     };
     let mesh = &mut scene.meshes[0];
     let expected: Option<fn(&SceneError) -> bool> = match poison.clone() {

@@ -239,6 +239,7 @@ fn build_scene(size: u32, subdivisions: u32) -> Scene {
         lights: vec![light],
         camera,
         roughness_cutoff: 0.5,
+        instancing: None,
     }
 }
 

@@ -9,7 +9,7 @@
 //! | module | stage |
 //! |---|---|
 //! | `tracer` | [`CpuTracer`] and [`CpuError`]: the uploaded state, the stage bookkeeping (the core's `StageClock`), `upload_scene` and `accumulate` |
-//! | `caster` | [`EmbreeCaster`]: the core's `RayCaster` on the scene's triangle BVH (built at upload; used by the camera and photon passes) |
+//! | `caster` | [`EmbreeCaster`]: the core's `RayCaster` on the scene's triangle BVH (shared groups as Embree instances; built at upload; used by the camera and photon passes) |
 //! | `camera` | camera pass: one camera path per pixel to its query point |
 //! | `photons` | photon pass: photons in chunks of [`PHOTON_CHUNK`], two in flight per thread, merged in photon order |
 //! | `photon_store` | the photon pass's buffers: footprints with their boxes, progressive photons, counts |

@@ -298,6 +298,7 @@ mod tests {
             })],
             camera: Camera { position: Vec3::new(0.0, 1.0, 0.97), target: Vec3::new(0.0, 0.8, -1.0), up: Vec3::Y, vertical_fov: 1.0, width: 8, height: 8 },
             roughness_cutoff: 0.5,
+            instancing: None,
         }
     }
 

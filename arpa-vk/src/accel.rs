@@ -299,7 +299,7 @@ impl VkContext {
     /// `maxPrimitiveCount`; device errors as [`VkContext::create_buffer`].
     pub fn build_triangle_blases(
         &self,
-        meshes: &[TriangleMesh],
+        meshes: &[&TriangleMesh],
         orders: &[Vec<u32>],
     ) -> Result<Vec<Option<AccelerationStructure>>, VkError> {
         let max = self.ray_tracing().max_primitive_count;
@@ -492,12 +492,23 @@ impl VkContext {
 }
 
 /// The triangles of a prepared scene on the device: one triangle bottom level per mesh with
-/// triangles and a top level with one instance per such mesh (custom index = mesh index,
-/// mask `0xff`, SBT record offset 0, identity transform).
+/// triangles, except the copies of shared geometry ([`Scene::instancing`], prototypes
+/// placed at least twice, [`Instancing::copies`]): one bottom level per prototype mesh (in
+/// its object space), which each copy's instance places by its transform. The top level has
+/// one instance per mesh with triangles (custom index = mesh index, mask `0xff`, SBT record
+/// offset as given, identity transform or the copy's). The closest-hit shader recomputes
+/// the barycentric weights from the mesh's world-space triangle and the world ray, so a hit
+/// through an instance shades as the flattened copy's does.
+///
+/// [`Scene::instancing`]: arpa_core::render::scene::Scene::instancing
+/// [`Instancing::copies`]: arpa_core::render::scene::Instancing::copies
 pub struct SceneAccel {
     /// Dropped first: it refers to the bottom levels.
     tlas: AccelerationStructure,
+    /// The bottom levels: the stand-alone meshes' and the prototype meshes'.
     blases: Vec<Option<AccelerationStructure>>,
+    /// Per mesh, its bottom level in `blases`.
+    blas_of: Vec<usize>,
     orders: Vec<Vec<u32>>,
 }
 
@@ -518,15 +529,52 @@ impl SceneAccel {
                 reason: format!("{} meshes; instance custom indices hold 2^24 - 1", meshes.len()),
             });
         }
-        let orders: Vec<Vec<u32>> = meshes.iter().map(morton_triangle_order).collect();
-        let blases = ctx.build_triangle_blases(meshes, &orders)?;
-        let instances: Vec<TlasInstance<'_>> = blases
-            .iter()
-            .enumerate()
-            .filter_map(|(mi, b)| {
-                b.as_ref().map(|blas| TlasInstance {
+        let instancing = scene.scene().instancing.as_ref();
+        let copies = instancing.map(|i| i.copies(meshes.len())).unwrap_or_default();
+        // The prototype meshes that copies place, once each, in object space.
+        let mut prototype_meshes: Vec<TriangleMesh> = Vec::new();
+        let mut prototype_source: std::collections::HashMap<(u32, u32), usize> = std::collections::HashMap::new();
+        let mut placement = Vec::with_capacity(meshes.len());
+        for (mi, m) in meshes.iter().enumerate() {
+            match (copies.get(mi).copied().flatten(), instancing) {
+                (Some((i, k)), Some(inst)) => {
+                    let instance = &inst.instances[i as usize];
+                    let p = *prototype_source.entry((instance.prototype, k)).or_insert_with(|| {
+                        let pm = &inst.prototypes[instance.prototype as usize].meshes[k as usize];
+                        prototype_meshes.push(TriangleMesh { name: m.name.clone(), positions: pm.positions.clone(), normals: None, uvs: None, indices: pm.indices.clone(), material: m.material, emission: None });
+                        prototype_meshes.len() - 1
+                    });
+                    placement.push((Some(p), rows(&instance.to_world)));
+                }
+                _ => placement.push((None, IDENTITY_TRANSFORM)),
+            }
+        }
+        // The bottom levels' sources: the stand-alone meshes, then the prototype meshes.
+        let mut sources: Vec<&TriangleMesh> = Vec::new();
+        let mut blas_of = Vec::with_capacity(meshes.len());
+        for (m, (p, _)) in meshes.iter().zip(&placement) {
+            if p.is_none() {
+                blas_of.push(sources.len());
+                sources.push(m);
+            } else {
+                blas_of.push(usize::MAX);
+            }
+        }
+        let first_prototype = sources.len();
+        sources.extend(prototype_meshes.iter());
+        for (b, (p, _)) in blas_of.iter_mut().zip(&placement) {
+            if let Some(p) = p {
+                *b = first_prototype + p;
+            }
+        }
+        let source_orders: Vec<Vec<u32>> = sources.iter().map(|m| morton_triangle_order(m)).collect();
+        let blases = ctx.build_triangle_blases(&sources, &source_orders)?;
+        let transforms: Vec<[f32; 12]> = placement.iter().map(|p| p.1).collect();
+        let instances: Vec<TlasInstance<'_>> = (0..meshes.len())
+            .filter_map(|mi| {
+                blases[blas_of[mi]].as_ref().map(|blas| TlasInstance {
                     blas,
-                    transform: IDENTITY_TRANSFORM,
+                    transform: transforms[mi],
                     custom_index: mi as u32,
                     mask: 0xff,
                     sbt_record_offset: sbt_offset(mi),
@@ -535,7 +583,8 @@ impl SceneAccel {
             })
             .collect();
         let tlas = ctx.build_tlas("scene TLAS", &instances)?;
-        Ok(Self { tlas, blases, orders })
+        let orders = blas_of.iter().map(|&b| source_orders[b].clone()).collect();
+        Ok(Self { tlas, blases, blas_of, orders })
     }
 
     /// The top level (custom index = mesh index).
@@ -543,13 +592,20 @@ impl SceneAccel {
         &self.tlas
     }
 
-    /// Mesh `mesh`'s bottom level, `None` for a mesh without triangles (or out of range).
+    /// Mesh `mesh`'s bottom level (its prototype mesh's, for a copy), `None` for a mesh
+    /// without triangles (or out of range).
     pub fn blas(&self, mesh: usize) -> Option<&AccelerationStructure> {
-        self.blases.get(mesh).and_then(|b| b.as_ref())
+        self.blases.get(*self.blas_of.get(mesh)?).and_then(|b| b.as_ref())
     }
 
     /// Meshes with triangles (instances of the top level).
     pub fn instance_count(&self) -> usize {
+        self.blas_of.iter().filter(|&&b| self.blases[b].is_some()).count()
+    }
+
+    /// Bottom levels built (fewer than [`SceneAccel::instance_count`] where copies share
+    /// their prototype's).
+    pub fn blas_count(&self) -> usize {
         self.blases.iter().filter(|b| b.is_some()).count()
     }
 
@@ -563,4 +619,12 @@ impl SceneAccel {
     pub fn mesh_triangle(&self, mesh: u32, primitive: u32) -> Option<u32> {
         self.orders.get(mesh as usize)?.get(primitive as usize).copied()
     }
+}
+
+/// An affine map as the rows of its 3×4 matrix in `f32` (`VkTransformMatrixKHR`).
+fn rows(m: &arpa_core::glam::DAffine3) -> [f32; 12] {
+    let (a, t) = (m.matrix3, m.translation);
+    let r = |i: usize| [a.x_axis[i] as f32, a.y_axis[i] as f32, a.z_axis[i] as f32, t[i] as f32];
+    let [r0, r1, r2] = [r(0), r(1), r(2)];
+    [r0[0], r0[1], r0[2], r0[3], r1[0], r1[1], r1[2], r1[3], r2[0], r2[1], r2[2], r2[3]]
 }

@@ -64,6 +64,7 @@ fn scene() -> Scene {
             height: 8,
         },
         roughness_cutoff: 0.5,
+        instancing: None,
     }
 }
 
@@ -340,4 +341,34 @@ fn instance_sbt_offsets_select_hit_groups() {
     drop((bindings, pipeline, module, accel, ray_buf, hit_buf, info, mesh_buf, triangles, emitters));
     drop(ctx);
     assert_clean(&log, "tracing with two hit groups");
+}
+
+/// A scene whose instancing places one group three times: the copies share the group's
+/// bottom levels (one per group mesh) under three instances each, the orders of a copy are
+/// its prototype mesh's, and the build is clean under the validation layer.
+#[test]
+fn instanced_copies_share_bottom_levels() {
+    use arpa_core::glam::{DAffine3, DQuat};
+    use arpa_core::render::scene::Instancing;
+    let Some(ctx) = context("instancing") else { return };
+    let mut scene = scene();
+    let group = [icosphere("ball", Vec3::ZERO, 0.2, 1, true, 0), parallelogram("tile", Vec3::ZERO, Vec3::X * 0.3, Vec3::Z * 0.3, 0)];
+    let mut inst = Instancing::default();
+    let p = inst.add_prototype("group", &group);
+    let first = scene.meshes.len();
+    for k in 0..3 {
+        inst.place(&mut scene.meshes, &group, p, DAffine3::from_scale_rotation_translation(DVec3::splat(1.0 + 0.2 * k as f64), DQuat::from_rotation_y(k as f64), DVec3::new(k as f64 * 0.4 - 0.4, 0.5, 0.0)));
+    }
+    scene.instancing = Some(inst);
+    let prepared = PreparedScene::new(scene.clone()).expect("valid instanced scene");
+    let accel = SceneAccel::build(&ctx, &prepared).expect("acceleration structures");
+    let with_triangles = scene.meshes.iter().filter(|m| !m.indices.is_empty()).count();
+    assert_eq!(accel.instance_count(), with_triangles);
+    assert_eq!(accel.blas_count(), with_triangles - 6 + 2, "six copies, two shared bottom levels");
+    assert!(std::ptr::eq(accel.blas(first).unwrap(), accel.blas(first + 2).unwrap()));
+    assert_eq!(accel.triangle_orders()[first], accel.triangle_orders()[first + 4]);
+    let log = ctx.validation_log();
+    drop(accel);
+    drop(ctx);
+    assert_clean(&log, "building instanced structures");
 }

@@ -47,6 +47,7 @@ fn scene() -> Scene {
         lights: vec![Light::Point(PointLight { position: DVec3::new(0.0, 1.8, 0.0), intensity: DVec3::splat(2.0) })],
         camera: Camera { position: Vec3::new(0.0, 1.0, 3.0), target: Vec3::new(0.0, 0.8, 0.0), up: Vec3::Y, vertical_fov: 0.8, width: 48, height: 40 },
         roughness_cutoff: 0.5,
+        instancing: None,
     }
 }
 

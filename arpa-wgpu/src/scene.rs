@@ -10,7 +10,7 @@ use crate::device::GpuContext;
 use crate::harness::HarnessError;
 use arpa_core::gpu::scene::{SceneTables, morton_triangle_order};
 use arpa_core::render::prepared_scene::PreparedScene;
-use arpa_core::render::scene::TriangleMesh;
+use arpa_core::render::scene::{Instancing, TriangleMesh};
 use wgpu::util::DeviceExt;
 
 /// Why a scene could not be uploaded.
@@ -55,12 +55,27 @@ pub enum SceneUploadError {
         /// The device's `max_storage_buffer_binding_size`.
         max: u64,
     },
+    /// The scene's instancing does not describe its meshes.
+    #[error(transparent)]
+    Instancing(#[from] arpa_core::render::scene::SceneError),
     /// The device rejected a build.
     #[error(transparent)]
     Device(#[from] HarnessError),
 }
 
-/// The scene's triangles on the device: one BLAS per non-empty mesh and a TLAS.
+/// The identity 3×4 row-major transform of an instance.
+const IDENTITY: [f32; 12] = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
+
+/// An affine map as the rows of its 3×4 matrix in `f32` (a TLAS instance's transform).
+fn rows(m: &arpa_core::glam::DAffine3) -> [f32; 12] {
+    let (a, t) = (m.matrix3, m.translation);
+    let r = |i: usize| [a.x_axis[i] as f32, a.y_axis[i] as f32, a.z_axis[i] as f32, t[i] as f32];
+    let [r0, r1, r2] = [r(0), r(1), r(2)];
+    [r0[0], r0[1], r0[2], r0[3], r1[0], r1[1], r1[2], r1[3], r2[0], r2[1], r2[2], r2[3]]
+}
+
+/// The scene's triangles on the device: one BLAS per non-empty mesh (one per prototype mesh
+/// for instanced copies) and a TLAS with one instance per non-empty mesh.
 pub struct GpuGeometry {
     blases: Vec<wgpu::Blas>,
     tlas: wgpu::Tlas,
@@ -69,12 +84,17 @@ pub struct GpuGeometry {
     /// Per mesh: the mesh's triangle index of each BLAS primitive (primitive index ->
     /// triangle index, [`morton_triangle_order`]).
     orders: Vec<Vec<u32>>,
+    /// Instances in the top-level structure.
+    instances: usize,
 }
 
 impl GpuGeometry {
     /// Builds the acceleration structures of `meshes` (validated here: indices in range,
-    /// finite vertices) and waits for the build.
-    pub fn upload(ctx: &GpuContext, meshes: &[TriangleMesh]) -> Result<Self, SceneUploadError> {
+    /// finite vertices) and waits for the build. The copies that `instancing` lists
+    /// ([`Instancing::copies`]: prototypes placed at least twice) share one BLAS per
+    /// prototype mesh (object space), placed by their instance's transform; every other
+    /// mesh has its own.
+    pub fn upload(ctx: &GpuContext, meshes: &[TriangleMesh], instancing: Option<&Instancing>) -> Result<Self, SceneUploadError> {
         let device = &ctx.device;
         let max = device.limits().max_tlas_instance_count.min((1 << 24) - 1);
         if meshes.len() > max as usize {
@@ -90,6 +110,9 @@ impl GpuGeometry {
                 }
             }
         }
+        if let Some(i) = instancing {
+            i.validate(meshes)?;
+        }
         let label = "scene upload";
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let blas_desc = wgpu::CreateBlasDescriptor {
@@ -97,12 +120,46 @@ impl GpuGeometry {
             flags: wgpu::AccelerationStructureFlags::PREFER_FAST_TRACE,
             update_mode: wgpu::AccelerationStructureUpdateMode::Build,
         };
-        let orders: Vec<Vec<u32>> = meshes.iter().map(morton_triangle_order).collect();
-        let mut parts = Vec::new();
+        // Per mesh: the mesh its BLAS is built from (itself, or its prototype mesh in object
+        // space, shared by every copy) and its transform.
+        let copies = instancing.map(|i| i.copies(meshes.len())).unwrap_or_default();
+        let mut prototype_meshes: Vec<TriangleMesh> = Vec::new();
+        let mut prototype_of: std::collections::HashMap<(u32, u32), usize> = std::collections::HashMap::new();
+        let mut placement: Vec<(Option<usize>, [f32; 12])> = Vec::with_capacity(meshes.len());
         for (mi, m) in meshes.iter().enumerate() {
+            match (copies.get(mi).copied().flatten(), instancing) {
+                (Some((i, k)), Some(inst)) => {
+                    let instance = &inst.instances[i as usize];
+                    let p = *prototype_of.entry((instance.prototype, k)).or_insert_with(|| {
+                        let pm = &inst.prototypes[instance.prototype as usize].meshes[k as usize];
+                        prototype_meshes.push(TriangleMesh { name: m.name.clone(), positions: pm.positions.clone(), normals: None, uvs: None, indices: pm.indices.clone(), material: m.material, emission: None });
+                        prototype_meshes.len() - 1
+                    });
+                    placement.push((Some(p), rows(&instance.to_world)));
+                }
+                _ => placement.push((None, IDENTITY)),
+            }
+        }
+        let source = |mi: usize| placement[mi].0.map_or(&meshes[mi], |p| &prototype_meshes[p]);
+        let prototype_orders: Vec<Vec<u32>> = prototype_meshes.iter().map(morton_triangle_order).collect();
+        let orders: Vec<Vec<u32>> = (0..meshes.len()).map(|mi| placement[mi].0.map_or_else(|| morton_triangle_order(&meshes[mi]), |p| prototype_orders[p].clone())).collect();
+        let mut parts = Vec::new();
+        // BLASes: one per stand-alone mesh, one per prototype mesh (at its first copy).
+        let mut blas_of_prototype: Vec<Option<usize>> = vec![None; prototype_meshes.len()];
+        let mut blas_of = vec![usize::MAX; meshes.len()];
+        for mi in 0..meshes.len() {
+            let m = source(mi);
             if m.indices.is_empty() {
                 continue;
             }
+            if let Some(p) = placement[mi].0 {
+                if let Some(b) = blas_of_prototype[p] {
+                    blas_of[mi] = b;
+                    continue;
+                }
+                blas_of_prototype[p] = Some(parts.len());
+            }
+            blas_of[mi] = parts.len();
             let order = &orders[mi];
             let sorted: Vec<[u32; 3]> = order.iter().map(|&t| m.indices[t as usize]).collect();
             let vertices: Vec<[f32; 3]> = m.positions.iter().map(|p| p.to_array()).collect();
@@ -126,15 +183,15 @@ impl GpuGeometry {
             let blas = device.create_blas(&blas_desc, wgpu::BlasGeometrySizeDescriptors::Triangles { descriptors: vec![size.clone()] });
             parts.push((mi, blas, vb, ib, size));
         }
+        let placed: Vec<usize> = (0..meshes.len()).filter(|&mi| blas_of[mi] != usize::MAX).collect();
         let mut tlas = device.create_tlas(&wgpu::CreateTlasDescriptor {
             label: Some(label),
-            max_instances: parts.len().max(1) as u32,
+            max_instances: placed.len().max(1) as u32,
             flags: wgpu::AccelerationStructureFlags::PREFER_FAST_TRACE,
             update_mode: wgpu::AccelerationStructureUpdateMode::Build,
         });
-        let identity = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0];
-        for (slot, (mi, blas, ..)) in parts.iter().enumerate() {
-            tlas[slot] = Some(wgpu::TlasInstance::new(blas, identity, *mi as u32, 0xff));
+        for (slot, &mi) in placed.iter().enumerate() {
+            tlas[slot] = Some(wgpu::TlasInstance::new(&parts[blas_of[mi]].1, placement[mi].1, mi as u32, 0xff));
         }
         let entries: Vec<wgpu::BlasBuildEntry> = parts
             .iter()
@@ -160,11 +217,17 @@ impl GpuGeometry {
         ctx.queue.submit([encoder.finish()]);
         drop(entries);
         let triangle_counts = meshes.iter().map(|m| m.indices.len() as u32).collect();
-        Ok(Self { blases: parts.into_iter().map(|(_, blas, ..)| blas).collect(), tlas, triangle_counts, orders })
+        Ok(Self { blases: parts.into_iter().map(|(_, blas, ..)| blas).collect(), tlas, triangle_counts, orders, instances: placed.len() })
     }
 
     /// Number of meshes with triangles (instances in the top-level structure).
     pub fn instance_count(&self) -> usize {
+        self.instances
+    }
+
+    /// Number of BLASes (fewer than [`GpuGeometry::instance_count`] where copies share
+    /// their prototype's).
+    pub fn blas_count(&self) -> usize {
         self.blases.len()
     }
 
@@ -199,7 +262,7 @@ impl GpuScene {
     /// Uploads `scene` (already validated by [`PreparedScene::new`]) and waits for the
     /// acceleration-structure build.
     pub fn upload(ctx: &GpuContext, scene: &PreparedScene) -> Result<Self, SceneUploadError> {
-        let geometry = GpuGeometry::upload(ctx, &scene.scene().meshes)?;
+        let geometry = GpuGeometry::upload(ctx, &scene.scene().meshes, scene.scene().instancing.as_ref())?;
         let tables = SceneTables::new(scene, &geometry.orders)?;
         let device = &ctx.device;
         let texture_bytes = 4 * tables.texture_words.len() as u64;

@@ -71,7 +71,45 @@ fn scene(
         lights,
         camera,
         roughness_cutoff: 0.5,
+        instancing: None,
     }
+}
+
+/// A floor and a back wall under a point light, with three copies of one group (a smooth
+/// glass sphere, a diffuse box and a mirror panel) placed by a rotation, a non-uniform
+/// scale with a rotation, and a mirroring; the copies are lifted off the floor (no
+/// coincident faces, whose order no acceleration structure defines). The copies are the
+/// scene's meshes and [`Scene::instancing`] records them, so a backend may instance the
+/// group.
+pub fn instanced_room(size: u32) -> Scene {
+    use arpa_core::glam::{DAffine3, DQuat};
+    use arpa_core::render::scene::Instancing;
+    let mut meshes = vec![
+        quad("floor", Vec3::new(-2.0, 0.0, -2.0), Vec3::new(0.0, 0.0, 4.0), Vec3::new(4.0, 0.0, 0.0), 0),
+        quad("back wall", Vec3::new(-2.0, 0.0, -2.0), Vec3::new(4.0, 0.0, 0.0), Vec3::new(0.0, 3.0, 0.0), 0),
+    ];
+    let group = [
+        arpa_core::render::shapes::icosphere("glass ball", Vec3::new(0.0, 0.35, 0.0), 0.3, 2, true, 1),
+        cuboid("box", Vec3::new(0.35, 0.0, -0.35), Vec3::new(0.6, 0.3, -0.1), 0),
+        quad("mirror", Vec3::new(-0.5, 0.0, -0.4), Vec3::new(0.0, 0.0, 0.6), Vec3::new(-0.1, 0.6, 0.0), 2),
+    ];
+    let mut instancing = Instancing::default();
+    let p = instancing.add_prototype("group", &group);
+    for (scale, angle, at) in [
+        (DVec3::ONE, 0.4, DVec3::new(-1.1, 0.02, 0.2)),
+        (DVec3::new(1.3, 0.8, 1.1), -0.9, DVec3::new(0.9, 0.01, 0.3)),
+        (DVec3::new(-1.0, 1.1, 1.0), 2.5, DVec3::new(0.0, 0.03, -1.0)),
+    ] {
+        instancing.place(&mut meshes, &group, p, DAffine3::from_scale_rotation_translation(scale, DQuat::from_rotation_y(angle), at));
+    }
+    let mut s = scene(
+        meshes,
+        vec![diffuse(0.6), glass(), mirror()],
+        vec![point_light(DVec3::new(0.2, 1.8, 0.6), 4.0)],
+        camera(Vec3::new(0.0, 1.4, 3.5), Vec3::new(0.0, 0.3, 0.0), Vec3::Y, 50.0, size),
+    );
+    s.instancing = Some(instancing);
+    s
 }
 
 /// Floor (4 × 4), back wall, a glass slab floating above the floor and a mirror at the

@@ -4,7 +4,7 @@
 //!
 //! | glTF | arpa |
 //! |---|---|
-//! | the default scene's node tree | every node's world matrix (parent × local); each mesh primitive of each node is one [`TriangleMesh`] (instances are flattened), positions and normals transformed in `f64`, winding reversed under a mirroring matrix (as the spec defines front faces) |
+//! | the default scene's node tree | every node's world matrix (parent × local); each mesh primitive of each node is one [`TriangleMesh`] (the shading copy); a mesh that several nodes place is recorded as instanced ([`Scene::instancing`]: one prototype per mesh and handedness of placement), positions and normals transformed in `f64`, winding reversed under a mirroring matrix (as the spec defines front faces) |
 //! | primitives | triangles only (other modes are skipped with a warning); `u8`/`u16`/`u32` indices or none; `NORMAL` (else face normals, as the spec asks), `TEXCOORD_0` |
 //! | `pbrMetallicRoughness` | `baseColorFactor` × `baseColorTexture` (sRGB) as the colour; `KHR_materials_transmission` ≥ ½ a dielectric of `KHR_materials_ior` (default 1.5), else `metallicFactor` ≥ ½ a conductor, else diffuse, with `alpha = roughnessFactor²` through the roughness cut-off, as the XML loader's `principled`; a `metallicRoughnessTexture` multiplies the factors by its means (blue and green channels; warning: one scattering kind per material); `normalTexture` (with `scale`) as a tangent-space normal map, its bitangent following `TEXCOORD_0`'s `v` (MikkTSpace's sign; no `TANGENT` attribute is read) |
 //! | `alphaMode` | `MASK`: opacity 1 where the base colour's alpha (texture × factor) reaches `alphaCutoff` (default ½), else 0, per texel; `BLEND`: that alpha as a stochastic opacity; `OPAQUE`: none |
@@ -24,9 +24,9 @@ use super::error::{SceneFileError, Warning};
 use super::loaded::{FovAxis, LoadedScene};
 use super::mesh::MeshReader;
 use arpa_core::emit::emission::{DirectionalLight, Light, PointLight, SpotFalloff, SpotLight};
-use arpa_core::render::scene::{Camera, Handedness, Material, MaterialMaps, NormalPerturbation, Opacity, Scene, SceneTextures, TriangleMesh};
+use arpa_core::render::scene::{Camera, Handedness, Instance, Instancing, Material, MaterialMaps, NormalPerturbation, Opacity, Prototype, PrototypeMesh, Scene, SceneTextures, TriangleMesh};
 use arpa_core::render::texture::{Bitmap, Texels, Texture, TextureFilter, TextureId, TextureWrap, UvTransform};
-use glam::{DMat3, DMat4, DVec3, Vec2, Vec3};
+use glam::{DAffine3, DMat3, DMat4, DVec3, Vec2, Vec3};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -344,6 +344,11 @@ struct Walk {
     lights: Vec<Light>,
     /// (camera index, node name, world matrix), in node order.
     cameras: Vec<(usize, String, DMat4)>,
+    /// Every placement of a mesh, as an instance of its triangle primitives.
+    instancing: Instancing,
+    /// The prototype of each (mesh index, placed mirrored) in `instancing`: a mirroring
+    /// placement reverses the winding, so its copies have other triangles.
+    prototypes: HashMap<(usize, bool), u32>,
 }
 
 /// Loads the glTF (or GLB) file `bytes`; `path` names it and resolves its relative URIs,
@@ -460,6 +465,7 @@ pub fn load(bytes: &[u8], path: &Path, read: MeshReader<'_>, options: &GltfOptio
         lights: walk.lights,
         camera,
         roughness_cutoff: ROUGHNESS_CUTOFF,
+        instancing: walk.instancing.shared_only(),
         textures: SceneTextures { textures: l.textures, maps: l.maps, emission: walk.emission_textures, environment: None },
     };
     scene.validate().map_err(|source| SceneFileError::Scene { path: path.to_path_buf(), source })?;
@@ -470,6 +476,8 @@ pub fn load(bytes: &[u8], path: &Path, read: MeshReader<'_>, options: &GltfOptio
 fn place_mesh(l: &mut Loader<'_>, walk: &mut Walk, node: &gltf::Node<'_>, mesh: &gltf::Mesh<'_>, world: DMat4) -> R<()> {
     let normal_matrix = DMat3::from_mat4(world).inverse().transpose();
     let mirrored = DMat3::from_mat4(world).determinant() < 0.0;
+    let first = walk.meshes.len() as u32;
+    let mut prototype = Vec::new();
     for prim in mesh.primitives() {
         let what = format!("mesh {}{} primitive {}", mesh.index(), mesh.name().map(|n| format!(" '{n}'")).unwrap_or_default(), prim.index());
         if prim.mode() != gltf::mesh::Mode::Triangles {
@@ -529,6 +537,7 @@ fn place_mesh(l: &mut Loader<'_>, walk: &mut Walk, node: &gltf::Node<'_>, mesh: 
         };
         let uvs = uvs.map(|v| v.iter().map(|t| flip_v(*t)).collect::<Vec<_>>()).filter(|v: &Vec<Vec2>| v.iter().all(|t| t.is_finite()));
         let (material, emission) = l.material(prim.material())?;
+        prototype.push(PrototypeMesh { positions: positions.iter().map(|p| Vec3::from_array(*p)).collect(), indices: tris.clone() });
         walk.meshes.push(TriangleMesh {
             name: format!("{} {what}", node.name().unwrap_or("node")),
             positions: world_p,
@@ -539,6 +548,16 @@ fn place_mesh(l: &mut Loader<'_>, walk: &mut Walk, node: &gltf::Node<'_>, mesh: 
             emission: emission.map(|e| e.0),
         });
         walk.emission_textures.push(emission.and_then(|e| e.1));
+    }
+    if !prototype.is_empty() {
+        let name = format!("mesh {}{}", mesh.index(), mesh.name().map(|n| format!(" '{n}'")).unwrap_or_default());
+        let instancing = &mut walk.instancing;
+        let prototype = *walk.prototypes.entry((mesh.index(), mirrored)).or_insert_with(|| {
+            instancing.prototypes.push(Prototype { name, meshes: prototype });
+            (instancing.prototypes.len() - 1) as u32
+        });
+        let meshes = (first..walk.meshes.len() as u32).collect();
+        walk.instancing.instances.push(Instance { prototype, to_world: DAffine3::from_mat4(world), meshes });
     }
     Ok(())
 }

@@ -148,3 +148,57 @@ pub fn next_up(t: f32) -> f32 {
     f32::from_bits(t.max(0.0).to_bits() + 1)
 }
 
+
+/// `hit` with its barycentric weights recomputed on the world-space triangle `p` (metres,
+/// its vertices in index order) it hit, from the ray `origin + t·direction`:
+/// Möller–Trumbore in `f64` on the exact `f64` images of the `f32` inputs, the weights
+/// rounded to `f32` once and clamped onto the triangle.
+///
+/// So the hit that shading sees (the point interpolated from the weights, the normals and
+/// texture coordinates at it) is a function of the ray and the triangle alone, not of the
+/// acceleration structure that found it: an instanced structure (the ray taken into the
+/// instance's object space) and a flattened one give the same bits for the same triangle.
+/// `hit.t` stays the backend's: nothing is shaded with it, and [`RayStart::intersect`]
+/// casts again from just past it, which must be past where that backend's structure
+/// reports the triangle. A triangle degenerate along the ray (zero determinant) keeps
+/// `hit`'s weights.
+#[inline]
+pub fn refine_hit(hit: RayHit, p: [Vec3; 3], origin: Vec3, direction: Vec3) -> RayHit {
+    let [p0, p1, p2] = p.map(|v| v.as_dvec3());
+    let (o, d) = (origin.as_dvec3(), direction.as_dvec3());
+    let (e1, e2) = (p1 - p0, p2 - p0);
+    let pv = d.cross(e2);
+    let det = e1.dot(pv);
+    if !(det.abs() > 1e-300) {
+        return hit;
+    }
+    let inv = 1.0 / det;
+    let tv = o - p0;
+    let (b1, b2) = (tv.dot(pv) * inv, d.dot(tv.cross(e1)) * inv);
+    if !(b1.is_finite() && b2.is_finite()) {
+        return hit;
+    }
+    let b1 = b1.clamp(0.0, 1.0);
+    let b2 = b2.clamp(0.0, 1.0 - b1);
+    RayHit { b1: b1 as f32, b2: b2 as f32, ..hit }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The refined weights are the exact ones rounded once, whatever the input's were, and
+    /// stay on the triangle; `t` is left as the backend reported it.
+    #[test]
+    fn refine_hit_recomputes_the_weights() {
+        let p = [Vec3::new(0.0, 0.0, 1.0), Vec3::new(1.0, 0.0, 1.0), Vec3::new(0.0, 1.0, 1.0)];
+        let rough = RayHit { t: 0.9, mesh: 3, triangle: 7, b1: 0.2, b2: 0.2 };
+        let h = refine_hit(rough, p, Vec3::new(0.25, 0.5, 0.0), Vec3::Z);
+        assert_eq!((h.t, h.b1, h.b2, h.mesh, h.triangle), (0.9, 0.25, 0.5, 3, 7));
+        // A ray just outside an edge (as a watertight test may report) is clamped onto it.
+        let h = refine_hit(rough, p, Vec3::new(-1e-6, 0.5, 0.0), Vec3::Z);
+        assert_eq!((h.b1, h.b2), (0.0, 0.5));
+        // Parallel to the triangle: nothing to recompute.
+        assert_eq!(refine_hit(rough, p, Vec3::ZERO, Vec3::X), rough);
+    }
+}

@@ -13,7 +13,7 @@ use crate::render::texture::{Texture, TextureId};
 pub use crate::propagate::normal_map::Handedness;
 use alloc::string::String;
 use alloc::vec::Vec;
-use glam::{DVec3, Vec2, Vec3};
+use glam::{DAffine3, DVec3, Vec2, Vec3};
 
 /// Index into [`Scene::materials`].
 pub type MaterialId = u32;
@@ -293,6 +293,14 @@ pub enum SceneError {
     /// silently make every rough material specular).
     #[error("roughness cut-off {0} is not a finite non-negative GGX alpha")]
     BadRoughnessCutoff(f32),
+    /// [`Scene::instancing`] does not describe the scene's meshes.
+    #[error("instance {instance}: {why}")]
+    BadInstance {
+        /// Index in [`Instancing::instances`].
+        instance: usize,
+        /// What is wrong (names the mesh or prototype).
+        why: String,
+    },
 }
 
 /// A complete scene.
@@ -311,6 +319,181 @@ pub struct Scene {
     pub roughness_cutoff: f32,
     /// Textures and the materials that read them (none by default).
     pub textures: SceneTextures,
+    /// Which meshes are placed copies of shared geometry, for backends whose acceleration
+    /// structures can instance it (`None`: every mesh stands alone). [`Scene::meshes`]
+    /// stays the whole truth for shading either way: it holds every copy in world space.
+    pub instancing: Option<Instancing>,
+}
+
+/// Shared geometry placed several times in a scene (Mitsuba's `shapegroup` + `instance`,
+/// a glTF mesh that several nodes use): the groups of meshes in their own space and where
+/// each copy is. It only lets a backend build one acceleration structure per group and
+/// place it by a transform instead of holding every copy; what a ray hits is reported,
+/// and shaded, as the copy in [`Scene::meshes`] (world-space positions, normals
+/// transformed by the inverse transpose, so shading normals and differentials see the
+/// instance's transform).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Instancing {
+    /// The shared groups, indexed by [`Instance::prototype`].
+    pub prototypes: Vec<Prototype>,
+    /// The placed copies.
+    pub instances: Vec<Instance>,
+}
+
+/// A group of meshes in the group's own (object) space.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Prototype {
+    /// Name used in error messages (the group's id or the glTF mesh).
+    pub name: String,
+    /// The group's meshes.
+    pub meshes: Vec<PrototypeMesh>,
+}
+
+/// One mesh of a [`Prototype`]: positions in object space (metres before the instance's
+/// transform) and triangles, numbered and wound as in every copy of it.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct PrototypeMesh {
+    /// Vertex positions (object space).
+    pub positions: Vec<Vec3>,
+    /// Triangles as vertex indices, equal to those of each copy in [`Scene::meshes`].
+    pub indices: Vec<[u32; 3]>,
+}
+
+/// One placed copy of a [`Prototype`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Instance {
+    /// Index in [`Instancing::prototypes`].
+    pub prototype: u32,
+    /// Object space to world space (an invertible affine map; metres).
+    pub to_world: DAffine3,
+    /// Per mesh of the prototype, in its order: the index in [`Scene::meshes`] of its copy
+    /// (the prototype mesh's positions under `to_world`, rounded to `f32`).
+    pub meshes: Vec<u32>,
+}
+
+impl Instancing {
+    /// Per mesh of a scene with `mesh_count` meshes: `(instance, prototype mesh)` of the
+    /// copy it is, or `None` for a mesh that a backend keeps on its own. Only copies of
+    /// prototypes placed at least twice are listed: a prototype placed once gains nothing
+    /// from a second level of acceleration structure, it only costs traversal. Indices out
+    /// of range are left out ([`Scene::validate`] rejects them).
+    pub fn copies(&self, mesh_count: usize) -> Vec<Option<(u32, u32)>> {
+        let mut uses = alloc::vec![0u32; self.prototypes.len()];
+        for inst in &self.instances {
+            if let Some(u) = uses.get_mut(inst.prototype as usize) {
+                *u += 1;
+            }
+        }
+        let mut out = alloc::vec![None; mesh_count];
+        for (i, inst) in self.instances.iter().enumerate() {
+            if uses.get(inst.prototype as usize).is_none_or(|&u| u < 2) {
+                continue;
+            }
+            for (k, &m) in inst.meshes.iter().enumerate() {
+                if let Some(slot) = out.get_mut(m as usize) {
+                    *slot = Some((i as u32, k as u32));
+                }
+            }
+        }
+        out
+    }
+
+    /// This without the prototypes placed fewer than twice (and their instances), or
+    /// `None` if no prototype is placed twice: for loaders that record every placement
+    /// of a mesh, not only the shared ones.
+    pub fn shared_only(mut self) -> Option<Self> {
+        let mut uses = alloc::vec![0u32; self.prototypes.len()];
+        for inst in &self.instances {
+            if let Some(u) = uses.get_mut(inst.prototype as usize) {
+                *u += 1;
+            }
+        }
+        let mut new_index = alloc::vec![u32::MAX; self.prototypes.len()];
+        let mut kept = 0u32;
+        for (p, &u) in uses.iter().enumerate() {
+            if u >= 2 {
+                new_index[p] = kept;
+                kept += 1;
+            }
+        }
+        let mut p = 0;
+        self.prototypes.retain(|_| {
+            p += 1;
+            uses[p - 1] >= 2
+        });
+        self.instances.retain_mut(|inst| match new_index.get(inst.prototype as usize) {
+            Some(&n) if n != u32::MAX => {
+                inst.prototype = n;
+                true
+            }
+            _ => false,
+        });
+        (!self.instances.is_empty()).then_some(self)
+    }
+
+    /// Adds `group` (meshes in object space) as a prototype named `name`; returns its
+    /// index for [`Instancing::place`].
+    pub fn add_prototype(&mut self, name: &str, group: &[TriangleMesh]) -> u32 {
+        let meshes = group.iter().map(|m| PrototypeMesh { positions: m.positions.clone(), indices: m.indices.clone() }).collect();
+        self.prototypes.push(Prototype { name: name.into(), meshes });
+        (self.prototypes.len() - 1) as u32
+    }
+
+    /// Appends to `meshes` a copy of each mesh of `group` (the meshes prototype
+    /// `prototype` was made from, [`Instancing::add_prototype`]) placed by `to_world`, and
+    /// records the copies as an instance: positions transformed in `f64` and rounded to
+    /// `f32`, normals by the inverse transpose and renormalised, the rest as in `group`.
+    pub fn place(&mut self, meshes: &mut Vec<TriangleMesh>, group: &[TriangleMesh], prototype: u32, to_world: DAffine3) {
+        let normal_matrix = to_world.matrix3.inverse().transpose();
+        let first = meshes.len() as u32;
+        meshes.extend(group.iter().enumerate().map(|(k, m)| TriangleMesh {
+            name: alloc::format!("{} (instance {}, mesh {k})", m.name, self.instances.len()),
+            positions: m.positions.iter().map(|p| to_world.transform_point3(p.as_dvec3()).as_vec3()).collect(),
+            normals: m.normals.as_ref().map(|ns| ns.iter().map(|n| (normal_matrix * n.as_dvec3()).normalize_or(DVec3::Y).as_vec3()).collect()),
+            ..m.clone()
+        }));
+        self.instances.push(Instance { prototype, to_world, meshes: (first..first + group.len() as u32).collect() });
+    }
+
+    /// Checks that this describes `meshes`: every index in range, each mesh the copy of at
+    /// most one prototype mesh, transforms finite and invertible, and every copy the
+    /// prototype mesh's triangles with its positions under the transform (within
+    /// `1e-5 (1 + |p|)` metres: the copies are rounded to `f32`).
+    pub fn validate(&self, meshes: &[TriangleMesh]) -> Result<(), SceneError> {
+        let mut claimed = alloc::vec![false; meshes.len()];
+        for (instance, inst) in self.instances.iter().enumerate() {
+            let bad = |why: String| Err(SceneError::BadInstance { instance, why });
+            let Some(proto) = self.prototypes.get(inst.prototype as usize) else {
+                return bad(alloc::format!("prototype {} does not exist ({} prototypes)", inst.prototype, self.prototypes.len()));
+            };
+            let det = inst.to_world.matrix3.determinant();
+            if !(inst.to_world.is_finite() && det.is_finite() && det.abs() > 1e-300 && inst.to_world.inverse().is_finite()) {
+                return bad(alloc::format!("its transform of prototype '{}' is not finite or not invertible", proto.name));
+            }
+            if inst.meshes.len() != proto.meshes.len() {
+                return bad(alloc::format!("{} meshes for the {} of prototype '{}'", inst.meshes.len(), proto.meshes.len(), proto.name));
+            }
+            for (pm, &mi) in proto.meshes.iter().zip(&inst.meshes) {
+                let Some(m) = meshes.get(mi as usize) else {
+                    return bad(alloc::format!("mesh {mi} does not exist ({} meshes)", meshes.len()));
+                };
+                if core::mem::replace(&mut claimed[mi as usize], true) {
+                    return bad(alloc::format!("mesh '{}' is already a copy of another instance", m.name));
+                }
+                if m.indices != pm.indices || m.positions.len() != pm.positions.len() {
+                    return bad(alloc::format!("mesh '{}' does not have the triangles and vertex count of prototype '{}'", m.name, proto.name));
+                }
+                let placed = pm.positions.iter().zip(&m.positions).position(|(p, w)| {
+                    let w = w.as_dvec3();
+                    !((inst.to_world.transform_point3(p.as_dvec3()) - w).abs().max_element() <= 1e-5 * (1.0 + w.abs().max_element()))
+                });
+                if let Some(v) = placed {
+                    return bad(alloc::format!("vertex {v} of mesh '{}' is not prototype '{}' under the instance's transform", m.name, proto.name));
+                }
+            }
+        }
+        Ok(())
+    }
 }
 
 /// A material's opacity: the probability that a ray hitting it stops there (Mitsuba's
@@ -603,6 +786,9 @@ impl Scene {
             return Err(SceneError::NoLights);
         }
         self.camera.frame()?;
+        if let Some(instancing) = &self.instancing {
+            instancing.validate(&self.meshes)?;
+        }
         Ok(())
     }
 
@@ -710,5 +896,37 @@ mod tests {
         let glass = |roughness| Material::Dielectric { ior: 1.5, transmittance: Vec3::ONE, roughness };
         assert_eq!(glass(0.1).scattering(0.25), Scattering::Refractive(1.5, Vec3::ONE));
         assert_eq!(glass(0.25).scattering(0.25), Scattering::Diffuse(Vec3::ONE));
+    }
+
+    /// A copy that is not its prototype under the transform, a mesh claimed twice, an
+    /// index out of range or a singular transform is an error naming the instance.
+    #[test]
+    fn instancing_is_validated() {
+        use crate::render::shapes::cuboid;
+        let group = [cuboid("box", Vec3::ZERO, Vec3::ONE, 0)];
+        let mut meshes = alloc::vec::Vec::new();
+        let mut inst = Instancing::default();
+        let p = inst.add_prototype("g", &group);
+        inst.place(&mut meshes, &group, p, DAffine3::from_translation(DVec3::new(2.0, 0.0, 0.0)));
+        inst.place(&mut meshes, &group, p, DAffine3::from_scale(DVec3::splat(0.5)));
+        assert_eq!(inst.validate(&meshes), Ok(()));
+        assert_eq!(inst.copies(3), alloc::vec![Some((0, 0)), Some((1, 0)), None]);
+        let fails = |f: &dyn Fn(&mut Instancing, &mut Vec<TriangleMesh>), what: &str| {
+            let (mut i, mut m) = (inst.clone(), meshes.clone());
+            f(&mut i, &mut m);
+            match i.validate(&m) {
+                Err(SceneError::BadInstance { why, .. }) => assert!(why.contains(what), "{why}"),
+                other => panic!("{what}: {other:?}"),
+            }
+        };
+        fails(&|_, m| m[1].positions[3].x += 0.01, "vertex 3");
+        fails(&|_, m| m[1].indices[0].swap(1, 2), "triangles");
+        fails(&|i, _| i.instances[1].meshes[0] = 0, "already a copy");
+        fails(&|i, _| i.instances[1].meshes[0] = 9, "does not exist");
+        fails(&|i, _| i.instances[1].prototype = 4, "prototype 4");
+        fails(&|i, _| i.instances[1].to_world = DAffine3::from_scale(DVec3::new(1.0, 0.0, 1.0)), "not invertible");
+        // A prototype placed once is left to the backend as a mesh of its own.
+        inst.instances.pop();
+        assert_eq!(inst.copies(2), alloc::vec![None, None]);
     }
 }

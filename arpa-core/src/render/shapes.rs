@@ -197,6 +197,7 @@ pub fn glass_room(width: u32, height: u32) -> crate::render::scene::Scene {
         lights: vec![],
         camera: Camera { position: Vec3::new(0.0, 1.0, 0.97), target: Vec3::new(0.0, 0.8, 0.0), up: Vec3::Y, vertical_fov: 1.3, width, height },
         roughness_cutoff: 0.5,
+        instancing: None,
     }
 }
 

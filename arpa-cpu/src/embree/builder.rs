@@ -225,6 +225,42 @@ impl EmbreeSceneBuilder {
         self.attach(geom)
     }
 
+    /// Adds an instance of the committed scene `scene` (`RTC_GEOMETRY_TYPE_INSTANCE`, one
+    /// level), placed by the affine map `to_world` (object frame to this scene's frame,
+    /// rows of a 3×4 matrix: `w = M·p + t` with `to_world[r] = [M[r][0], M[r][1],
+    /// M[r][2], t[r]]`); returns its geometry id. A ray that hits through it reports this
+    /// id as [`super::Hit::inst_id`] and the instanced scene's geometry and primitive.
+    /// Embree keeps its own reference on `scene`.
+    ///
+    /// Fails with [`EmbreeError::InvalidInput`] if the map is not finite, or if `scene`
+    /// lives on another device.
+    pub fn add_instance(&mut self, scene: &EmbreeScene, to_world: [[f32; 4]; 3]) -> Result<u32> {
+        if !to_world.iter().flatten().all(|x| x.is_finite()) {
+            return Err(EmbreeError::InvalidInput(format!("instance transform is not finite: {to_world:?}")));
+        }
+        if scene.device().raw() != self.device.raw() {
+            return Err(EmbreeError::InvalidInput("instanced scene lives on another device".into()));
+        }
+        // SAFETY: valid device; the returned handle (checked) is released by the guard.
+        let geom = unsafe { sys::rtcNewGeometry(self.device.raw(), sys::RTCGeometryType::INSTANCE) };
+        if geom.is_null() {
+            return Err(self
+                .device
+                .check()
+                .err()
+                .unwrap_or(EmbreeError::Unknown("rtcNewGeometry returned NULL".into())));
+        }
+        let geom = GeometryGuard(geom);
+        // SAFETY: valid handles; Embree copies the 12 floats (3×4 row-major) during the call
+        // and takes a reference on the committed scene.
+        unsafe {
+            sys::rtcSetGeometryInstancedScene(geom.0, scene.raw);
+            sys::rtcSetGeometryTransform(geom.0, 0, sys::RTCFormat::FLOAT3X4_ROW_MAJOR, to_world.as_ptr().cast::<c_void>());
+        }
+        self.device.check()?;
+        self.attach(geom)
+    }
+
     /// Adds a set of axis-aligned boxes as one Embree user geometry
     /// (`RTC_GEOMETRY_TYPE_USER`); returns its geometry id. Box `i` is primitive `i`.
     ///

@@ -44,6 +44,7 @@ macro_rules! packet_query {
                 v: p.v[i],
                 prim_id: p.primID[i],
                 geom_id: p.geomID[i],
+                inst_id: p.instID[0][i],
                 ng: [p.Ng_x[i], p.Ng_y[i], p.Ng_z[i]],
             });
         }
@@ -65,9 +66,14 @@ pub struct Hit {
     pub v: f32,
     /// Index of the triangle within its mesh (position in the `indices` slice).
     pub prim_id: u32,
-    /// Geometry id returned by [`super::EmbreeSceneBuilder::add_triangle_mesh`].
+    /// Geometry id returned by [`super::EmbreeSceneBuilder::add_triangle_mesh`]: of this
+    /// scene, or of the instanced scene when [`Hit::inst_id`] names an instance.
     pub geom_id: u32,
-    /// Unnormalised geometric normal in the world frame, `(v1 - v0) x (v2 - v0)` (length =
+    /// Geometry id of the instance ([`super::EmbreeSceneBuilder::add_instance`]) the ray
+    /// hit through, or `u32::MAX` (`RTC_INVALID_GEOMETRY_ID`) for a triangle of this scene.
+    pub inst_id: u32,
+    /// Unnormalised geometric normal (in the frame of the geometry hit: the instanced
+    /// scene's object frame for a hit through an instance, else the world frame), `(v1 - v0) x (v2 - v0)` (length =
     /// twice the triangle's area); it faces the side from which `v0, v1, v2` appear
     /// counter-clockwise, whichever side the ray came from.
     pub ng: [f32; 3],
@@ -236,6 +242,7 @@ impl EmbreeScene {
             v: rh.hit.v,
             prim_id: rh.hit.primID,
             geom_id: rh.hit.geomID,
+            inst_id: rh.hit.instID[0],
             ng: [rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z],
         }))
     }

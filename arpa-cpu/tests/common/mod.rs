@@ -70,6 +70,7 @@ pub fn scene(
         lights,
         camera,
         roughness_cutoff: 0.5,
+        instancing: None,
     }
 }
 

@@ -79,7 +79,7 @@ fn box_scene() -> Scene {
     light.emission = Some(Vec3::new(20.0, 18.0, 15.0));
     meshes.push(light);
     let lights = vec![Light::Point(PointLight { position: DVec3::new(0.3, 0.6, 0.5), intensity: DVec3::new(3.0, 3.0, 2.5) })];
-    Scene { textures: Default::default(), meshes, materials, lights, camera: camera(), roughness_cutoff: 0.5 }
+    Scene { textures: Default::default(), meshes, materials, lights, camera: camera(), roughness_cutoff: 0.5, instancing: None }
 }
 
 /// A diffuse floor under a flat glass slab (no vertex normals), lit by a spot, a
@@ -119,7 +119,7 @@ fn slab_scene() -> Scene {
             radiance: DVec3::splat(10.0),
         }),
     ];
-    Scene { textures: Default::default(), meshes, materials, lights, camera: camera(), roughness_cutoff: 0.5 }
+    Scene { textures: Default::default(), meshes, materials, lights, camera: camera(), roughness_cutoff: 0.5, instancing: None }
 }
 
 fn settings(method: Method, photons: u32, direct_lighting: bool) -> RenderSettings {

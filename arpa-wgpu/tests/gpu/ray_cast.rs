@@ -37,6 +37,7 @@ fn scene() -> Scene {
         lights: vec![Light::Point(PointLight { position: DVec3::new(0.0, 1.5, 0.0), intensity: DVec3::ONE })],
         camera: Camera { position: Vec3::new(0.0, 1.0, 0.9), target: Vec3::new(0.0, 1.0, 0.0), up: Vec3::Y, vertical_fov: 1.0, width: 8, height: 8 },
         roughness_cutoff: 0.5,
+        instancing: None,
     }
 }
 
@@ -62,7 +63,7 @@ proptest! {
         let scene = scene();
         let prepared = PreparedScene::new(scene.clone()).expect("valid test scene");
         let reference = BruteForceCaster::new(&prepared);
-        let gpu_scene = GpuGeometry::upload(ctx, &scene.meshes).map_err(|e| TestCaseError::fail(e.to_string()))?;
+        let gpu_scene = GpuGeometry::upload(ctx, &scene.meshes, None).map_err(|e| TestCaseError::fail(e.to_string()))?;
         prop_assert_eq!(gpu_scene.instance_count(), scene.meshes.len() - 1);
         let rs = rays(seed, 5000);
         let got = crate::support::cast_rays(ctx, &gpu_scene, &rs);
@@ -101,10 +102,10 @@ fn bad_meshes_are_named() {
     let Some(ctx) = gpu() else { return };
     let mut s = scene();
     s.meshes[8].indices.push([0, 1, 9]);
-    let e = GpuGeometry::upload(ctx, &s.meshes).err().expect("index out of range");
+    let e = GpuGeometry::upload(ctx, &s.meshes, None).err().expect("index out of range");
     assert!(matches!(e, SceneUploadError::IndexOutOfRange { .. }) && e.to_string().contains("panel") && e.to_string().contains('9'), "{e}");
     let mut s = scene();
     s.meshes[7].positions[3].y = f32::NAN;
-    let e = GpuGeometry::upload(ctx, &s.meshes).err().expect("non-finite vertex");
+    let e = GpuGeometry::upload(ctx, &s.meshes, None).err().expect("non-finite vertex");
     assert!(e.to_string().contains("sphere") && e.to_string().contains("vertex 3"), "{e}");
 }

@@ -71,6 +71,7 @@ pub fn mixed_scene(width: u32, height: u32) -> Scene {
         ],
         camera: Camera { position: Vec3::new(0.0, 1.0, 0.95), target: Vec3::new(0.0, 0.7, 0.0), up: Vec3::Y, vertical_fov: 1.4, width, height },
         roughness_cutoff: 0.5,
+        instancing: None,
     }
 }
 
@@ -130,6 +131,7 @@ pub fn glass_slab(size: u32) -> Scene {
         lights: vec![Light::Point(PointLight { position: DVec3::new(0.3, 3.0, 0.2), intensity: DVec3::splat(10.0) })],
         camera: camera(Vec3::new(0.0, 6.0, 2.5), Vec3::ZERO, 24.0, size, size),
         roughness_cutoff: 0.5,
+        instancing: None,
     }
 }
 
@@ -144,6 +146,7 @@ pub fn mirror_wall(size: u32) -> Scene {
         lights: vec![Light::Point(PointLight { position: DVec3::new(-0.3, 0.6, 0.0), intensity: DVec3::splat(2.0) })],
         camera: camera(Vec3::new(-2.0, 2.2, 0.0), Vec3::new(0.6, 0.2, 0.0), 50.0, size, size),
         roughness_cutoff: 0.5,
+        instancing: None,
     }
 }
 
@@ -175,6 +178,7 @@ pub fn cornell(size: u32) -> Scene {
         lights: vec![],
         camera: camera(Vec3::new(0.0, 0.0, 3.4), Vec3::ZERO, 45.0, size, size),
         roughness_cutoff: 0.5,
+        instancing: None,
     }
 }
 
@@ -221,5 +225,6 @@ pub fn water(size: u32) -> Scene {
         lights: vec![Light::Point(PointLight { position: DVec3::new(0.4, 2.0, 0.3), intensity: DVec3::splat(3.0) })],
         camera: camera(Vec3::new(0.3, 2.2, 1.8), Vec3::new(0.0, 0.2, 0.0), 50.0, size, size),
         roughness_cutoff: 0.5,
+        instancing: None,
     }
 }

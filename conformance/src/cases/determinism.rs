@@ -1,4 +1,5 @@
-//! Determinism: the same scene, settings and seed give a bit-identical image.
+//! Determinism: the same scene, settings and seed give a bit-identical image, and so does
+//! the same scene with its instancing recorded or stripped.
 
 use arpa_core::accumulate::image::Accumulation;
 use arpa_core::render::tracer::{Image, Method, RenderSettings};
@@ -124,4 +125,26 @@ pub fn resume_and_merge(t: &mut dyn DynTracer) -> CaseResult {
         return Err("an accumulation of another image size was accepted".into());
     }
     Ok(format!("{} px ({lit} lit) bit-identical: 4 iterations, 2 + resumed 2, parts 0..2 + 2..4 merged", whole.pixels.len()))
+}
+
+/// Instancing: the instanced room ([`scenes::instanced_room`]: three copies of a glass
+/// ball, a box and a mirror, rotated, scaled and one mirrored) rendered with its
+/// instancing recorded (a backend that can instances the group in its acceleration
+/// structure) and with it stripped (every copy a mesh of its own), ARPA with next-event
+/// estimation, 2 iterations of 5000 photons: the two images must be bit-identical.
+pub fn instanced_equals_flattened(t: &mut dyn DynTracer) -> CaseResult {
+    let settings = RenderSettings { photons_per_iteration: 5000, ..settings(5000) };
+    let instanced = scenes::instanced_room(32);
+    let mut flattened = instanced.clone();
+    flattened.instancing = None;
+    let mut images = Vec::new();
+    for scene in [&instanced, &flattened] {
+        t.upload_scene(scene, &settings).ctx("upload_scene")?;
+        for _ in 0..2 {
+            t.iterate().ctx("iterate")?;
+        }
+        images.push(t.read_image().ctx("read_image")?);
+    }
+    let lit = identical(&images[0], &images[1], "the instanced and the flattened scene")?;
+    Ok(format!("{} px ({lit} lit) bit-identical, instanced and flattened", images[0].pixels.len()))
 }

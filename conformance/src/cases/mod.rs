@@ -230,6 +230,12 @@ pub fn all() -> Vec<Case> {
             run: CaseBody::Tracer(determinism::resume_and_merge),
         },
         Case {
+            id: "instancing",
+            title: "instanced scene = its flattened copy: bit-identical image",
+            needs: None,
+            run: CaseBody::Tracer(determinism::instanced_equals_flattened),
+        },
+        Case {
             id: "determinism-threads",
             title: "1 vs 2 host threads: bit-identical image",
             needs: None,

@@ -362,6 +362,7 @@ pub fn emitter_texture(t: &mut dyn DynTracer) -> CaseResult {
         lights: vec![],
         camera: down,
         roughness_cutoff: 0.5,
+        instancing: None,
         textures: SceneTextures { textures: vec![bitmap], maps: vec![], emission: vec![None, Some(0)], environment: None },
     };
     let mut report = Vec::new();

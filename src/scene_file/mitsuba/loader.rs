@@ -65,8 +65,11 @@ pub(super) struct Loader<'a> {
     /// Top-level textures by id.
     pub(super) texture_ids: HashMap<String, TextureId>,
     pub(super) meshes: Vec<TriangleMesh>,
-    /// `shapegroup`s by id: their meshes, placed by each `instance` (flattened).
-    pub(super) shapegroups: HashMap<String, Vec<TriangleMesh>>,
+    /// `shapegroup`s by id: their meshes (in the group's space), placed by each `instance`
+    /// (a copy in `meshes`), and their prototype in `instancing` once one is placed.
+    pub(super) shapegroups: HashMap<String, (Vec<TriangleMesh>, Option<u32>)>,
+    /// The groups placed and where (the scene's [`arpa_core::render::scene::Instancing`]).
+    pub(super) instancing: arpa_core::render::scene::Instancing,
     pub(super) lights: Vec<Light>,
     /// The `envmap` emitter's map.
     pub(super) environment: Option<arpa_core::render::environment::EnvironmentMap>,

@@ -130,6 +130,7 @@ pub(crate) fn load_str(text: &str, path: &Path, defines: &[(String, String)], re
         materials: Vec::new(),
         meshes: Vec::new(),
         shapegroups: HashMap::new(),
+        instancing: Default::default(),
         lights: Vec::new(),
         environment: None,
         camera: None,
@@ -140,7 +141,7 @@ pub(crate) fn load_str(text: &str, path: &Path, defines: &[(String, String)], re
     let Some((camera, fov_degrees, fov_axis)) = l.camera else {
         return Err(SceneFileError::Invalid { path: path.to_path_buf(), line: root.line, message: "the scene has no <sensor type=\"perspective\">".into() });
     };
-    let scene = Scene { textures: SceneTextures { textures: l.textures, maps: l.maps, emission: l.emission_textures, environment: l.environment }, meshes: l.meshes, materials: l.materials, lights: l.lights, camera, roughness_cutoff: ROUGHNESS_CUTOFF };
+    let scene = Scene { textures: SceneTextures { textures: l.textures, maps: l.maps, emission: l.emission_textures, environment: l.environment }, meshes: l.meshes, materials: l.materials, lights: l.lights, camera, roughness_cutoff: ROUGHNESS_CUTOFF, instancing: (!l.instancing.instances.is_empty()).then_some(l.instancing) };
     scene.validate().map_err(|source| SceneFileError::Scene { path: path.to_path_buf(), source })?;
     Ok(LoadedScene { scene, warnings: l.warnings.into_inner(), path: path.to_path_buf(), max_depth: l.max_depth, sample_count: l.sample_count, fov_degrees, fov_axis })
 }

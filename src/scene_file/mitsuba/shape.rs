@@ -6,9 +6,9 @@ use super::super::error::SceneFileError;
 use super::super::mesh::RawMesh;
 use super::super::xml::Node;
 use super::super::{obj, ply, serialized, shapes};
-use arpa_core::render::scene::{Material, MaterialId, TriangleMesh};
+use arpa_core::render::scene::{Instance, Material, MaterialId, TriangleMesh};
 use arpa_core::render::shapes::angle_weighted_normals;
-use glam::{DMat3, DMat4, DVec3, Vec3};
+use glam::{DAffine3, DMat3, DMat4, DVec3, Vec3};
 
 impl Loader<'_> {
     pub(super) fn shape(&mut self, n: &Node) -> R<()> {
@@ -152,14 +152,15 @@ impl Loader<'_> {
         if meshes.is_empty() {
             self.warn(n.line, format!("shapegroup '{id}' has no shapes"));
         }
-        self.shapegroups.insert(id, meshes);
+        self.shapegroups.insert(id, (meshes, None));
         Ok(())
     }
 
     /// An `instance`: a copy of the meshes of the `shapegroup` its `<ref>` names (defined
     /// before it), placed by its `to_world` (positions transformed, normals by the inverse
-    /// transpose, in `f64`). Instances are flattened into the scene's meshes: every
-    /// backend's acceleration structures hold each copy.
+    /// transpose, in `f64`). The copies are the scene's meshes (what shading reads); the
+    /// group and the transform are recorded in the scene's instancing, so that backends
+    /// that can instance the group in their acceleration structures do.
     fn instance(&mut self, n: &Node) -> R<()> {
         let p = self.props(n);
         let to_world = self.transform(&p, "to_world")?.unwrap_or(DMat4::IDENTITY);
@@ -169,7 +170,7 @@ impl Loader<'_> {
             return Err(self.invalid(n.line, format!("an instance needs exactly one <ref id> to a shapegroup; it has {}", refs.len())));
         };
         let id = r.attr("id").ok_or_else(|| self.invalid(r.line, "<ref> lacks 'id'"))?;
-        let Some(group) = self.shapegroups.get(id) else {
+        let Some((group, _)) = self.shapegroups.get(id) else {
             return Err(self.invalid(r.line, format!("<ref id=\"{id}\"> names no shapegroup defined before this instance")));
         };
         let normal_matrix = DMat3::from_mat4(to_world).inverse().transpose();
@@ -192,6 +193,16 @@ impl Loader<'_> {
             });
         }
         self.finish(&p);
+        let prototype = match self.shapegroups.get_mut(id) {
+            Some((group, Some(p))) if !group.is_empty() => Some(*p),
+            Some((group, slot)) if !group.is_empty() => Some(*slot.insert(self.instancing.add_prototype(id, group))),
+            _ => None,
+        };
+        let first = self.meshes.len() as u32;
+        if let Some(prototype) = prototype {
+            let meshes = (first..first + placed.len() as u32).collect();
+            self.instancing.instances.push(Instance { prototype, to_world: DAffine3::from_mat4(to_world), meshes });
+        }
         self.emission_textures.extend(placed.iter().map(|_| None));
         self.meshes.extend(placed);
         Ok(())
