@@ -49,7 +49,7 @@ fn read(ctx: &GpuContext, buffer: &wgpu::Buffer, n: u32) -> Vec<SortItem> {
     ctx.queue.submit([encoder.finish()]);
     staging.map_async(wgpu::MapMode::Read, .., |r| r.expect("map"));
     ctx.device.poll(wgpu::PollType::wait_indefinitely()).expect("poll");
-    let out = bytemuck::pod_collect_to_vec(&staging.get_mapped_range(..));
+    let out: Vec<SortItem> = bytemuck::pod_collect_to_vec(&staging.get_mapped_range(..).expect("mapped range"));
     out[..n as usize].to_vec()
 }
 
