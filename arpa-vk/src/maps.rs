@@ -74,6 +74,13 @@ pub struct StorePipelines {
     radix_scatter: ComputePipeline,
 }
 
+/// An item buffer with the radix scratch and the kernels' bindings to them, both directions.
+struct RadixTarget<'a> {
+    items: &'a Buffer,
+    scratch: &'a RadixScratch,
+    bindings: [Bindings; 2],
+}
+
 /// The radix sort's scratch buffers for up to `capacity` items: the second item buffer, the
 /// per-tile digit counters and the pass uniform (written by `vkCmdUpdateBuffer`).
 pub struct RadixScratch {
@@ -138,17 +145,17 @@ impl StorePipelines {
     }
 
     /// Binds the radix kernels to `items` and the scratch, both directions.
-    fn radix_bindings(&self, items: &Buffer, scratch: &RadixScratch) -> Result<[Bindings; 2], VkError> {
+    fn radix_bindings<'a>(&self, items: &'a Buffer, scratch: &'a RadixScratch) -> Result<RadixTarget<'a>, VkError> {
         let bind = |src, dst| self.radix_count.bind(&[&[Resource::StorageBuffer(src), Resource::StorageBuffer(dst), Resource::StorageBuffer(&scratch.counts), Resource::UniformBuffer(&scratch.pass)]]);
-        Ok([bind(items, &scratch.items)?, bind(&scratch.items, items)?])
+        Ok(RadixTarget { items, scratch, bindings: [bind(items, &scratch.items)?, bind(&scratch.items, items)?] })
     }
 
     /// Records the radix sort of the first `n` items (`n` ≤ the scratch's capacity) of the
-    /// buffer `bindings` bind ([`StorePipelines::radix_bindings`] of `items`), whose values
-    /// are below `value_bound`: per pass of [`radix_passes`], the pass written into the
+    /// target's items, whose values are below `value_bound`: per pass of [`radix_passes`], the pass written into the
     /// uniform, then `radix_count`, `radix_scan`, `radix_scatter`; a copy back into `items`
     /// after an odd number of passes. Ends with a barrier.
-    fn record_radix(&self, device: &ash::Device, cmd: vk::CommandBuffer, items: &Buffer, scratch: &RadixScratch, bindings: &[Bindings; 2], n: u32, value_bound: u32) -> Result<(), VkError> {
+    fn record_radix(&self, device: &ash::Device, cmd: vk::CommandBuffer, target: &RadixTarget<'_>, n: u32, value_bound: u32) -> Result<(), VkError> {
+        let RadixTarget { items, scratch, bindings } = target;
         debug_assert!(n <= scratch.capacity);
         let passes = radix_passes(n, value_bound);
         for (i, p) in passes.iter().enumerate() {
@@ -164,7 +171,7 @@ impl StorePipelines {
             self.radix_scatter.record_dispatch(cmd, b, &[], [p.tiles, 1, 1])?;
             record_compute_barrier(device, cmd);
         }
-        if passes.len() % 2 == 1 {
+        if !passes.len().is_multiple_of(2) {
             let region = vk::BufferCopy { src_offset: 0, dst_offset: 0, size: u64::from(n) * ITEM_BYTES };
             // SAFETY: both buffers are alive with TRANSFER_SRC / TRANSFER_DST usage and hold
             // `n` items; the barrier above orders the last scatter before the copy.
@@ -192,8 +199,8 @@ impl StorePipelines {
                 if n > scratch.capacity {
                     return Err(size_error(format!("{n} items for a radix scratch of {}", scratch.capacity)));
                 }
-                let bindings = self.radix_bindings(items, scratch)?;
-                ctx.submit_and_wait(|cmd| self.record_radix(device, cmd, items, scratch, &bindings, n, value_bound))??;
+                let target = self.radix_bindings(items, scratch)?;
+                ctx.submit_and_wait(|cmd| self.record_radix(device, cmd, &target, n, value_bound))??;
             }
             None => {
                 if !(n.is_power_of_two() && (SORT_BLOCK..=MAX_SORT_ITEMS).contains(&n)) {
@@ -473,8 +480,8 @@ impl MapStore {
             self.pipelines.pad_items.record_dispatch_linear(cmd, &bindings, &[], p.fp_sorted.max(p.ph_sorted))?;
             record_compute_barrier(device, cmd);
             // The appended items only (the padding after them sorts last anyway).
-            self.pipelines.record_radix(device, cmd, &self.fp_items, &self.radix, &fp_sort, p.fp_count, value_bound)?;
-            self.pipelines.record_radix(device, cmd, &self.ph_items, &self.radix, &ph_sort, p.ph_count, value_bound)?;
+            self.pipelines.record_radix(device, cmd, &fp_sort, p.fp_count, value_bound)?;
+            self.pipelines.record_radix(device, cmd, &ph_sort, p.ph_count, value_bound)?;
             self.pipelines.compact_footprints.record_dispatch_linear(cmd, &bindings, &[], p.fp_sorted)?;
             self.pipelines.compact_photons.record_dispatch_linear(cmd, &bindings, &[], p.ph_sorted)?;
             self.record_counts_copy(device, cmd);

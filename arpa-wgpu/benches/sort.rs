@@ -30,7 +30,7 @@ fn store_items(n: u32) -> Vec<SortItem> {
     let mut items: Vec<SortItem> = (0..n)
         .map(|slot| {
             let p = [rng.next_f64() as f32, rng.next_f64() as f32, rng.next_f64() as f32];
-            let map = u32::from(rng.next_u32() % 5 != 0);
+            let map = u32::from(!rng.next_u32().is_multiple_of(5));
             let key = (slot / 3) * 8 + slot % 3;
             SortItem { hi: map << 30 | morton_code(p, [0.0; 3], [1.0; 3]), lo: key, value: slot }
         })

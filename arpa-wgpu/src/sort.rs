@@ -149,7 +149,7 @@ impl Sorter {
                 pass.dispatch_workgroups(p.tiles, 1, 1);
             }
         }
-        if passes.len() % 2 == 1 {
+        if !passes.len().is_multiple_of(2) {
             encoder.copy_buffer_to_buffer(&scratch.items, 0, items, 0, n as u64 * ITEM_BYTES);
         }
     }
