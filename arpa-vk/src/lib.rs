@@ -79,7 +79,7 @@ pub use error::VkError;
 pub use gpu_allocator::MemoryLocation;
 pub use kernel::run_kernel;
 pub use map_accel::{MapAccel, MapInstance};
-pub use maps::{MapStore, StorePipelines};
+pub use maps::{MapStore, RadixScratch, StorePipelines};
 pub use pipeline::{
     BindingKind, Bindings, HitGroup, Resource, RtPipeline, RtPipelineDesc, SbtLayout, SbtRegion, ShaderEntry, ShaderModule,
 };

@@ -1,12 +1,14 @@
 //! The keyed store, sort and compaction of one iteration's photon maps on the device: a port
 //! of arpa-wgpu's `store.rs`, `sort.rs` and `maps.rs` without photon batches (one batch per
-//! iteration), running the core's WGSL kernels (`path/store.wgsl`, `path/sort.wgsl`,
-//! [`arpa_core::gpu::shaders::STORE`], [`arpa_core::gpu::shaders::SORT`]) as compute pipelines.
+//! iteration), running the core's WGSL kernels (`path/store.wgsl`, `path/radix.wgsl`,
+//! [`arpa_core::gpu::shaders::STORE`], [`arpa_core::gpu::shaders::RADIX`]) as compute
+//! pipelines; the bitonic sort (`path/sort.wgsl`) stays available through
+//! [`StorePipelines::sort_items`] (same order; tests and the sort benchmark).
 //!
 //! Raw footprints ([`KeyedFootprint`], smoothed by the photon pass) go through the twin's
 //! heuristics; rejected ones fall back to progressive photons as in [`arpa_core::store`].
 //! They and the pass's progressive photons ([`KeyedPhoton`]) are keyed by
-//! `(map << 30 | Morton code of the box centre, unique photon key, slot)`, bitonic-sorted on
+//! `(map << 30 | Morton code of the box centre, unique photon key, slot)`, radix-sorted on
 //! the device ([`arpa_core::gpu::sort`]) and compacted into sorted record buffers
 //! ([`PackedFootprint`], [`PackedPhoton`]) and box buffers (6 `f32` per record: min xyz then
 //! max xyz, metres, stride [`BOX_BYTES`]): caustic records first, then global ones. The order
@@ -14,12 +16,12 @@
 //! is spatial, which the acceleration-structure build needs ([`crate::map_accel`]).
 //!
 //! Two submissions, with one documented host readback between them: [`MapStore::store`]
-//! runs the store and reads back the 48-byte [`StoreCounts`]; the sort's step schedule and
-//! the acceleration-structure build (sized on the host) depend on them. [`MapStore::sort`]
+//! runs the store and reads back the 48-byte [`StoreCounts`]; the sort's passes (their item
+//! counts and tiles) and the acceleration-structure build (sized on the host) depend on them. [`MapStore::sort`]
 //! pads, sorts and compacts. The store's parameters ([`StoreParams`], a storage buffer in
-//! `store.wgsl`) go through a small host-visible buffer per submission; the sort's step (a
-//! uniform in `sort.wgsl`, read at dynamic offsets on wgpu) is written into one uniform
-//! buffer with `vkCmdUpdateBuffer` before each step's dispatch.
+//! `store.wgsl`) go through a small host-visible buffer per submission; the sort's pass (a
+//! uniform in `radix.wgsl`, read at dynamic offsets on wgpu) is written into one uniform
+//! buffer with `vkCmdUpdateBuffer` before each pass's dispatches.
 
 use std::sync::Arc;
 use crate::buffer::Buffer;
@@ -29,7 +31,7 @@ use crate::error::VkError;
 use crate::pipeline::{BindingKind, Bindings, Resource};
 use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::{gpu::layout::{KeyedFootprint, KeyedPhoton, StoreCounts, StoreParams, StoreSettings}, gpu::sort::SortItem};
-use arpa_core::gpu::sort::{MAX_SORT_ITEMS, SORT_BLOCK, sort_steps, sorted_len};
+use arpa_core::gpu::sort::{MAX_SORT_ITEMS, SORT_BLOCK, radix_count_len, radix_passes, sort_steps, sorted_len};
 use arpa_core::store::progressive_photon::PackedPhoton;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
@@ -54,8 +56,8 @@ pub const BOX_USAGE: vk::BufferUsageFlags = vk::BufferUsageFlags::from_raw(
         | vk::BufferUsageFlags::TRANSFER_SRC.as_raw(),
 );
 
-/// The keyed store's and the sort's compute pipelines (the core's `store.wgsl` and
-/// `sort.wgsl`), independent of any capacity: made once per context and shared by every
+/// The keyed store's and the sorts' compute pipelines (the core's `store.wgsl`, `radix.wgsl`
+/// and `sort.wgsl`), independent of any capacity: made once per context and shared by every
 /// [`MapStore`] (on lavapipe a pipeline is compiled at its first dispatch, which takes
 /// seconds).
 pub struct StorePipelines {
@@ -67,6 +69,42 @@ pub struct StorePipelines {
     sort_local: ComputePipeline,
     sort_merge: ComputePipeline,
     sort_global: ComputePipeline,
+    radix_count: ComputePipeline,
+    radix_scan: ComputePipeline,
+    radix_scatter: ComputePipeline,
+}
+
+/// An item buffer with the radix scratch and the kernels' bindings to them, both directions.
+struct RadixTarget<'a> {
+    items: &'a Buffer,
+    scratch: &'a RadixScratch,
+    bindings: [Bindings; 2],
+}
+
+/// The radix sort's scratch buffers for up to `capacity` items: the second item buffer, the
+/// per-tile digit counters and the pass uniform (written by `vkCmdUpdateBuffer`).
+pub struct RadixScratch {
+    items: Buffer,
+    counts: Buffer,
+    pass: Buffer,
+    capacity: u32,
+}
+
+impl RadixScratch {
+    /// Scratch for sorts of at most `capacity` items (`capacity` × 12 bytes plus 1 KiB per
+    /// [`arpa_core::gpu::sort::RADIX_TILE`] items).
+    ///
+    /// Errors: device errors as [`VkContext::create_buffer`].
+    pub fn new(ctx: &VkContext, capacity: u32) -> Result<Self, VkError> {
+        use vk::BufferUsageFlags as U;
+        let gpu = |label: &str, bytes: u64, usage: U| ctx.create_buffer(&format!("arpa radix {label}"), bytes.max(16), usage, MemoryLocation::GpuOnly);
+        Ok(Self {
+            items: gpu("items", u64::from(capacity) * ITEM_BYTES, U::STORAGE_BUFFER | U::TRANSFER_SRC)?,
+            counts: gpu("counts", u64::from(radix_count_len(capacity)) * 4, U::STORAGE_BUFFER)?,
+            pass: gpu("pass", STEP_BYTES as u64, U::UNIFORM_BUFFER | U::TRANSFER_DST)?,
+            capacity,
+        })
+    }
 }
 
 impl StorePipelines {
@@ -81,8 +119,12 @@ impl StorePipelines {
         // compilation of sort_merge take minutes (see `compile_wgsl_with`).
         let sort_spirv =
             crate::shaders::compile_wgsl_with("arpa sort", &arpa_core::gpu::shaders::compose(&[&arpa_core::gpu::shaders::SORT]), false)?;
+        // radix.wgsl's kernels, likewise, write every workgroup element before reading it.
+        let radix_spirv =
+            crate::shaders::compile_wgsl_with("arpa radix sort", &arpa_core::gpu::shaders::compose(&[&arpa_core::gpu::shaders::RADIX]), false)?;
         let store_set = [BindingKind::StorageBuffer; 13];
         let sort_set = [BindingKind::StorageBuffer, BindingKind::UniformBuffer];
+        let radix_set = [BindingKind::StorageBuffer, BindingKind::StorageBuffer, BindingKind::StorageBuffer, BindingKind::UniformBuffer];
         let make = |spirv, entry, set: &[BindingKind]| {
             ComputePipeline::new(ctx, &ComputePipelineDesc { label: entry, spirv, entry, sets: &[set], push_constant_size: 0 })
         };
@@ -96,7 +138,105 @@ impl StorePipelines {
             sort_local: make(&sort_spirv, "sort_local", &sort_set)?,
             sort_merge: make(&sort_spirv, "sort_merge", &sort_set)?,
             sort_global: make(&sort_spirv, "sort_global", &sort_set)?,
+            radix_count: make(&radix_spirv, "radix_count", &radix_set)?,
+            radix_scan: make(&radix_spirv, "radix_scan", &radix_set)?,
+            radix_scatter: make(&radix_spirv, "radix_scatter", &radix_set)?,
         })
+    }
+
+    /// Binds the radix kernels to `items` and the scratch, both directions.
+    fn radix_bindings<'a>(&self, items: &'a Buffer, scratch: &'a RadixScratch) -> Result<RadixTarget<'a>, VkError> {
+        let bind = |src, dst| self.radix_count.bind(&[&[Resource::StorageBuffer(src), Resource::StorageBuffer(dst), Resource::StorageBuffer(&scratch.counts), Resource::UniformBuffer(&scratch.pass)]]);
+        Ok(RadixTarget { items, scratch, bindings: [bind(items, &scratch.items)?, bind(&scratch.items, items)?] })
+    }
+
+    /// Records the radix sort of the first `n` items (`n` ≤ the scratch's capacity) of the
+    /// target's items, whose values are below `value_bound`: per pass of [`radix_passes`], the pass written into the
+    /// uniform, then `radix_count`, `radix_scan`, `radix_scatter`; a copy back into `items`
+    /// after an odd number of passes. Ends with a barrier.
+    fn record_radix(&self, device: &ash::Device, cmd: vk::CommandBuffer, target: &RadixTarget<'_>, n: u32, value_bound: u32) -> Result<(), VkError> {
+        let RadixTarget { items, scratch, bindings } = target;
+        debug_assert!(n <= scratch.capacity);
+        let passes = radix_passes(n, value_bound);
+        for (i, p) in passes.iter().enumerate() {
+            // SAFETY: the pass buffer is alive, has TRANSFER_DST usage and holds 16 bytes; the
+            // barrier after the previous dispatch orders its uniform reads before this write.
+            unsafe { device.cmd_update_buffer(cmd, scratch.pass.raw(), 0, &bytemuck::bytes_of(p)[..STEP_BYTES]) };
+            record_compute_barrier(device, cmd);
+            let b = &bindings[i % 2];
+            self.radix_count.record_dispatch(cmd, b, &[], [p.tiles, 1, 1])?;
+            record_compute_barrier(device, cmd);
+            self.radix_scan.record_dispatch(cmd, b, &[], [1, 1, 1])?;
+            record_compute_barrier(device, cmd);
+            self.radix_scatter.record_dispatch(cmd, b, &[], [p.tiles, 1, 1])?;
+            record_compute_barrier(device, cmd);
+        }
+        if !passes.len().is_multiple_of(2) {
+            let region = vk::BufferCopy { src_offset: 0, dst_offset: 0, size: u64::from(n) * ITEM_BYTES };
+            // SAFETY: both buffers are alive with TRANSFER_SRC / TRANSFER_DST usage and hold
+            // `n` items; the barrier above orders the last scatter before the copy.
+            unsafe { device.cmd_copy_buffer(cmd, scratch.items.raw(), items.raw(), &[region]) };
+            record_compute_barrier(device, cmd);
+        }
+        Ok(())
+    }
+
+    /// Sorts the first `n` [`SortItem`]s of `items` by `(hi, lo, value)` in one submission,
+    /// waited for: with `radix` (scratch for at least `n` items; values below `value_bound`)
+    /// the radix sort the store runs, else the bitonic sort (`n` a power of two ≥
+    /// [`SORT_BLOCK`], at most [`MAX_SORT_ITEMS`]; `value_bound` unused). For tests and the
+    /// sort benchmark; `items` needs `STORAGE_BUFFER` and, for the radix sort, `TRANSFER_DST`.
+    ///
+    /// Errors: [`VkError::InvalidInput`] for `n` beyond these bounds or the buffer; device
+    /// errors.
+    pub fn sort_items(&self, ctx: &VkContext, items: &Buffer, n: u32, value_bound: u32, radix: Option<&RadixScratch>) -> Result<(), VkError> {
+        if u64::from(n) * ITEM_BYTES > items.size() {
+            return Err(size_error(format!("{n} items in a buffer of {} bytes", items.size())));
+        }
+        let device = ctx.device();
+        match radix {
+            Some(scratch) => {
+                if n > scratch.capacity {
+                    return Err(size_error(format!("{n} items for a radix scratch of {}", scratch.capacity)));
+                }
+                let target = self.radix_bindings(items, scratch)?;
+                ctx.submit_and_wait(|cmd| self.record_radix(device, cmd, &target, n, value_bound))??;
+            }
+            None => {
+                if !(n.is_power_of_two() && (SORT_BLOCK..=MAX_SORT_ITEMS).contains(&n)) {
+                    return Err(size_error(format!("{n} items: the bitonic sort takes a power of two from {SORT_BLOCK} to {MAX_SORT_ITEMS}")));
+                }
+                let step = ctx.create_buffer("arpa sort step", STEP_BYTES as u64, vk::BufferUsageFlags::UNIFORM_BUFFER | vk::BufferUsageFlags::TRANSFER_DST, MemoryLocation::GpuOnly)?;
+                let bindings = self.sort_local.bind(&[&[Resource::StorageBuffer(items), Resource::UniformBuffer(&step)]])?;
+                ctx.submit_and_wait(|cmd| self.record_bitonic(device, cmd, &bindings, &step, n))??;
+            }
+        }
+        Ok(())
+    }
+
+    /// Records the bitonic sort of the first `n` items (a power of two ≥ [`SORT_BLOCK`]) of
+    /// the buffer `bindings` binds: per step of [`sort_steps`], the step written into the
+    /// uniform `step`, then `n / SORT_BLOCK` workgroups of `sort_local`, `sort_global` or
+    /// `sort_merge`.
+    fn record_bitonic(&self, device: &ash::Device, cmd: vk::CommandBuffer, bindings: &Bindings, step: &Buffer, n: u32) -> Result<(), VkError> {
+        debug_assert!(n.is_power_of_two() && (SORT_BLOCK..=MAX_SORT_ITEMS).contains(&n));
+        for (i, s) in sort_steps(n).iter().enumerate() {
+            let pipeline = match (i, s.j) {
+                (0, _) => &self.sort_local,
+                (_, 0) => &self.sort_merge,
+                _ => &self.sort_global,
+            };
+            if i > 0 {
+                // SAFETY: the step buffer is alive, has TRANSFER_DST usage and holds 16 bytes;
+                // the previous step's barrier (compute → transfer) orders its uniform read
+                // before this write.
+                unsafe { device.cmd_update_buffer(cmd, step.raw(), 0, &bytemuck::bytes_of(s)[..STEP_BYTES]) };
+                record_compute_barrier(device, cmd);
+            }
+            pipeline.record_dispatch(cmd, bindings, &[], [n / SORT_BLOCK, 1, 1])?;
+            record_compute_barrier(device, cmd);
+        }
+        Ok(())
     }
 }
 
@@ -117,8 +257,8 @@ pub struct MapStore {
     ph_extra: Buffer,
     fp_items: Buffer,
     ph_items: Buffer,
-    /// The current sort step (uniform, written by `vkCmdUpdateBuffer`).
-    step: Buffer,
+    /// The radix sort's scratch (both item buffers' counts).
+    radix: RadixScratch,
     footprints: Buffer,
     footprint_boxes: Buffer,
     photons: Buffer,
@@ -172,9 +312,9 @@ impl MapStore {
             fp_slots: gpu("footprint slots", raw_capacity, FOOTPRINT_BYTES, storage)?,
             fp_box_slots: gpu("footprint box slots", raw_capacity, BOX_BYTES, storage)?,
             ph_extra: gpu("fallback photons", raw_capacity, size_of::<KeyedPhoton>() as u64, storage)?,
-            fp_items: gpu("footprint items", sorted_len(raw_capacity), ITEM_BYTES, storage)?,
-            ph_items: gpu("photon items", sorted_len(total), ITEM_BYTES, storage)?,
-            step: gpu("sort step", 1, STEP_BYTES as u64, U::UNIFORM_BUFFER | U::TRANSFER_DST)?,
+            fp_items: gpu("footprint items", sorted_len(raw_capacity), ITEM_BYTES, storage | U::TRANSFER_DST)?,
+            ph_items: gpu("photon items", sorted_len(total), ITEM_BYTES, storage | U::TRANSFER_DST)?,
+            radix: RadixScratch::new(ctx, total)?,
             footprints: gpu("sorted footprints", raw_capacity, FOOTPRINT_BYTES, storage | U::TRANSFER_SRC)?,
             footprint_boxes: gpu("sorted footprint boxes", raw_capacity, BOX_BYTES, BOX_USAGE)?,
             photons: gpu("sorted photons", photons_out_capacity, PHOTON_BYTES, storage | U::TRANSFER_SRC)?,
@@ -299,30 +439,6 @@ impl MapStore {
         self.read_counts()
     }
 
-    /// Records the sort of the first `n` items (a power of two ≥ [`SORT_BLOCK`]) of the
-    /// buffer `bindings` binds: per step of [`sort_steps`], the step written into the uniform,
-    /// then `n / SORT_BLOCK` workgroups of `sort_local`, `sort_global` or `sort_merge`.
-    fn record_sort(&self, device: &ash::Device, cmd: vk::CommandBuffer, bindings: &Bindings, n: u32) -> Result<(), VkError> {
-        debug_assert!(n.is_power_of_two() && (SORT_BLOCK..=MAX_SORT_ITEMS).contains(&n));
-        for (i, s) in sort_steps(n).iter().enumerate() {
-            let pipeline = match (i, s.j) {
-                (0, _) => &self.pipelines.sort_local,
-                (_, 0) => &self.pipelines.sort_merge,
-                _ => &self.pipelines.sort_global,
-            };
-            if i > 0 {
-                // SAFETY: the step buffer is alive, has TRANSFER_DST usage and holds 16 bytes;
-                // the previous step's barrier (compute → transfer) orders its uniform read
-                // before this write.
-                unsafe { device.cmd_update_buffer(cmd, self.step.raw(), 0, &bytemuck::bytes_of(s)[..STEP_BYTES]) };
-                record_compute_barrier(device, cmd);
-            }
-            pipeline.record_dispatch(cmd, bindings, &[], [n / SORT_BLOCK, 1, 1])?;
-            record_compute_barrier(device, cmd);
-        }
-        Ok(())
-    }
-
     /// The second half, one submission waited for, with the `counts` that
     /// [`MapStore::store`] returned for the same `raw`, `photons` and `settings`: pads the
     /// appended items to their sorted lengths, sorts them and compacts the records and boxes
@@ -355,14 +471,17 @@ impl MapStore {
         let p = StoreParams::new(settings, Some(counts));
         let params = Self::params(ctx, &p)?;
         let bindings = self.store_bindings(raw, photons, &params)?;
-        let fp_sort = self.pipelines.sort_local.bind(&[&[Resource::StorageBuffer(&self.fp_items), Resource::UniformBuffer(&self.step)]])?;
-        let ph_sort = self.pipelines.sort_local.bind(&[&[Resource::StorageBuffer(&self.ph_items), Resource::UniformBuffer(&self.step)]])?;
+        let fp_sort = self.pipelines.radix_bindings(&self.fp_items, &self.radix)?;
+        let ph_sort = self.pipelines.radix_bindings(&self.ph_items, &self.radix)?;
+        // Slots: footprints below raw_count, photons below photon_count + raw_count.
+        let value_bound = settings.photon_count.saturating_add(settings.raw_count);
         let device = ctx.device();
         ctx.submit_and_wait(|cmd| {
             self.pipelines.pad_items.record_dispatch_linear(cmd, &bindings, &[], p.fp_sorted.max(p.ph_sorted))?;
             record_compute_barrier(device, cmd);
-            self.record_sort(device, cmd, &fp_sort, p.fp_sorted)?;
-            self.record_sort(device, cmd, &ph_sort, p.ph_sorted)?;
+            // The appended items only (the padding after them sorts last anyway).
+            self.pipelines.record_radix(device, cmd, &fp_sort, p.fp_count, value_bound)?;
+            self.pipelines.record_radix(device, cmd, &ph_sort, p.ph_count, value_bound)?;
             self.pipelines.compact_footprints.record_dispatch_linear(cmd, &bindings, &[], p.fp_sorted)?;
             self.pipelines.compact_photons.record_dispatch_linear(cmd, &bindings, &[], p.ph_sorted)?;
             self.record_counts_copy(device, cmd);

@@ -28,6 +28,7 @@ use arpa_core::store::heuristics::{HeuristicContext, Heuristics};
 use arpa_core::gather::kernel::Kernel;
 use arpa_core::store::progressive_photon::PackedPhoton;
 use arpa_core::base::rng::{Rng, StreamDomain};
+use arpa_core::gpu::sort::SortItem;
 use arpa_vk::maps::StorePipelines;
 use arpa_vk::vk;
 use std::sync::Arc;
@@ -341,6 +342,47 @@ fn check_against_reference(input: &Input, out: &Sorted) {
             assert!(b[a] <= lo && b[a] >= lo - slack && b[a + 3] >= hi && b[a + 3] <= hi + slack, "box {b:?} of photon {p:?}");
         }
     }
+}
+
+/// The radix sort the store runs and the bitonic sort, through `StorePipelines::sort_items`,
+/// against the host's sort: ties in `hi` and `lo`, full-range words, sizes around the radix
+/// sort's round (256) and tile (4096); items past `n` untouched.
+#[test]
+fn sorts_match_the_host_sort() {
+    let Some(ctx) = context("sorts") else { return };
+    let pipelines = StorePipelines::new(&ctx).expect("store pipelines");
+    let mut rng = Rng::new(12, 0, 0, StreamDomain::User);
+    let scratch = arpa_vk::RadixScratch::new(&ctx, 70_001).expect("scratch");
+    for (case, n) in [0u32, 1, 2, 257, 4096, 4097, 8192, 70_001].into_iter().enumerate() {
+        let mut items: Vec<SortItem> = (0..n)
+            .map(|i| match case % 2 {
+                0 => SortItem { hi: rng.next_u32() % 64, lo: rng.next_u32() % 8, value: i ^ 0x5555 },
+                _ => SortItem { hi: rng.next_u32(), lo: rng.next_u32() >> 30, value: i.wrapping_mul(2_654_435_761) },
+            })
+            .collect();
+        let bound = items.iter().map(|s| u64::from(s.value) + 1).max().unwrap_or(0).min(u64::from(u32::MAX)) as u32;
+        let mut want = items.clone();
+        want.sort();
+        let tail = [SortItem { hi: 3, lo: 0, value: 0 }, SortItem::INVALID];
+        items.extend(tail);
+        want.extend(tail);
+        let run = |scratch: Option<&arpa_vk::RadixScratch>, len: u32, bound: u32, input: &[SortItem]| -> Vec<SortItem> {
+            let buffer = ctx.upload("items", bytemuck::cast_slice(input), vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC).expect("upload");
+            pipelines.sort_items(&ctx, &buffer, len, bound, scratch).expect("sort");
+            ctx.read_back(&buffer, 0, input.len() as u64 * 12).expect("read back").chunks_exact(12).map(bytemuck::pod_read_unaligned).collect()
+        };
+        for b in [bound, u32::MAX] {
+            assert!(run(Some(&scratch), n, b, &items) == want, "radix, n = {n}, values below {b}: differs from the host's sort");
+        }
+        if n.is_power_of_two() && n >= arpa_core::gpu::sort::SORT_BLOCK {
+            assert!(run(None, n, 0, &items) == want, "bitonic, n = {n}: differs from the host's sort");
+        }
+    }
+    // Beyond the scratch or the buffer: errors.
+    let buffer = ctx.upload("items", &[0; 24], vk::BufferUsageFlags::STORAGE_BUFFER).expect("upload");
+    assert!(matches!(pipelines.sort_items(&ctx, &buffer, 3, 0, Some(&scratch)), Err(arpa_vk::VkError::InvalidInput { .. })));
+    drop((scratch, pipelines));
+    finish(ctx);
 }
 
 #[test]

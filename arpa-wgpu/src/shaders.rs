@@ -55,6 +55,11 @@ pub fn sort() -> String {
     compose(&[&core::SORT])
 }
 
+/// The radix sort's pass (entry points `radix_count`, `radix_scan`, `radix_scatter`).
+pub fn radix() -> String {
+    compose(&[&core::RADIX])
+}
+
 /// The image gather (entry point `gather_image`).
 pub fn gather() -> String {
     compose(&[&GATHER_RAY_QUERY])

@@ -9,12 +9,13 @@
 //! sorted for the acceleration-structure build ([`crate::accel`]).
 //!
 //! The host reads back the store's counters between the two halves
-//! ([`MapStore::encode_store`], [`MapStore::encode_sort`]): the sort's step schedule and the
-//! acceleration-structure build (wgpu has no indirect build) depend on them.
+//! ([`MapStore::encode_store`], [`MapStore::encode_sort`]): the sort's passes (item counts
+//! and tiles) and the acceleration-structure build (wgpu has no indirect build) depend on them.
 
 use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::{gpu::layout::{KeyedPhoton, StoreCounts, StoreParams, StoreSettings}, gpu::sort::SortItem};
 use arpa_core::gpu::sort::{MAX_SORT_ITEMS, sorted_len};
+use crate::sort::RadixScratch;
 use arpa_core::store::progressive_photon::PackedPhoton;
 
 /// Bytes of a sorted footprint record ([`PackedFootprint`]).
@@ -81,6 +82,8 @@ pub struct MapStore {
     counts: wgpu::Buffer,
     fp_items: wgpu::Buffer,
     ph_items: wgpu::Buffer,
+    /// The radix sort's second item buffer and counters (for either item buffer).
+    radix: RadixScratch,
     photons_out_capacity: u32,
     /// Sorted footprint records ([`PackedFootprint`]); the first
     /// [`StoreCounts::total_footprints`] are valid, caustic first.
@@ -132,8 +135,8 @@ impl MapStore {
         let fp_slots = buffer(raw_capacity, FOOTPRINT_BYTES, U::empty());
         let fp_box_slots = buffer(raw_capacity, BOX_BYTES, U::empty());
         let ph_extra = buffer(raw_capacity, size_of::<KeyedPhoton>() as u64, U::empty());
-        let fp_items = buffer(fp_sorted, ITEM_BYTES, U::empty());
-        let ph_items = buffer(ph_sorted, ITEM_BYTES, U::empty());
+        let fp_items = buffer(fp_sorted, ITEM_BYTES, U::COPY_DST);
+        let ph_items = buffer(ph_sorted, ITEM_BYTES, U::COPY_DST);
         let counts = buffer(1, size_of::<StoreCounts>() as u64, U::COPY_SRC | U::COPY_DST);
         let params = buffer(1, size_of::<StoreParams>() as u64, U::COPY_DST);
         let footprints = buffer(raw_capacity, FOOTPRINT_BYTES, U::COPY_SRC);
@@ -153,6 +156,7 @@ impl MapStore {
             counts,
             fp_items,
             ph_items,
+            radix: RadixScratch::new(device, total_photons),
             photons_out_capacity,
             footprints,
             footprint_boxes,
@@ -195,7 +199,8 @@ impl MapStore {
     }
 
     /// Second half, with the `counts` read back after [`MapStore::encode_store`]: pads the
-    /// appended items to their sorted lengths, sorts them and compacts the records.
+    /// appended items to their sorted lengths, sorts the appended ones (the radix sort; the
+    /// padding sorts last anyway) and compacts the records.
     pub fn encode_sort(
         &self,
         device: &wgpu::Device,
@@ -220,8 +225,10 @@ impl MapStore {
             pass.set_pipeline(&pipelines.pad_items);
             dispatch_linear(&mut pass, params.fp_sorted.max(params.ph_sorted));
         }
-        pipelines.sorter.encode(device, encoder, &self.fp_items, params.fp_sorted);
-        pipelines.sorter.encode(device, encoder, &self.ph_items, params.ph_sorted);
+        // Slots: footprints below raw_count, photons below photon_count + raw_count.
+        let value_bound = settings.photon_count.saturating_add(settings.raw_count);
+        pipelines.sorter.encode_radix(device, encoder, &self.fp_items, &self.radix, params.fp_count, value_bound);
+        pipelines.sorter.encode_radix(device, encoder, &self.ph_items, &self.radix, params.ph_count, value_bound);
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("arpa compaction"), timestamp_writes: None });
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.set_pipeline(&pipelines.compact_footprints);

@@ -22,7 +22,7 @@
 //! mangled names; `wesl` re-prints the source through its own parser and its current
 //! release needs a newer Rust than the workspace. The files need no namespacing (every
 //! name is prefixed `arpa_`/`Arpa`/`ARPA_`, or by its path-level file: `photon_`, `store_`,
-//! `gather_`, `sort_`), so a dependency table gives the backends the exact source text with
+//! `gather_`, `sort_`, `radix_`), so a dependency table gives the backends the exact source text with
 //! nothing in between. Status codes replace the Rust error enums (each file lists them).
 //!
 //! | file | Rust twin | what |
@@ -58,6 +58,7 @@
 //! | [`PHOTON_PASS`] | [`crate::render::photon_path::trace_photon`] | one invocation per photon of a batch, keyed footprints and photons appended |
 //! | [`STORE`] | [`crate::store`] | heuristics, fallback photons, sort keys, compaction into sorted maps with padded boxes |
 //! | [`SORT`] | — | bitonic sort of the store's sort items ([`crate::gpu::sort`]) |
+//! | [`RADIX`] | — | LSD radix sort of the store's sort items ([`crate::gpu::sort`]) |
 //! | [`GATHER`] | [`crate::gather::estimate::gather_brute_force`], [`crate::gather::estimate::gather_brute_force_scales`] | per-pixel radiance (every plane of [`crate::gather::scales`]) over the maps, summed over photon batches; box traversal by the backend |
 //! | [`ACCUMULATE`] | [`crate::accumulate::image::RunningMean`] | the running mean of the iteration images |
 //!
@@ -223,6 +224,11 @@ pub const STORE: WgslFile =
 /// sort of [`crate::gpu::sort`]).
 pub const SORT: WgslFile = WgslFile { name: "path/sort.wgsl", source: include_str!("../../shaders/path/sort.wgsl"), deps: &[&RECORDS] };
 
+/// `path/radix.wgsl`: entry points `radix_count`, `radix_scan`, `radix_scatter` (one pass of
+/// the LSD radix sort of [`crate::gpu::sort`]; group 0: source items, destination items,
+/// counters, the [`crate::gpu::sort::RadixPass`] uniform).
+pub const RADIX: WgslFile = WgslFile { name: "path/radix.wgsl", source: include_str!("../../shaders/path/radix.wgsl"), deps: &[&RECORDS] };
+
 /// `path/gather.wgsl`: per record `arpa_gather_pixel` (group 0, bindings 0 to 6;
 /// [`crate::gpu::layout::GatherImageParams`]; the backend's entry point calls it per record;
 /// it writes every plane of [`crate::gather::scales`] the parameters ask for), per candidate
@@ -240,7 +246,7 @@ pub const TWIN: [&WgslFile; 17] =
     [&MATH, &RNG, &KERNEL, &FOOTPRINT, &RADIUS, &DIFFERENTIAL, &FRESNEL, &FRAME, &SAMPLING, &EMISSION, &HEURISTICS, &REEMISSION, &LAMBERTIAN, &AABB, &MORTON, &BANDWIDTH, &NORMAL_MAP];
 
 /// The path-level files.
-pub const PATH: [&WgslFile; 10] = [&RECORDS, &TEXTURE, &ENVIRONMENT, &SCENE, &CAMERA_PASS, &PHOTON_PASS, &STORE, &SORT, &GATHER, &ACCUMULATE];
+pub const PATH: [&WgslFile; 11] = [&RECORDS, &TEXTURE, &ENVIRONMENT, &SCENE, &CAMERA_PASS, &PHOTON_PASS, &STORE, &SORT, &RADIX, &GATHER, &ACCUMULATE];
 
 /// One WGSL file with the files it needs (WGSL has no imports: [`compose`] includes them).
 #[derive(Clone, Copy, Debug)]

@@ -2,11 +2,12 @@
 //! `sort`: random `(hi, lo, value)`
 //! items with many equal `hi` and `lo` words (the `value` tie-breaker decides), lengths
 //! around the block size and up to several global merge steps; and the WGSL Morton code
-//! against its host twin bit for bit (points inside, outside and on the scene box, NaN).
+//! against its host twin bit for bit; the radix sort (`support::radix_sort_items`) against
+//! the host's `sort` at sizes around its round and tile, with full-range words and ties (points inside, outside and on the scene box, NaN).
 
 use crate::common::*;
 use arpa_core::base::rng::{Rng, StreamDomain};
-use crate::support::sort_items;
+use crate::support::{radix_sort_items, sort_items};
 use arpa_core::gpu::sort::SortItem;
 use arpa_core::base::morton::morton_code;
 
@@ -30,6 +31,36 @@ fn sort_matches_host_sort() {
         let mut reversed = input.clone();
         reversed.reverse();
         assert!(sort_items(ctx, &reversed) == want, "n = {n}: order depends on the input order");
+    }
+}
+
+#[test]
+fn radix_sort_matches_host_sort() {
+    let Some(ctx) = gpu() else { return };
+    let mut rng = Rng::new(11, 0, 0, StreamDomain::User);
+    // Sizes around the round (256) and the tile (4096), several tiles; keys with many ties
+    // in hi and lo, full-range words (the top digits), and whole duplicates.
+    for (case, n) in [0usize, 1, 2, 255, 257, 4096, 4097, 70_001].into_iter().enumerate() {
+        let mut input = match case % 3 {
+            0 => items(case as u32 + 20, n),
+            1 => (0..n).map(|i| SortItem { hi: rng.next_u32(), lo: rng.next_u32() % 3, value: (i as u32).wrapping_mul(2_654_435_761) }).collect(),
+            _ => (0..n).map(|i| SortItem { hi: rng.next_u32() >> 20, lo: rng.next_u32() >> 28, value: (i as u32 / 3) ^ 0x1234 }).collect(),
+        };
+        let bound = input.iter().map(|s| s.value as u64 + 1).max().unwrap_or(0).min(u32::MAX as u64) as u32;
+        let mut want = input.clone();
+        want.sort();
+        // Items past n stay where they are.
+        let tail = [SortItem { hi: 7, lo: 0, value: 1 }, SortItem::INVALID];
+        input.extend(tail);
+        want.extend(tail);
+        for value_bound in [bound, u32::MAX] {
+            let got = radix_sort_items(ctx, &input, tail.len(), value_bound);
+            assert!(got == want, "n = {n}, values below {value_bound}: device order differs from the host's");
+        }
+        let mut reversed = input[..n].to_vec();
+        reversed.reverse();
+        reversed.extend(tail);
+        assert!(radix_sort_items(ctx, &reversed, tail.len(), bound) == want, "n = {n}: order depends on the input order");
     }
 }
 

@@ -22,7 +22,7 @@ use arpa_wgpu::accumulate::DeviceAccumulator;
 use arpa_wgpu::maps::PhotonMaps;
 use arpa_wgpu::photon::PhotonOutputs;
 use arpa_wgpu::scene::GpuGeometry;
-use arpa_wgpu::sort::Sorter;
+use arpa_wgpu::sort::{RadixScratch, Sorter};
 use wgpu::util::DeviceExt;
 
 /// Runs `record` in a validation scope and panics with wgpu's message on an error.
@@ -194,6 +194,22 @@ pub fn sort_items(ctx: &GpuContext, items: &[SortItem]) -> Vec<SortItem> {
     checked(ctx, "sort", || {
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         sorter.encode(&ctx.device, &mut encoder, &buffer, n);
+        ctx.queue.submit([encoder.finish()]);
+    });
+    let [out] = read(ctx, &[(&buffer, items.len() as u64 * size_of::<SortItem>() as u64)]).try_into().unwrap();
+    bytemuck::pod_collect_to_vec(&out)
+}
+
+/// Radix-sorts the first `items.len() - tail` of `items` on the device (values below
+/// `value_bound`) and returns the whole buffer.
+pub fn radix_sort_items(ctx: &GpuContext, items: &[SortItem], tail: usize, value_bound: u32) -> Vec<SortItem> {
+    let n = (items.len() - tail) as u32;
+    let sorter = checked(ctx, "sort", || Sorter::new(&ctx.device));
+    let scratch = RadixScratch::new(&ctx.device, n);
+    let buffer = upload(ctx, bytemuck::cast_slice(items), wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST);
+    checked(ctx, "radix sort", || {
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        sorter.encode_radix(&ctx.device, &mut encoder, &buffer, &scratch, n, value_bound);
         ctx.queue.submit([encoder.finish()]);
     });
     let [out] = read(ctx, &[(&buffer, items.len() as u64 * size_of::<SortItem>() as u64)]).try_into().unwrap();
