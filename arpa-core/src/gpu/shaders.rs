@@ -57,8 +57,8 @@
 //! | [`CAMERA_PASS`] | [`crate::render::camera_path::trace_camera_path`] | one query record per pixel |
 //! | [`PHOTON_PASS`] | [`crate::render::photon_path::trace_photon`] | one invocation per photon of a batch, keyed footprints and photons appended |
 //! | [`STORE`] | [`crate::store`] | heuristics, fallback photons, sort keys, compaction into sorted maps with padded boxes |
-//! | [`SORT`] | — | bitonic sort of the store's sort items ([`crate::gpu::sort`]) |
-//! | [`RADIX`] | — | LSD radix sort of the store's sort items ([`crate::gpu::sort`]) |
+//! | [`SORT`] | — | bitonic sort of sort items (the radix sort's reference in tests and benches; [`crate::gpu::sort`]) |
+//! | [`RADIX`] | — | stable LSD radix sort of the store's sort items, the store's sort on both GPU backends ([`crate::gpu::sort`]) |
 //! | [`GATHER`] | [`crate::gather::estimate::gather_brute_force`], [`crate::gather::estimate::gather_brute_force_scales`] | per-pixel radiance (every plane of [`crate::gather::scales`]) over the maps, summed over photon batches; box traversal by the backend |
 //! | [`ACCUMULATE`] | [`crate::accumulate::image::RunningMean`] | the running mean of the iteration images |
 //!
