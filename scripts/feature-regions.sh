@@ -30,7 +30,7 @@ regions() {
 
 echo "| scene | backend | region | what | Mitsuba Y | arpa Y | ratio Y (R, G, B) |"
 echo "|---|---|---|---|---|---|---|"
-for scene in ${SCENES:-checkerboard bitmap mask serialized spectrum shapes thindielectric envmap normalmap null}; do
+for scene in ${SCENES:-checkerboard bitmap mask serialized spectrum shapes thindielectric envmap normalmap null blendbsdf materials}; do
     for backend in "${backends[@]}"; do
         img="$out/$scene-$backend"
         file="$features/$scene/scene.xml"

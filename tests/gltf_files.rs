@@ -5,7 +5,7 @@
 //! scenes are present.
 
 use arpa::core::emit::emission::Light;
-use arpa::core::render::scene::{Material, Opacity};
+use arpa::core::render::scene::{Handedness, Material, NormalPerturbation, Opacity};
 use arpa::core::render::texture::{Texels, Texture, TextureFilter, TextureWrap};
 use arpa::scene_file::{GltfOptions, LUMENS_PER_WATT, LoadedScene, SceneFileError, load_gltf};
 use base64::Engine;
@@ -318,6 +318,9 @@ fn crytek_sponza_gltf() {
     assert!((c.vertical_fov - 60f32.to_radians()).abs() < 1e-5);
     let masks = s.scene.textures.maps.iter().filter(|m| m.opacity.is_some()).count();
     assert_eq!(masks, 3);
+    // The 12 materials with a normalTexture get tangent-space normal maps (glTF's bitangent sign).
+    let normal_maps = s.scene.textures.maps.iter().filter(|m| matches!(m.normal, Some(NormalPerturbation::NormalMap { handedness: Handedness::FollowTextureCoordinates, .. }))).count();
+    assert_eq!(normal_maps, 12);
 }
 
 /// `KHR_texture_transform` (offset, scale) in arpa's flipped texture coordinates: the

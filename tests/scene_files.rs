@@ -878,3 +878,39 @@ fn thin_dielectric_loads() {
     assert!((thin_sheet_reflectance(1.0, 1.5) - 0.08 / 1.04).abs() < 1e-12);
     assert_eq!(thin_sheet_reflectance(-1.0, 1.5), thin_sheet_reflectance(1.0, 1.5));
 }
+
+/// `normalmap`, `bumpmap`, `blendbsdf` and `null` become maps on their nested material, and
+/// malformed ones are errors naming the file and line.
+#[test]
+fn adapter_bsdfs_load() {
+    use arpa::core::render::scene::{Blend, BlendWeight, Handedness, NormalPerturbation, Opacity};
+    let files = [("n.png", png_rgb(1, 1, &[[128, 128, 255]]))];
+    let xml = scene_xml(
+        r#"    <shape type="rectangle"><bsdf type="normalmap"><texture name="normalmap" type="bitmap"><string name="filename" value="n.png"/><boolean name="raw" value="true"/></texture><bsdf type="conductor"/></bsdf></shape>
+    <shape type="rectangle"><bsdf type="bumpmap"><texture name="anything" type="bitmap"><string name="filename" value="n.png"/></texture><float name="scale" value="0.25"/><bsdf type="diffuse"/></bsdf></shape>
+    <shape type="rectangle"><bsdf type="blendbsdf"><float name="weight" value="0.3"/><bsdf type="diffuse"/><bsdf type="dielectric"/></bsdf></shape>
+    <shape type="rectangle"><bsdf type="null"/><emitter type="area"><rgb name="radiance" value="2"/></emitter></shape>"#,
+    );
+    let s = load_in_tempdir(&xml, &files).unwrap();
+    let maps = |i: usize| s.scene.textures.maps(s.scene.meshes[i].material);
+    assert!(matches!(s.scene.materials[s.scene.meshes[0].material as usize], Material::Conductor { .. }));
+    assert!(matches!(maps(0).normal, Some(NormalPerturbation::NormalMap { scale: 1.0, handedness: Handedness::RightHanded, .. })), "{:?}", maps(0));
+    assert!(matches!(maps(1).normal, Some(NormalPerturbation::BumpMap { scale: 0.25, .. })), "{:?}", maps(1));
+    let Some(Blend { other, weight: BlendWeight::Constant(w) }) = maps(2).blend else { panic!("{:?}", maps(2)) };
+    assert!((w - 0.3).abs() < 1e-7 && matches!(s.scene.materials[other as usize], Material::Dielectric { .. }));
+    assert!(matches!(s.scene.materials[s.scene.meshes[2].material as usize], Material::Diffuse { .. }));
+    assert_eq!(maps(3).opacity, Some(Opacity::Constant(0.0)));
+    assert!(s.scene.meshes[3].emission.is_some());
+    for (bad, what) in [
+        (r#"<bsdf type="bumpmap"><texture name="h" type="checkerboard"/><bsdf type="diffuse"/></bsdf>"#, "checkerboard"),
+        (r#"<bsdf type="bumpmap"><bsdf type="diffuse"/></bsdf>"#, "exactly one nested <texture>"),
+        (r#"<bsdf type="normalmap"><bsdf type="diffuse"/></bsdf>"#, "normalmap lacks"),
+        (r#"<bsdf type="blendbsdf"><bsdf type="diffuse"/></bsdf>"#, "exactly two nested"),
+        (r#"<bsdf type="blendbsdf"><float name="weight" value="1.5"/><bsdf type="diffuse"/><bsdf type="diffuse"/></bsdf>"#, "outside [0, 1]"),
+        (r#"<bsdf type="blendbsdf"><bsdf type="mask"><bsdf type="diffuse"/></bsdf><bsdf type="diffuse"/></bsdf>"#, "inside a blendbsdf"),
+    ] {
+        let xml = scene_xml(&format!("    <shape type=\"rectangle\">{bad}</shape>"));
+        let e = load_in_tempdir(&xml, &files).unwrap_err().to_string();
+        assert!(e.contains("scene.xml:") && e.contains(what), "{bad}: {e}");
+    }
+}
