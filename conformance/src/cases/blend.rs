@@ -17,7 +17,7 @@ use crate::scenes::{self, PLANE_INTENSITY, PLANE_LIGHT_HEIGHT};
 use crate::suite::{CaseResult, Context};
 
 /// Largest error of the image mean by next-event estimation (percent): at least 2.2
-/// standard deviations of the per-query-point coin toss over [`ITERATIONS`] × [`SIZE`]²
+/// standard deviations of the per-query-point coin toss over ITERATIONS × SIZE²
 /// draws (σ = 0.64 % for weight 0.25, 1.35 % for 0.6).
 pub const TOL_PERCENT: f64 = 3.0;
 /// Largest difference of the photons-only image mean from next-event estimation's (percent).

@@ -115,7 +115,7 @@ fn check(t: &mut dyn DynTracer, scene: &Scene, direct: bool, normal: DVec3) -> R
     Ok((errors, text.join(" ")))
 }
 
-/// A constant tangent-space normal map tilting the normal by [`TILT`] towards the frame's
+/// A constant tangent-space normal map tilting the normal by TILT towards the frame's
 /// second tangent (`−ẑ` with Mitsuba's frame, `+ẑ` with the frame following `∂p/∂v`), and a
 /// bump map whose height rises linearly along `u` (the normal tilts towards `−x̂` by the
 /// ramp's slope); each by next-event estimation and by photons only.
