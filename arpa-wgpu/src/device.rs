@@ -218,6 +218,19 @@ impl GpuContext {
     }
 }
 
+impl GpuContext {
+    /// Submits an encoder's commands; while a stage is timed ([`GpuContext::timer`]) its
+    /// device time is recorded too.
+    pub fn submit(&self, encoder: wgpu::CommandEncoder) {
+        match self.timer() {
+            Some(t) => t.submit(&self.device, &self.queue, encoder.finish()),
+            None => {
+                self.queue.submit([encoder.finish()]);
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

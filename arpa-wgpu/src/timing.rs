@@ -1,6 +1,6 @@
 //! Device time per stage from timestamp queries ([`DeviceTimer`]).
 //!
-//! Every submission a stage makes goes through [`GpuContext::submit`]: with a timer, the
+//! Every submission a stage makes goes through `GpuContext::submit`: with a timer, the
 //! submission is framed by two command buffers that write a timestamp before and after
 //! the stage's commands, into the next two slots of one query set. The slots and the stage
 //! they belong to are kept on the host; once the iteration's accumulate is submitted, the
@@ -10,12 +10,10 @@
 //!
 //! The timer needs [`wgpu::Features::TIMESTAMP_QUERY`] and
 //! [`wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS`] (timestamps between the commands of an
-//! encoder, as the acceleration-structure builds are not passes); [`GpuContext::new`]
+//! encoder, as the acceleration-structure builds are not passes); `GpuContext::new`
 //! requests them only where the adapter has both. Without them the stats say
 //! [`DeviceTimes::Unavailable`].
 
-use crate::device::GpuContext;
-use crate::error::WgpuError;
 use arpa_core::render::tracer::{DeviceTimes, Stage, StageTimes};
 use std::sync::Mutex;
 use std::sync::mpsc::Receiver;
@@ -148,11 +146,12 @@ impl DeviceTimer {
     /// The iteration's device time per stage from a resolved read-back, after the wait
     /// that completes its mapping. A lost slot or a pair whose end precedes its begin (a
     /// wrapped counter) gives [`DeviceTimes::Unavailable`].
-    pub fn read(&self, pending: Pending) -> Result<DeviceTimes, WgpuError> {
+    /// An error is the read-back's message (the tracer names the stage).
+    pub fn read(&self, pending: Pending) -> Result<DeviceTimes, String> {
         if pending.slots == 0 {
             return Ok(if pending.lost { DeviceTimes::Unavailable } else { DeviceTimes::Measured(StageTimes::default()) });
         }
-        let fail = |message: String| WgpuError::Readback { stage: "stage timestamps", message };
+        let fail = |message: String| message;
         pending.mapped.recv().map_err(|e| fail(e.to_string()))?.map_err(|e| fail(e.to_string()))?;
         let ticks: Vec<u64> = {
             let view = self.readback.get_mapped_range(..u64::from(pending.slots) * TIMESTAMP_BYTES).map_err(|e| fail(e.to_string()))?;
@@ -183,19 +182,6 @@ pub fn stage_times(pairs: &[(Stage, u32)], ticks: &[u64], period_ns: f64, lost: 
         DeviceTimes::Measured(times)
     } else {
         DeviceTimes::Unavailable
-    }
-}
-
-impl GpuContext {
-    /// Submits an encoder's commands; while a stage is timed ([`GpuContext::timer`]) its
-    /// device time is recorded too.
-    pub fn submit(&self, encoder: wgpu::CommandEncoder) {
-        match self.timer() {
-            Some(t) => t.submit(&self.device, &self.queue, encoder.finish()),
-            None => {
-                self.queue.submit([encoder.finish()]);
-            }
-        }
     }
 }
 

@@ -456,7 +456,7 @@ impl Tracer for WgpuTracer {
             let timestamps = ctx.timer().map(|t| (t, t.resolve(&ctx.device, &ctx.queue)));
             wait(ctx, "accumulate")?;
             clock.stats_mut().device_times = match timestamps {
-                Some((timer, pending)) => timer.read(pending)?,
+                Some((timer, pending)) => timer.read(pending).map_err(|message| WgpuError::Readback { stage: "stage timestamps", message })?,
                 None => DeviceTimes::Unavailable,
             };
             Ok(())
