@@ -7,7 +7,7 @@ use arpa_core::emit::emission::{DirectionalLight, EmissionParams, Light, PointLi
 use arpa_core::base::frame::Frame;
 use arpa_core::render::photon_path::{trace_photon, PhotonPassSetup};
 use arpa_core::render::prepared_scene::PreparedScene;
-use arpa_core::{render::projection::{project, DomainCells, Targets, DELTA_GRID}, render::emission_plan::EmissionPlan};
+use arpa_core::{render::projection::{project, DomainCells, Projector, Targets, AREA_GRID, DELTA_GRID}, render::emission_plan::EmissionPlan};
 use arpa_core::render::brute_force::BruteForceCaster;
 use arpa_core::base::rng::{Rng, StreamDomain};
 use arpa_core::base::sampling::{cosine_hemisphere, uniform_cone, uniform_disc, uniform_sphere};
@@ -134,6 +134,44 @@ fn kept_cells_hold_every_ray_that_hits_a_target() {
     let bary = [DVec3::new(1.0, 0.0, 0.0), DVec3::new(0.0, 1.0, 0.0), DVec3::new(0.0, 0.0, 1.0), DVec3::splat(1.0 / 3.0)];
     let (hits, f) = check_conservative(&cells, &targets, |u, k| (tri.p[0] * bary[k as usize].x + tri.p[1] * bary[k as usize].y + tri.p[2] * bary[k as usize].z, frame.to_world(cosine_hemisphere(u))), 4);
     assert!(f < 1.0, "triangle: kept fraction {f} ({hits} hits)");
+}
+
+/// One [`Projector`] shares its hemisphere caps over many area lights turned every way
+/// (the triangles of an emissive sphere around the targets): each light's cells are those
+/// of a projection of its own, and conservative.
+#[test]
+fn area_lights_share_their_caps() {
+    let targets = scattered_triangles(40, DVec3::new(0.3, -0.5, 0.2), 0.5, 0.06, 5);
+    let spheres = Targets::new(targets.clone());
+    let scene_sphere = (DVec3::ZERO, 4.0);
+    let mut projector = Projector::new(scene_sphere, &spheres, DELTA_GRID, AREA_GRID);
+    let mut partial = 0;
+    for k in 0..24 {
+        // Small triangles on a sphere of radius 2 around the targets, facing every way
+        // (outwards for even k, inwards for odd).
+        let theta = PI * (k as f64 + 0.5) / 24.0;
+        let phi = 2.4 * k as f64;
+        let n = DVec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin());
+        let f = Frame::from_normal(n);
+        let c = n * 2.0;
+        let mut p = [c, c + f.t * 0.1, c + f.b * 0.1];
+        if k % 2 == 1 {
+            p.swap(1, 2);
+        }
+        let tri = TriangleLight { p, radiance: DVec3::ONE };
+        let light = Light::Triangle(tri);
+        let shared = projector.project(&light);
+        assert_eq!(shared, project(&light, scene_sphere, &spheres), "light {k}: the shared caps keep other cells than its own projection");
+        let frame = Frame::from_normal_and_hint((p[1] - p[0]).cross(p[2] - p[0]), p[1] - p[0]);
+        let bary = [DVec3::new(1.0, 0.0, 0.0), DVec3::new(0.0, 1.0, 0.0), DVec3::new(0.0, 0.0, 1.0), DVec3::splat(1.0 / 3.0)];
+        let (_, fraction) = check_conservative(&shared, &targets, |u, j| (p[0] * bary[j as usize].x + p[1] * bary[j as usize].y + p[2] * bary[j as usize].z, frame.to_world(cosine_hemisphere(u))), 4);
+        if fraction < 0.5 {
+            partial += 1;
+        }
+    }
+    // The inward-facing half sees the targets through a small part of its hemisphere, the
+    // outward-facing half through none of it.
+    assert!(partial >= 20, "only {partial} of 24 lights keep less than half their domain");
 }
 
 /// Direction `d` back to its point of the unit square under `uniform_sphere`.

@@ -2,8 +2,9 @@
 //! backend builds them in microseconds and the core's brute-force caster can trace them).
 
 use arpa_core::emit::emission::{Light, PointLight, TriangleLight};
-use arpa_core::glam::{DVec3, Vec3};
-use arpa_core::render::scene::{Camera, Material, Scene, TriangleMesh};
+use arpa_core::glam::{DVec3, Vec2, Vec3};
+use arpa_core::render::scene::{Camera, Material, MaterialMaps, Scene, SceneTextures, TriangleMesh};
+use arpa_core::render::texture::Texture;
 
 pub use arpa_core::render::shapes::parallelogram as quad;
 
@@ -240,6 +241,19 @@ pub fn lit_plane(size: u32) -> Scene {
             height: size,
         },
     )
+}
+
+/// [`lit_plane`] with albedo 1 and texture coordinates `u = (x + 10)/20`, `v = (z + 10)/20`
+/// on its 20 × 20 square (so `∂p/∂u = 20 x̂`, `∂p/∂v = 20 ẑ`), the textures and maps
+/// `textures` (material 0 reading `maps`).
+pub fn lit_plane_textured(size: u32, textures: Vec<Texture>, maps: MaterialMaps) -> Scene {
+    let mut scene = lit_plane(size);
+    for m in &mut scene.meshes {
+        m.uvs = Some(m.positions.iter().map(|p| Vec2::new((p.x + 10.0) / 20.0, (p.z + 10.0) / 20.0)).collect());
+    }
+    scene.materials[0] = diffuse(1.0);
+    scene.textures = SceneTextures { textures, maps: vec![maps], emission: vec![], environment: None };
+    scene
 }
 
 /// A triangle light whose three corners are collinear (zero area).

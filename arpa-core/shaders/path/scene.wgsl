@@ -551,24 +551,13 @@ const ARPA_MAX_MASK_PASSES: u32 = 64u;
 // arpa_stops_with decides (at most ARPA_MAX_MASK_PASSES, then the next hit stops it). The
 // hit's t is measured from the last surface passed.
 fn arpa_scene_intersect_masked(start: ArpaRayStart, dir: vec3<f32>, t_max: f32, rng: ptr<function, ArpaRng>) -> ArpaSceneHit {
-    if arpa_scene_info.has_masks == 0u {
-        return arpa_start_intersect(start, dir, t_max);
-    }
-    var at = start;
-    var left = t_max;
-    for (var i = 0u; i < ARPA_MAX_MASK_PASSES; i++) {
-        let h = arpa_start_intersect(at, dir, left);
-        if h.hit == 0u || arpa_stops_with(arpa_scene_opacity(h), rng) {
-            return h;
-        }
-        left -= h.t;
-        at = arpa_ray_start_leaving_hit(h);
-    }
-    return arpa_start_intersect(at, dir, left);
+    var unseen = vec3<f32>(0.0);
+    return arpa_scene_intersect_seen(start, dir, t_max, rng, &unseen);
 }
 
 // PreparedScene::intersect_seen: arpa_scene_intersect_masked for a camera ray, adding to
-// *seen the radiance of the area lights it passes that emit towards it.
+// *seen the radiance of the area lights it passes that emit towards it (the one mask loop;
+// arpa_scene_intersect_masked discards what it sees).
 fn arpa_scene_intersect_seen(start: ArpaRayStart, dir: vec3<f32>, t_max: f32, rng: ptr<function, ArpaRng>, seen: ptr<function, vec3<f32>>) -> ArpaSceneHit {
     if arpa_scene_info.has_masks == 0u {
         return arpa_start_intersect(start, dir, t_max);

@@ -108,28 +108,7 @@ fn arpa_texture_texel(r: u32, x: i32, y: i32) -> vec3<f32> {
 
 // Bitmap::eval after to_uv, at uv' (record r).
 fn arpa_texture_bitmap(r: u32, uv: vec2<f32>) -> vec3<f32> {
-    let w = f32(arpa_texture_word(r + 1u));
-    let h = f32(arpa_texture_word(r + 2u));
-    if arpa_texture_word(r + 4u) == ARPA_FILTER_NEAREST {
-        return arpa_texture_texel(r, arpa_texture_floor_index(uv.x * w), arpa_texture_floor_index(uv.y * h));
-    }
-    let x = uv.x * w - 0.5;
-    let y = uv.y * h - 0.5;
-    var fx = x - floor(x);
-    var fy = y - floor(y);
-    if !arpa_finite(fx) {
-        fx = 0.0;
-    }
-    if !arpa_finite(fy) {
-        fy = 0.0;
-    }
-    let i = arpa_texture_floor_index(x);
-    let j = arpa_texture_floor_index(y);
-    let t00 = arpa_texture_texel(r, i, j);
-    let t10 = arpa_texture_texel(r, i + 1, j);
-    let t01 = arpa_texture_texel(r, i, j + 1);
-    let t11 = arpa_texture_texel(r, i + 1, j + 1);
-    return (t00 * (1.0 - fx) + t10 * fx) * (1.0 - fy) + (t01 * (1.0 - fx) + t11 * fx) * fy;
+    return arpa_texture_bitmap_lookup(r, uv).value;
 }
 
 // checker_same: the fractional parts of u and v on the same side of 1/2.
@@ -189,21 +168,29 @@ struct ArpaTextureLookup {
 
 fn arpa_texture_eval_and_grad(id: u32, uv: vec2<f32>) -> ArpaTextureLookup {
     let r = arpa_texture_record(id);
-    var out: ArpaTextureLookup;
-    out.grad = vec2<f32>(0.0);
     let t = arpa_texture_to_uv(r, uv);
     if arpa_texture_word(r) == ARPA_TEXTURE_CHECKERBOARD {
+        var out: ArpaTextureLookup;
         out.value = select(arpa_texture_vec3(r + 17u), arpa_texture_vec3(r + 14u), arpa_texture_checker_same(t));
+        out.grad = vec2<f32>(0.0);
         return out;
     }
+    return arpa_texture_bitmap_lookup(r, t);
+}
+
+// Bitmap::eval and its single value's gradient after to_uv, at uv' (record r): the one
+// bilinear (or nearest) fetch every bitmap lookup goes through.
+fn arpa_texture_bitmap_lookup(r: u32, uv: vec2<f32>) -> ArpaTextureLookup {
+    var out: ArpaTextureLookup;
+    out.grad = vec2<f32>(0.0);
     let w = f32(arpa_texture_word(r + 1u));
     let h = f32(arpa_texture_word(r + 2u));
     if arpa_texture_word(r + 4u) == ARPA_FILTER_NEAREST {
-        out.value = arpa_texture_texel(r, arpa_texture_floor_index(t.x * w), arpa_texture_floor_index(t.y * h));
+        out.value = arpa_texture_texel(r, arpa_texture_floor_index(uv.x * w), arpa_texture_floor_index(uv.y * h));
         return out;
     }
-    let x = t.x * w - 0.5;
-    let y = t.y * h - 0.5;
+    let x = uv.x * w - 0.5;
+    let y = uv.y * h - 0.5;
     var fx = x - floor(x);
     var fy = y - floor(y);
     if !arpa_finite(fx) {
@@ -231,7 +218,3 @@ fn arpa_texture_eval_and_grad(id: u32, uv: vec2<f32>) -> ArpaTextureLookup {
     return out;
 }
 
-// Texture::eval_1_grad (ArpaTextureLookup::grad).
-fn arpa_texture_eval_1_grad(id: u32, uv: vec2<f32>) -> vec2<f32> {
-    return arpa_texture_eval_and_grad(id, uv).grad;
-}

@@ -6,7 +6,7 @@ use crate::base::aabb::Aabb;
 use crate::propagate::differential::{DifferentialError, NormalDifferential};
 use crate::emit::emission::Light;
 use crate::render::environment::Environment;
-use crate::render::projection::{project, project_on, DomainCells, LightProjection, Targets, SPECULAR_AREA_GRID, SPECULAR_DELTA_GRID};
+use crate::render::projection::{DomainCells, LightProjection, Projector, Targets, AREA_GRID, DELTA_GRID, SPECULAR_AREA_GRID, SPECULAR_DELTA_GRID};
 use crate::base::prefetch::prefetch;
 use crate::base::rng::Rng;
 use crate::render::ray_cast::{RayCaster, RayHit, RayStart, TriangleId};
@@ -244,12 +244,14 @@ impl PreparedScene {
         // Clusters within each mesh: a small mirror never shares a sphere with another object.
         let (all_targets, specular_targets) = (Targets::grouped(all, &all_groups), Targets::grouped(specular, &specular_groups));
         let sphere = scene.bounding_sphere();
+        let mut geometry = Projector::new(sphere, &all_targets, DELTA_GRID, AREA_GRID);
+        let mut specular = Projector::new(sphere, &specular_targets, SPECULAR_DELTA_GRID, SPECULAR_AREA_GRID);
         let projections = emitters
             .iter()
             .map(|l| LightProjection {
-                geometry: project(l, sphere, &all_targets),
+                geometry: geometry.project(l),
                 // An environment has no caustic pass: its caustics come from the global one.
-                specular: if has_specular && !matches!(l, Light::Environment(_)) { project_on(l, sphere, &specular_targets, SPECULAR_DELTA_GRID, SPECULAR_AREA_GRID) } else { DomainCells::none() },
+                specular: if has_specular && !matches!(l, Light::Environment(_)) { specular.project(l) } else { DomainCells::none() },
             })
             .collect();
         let scatters = scene.meshes.iter().any(|m| matches!(scattering.get(m.material as usize), Some(Scattering::Diffuse(a)) if a.max_element() > 0.0));
@@ -499,17 +501,7 @@ impl PreparedScene {
     /// from the mask's surface (at most [`MAX_MASK_PASSES`] passes; the next hit then stops
     /// it).
     pub fn intersect<C: RayCaster + ?Sized>(&self, caster: &C, start: RayStart, direction: Vec3, t_max: f32, rng: &mut Rng) -> Option<RayHit> {
-        let mut start = start;
-        let mut left = t_max;
-        for _ in 0..MAX_MASK_PASSES {
-            let hit = start.intersect(caster, direction, left)?;
-            if self.stops(&hit, rng) {
-                return Some(hit);
-            }
-            left -= hit.t;
-            start = self.leaving_hit(&hit);
-        }
-        start.intersect(caster, direction, left)
+        self.intersect_passing(caster, start, direction, t_max, rng, |_| {})
     }
 
     /// [`PreparedScene::intersect`] for a camera ray, with the radiance (W/(m²·sr)) of the
@@ -517,27 +509,36 @@ impl PreparedScene {
     /// that emits towards it sees that emission, as in Mitsuba 3 (the same random draws as
     /// [`PreparedScene::intersect`]).
     pub fn intersect_seen<C: RayCaster + ?Sized>(&self, caster: &C, start: RayStart, direction: Vec3, t_max: f32, rng: &mut Rng) -> (Option<RayHit>, DVec3) {
-        if !self.has_masks {
-            return (start.intersect(caster, direction, t_max), DVec3::ZERO);
-        }
         let mut seen = DVec3::ZERO;
-        let mut start = start;
-        let mut left = t_max;
-        for _ in 0..MAX_MASK_PASSES {
-            let Some(hit) = start.intersect(caster, direction, left) else { return (None, seen) };
-            if self.stops(&hit, rng) {
-                return (Some(hit), seen);
-            }
-            if self.scene.meshes[hit.mesh as usize].emission.is_some() {
-                let s = self.surface(&hit);
+        let hit = self.intersect_passing(caster, start, direction, t_max, rng, |passed| {
+            if self.scene.meshes[passed.mesh as usize].emission.is_some() {
+                let s = self.surface(passed);
                 if let Some(e) = s.emission.filter(|_| direction.as_dvec3().dot(s.geometric_normal) < 0.0) {
                     seen += e.as_dvec3();
                 }
             }
+        });
+        (hit, seen)
+    }
+
+    /// The one mask loop of [`PreparedScene::intersect`] and
+    /// [`PreparedScene::intersect_seen`]: `passed` is called with every hit the ray passes.
+    fn intersect_passing<C: RayCaster + ?Sized>(&self, caster: &C, start: RayStart, direction: Vec3, t_max: f32, rng: &mut Rng, mut passed: impl FnMut(&RayHit)) -> Option<RayHit> {
+        if !self.has_masks {
+            return start.intersect(caster, direction, t_max);
+        }
+        let mut start = start;
+        let mut left = t_max;
+        for _ in 0..MAX_MASK_PASSES {
+            let hit = start.intersect(caster, direction, left)?;
+            if self.stops(&hit, rng) {
+                return Some(hit);
+            }
+            passed(&hit);
             left -= hit.t;
             start = self.leaving_hit(&hit);
         }
-        (start.intersect(caster, direction, left), seen)
+        start.intersect(caster, direction, left)
     }
 
     /// Whether a ray from `start` along unit `direction` is stopped before `t_max`

@@ -32,6 +32,7 @@
 
 use crate::emit::emission::{CellDomain, Light};
 use crate::base::sampling::{cosine_hemisphere, uniform_cone, uniform_disc, uniform_sphere};
+use alloc::boxed::Box;
 use alloc::vec::Vec;
 use glam::{DVec2, DVec3};
 
@@ -54,8 +55,6 @@ pub const AREA_GRID: u32 = 32;
 pub const CLUSTER_SIZE: usize = 16;
 /// Boundary points sampled per cell edge for its bounding cap.
 pub const EDGE_SAMPLES: u32 = 6;
-/// Cells per side of the blocks tested before their cells.
-const BLOCK: u32 = 8;
 /// A projection that keeps at least this fraction of the cells keeps the whole domain.
 pub const WHOLE_ABOVE: f64 = 0.98;
 /// A sphere bounding some triangles (metres).
@@ -194,6 +193,25 @@ enum Space {
 struct Cap {
     centre: DVec3,
     radius: f64,
+    /// `cos` and `sin` of `radius` (directions: the cap tests compare dot products).
+    cos_sin: (f64, f64),
+}
+
+impl Cap {
+    fn new(centre: DVec3, radius: f64) -> Self {
+        Self { centre, radius, cos_sin: (libm::cos(radius), libm::sin(radius)) }
+    }
+
+    /// Whether two caps of unit directions meet: their centres at most the sum of their
+    /// radii apart, `a·b ≥ cos(ρa + ρb)` (a margin of 1e-12 for rounding keeps the test
+    /// conservative).
+    fn meets_directions(&self, other: &Cap) -> bool {
+        if self.radius + other.radius >= core::f64::consts::PI {
+            return true;
+        }
+        let ((ca, sa), (cb, sb)) = (self.cos_sin, other.cos_sin);
+        self.centre.dot(other.centre) >= ca * cb - sa * sb - 1e-12
+    }
 }
 
 /// Angle between unit vectors (radians), accurate also for small angles.
@@ -206,7 +224,7 @@ fn angle(a: DVec3, b: DVec3) -> f64 {
 enum Seen {
     /// Directions within `radius` of `centre` (unit; radians), or aperture points within
     /// `radius` of `centre` (metres).
-    Cap { centre: DVec3, radius: f64 },
+    Cap(Cap),
     /// Directions through the spherical triangle of these unit vertex directions.
     Triangle([DVec3; 3]),
     /// Every cell may see it.
@@ -223,50 +241,82 @@ pub fn project(light: &Light, scene_sphere: (DVec3, f64), targets: &Targets) -> 
 /// [`project`] with `delta_grid` cells per side for point, spot and directional lights and
 /// `area_grid` for area lights (at most [`crate::base::sampling::MAX_CELL_GRID`]).
 pub fn project_on(light: &Light, scene_sphere: (DVec3, f64), targets: &Targets, delta_grid: u32, area_grid: u32) -> DomainCells {
-    let (delta_grid, area_grid) = (delta_grid.clamp(1, crate::base::sampling::MAX_CELL_GRID), area_grid.clamp(1, crate::base::sampling::MAX_CELL_GRID));
-    match light {
-        Light::Point(l) => {
-            let o = l.position;
-            project_with(delta_grid, Space::Directions, &|u| uniform_sphere(u), targets, |t| seen_from_point(o, t))
-        }
-        Light::Spot(l) => {
-            let frame = light.frame();
-            let cos_cutoff = libm::cos(l.cutoff);
-            let o = l.position;
-            project_with(delta_grid, Space::Directions, &move |u| frame.to_world(uniform_cone(u, cos_cutoff)), targets, |t| seen_from_point(o, t))
-        }
-        // Every direction of an environment may reach the scene: it is not projected.
-        Light::Environment(_) => DomainCells::whole(),
-        Light::Directional(_) => {
-            let frame = light.frame();
-            let (centre, radius) = scene_sphere;
-            let map = move |u: DVec2| {
-                let d = uniform_disc(u) * radius;
-                DVec3::new(d.x, d.y, 0.0)
-            };
-            project_with(delta_grid, Space::Aperture, &map, targets, |t: Target| match t {
-                Target::Sphere(s) => {
-                    let rel = s.centre - centre;
-                    Seen::Cap { centre: DVec3::new(rel.dot(frame.t), rel.dot(frame.b), 0.0), radius: s.radius }
-                }
-                Target::Triangle(_) => Seen::All,
-            })
-        }
-        Light::Triangle(_) | Light::Quad(_) => {
-            let frame = light.frame();
-            let corners: Vec<DVec3> = match light {
-                Light::Triangle(l) => l.p.to_vec(),
-                Light::Quad(l) => alloc::vec![l.origin, l.origin + l.edge_u, l.origin + l.edge_v, l.origin + l.edge_u + l.edge_v],
-                _ => unreachable!(),
-            };
-            let c = crate::base::aabb::Aabb::from_points(corners.iter().copied()).centre();
-            let r = corners.iter().map(|p| (*p - c).length()).fold(0.0, f64::max);
-            // From any point of the emitter's bounding ball: the cone towards the sphere
-            // grown by the ball's radius; a cluster that overlaps the ball sees everything.
-            project_with(area_grid, Space::Directions, &move |u| frame.to_world(cosine_hemisphere(u)), targets, |t: Target| match t {
-                Target::Sphere(s) => cone(c, r, s).unwrap_or(Seen::All),
-                Target::Triangle(_) => Seen::All,
-            })
+    Projector::new(scene_sphere, targets, delta_grid, area_grid).project(light)
+}
+
+/// Projects many lights onto one set of targets ([`project_on`] for each). The cells' caps
+/// over the cosine-weighted hemisphere are computed once and shared by every area light:
+/// each light's cells are that hemisphere turned into its frame, and angles do not change
+/// under the turn, so the targets are turned into the light's frame instead of the caps
+/// into the world (an emissive mesh of thousands of triangles then costs a cap test per
+/// cell and target, not thousands of cap constructions).
+pub struct Projector<'t> {
+    scene_sphere: (DVec3, f64),
+    targets: &'t Targets,
+    delta_grid: u32,
+    area_grid: u32,
+    /// The caps of `area_grid` over the cosine-weighted hemisphere, in its own frame.
+    area_caps: CapGrid,
+}
+
+impl<'t> Projector<'t> {
+    /// A projector onto `targets` in a scene with bounding sphere `scene_sphere` (m), with
+    /// `delta_grid` cells per side for point, spot and directional lights and `area_grid` for
+    /// area lights (each at most [`crate::base::sampling::MAX_CELL_GRID`]).
+    pub fn new(scene_sphere: (DVec3, f64), targets: &'t Targets, delta_grid: u32, area_grid: u32) -> Self {
+        let (delta_grid, area_grid) = (delta_grid.clamp(1, crate::base::sampling::MAX_CELL_GRID), area_grid.clamp(1, crate::base::sampling::MAX_CELL_GRID));
+        Self { scene_sphere, targets, delta_grid, area_grid, area_caps: CapGrid::new(area_grid, Space::Directions, Box::new(cosine_hemisphere)) }
+    }
+
+    /// The cells of `light`'s emission domain that may reach a target.
+    pub fn project(&mut self, light: &Light) -> DomainCells {
+        let targets = self.targets;
+        match light {
+            Light::Point(l) => {
+                let o = l.position;
+                project_with(&mut CapGrid::new(self.delta_grid, Space::Directions, Box::new(uniform_sphere)), &|v| v, targets, |t| seen_from_point(o, t))
+            }
+            Light::Spot(l) => {
+                let frame = light.frame();
+                let cos_cutoff = libm::cos(l.cutoff);
+                let o = l.position;
+                let mut caps = CapGrid::new(self.delta_grid, Space::Directions, Box::new(move |u| uniform_cone(u, cos_cutoff)));
+                project_with(&mut caps, &|v| frame.to_local(v), targets, |t| seen_from_point(o, t))
+            }
+            // Every direction of an environment may reach the scene: it is not projected.
+            Light::Environment(_) => DomainCells::whole(),
+            Light::Directional(_) => {
+                let frame = light.frame();
+                let (centre, radius) = self.scene_sphere;
+                let map = move |u: DVec2| {
+                    let d = uniform_disc(u) * radius;
+                    DVec3::new(d.x, d.y, 0.0)
+                };
+                project_with(&mut CapGrid::new(self.delta_grid, Space::Aperture, Box::new(map)), &|v| v, targets, |t: Target| match t {
+                    Target::Sphere(s) => {
+                        let rel = s.centre - centre;
+                        Seen::Cap(Cap::new(DVec3::new(rel.dot(frame.t), rel.dot(frame.b), 0.0), s.radius))
+                    }
+                    Target::Triangle(_) => Seen::All,
+                })
+            }
+            Light::Triangle(_) | Light::Quad(_) => {
+                let frame = light.frame();
+                let corners: Vec<DVec3> = match light {
+                    Light::Triangle(l) => l.p.to_vec(),
+                    Light::Quad(l) => alloc::vec![l.origin, l.origin + l.edge_u, l.origin + l.edge_v, l.origin + l.edge_u + l.edge_v],
+                    _ => unreachable!(),
+                };
+                let c = crate::base::aabb::Aabb::from_points(corners.iter().copied()).centre();
+                let r = corners.iter().map(|p| (*p - c).length()).fold(0.0, f64::max);
+                // From any point of the emitter's bounding ball: the cone towards the sphere
+                // grown by the ball's radius; a cluster that overlaps the ball sees everything.
+                debug_assert_eq!(self.area_caps.grid, self.area_grid);
+                project_with(&mut self.area_caps, &|v| frame.to_local(v), targets, |t: Target| match t {
+                    Target::Sphere(s) => cone(c, r, s).unwrap_or(Seen::All),
+                    Target::Triangle(_) => Seen::All,
+                })
+            }
         }
     }
 }
@@ -288,7 +338,7 @@ fn cone(o: DVec3, r_o: f64, t: &BoundingSphere) -> Option<Seen> {
     if !(d > r) || !d.is_finite() {
         return None;
     }
-    Some(Seen::Cap { centre: v / d, radius: libm::asin((r / d).min(1.0)) })
+    Some(Seen::Cap(Cap::new(v / d, libm::asin((r / d).min(1.0)))))
 }
 
 /// What a point light at `o` sees of a target: the cone towards a sphere, or, for a
@@ -343,70 +393,157 @@ fn cap_meets_spherical_triangle(x: DVec3, rho: f64, t: &[DVec3; 3]) -> bool {
     })
 }
 
-fn project_with(grid: u32, space: Space, map: &dyn Fn(DVec2) -> DVec3, targets: &Targets, seen: impl Fn(Target) -> Seen) -> DomainCells {
-    let dist = |a: DVec3, b: DVec3| match space {
-        Space::Directions => angle(a, b),
-        Space::Aperture => (a - b).length(),
-    };
-    let meets = |c: &Cap, s: &Seen| match s {
-        Seen::Cap { centre, radius } => dist(c.centre, *centre) <= c.radius + radius,
-        Seen::Triangle(t) => cap_meets_spherical_triangle(c.centre, c.radius, t),
-        Seen::All => true,
-    };
-    let cap = |x0: u32, y0: u32, size: u32| -> Cap {
-        let g = grid as f64;
-        let (u0, v0) = (x0 as f64 / g, y0 as f64 / g);
-        let side = size as f64 / g;
-        let centre = map(DVec2::new(u0 + 0.5 * side, v0 + 0.5 * side));
-        // `n` points per edge, around the square from its corner (u0, v0).
-        let n = EDGE_SAMPLES * size.min(4);
-        let edges = [
-            (DVec2::new(u0, v0), DVec2::new(side, 0.0)),
-            (DVec2::new(u0 + side, v0), DVec2::new(0.0, side)),
-            (DVec2::new(u0 + side, v0 + side), DVec2::new(-side, 0.0)),
-            (DVec2::new(u0, v0 + side), DVec2::new(0.0, -side)),
-        ];
-        let boundary: Vec<DVec3> = edges.iter().flat_map(|&(start, along)| (0..n).map(move |k| start + along * (k as f64 / n as f64))).map(map).collect();
-        let far = boundary.iter().map(|&b| dist(centre, b)).fold(0.0, f64::max);
-        let gap = (0..boundary.len()).map(|i| dist(boundary[i], boundary[(i + 1) % boundary.len()])).fold(0.0, f64::max);
-        Cap { centre, radius: (far + gap) * 1.01 + 1e-9 }
-    };
-    let blocks = grid.div_ceil(BLOCK);
-    let block_caps: Vec<Cap> = (0..blocks * blocks).map(|b| cap((b % blocks) * BLOCK, (b / blocks) * BLOCK, BLOCK)).collect();
-    let mut cell_caps: Vec<Option<Cap>> = alloc::vec![None; (grid * grid) as usize];
-    let mut kept = alloc::vec![false; (grid * grid) as usize];
-    let mut mark = |s: &Seen, kept: &mut Vec<bool>| {
-        for (b, bc) in block_caps.iter().enumerate() {
-            if !meets(bc, s) {
-                continue;
+/// The bounding caps of a `grid` × `grid` grid's cells under the map `map` from the unit
+/// square, in the map's own frame, as a quadtree: one node over the whole grid (its side
+/// the next power of two), each split in four down to single cells (nodes at the grid's
+/// edge clipped to it). A
+/// cell is kept when its cap and every enclosing node's cap meet what the light sees of a
+/// target; each cap bounds its node's image, so the test stays conservative. A node's cap
+/// is computed when a test first needs it and kept for the next target and light.
+struct CapGrid {
+    grid: u32,
+    space: Space,
+    map: Box<dyn Fn(DVec2) -> DVec3>,
+    /// Per level, from the root to the cells (side 1): the nodes' side in cells, nodes per
+    /// grid side, and their caps (row-major).
+    levels: Vec<(u32, u32, Vec<Option<Cap>>)>,
+}
+
+impl CapGrid {
+    fn new(grid: u32, space: Space, map: Box<dyn Fn(DVec2) -> DVec3>) -> Self {
+        let mut levels = Vec::new();
+        let mut side = grid.next_power_of_two();
+        loop {
+            let nodes = grid.div_ceil(side);
+            levels.push((side, nodes, alloc::vec![None; (nodes * nodes) as usize]));
+            if side == 1 {
+                break;
             }
-            let (bx, by) = ((b as u32 % blocks) * BLOCK, (b as u32 / blocks) * BLOCK);
-            for y in by..(by + BLOCK).min(grid) {
-                for x in bx..(bx + BLOCK).min(grid) {
-                    let i = (x + y * grid) as usize;
-                    if kept[i] {
-                        continue;
-                    }
-                    let c = *cell_caps[i].get_or_insert_with(|| cap(x, y, 1));
-                    if meets(&c, s) {
-                        kept[i] = true;
-                    }
-                }
+            side /= 2;
+        }
+        Self { grid, space, map, levels }
+    }
+
+    /// Distance between two points of the map's image (radians or metres).
+    fn dist(&self, a: DVec3, b: DVec3) -> f64 {
+        match self.space {
+            Space::Directions => angle(a, b),
+            Space::Aperture => (a - b).length(),
+        }
+    }
+
+    /// The cap of the `w` × `h` cells from cell `(x0, y0)`.
+    fn cap(&self, x0: u32, y0: u32, w: u32, h: u32) -> Cap {
+        let g = self.grid as f64;
+        let (u0, v0) = (x0 as f64 / g, y0 as f64 / g);
+        let (su, sv) = (w as f64 / g, h as f64 / g);
+        let centre = (self.map)(DVec2::new(u0 + 0.5 * su, v0 + 0.5 * sv));
+        // `n` points per edge, around the rectangle from its corner (u0, v0).
+        let n = EDGE_SAMPLES * w.max(h).min(4);
+        let edges = [
+            (DVec2::new(u0, v0), DVec2::new(su, 0.0)),
+            (DVec2::new(u0 + su, v0), DVec2::new(0.0, sv)),
+            (DVec2::new(u0 + su, v0 + sv), DVec2::new(-su, 0.0)),
+            (DVec2::new(u0, v0 + sv), DVec2::new(0.0, -sv)),
+        ];
+        let boundary: Vec<DVec3> = edges.iter().flat_map(|&(start, along)| (0..n).map(move |k| start + along * (k as f64 / n as f64))).map(|u| (self.map)(u)).collect();
+        let far = boundary.iter().map(|&b| self.dist(centre, b)).fold(0.0, f64::max);
+        let gap = (0..boundary.len()).map(|i| self.dist(boundary[i], boundary[(i + 1) % boundary.len()])).fold(0.0, f64::max);
+        let radius = (far + gap) * 1.01 + 1e-9;
+        // A cap of directions bounds its node by its boundary only while the boundary stays
+        // within a right angle of the centre (only then can the node not enclose the
+        // centre's antipode, the one point farther than its boundary); a larger one is
+        // taken as the whole sphere.
+        match self.space {
+            Space::Directions if radius >= core::f64::consts::FRAC_PI_2 => Cap::new(centre, core::f64::consts::PI),
+            _ => Cap::new(centre, radius),
+        }
+    }
+
+    /// Whether the cap `c` meets what the light sees of a target (in the map's frame).
+    fn meets(&self, c: &Cap, s: &Seen) -> bool {
+        match s {
+            Seen::Cap(t) => match self.space {
+                Space::Directions => c.meets_directions(t),
+                Space::Aperture => (c.centre - t.centre).length() <= c.radius + t.radius,
+            },
+            Seen::Triangle(t) => cap_meets_spherical_triangle(c.centre, c.radius, t),
+            Seen::All => true,
+        }
+    }
+
+    /// Marks in `kept` every cell whose cap, and its enclosing nodes' caps, meet `s`.
+    fn mark(&mut self, s: &Seen, kept: &mut [bool]) {
+        let nodes = self.levels[0].1;
+        for y in 0..nodes {
+            for x in 0..nodes {
+                self.mark_node(0, x, y, s, kept);
             }
         }
+    }
+
+    fn mark_node(&mut self, level: usize, x: u32, y: u32, s: &Seen, kept: &mut [bool]) {
+        let (side, nodes) = (self.levels[level].0, self.levels[level].1);
+        let (x0, y0) = (x * side, y * side);
+        if x0 >= self.grid || y0 >= self.grid {
+            return;
+        }
+        let leaf = level + 1 == self.levels.len();
+        if leaf && kept[(x0 + y0 * self.grid) as usize] {
+            return;
+        }
+        let i = (x + y * nodes) as usize;
+        let cap = match self.levels[level].2[i] {
+            Some(c) => c,
+            None => {
+                let c = self.cap(x0, y0, side.min(self.grid - x0), side.min(self.grid - y0));
+                self.levels[level].2[i] = Some(c);
+                c
+            }
+        };
+        if !self.meets(&cap, s) {
+            return;
+        }
+        if leaf {
+            kept[(x0 + y0 * self.grid) as usize] = true;
+            return;
+        }
+        for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+            self.mark_node(level + 1, 2 * x + dx, 2 * y + dy, s, kept);
+        }
+    }
+}
+
+/// The cells of `caps` that see a target: `seen` says what the light sees of each target
+/// (in world space), `to_local` turns that into the caps' frame (a rotation, so distances
+/// and angles stay as they are).
+fn project_with(caps: &mut CapGrid, to_local: &dyn Fn(DVec3) -> DVec3, targets: &Targets, seen: impl Fn(Target) -> Seen) -> DomainCells {
+    let local = |s: Seen| match s {
+        Seen::Cap(c) => Seen::Cap(Cap { centre: to_local(c.centre), ..c }),
+        Seen::Triangle(t) => Seen::Triangle(t.map(to_local)),
+        Seen::All => Seen::All,
     };
+    // What the light sees of every target first: one that every direction may reach
+    // makes the domain whole before any cell is tested (an emissive mesh's own clusters
+    // overlap each of its triangles' balls).
+    let mut all_seen = Vec::with_capacity(targets.clusters.len());
     for (k, (sphere, _)) in targets.clusters.iter().enumerate() {
         match seen(Target::Sphere(sphere)) {
             Seen::All => {
                 for t in targets.cluster_triangles(k) {
                     match seen(Target::Triangle(t)) {
                         Seen::All => return DomainCells::whole(),
-                        s => mark(&s, &mut kept),
+                        s => all_seen.push(local(s)),
                     }
                 }
             }
-            s => mark(&s, &mut kept),
+            s => all_seen.push(local(s)),
         }
+    }
+    let grid = caps.grid;
+    let mut kept = alloc::vec![false; (grid * grid) as usize];
+    for s in &all_seen {
+        caps.mark(s, &mut kept);
     }
     // Nearly every cell: the whole domain (the same photons as without projection; the
     // few left out would save next to nothing).

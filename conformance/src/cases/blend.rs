@@ -7,10 +7,9 @@
 
 use std::f64::consts::PI;
 
-use arpa_core::glam::{DVec3, Vec2, Vec3};
-use arpa_core::render::scene::{Blend, BlendWeight, Material, MaterialMaps, Scene, SceneTextures};
+use arpa_core::glam::{DVec3, Vec3};
+use arpa_core::render::scene::{Blend, BlendWeight, Material, MaterialMaps, Scene};
 use arpa_core::render::texture::{Bitmap, Texels, Texture, TextureFilter, TextureWrap, UvTransform};
-use arpa_core::render::tracer::{Method, RenderSettings};
 
 use crate::dyn_tracer::DynTracer;
 use crate::scenes::{self, PLANE_INTENSITY, PLANE_LIGHT_HEIGHT};
@@ -40,32 +39,15 @@ fn radiance(p: DVec3) -> f64 {
 /// The lit plane as a blend of white diffuse and a mirror of weight `weight` (the texture, if
 /// any, is texture 0).
 fn blended_plane(weight: BlendWeight, texture: Option<Texture>) -> Scene {
-    let mut scene = scenes::lit_plane(SIZE);
-    for m in &mut scene.meshes {
-        m.uvs = Some(m.positions.iter().map(|p| Vec2::new((p.x + 10.0) / 20.0, (p.z + 10.0) / 20.0)).collect());
-    }
-    scene.materials = vec![scenes::diffuse(1.0), Material::Conductor { reflectance: Vec3::ONE, roughness: 0.0 }];
-    scene.textures = SceneTextures {
-        textures: texture.into_iter().collect(),
-        maps: vec![MaterialMaps { blend: Some(Blend { other: 1, weight }), ..MaterialMaps::default() }],
-        emission: vec![],
-        environment: None,
-    };
+    let mut scene = scenes::lit_plane_textured(SIZE, texture.into_iter().collect(), MaterialMaps { blend: Some(Blend { other: 1, weight }), ..MaterialMaps::default() });
+    scene.materials.push(Material::Conductor { reflectance: Vec3::ONE, roughness: 0.0 });
     scene
 }
 
 /// The image mean's error (percent) against `(1 − w)` times the closed-form radiance
 /// averaged over the pixel centres (a camera ray that picks the mirror leaves the scene).
 fn check(t: &mut dyn DynTracer, scene: &Scene, direct: bool, w: f64) -> Result<f64, String> {
-    let settings = RenderSettings {
-        method: Method::Arpa,
-        photons_per_iteration: PHOTONS,
-        seed: 9,
-        max_depth: 4,
-        direct_lighting: direct,
-        emission: super::common::emission(),
-        ..RenderSettings::default()
-    };
+    let settings = super::common::plane_settings(PHOTONS, 9, direct);
     t.upload_scene(scene, &settings).ctx("upload_scene")?;
     let pixels = (SIZE * SIZE) as usize;
     for _ in 0..ITERATIONS {

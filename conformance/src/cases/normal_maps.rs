@@ -12,10 +12,9 @@
 
 use std::f64::consts::PI;
 
-use arpa_core::glam::{DVec3, Vec2, Vec3};
-use arpa_core::render::scene::{Handedness, MaterialMaps, NormalPerturbation, Scene, SceneTextures};
+use arpa_core::glam::{DVec3, Vec3};
+use arpa_core::render::scene::{Handedness, MaterialMaps, NormalPerturbation, Scene};
 use arpa_core::render::texture::{Bitmap, Texels, Texture, TextureFilter, TextureWrap, UvTransform};
-use arpa_core::render::tracer::{Method, RenderSettings};
 
 use crate::dyn_tracer::DynTracer;
 use crate::scenes::{self, PLANE_INTENSITY, PLANE_LIGHT_HEIGHT};
@@ -43,13 +42,7 @@ const BUMP_SCALE: f64 = 1.5;
 /// The lit plane with texture coordinates and albedo 1, its material turned by `normal`
 /// reading `texture`.
 fn mapped_plane(texture: Texture, normal: NormalPerturbation) -> Scene {
-    let mut scene = scenes::lit_plane(SIZE);
-    for m in &mut scene.meshes {
-        m.uvs = Some(m.positions.iter().map(|p| Vec2::new((p.x + 10.0) / 20.0, (p.z + 10.0) / 20.0)).collect());
-    }
-    scene.materials[0] = scenes::diffuse(1.0);
-    scene.textures = SceneTextures { textures: vec![texture], maps: vec![MaterialMaps { normal: Some(normal), ..MaterialMaps::default() }], emission: vec![], environment: None };
-    scene
+    scenes::lit_plane_textured(SIZE, vec![texture], MaterialMaps { normal: Some(normal), ..MaterialMaps::default() })
 }
 
 /// `ρ/π · I (l·n)⁺ / d²` at floor point `p` for the unit shading normal `n` (`ρ = 1`).
@@ -65,15 +58,7 @@ fn radiance(p: DVec3, n: DVec3) -> f64 {
 /// the query points; returns the two errors (percent) and their text.
 fn check(t: &mut dyn DynTracer, scene: &Scene, direct: bool, normal: DVec3) -> Result<([f64; 2], String), String> {
     let iterations = if direct { 1 } else { ITERATIONS };
-    let settings = RenderSettings {
-        method: Method::Arpa,
-        photons_per_iteration: PHOTONS,
-        seed: 5,
-        max_depth: 4,
-        direct_lighting: direct,
-        emission: super::common::emission(),
-        ..RenderSettings::default()
-    };
+    let settings = super::common::plane_settings(PHOTONS, 5, direct);
     t.upload_scene(scene, &settings).ctx("upload_scene")?;
     let pixels = (SIZE * SIZE) as usize;
     let mut expected = vec![0.0; pixels];

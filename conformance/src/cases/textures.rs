@@ -9,7 +9,7 @@ use std::f64::consts::PI;
 use arpa_core::glam::{DVec3, Vec2, Vec3};
 use arpa_core::render::scene::{MaterialMaps, Opacity, Scene, SceneTextures};
 use arpa_core::render::texture::{Bitmap, Texels, Texture, TextureFilter, TextureWrap, UvTransform};
-use arpa_core::render::tracer::{Method, QueryRecord, RenderSettings};
+use arpa_core::render::tracer::QueryRecord;
 
 use crate::dyn_tracer::DynTracer;
 use crate::scenes::{self, PLANE_INTENSITY, PLANE_LIGHT_HEIGHT};
@@ -34,27 +34,13 @@ fn irradiance(p: DVec3) -> f64 {
 /// The lit plane with texture coordinates `((x + 10)/20, (z + 10)/20)` on its 20 × 20
 /// square, the material reading `texture` as its colour (factor 1).
 fn textured_plane(texture: Texture) -> Scene {
-    let mut scene = scenes::lit_plane(SIZE);
-    for m in &mut scene.meshes {
-        m.uvs = Some(m.positions.iter().map(|p| Vec2::new((p.x + 10.0) / 20.0, (p.z + 10.0) / 20.0)).collect());
-    }
-    scene.materials[0] = scenes::diffuse(1.0);
-    scene.textures = SceneTextures { textures: vec![texture], maps: vec![MaterialMaps { color: Some(0), ..MaterialMaps::default() }], emission: vec![], environment: None };
-    scene
+    scenes::lit_plane_textured(SIZE, vec![texture], MaterialMaps { color: Some(0), ..MaterialMaps::default() })
 }
 
 /// Uploads `scene`, runs the iterations and returns the image and every iteration's query
 /// records (checked: one per pixel).
 fn render(t: &mut dyn DynTracer, scene: &Scene, direct: bool, iterations: u32) -> Result<(Vec<Vec3>, Vec<Vec<QueryRecord>>), String> {
-    let settings = RenderSettings {
-        method: Method::Arpa,
-        photons_per_iteration: PHOTONS,
-        seed: 11,
-        max_depth: 4,
-        direct_lighting: direct,
-        emission: super::common::emission(),
-        ..RenderSettings::default()
-    };
+    let settings = super::common::plane_settings(PHOTONS, 11, direct);
     t.upload_scene(scene, &settings).ctx("upload_scene")?;
     let pixels = (SIZE * SIZE) as usize;
     let mut all = Vec::new();
