@@ -470,15 +470,19 @@ impl Drop for DeviceOwner {
 pub(crate) struct Submitter {
     pub(crate) queue: vk::Queue,
     pub(crate) pool: vk::CommandPool,
-    /// Two timestamp queries that frame each submission ([`crate::timing`]); `None` where
-    /// the queue family has no timestamps.
-    pub(crate) timestamps: Option<vk::QueryPool>,
 }
 
 /// Everything the context owns. Buffers hold an `Arc` of it, so the device and the allocator
 /// outlive every buffer.
 pub(crate) struct Shared {
     pub(crate) submitter: Mutex<Submitter>,
+    /// Submissions not waited for yet, in submission order ([`VkContext::submit`]).
+    pub(crate) in_flight: Mutex<Vec<crate::buffer::InFlight>>,
+    /// Command buffers of retired submissions; the next submission frees them (the pool
+    /// is guarded by the submitter lock, which retiring does not take).
+    pub(crate) spent: Mutex<Vec<vk::CommandBuffer>>,
+    /// Submissions made so far: the next one's number ([`crate::buffer::Submission`]).
+    pub(crate) submissions: std::sync::atomic::AtomicU64,
     /// Every pipeline of the context is created through it, so a pipeline made again (the
     /// next render's, another tracer's on a shared context) reuses the driver's compiled
     /// shaders; on lavapipe compiling the passes costs seconds.
@@ -506,11 +510,13 @@ impl Drop for Shared {
         // as a field), the device before the instance.
         unsafe {
             let _ = device.device_wait_idle();
+            // Submissions nobody waited for (what they keep holds no buffer of this context,
+            // or it would not be dropping): their command buffers go with the pool.
+            for f in std::mem::take(self.in_flight.get_mut().unwrap_or_else(|e| e.into_inner())) {
+                f.discard(device);
+            }
             let submitter = self.submitter.get_mut().unwrap_or_else(|e| e.into_inner());
             device.destroy_command_pool(submitter.pool, None);
-            if let Some(q) = submitter.timestamps {
-                device.destroy_query_pool(q, None);
-            }
             device.destroy_pipeline_cache(self.pipeline_cache, None);
             ManuallyDrop::drop(&mut self.allocator);
         }
@@ -611,17 +617,14 @@ impl VkContext {
         // SAFETY: as above.
         let period = unsafe { inst.get_physical_device_properties(pd) }.limits.timestamp_period;
         let valid_bits = families.get(queue_family_index as usize).map_or(0, |f| f.timestamp_valid_bits);
+        // Each submission makes its own two-query pool ([`VkContext::submit`]).
         let timestamps = Timestamps::new(valid_bits, period);
-        let query_pool = timestamps.and_then(|_| {
-            let info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(2);
-            // SAFETY: a valid device; the pool is destroyed with the context. Without it the
-            // submissions go untimed and the stats say so.
-            unsafe { dev.create_query_pool(&info, None) }.ok()
-        });
-        let timestamps = timestamps.filter(|_| query_pool.is_some());
         Ok(Self {
             shared: Arc::new(Shared {
-                submitter: Mutex::new(Submitter { queue, pool, timestamps: query_pool }),
+                submitter: Mutex::new(Submitter { queue, pool }),
+                in_flight: Mutex::default(),
+                spent: Mutex::default(),
+                submissions: std::sync::atomic::AtomicU64::new(0),
                 pipeline_cache,
                 allocator: ManuallyDrop::new(Mutex::new(allocator)),
                 debug_utils,
