@@ -102,6 +102,11 @@ pub struct DeviceInfo {
     /// Whether the adapter also has `VK_KHR_ray_query` with the `rayQuery` feature. Information
     /// only: the backend traces with ray-tracing pipelines and does not enable ray queries.
     pub ray_query: bool,
+    /// Whether the adapter has the `accelerationStructureIndirectBuild` feature
+    /// (`vkCmdBuildAccelerationStructuresIndirectKHR`: builds whose primitive counts the
+    /// device reads). Queried, never assumed (lavapipe has it off); the backend builds with
+    /// counts the host read back either way (see [`crate::tracer::VkTracer`]).
+    pub acceleration_structure_indirect_build: bool,
 }
 
 /// Limits of ray-tracing pipelines and acceleration structures, queried from the adapter
@@ -355,6 +360,7 @@ struct Candidate {
     api_version: ApiVersion,
     queue_family_index: Option<u32>,
     ray_query: bool,
+    indirect_build: bool,
 }
 
 fn inspect(instance: &InstanceOwner, pd: vk::PhysicalDevice) -> Result<Candidate, VkError> {
@@ -372,6 +378,7 @@ fn inspect(instance: &InstanceOwner, pd: vk::PhysicalDevice) -> Result<Candidate
         }
     }
     let mut ray_query = false;
+    let mut indirect_build = false;
     if api_version.at_least(1, 2) {
         let mut v12 = vk::PhysicalDeviceVulkan12Features::default();
         let mut accel = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default();
@@ -405,6 +412,7 @@ fn inspect(instance: &InstanceOwner, pd: vk::PhysicalDevice) -> Result<Candidate
             missing.push("feature rayTracingPipeline".into());
         }
         ray_query = query_ext && query.ray_query == vk::TRUE;
+        indirect_build = has(ash::khr::acceleration_structure::NAME) && accel.acceleration_structure_indirect_build == vk::TRUE;
     } else {
         missing.insert(0, format!("Vulkan 1.2 (adapter has {api_version})"));
     }
@@ -417,7 +425,7 @@ fn inspect(instance: &InstanceOwner, pd: vk::PhysicalDevice) -> Result<Candidate
     }
     let summary =
         AdapterSummary { name: cstr_name(props.device_name_as_c_str()), device_type: DeviceType::from_vk(props.device_type), missing };
-    Ok(Candidate { physical_device: pd, summary, api_version, queue_family_index, ray_query })
+    Ok(Candidate { physical_device: pd, summary, api_version, queue_family_index, ray_query, indirect_build })
 }
 
 /// Index of the adapter to use among `adapters` (pure: testable without Vulkan). See the module
@@ -743,6 +751,7 @@ fn query_properties(instance: &InstanceOwner, c: &Candidate) -> (DeviceInfo, Ray
         api_version: ApiVersion::from_raw(base.api_version),
         instance_api_version: instance.api_version,
         ray_query: c.ray_query,
+        acceleration_structure_indirect_build: c.indirect_build,
     };
     let ray_tracing = RayTracingProperties {
         shader_group_handle_size: pipeline.shader_group_handle_size,

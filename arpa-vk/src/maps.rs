@@ -251,7 +251,8 @@ impl StorePipelines {
 
 /// The keyed store's device buffers for given input capacities: slots, sort items, counters
 /// and the sorted outputs (see the module docs), with the shared [`StorePipelines`].
-/// Dropping it frees the buffers (every submission it made was waited for).
+/// Dropping it frees the buffers (after waiting for the submissions in flight, as every
+/// buffer's drop does).
 pub struct MapStore {
     raw_capacity: u32,
     photon_capacity: u32,

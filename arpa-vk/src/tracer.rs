@@ -59,20 +59,28 @@ pub enum VkTracerError {
 ///
 /// | stage | on the device | host waits for / reads back |
 /// |---|---|---|
-/// | [`upload_scene`](Tracer::upload_scene) | validates scene and settings, builds the triangle structures, uploads the scene tables, compiles the pipelines | the builds |
-/// | [`camera_pass`](Tracer::camera_pass) | ray generation per pixel, closest-hit and miss over the triangles ([`CameraPass`]) | the trace |
-/// | [`photon_pass`](Tracer::photon_pass) | per photon batch: ray generation per photon appending keyed footprints and photons ([`PhotonPass`]); keyed store, sort and compaction into the batch's sorted maps and boxes ([`MapStore`]) | per batch, the photon counters (48 bytes: overflow and the store's sizes) and the store counts (48 bytes: the sort's schedule and the build's sizes) |
-/// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | per batch, AABB bottom levels per (kind, map) over the sorted boxes and one top level ([`MapAccel`]) | the build |
-/// | [`gather`](Tracer::gather) | per batch, ray generation per query record, one point query through the AABB hit group (GLSL intersection: exact test; any-hit: contribution, ignore) ([`GatherPass`]) | per batch, contribution and query-point counts (16 bytes) |
-/// | [`accumulate`](Tracer::accumulate) | compensated running sum of every plane ([`DeviceAccumulator`]) | the dispatch |
+/// | [`upload_scene`](Tracer::upload_scene) | validates scene and settings, builds the triangle structures, uploads the scene tables, compiles the pipelines | the uploads |
+/// | [`camera_pass`](Tracer::camera_pass) | ray generation per pixel, closest-hit and miss over the triangles ([`CameraPass`]) | nothing |
+/// | [`photon_pass`](Tracer::photon_pass) | per photon batch, in one submission: ray generation per photon appending keyed footprints and photons ([`PhotonPass`]), then the keyed store with its record counts and dispatch sizes from the pass's counters on the device (`schedule.wgsl`); then, in a second submission, sort and compaction into the batch's sorted maps and boxes ([`MapStore`]) | per batch, one wait for the first submission: the photon counters (48 bytes: overflow) and the store counts (48 bytes: the sort's schedule and the build's sizes) |
+/// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | per batch, AABB bottom levels per (kind, map) over the sorted boxes and one top level ([`MapAccel`]) | nothing |
+/// | [`gather`](Tracer::gather) | per batch, ray generation per query record, one point query through the AABB hit group (GLSL intersection: exact test; any-hit: contribution, ignore) ([`GatherPass`]) | nothing |
+/// | [`accumulate`](Tracer::accumulate) | compensated running sum of every plane ([`DeviceAccumulator`]) | one wait for the iteration's work: the gather's counts (16 bytes) and every submission's two timestamps |
 ///
-/// Each stage is one submission (or two, for the photon pass's store and sort) that the host
-/// waits for: the stage times of [`IterationStats::times`] are the host's around them, and
+/// A stage that reads nothing back submits and returns ([`VkContext::submit`]); queue
+/// order runs its work before the next stage's, and what its submissions use lives with
+/// them until a wait retires them. [`Tracer::read_stats`] reads the gather's counts itself
+/// (a wait) between a gather and its accumulate. The stage times of
+/// [`IterationStats::times`] are therefore the host's encoding and submission time plus
+/// the waits above (a wait also covers the device work submitted before it), and
 /// [`IterationStats::device_times`] the device's own, from a timestamp before and after
-/// every submission ([`crate::timing`]; where the queue family has no timestamps, they are
-/// [`DeviceTimes::Unavailable`]). Both readbacks of the photon pass stay because Vulkan's
-/// indirect build takes primitive counts from device memory but not the sizes of the
-/// structures, which must be allocated before the build.
+/// every submission, summed per stage once the accumulate's wait has retired them all
+/// ([`crate::timing`]; where the queue family has no timestamps, they are
+/// [`arpa_core::render::tracer::DeviceTimes::Unavailable`]). The photon pass's wait
+/// stays because the sort's passes are sized from the counts on the host and because
+/// Vulkan's indirect build takes primitive counts from device memory but not the sizes of
+/// the structures, which must be allocated before the build; the adapter's
+/// `accelerationStructureIndirectBuild` is reported in
+/// [`crate::DeviceInfo::acceleration_structure_indirect_build`] (lavapipe: off).
 ///
 /// # Photon records and batches
 /// The photon pass's buffers start at [`arpa_core::gpu::batch::INITIAL_RECORDS_PER_PHOTON`]
