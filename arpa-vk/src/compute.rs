@@ -244,7 +244,7 @@ impl ComputePipeline {
         if push.len() != self.push_constant_size as usize {
             return Err(invalid(format!("{} push-constant bytes, the layout has {}", push.len(), self.push_constant_size)));
         }
-        if !args.usage().contains(vk::BufferUsageFlags::INDIRECT_BUFFER) || offset % 4 != 0 || offset + 12 > args.size() {
+        if !args.usage().contains(vk::BufferUsageFlags::INDIRECT_BUFFER) || !offset.is_multiple_of(4) || offset + 12 > args.size() {
             return Err(invalid(format!("arguments at {offset} of {:?} ({} bytes, {:?})", args.label(), args.size(), args.usage())));
         }
         let device = &self.shared.device.device;

@@ -201,7 +201,7 @@ impl PhotonMaps {
         Ok(readback.copy(encoder, store.counts_buffer(), size_of::<StoreCounts>() as u64))
     }
 
-    /// The second half: sorts and compacts what [`PhotonMaps::store`] stored and keeps it
+    /// The second half: sorts and compacts what [`PhotonMaps::encode_store`] stored and keeps it
     /// as the next batch. `last`: the iteration's last batch, which keeps the store's
     /// output buffers themselves; an earlier batch's records are copied out, since the
     /// next batch's store reuses those buffers.
