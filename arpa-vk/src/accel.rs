@@ -5,14 +5,16 @@
 //! Every build takes its sizes from `vkGetAccelerationStructureBuildSizesKHR`, puts each
 //! structure in a buffer of its own (device address, `ACCELERATION_STRUCTURE_STORAGE_KHR`),
 //! takes scratch memory aligned to the queried `minAccelerationStructureScratchOffsetAlignment`
-//! and runs as one submission that the host waits for (inputs and scratch are freed when it
-//! returns). Builds prefer fast tracing; nothing is compacted or updated in place.
+//! and runs as one submission that the host does not wait for ([`VkContext::submit`]: the
+//! scratch and the top level's instance records stay alive with the submission, and the
+//! structures and their inputs must outlive it, which dropping them ensures by waiting
+//! first). Builds prefer fast tracing; nothing is compacted or updated in place.
 //!
 //! Each submission ends with a barrier that makes the structures visible to later builds and
 //! to ray-tracing shaders, so a top level built after its bottom levels, and a trace after
 //! both, read finished structures.
 
-use crate::buffer::Buffer;
+use crate::buffer::{Buffer, KeepAlive};
 use crate::device::{Shared, VkContext};
 use crate::error::{VkError, VkResultExt};
 use arpa_core::gpu::scene::morton_triangle_order;
@@ -39,7 +41,7 @@ pub struct AccelerationStructure {
     label: String,
     /// Freed after the structure is destroyed (`Drop` runs before the fields drop).
     buffer: Buffer,
-    _shared: Arc<Shared>,
+    shared: Arc<Shared>,
 }
 
 impl std::fmt::Debug for AccelerationStructure {
@@ -87,8 +89,9 @@ impl AccelerationStructure {
 
 impl Drop for AccelerationStructure {
     fn drop(&mut self) {
-        // SAFETY: every submission that used the structure was waited for; it is destroyed
-        // before its buffer (a field, freed after this).
+        crate::buffer::settle(&self.shared);
+        // SAFETY: no submission that used the structure is in flight after `settle`; it is
+        // destroyed before its buffer (a field, freed after this).
         unsafe { self.loader.destroy_acceleration_structure(self.raw, None) };
     }
 }
@@ -176,8 +179,9 @@ impl VkContext {
         ash::khr::acceleration_structure::Device::new(self.instance(), self.device())
     }
 
-    /// Builds every request in one submission (each with its own scratch region) and waits.
-    fn build_structures(&self, requests: &[BuildRequest]) -> Result<Vec<AccelerationStructure>, VkError> {
+    /// Builds every request in one submission (each with its own scratch region), not waited
+    /// for; the scratch and `keep` live until a later wait finds it done.
+    fn build_structures(&self, requests: &[BuildRequest], mut keep: KeepAlive) -> Result<Vec<AccelerationStructure>, VkError> {
         let loader = self.accel_loader();
         let rt = self.ray_tracing();
         let scratch_align = u64::from(rt.min_acceleration_structure_scratch_offset_alignment.max(1));
@@ -231,7 +235,7 @@ impl VkContext {
                 primitive_count: r.primitive_count,
                 label: r.label.clone(),
                 buffer,
-                _shared: Arc::clone(&self.shared),
+                shared: Arc::clone(&self.shared),
             });
             scratch_offsets.push(scratch_total);
             scratch_total += align_up(sizes.build_scratch_size.max(1), scratch_align);
@@ -252,14 +256,16 @@ impl VkContext {
             requests.iter().map(|r| [vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(r.primitive_count)]).collect();
         let range_refs: Vec<&[vk::AccelerationStructureBuildRangeInfoKHR]> = ranges.iter().map(|r| &r[..]).collect();
         let device = self.device();
-        self.submit_and_wait(|cmd| {
+        keep.push(Box::new(scratch));
+        self.submit(keep, |cmd| {
             let before = vk::MemoryBarrier::default()
                 .src_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR)
                 .dst_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR);
             let after = vk::MemoryBarrier::default()
                 .src_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR)
                 .dst_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR | vk::AccessFlags::SHADER_READ);
-            // SAFETY: every structure, input and scratch region is alive until the wait returns;
+            // SAFETY: every structure and input is alive until a wait finds the submission
+            // done (dropping one waits first) and the scratch lives with the submission;
             // scratch regions do not overlap.
             unsafe {
                 // Earlier builds (bottom levels this top level refers to) finish first.
@@ -284,7 +290,6 @@ impl VkContext {
                 );
             }
         })?;
-        scratch.destroy()?;
         Ok(built)
     }
 
@@ -355,9 +360,10 @@ impl VkContext {
             });
             inputs.push((vb, ib));
         }
+        // The inputs live with the submission.
+        let keep: KeepAlive = inputs.into_iter().map(|i| Box::new(i) as Box<dyn std::any::Any + Send>).collect();
         let mut built: Vec<Option<AccelerationStructure>> =
-            if requests.is_empty() { Vec::new() } else { self.build_structures(&requests)?.into_iter().map(Some).collect() };
-        drop(inputs);
+            if requests.is_empty() { Vec::new() } else { self.build_structures(&requests, keep)?.into_iter().map(Some).collect() };
         Ok(slots.into_iter().map(|s| s.and_then(|i| built[i].take())).collect())
     }
 
@@ -433,7 +439,7 @@ impl VkContext {
         if requests.is_empty() {
             return Ok(Vec::new());
         }
-        self.build_structures(&requests)
+        self.build_structures(&requests, KeepAlive::new())
     }
 
     /// Builds a top level over `instances` (possibly none) in one submission, after every
@@ -485,8 +491,8 @@ impl VkContext {
             geometry,
             primitive_count: instances.len() as u32,
         };
-        let mut built = self.build_structures(std::slice::from_ref(&request))?;
-        drop(b);
+        // The instance records live with the submission.
+        let mut built = self.build_structures(std::slice::from_ref(&request), vec![Box::new(b)])?;
         Ok(built.remove(0))
     }
 }

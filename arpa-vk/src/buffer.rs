@@ -3,11 +3,19 @@
 //!
 //! **Ownership.** A [`Buffer`] holds a reference-counted handle on its context's device and
 //! allocator, so it can free itself on drop (or through [`Buffer::destroy`], which reports a
-//! failure to free) and the device can never be destroyed before it. Every submission this
-//! crate makes is waited for before it returns, so no buffer is in use by the device when safe
-//! code drops it.
+//! failure to free) and the device can never be destroyed before it.
+//!
+//! **Submissions in flight.** [`VkContext::submit`] returns without waiting; what the
+//! submission uses and nobody else keeps (parameters, descriptor sets, scratch) goes into
+//! its [`KeepAlive`] and is released once a later wait ([`VkContext::finish`], which
+//! [`VkContext::submit_and_wait`] and every read-back make) finds it done. Dropping a
+//! buffer, a descriptor set or an acceleration structure while any submission is in flight
+//! first waits for them all, so safe code can never free what the device may still use;
+//! the stages keep what their submissions need alive so that this costs no wait in an
+//! iteration.
 
 use crate::device::{Shared, VkContext, lock};
+use crate::timing::StageTicket;
 use crate::error::{VkError, VkResultExt};
 use ash::vk;
 use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
@@ -143,8 +151,9 @@ impl Buffer {
 
     fn release(&mut self) -> Result<(), VkError> {
         let Some(allocation) = self.allocation.take() else { return Ok(()) };
-        // SAFETY: the buffer is not in use (every submission is waited for) and was created on
-        // this device; it is destroyed before its memory is freed.
+        settle(&self.shared);
+        // SAFETY: the buffer is not in use (no submission is in flight after `settle`) and was
+        // created on this device; it is destroyed before its memory is freed.
         unsafe { self.shared.device.device.destroy_buffer(self.raw, None) };
         self.raw = vk::Buffer::null();
         lock(&self.shared.allocator).free(allocation).map_err(|e| allocation_error(&self.label, self.size, e))
@@ -162,25 +171,105 @@ pub(crate) fn pod_vec<T: bytemuck::Pod>(bytes: &[u8]) -> Vec<T> {
     bytes.chunks_exact(size_of::<T>()).map(bytemuck::pod_read_unaligned).collect()
 }
 
-/// Unfinished one-time submission: frees its command buffer and fence however it ends.
+/// What a submission keeps alive until the device has finished it ([`VkContext::submit`]):
+/// buffers, descriptor sets, structures its commands use that no one else owns.
+pub type KeepAlive = Vec<Box<dyn std::any::Any + Send>>;
+
+/// A submission made by [`VkContext::submit`], for [`VkContext::wait_for`]: numbered in
+/// submission order per context.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub struct Submission(u64);
+
+/// A submission not yet waited for: its command buffer, fence and timestamp queries, the
+/// stage its device time belongs to, and what it keeps alive.
+pub(crate) struct InFlight {
+    serial: Submission,
+    cmd: vk::CommandBuffer,
+    fence: vk::Fence,
+    queries: Option<vk::QueryPool>,
+    ticket: Option<StageTicket>,
+    keep: KeepAlive,
+}
+
+impl InFlight {
+    /// Destroys the fence and queries of a submission that has completed (the context is
+    /// going: its command buffer goes with the pool) and drops what it kept.
+    pub(crate) fn discard(self, device: &ash::Device) {
+        // SAFETY: the device is idle (the caller waited for it).
+        unsafe {
+            if let Some(q) = self.queries {
+                device.destroy_query_pool(q, None);
+            }
+            device.destroy_fence(self.fence, None);
+        }
+        drop(self.keep);
+    }
+}
+
+/// A submission being recorded: frees its command buffer, fence and queries if it fails
+/// before it is submitted.
 struct OneShot<'a> {
     device: &'a ash::Device,
     pool: vk::CommandPool,
     cmd: vk::CommandBuffer,
     fence: vk::Fence,
+    queries: Option<vk::QueryPool>,
 }
 
 impl Drop for OneShot<'_> {
     fn drop(&mut self) {
-        // SAFETY: the command buffer is not pending (the fence was waited for, or it was never
-        // submitted; after a device loss nothing is pending any more).
+        // SAFETY: the command buffer was never submitted (a submitted one is disarmed by
+        // nulling its handles); the pool is guarded by the submitter lock its creator holds.
         unsafe {
             if self.fence != vk::Fence::null() {
                 self.device.destroy_fence(self.fence, None);
             }
-            self.device.free_command_buffers(self.pool, &[self.cmd]);
+            if let Some(q) = self.queries {
+                self.device.destroy_query_pool(q, None);
+            }
+            if self.cmd != vk::CommandBuffer::null() {
+                self.device.free_command_buffers(self.pool, &[self.cmd]);
+            }
         }
     }
+}
+
+/// Waits for every submission in flight on `shared` and releases them (their timestamps
+/// into their stages, their fences, queries and what they kept); nothing to do when none is.
+/// Errors are those of `vkWaitForFences` (a lost device); the submissions then stay listed.
+pub(crate) fn settle_checked(shared: &Shared) -> Result<(), VkError> {
+    let device = &shared.device.device;
+    let done: Vec<InFlight> = {
+        let mut in_flight = lock(&shared.in_flight);
+        if in_flight.is_empty() {
+            return Ok(());
+        }
+        let fences: Vec<vk::Fence> = in_flight.iter().map(|f| f.fence).collect();
+        // SAFETY: fences of this device, each submitted with its command buffer.
+        unsafe { device.wait_for_fences(&fences, true, u64::MAX) }.vk("vkWaitForFences")?;
+        std::mem::take(&mut *in_flight)
+    };
+    let mut spent = Vec::with_capacity(done.len());
+    for f in done {
+        let seconds = f.queries.zip(shared.timestamps).and_then(|(pool, ts)| {
+            let mut ticks = [0u64; 2];
+            // SAFETY: both queries were written by the submission its fence says is done.
+            let read = unsafe { device.get_query_pool_results(pool, 0, &mut ticks, vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT) };
+            read.ok().map(|()| ts.seconds(ticks[0], ticks[1]))
+        });
+        crate::timing::record(f.ticket.as_ref(), seconds);
+        spent.push(f.cmd);
+        // What it kept goes now, outside every lock (a buffer's drop settles again: a no-op).
+        f.discard(device);
+    }
+    // The command pool needs the submitter lock: the next submission frees them.
+    lock(&shared.spent).extend(spent);
+    Ok(())
+}
+
+/// [`settle_checked`] for drops, which cannot report: on a lost device nothing runs any more.
+pub(crate) fn settle(shared: &Shared) {
+    let _ = settle_checked(shared);
 }
 
 impl VkContext {
@@ -251,38 +340,86 @@ impl VkContext {
     }
 
     /// Records commands with `record` into a fresh primary command buffer, submits it to the
-    /// context's queue and waits until the device has finished it. Returns what `record`
+    /// context's queue and waits until the device has finished it and every submission
+    /// before it ([`VkContext::submit`], [`VkContext::finish`]). Returns what `record`
     /// returns.
     ///
     /// Errors: [`VkError::DeviceLost`] when the device is lost during the submission or the
     /// wait; [`VkError::Vulkan`] for any other failing call.
     pub fn submit_and_wait<R>(&self, record: impl FnOnce(vk::CommandBuffer) -> R) -> Result<R, VkError> {
+        let (out, _) = self.submit(KeepAlive::new(), record)?;
+        self.finish()?;
+        Ok(out)
+    }
+
+    /// Records commands with `record` into a fresh primary command buffer and submits it to
+    /// the context's queue without waiting; `keep` stays alive until a later wait
+    /// ([`VkContext::finish`]) finds the submission done. The command buffer starts with a
+    /// global memory barrier, so every earlier submission's writes are visible to its
+    /// commands (submissions in flight run in queue order); host writes made before the
+    /// call are visible to it (queue submission), and commands whose results the host reads
+    /// after [`VkContext::finish`] must end with a barrier to the host stage. Where the queue
+    /// family has timestamps, two framing timestamps time it into the stage the calling
+    /// thread is in ([`crate::timing`]).
+    ///
+    /// Host-visible memory the submission reads must not be written by the host until it
+    /// is done.
+    ///
+    /// Errors: [`VkError::DeviceLost`] when the device is lost; [`VkError::Vulkan`] for any
+    /// other failing call (then nothing was submitted).
+    pub fn submit<R>(&self, keep: KeepAlive, record: impl FnOnce(vk::CommandBuffer) -> R) -> Result<(R, Submission), VkError> {
         let shared = &self.shared;
         let device = &shared.device.device;
         let submitter = lock(&shared.submitter);
+        let spent = std::mem::take(&mut *lock(&shared.spent));
+        if !spent.is_empty() {
+            // SAFETY: command buffers of retired submissions, from this pool, guarded by the
+            // submitter lock.
+            unsafe { device.free_command_buffers(submitter.pool, &spent) };
+        }
         let alloc = vk::CommandBufferAllocateInfo::default()
             .command_pool(submitter.pool)
             .level(vk::CommandBufferLevel::PRIMARY)
             .command_buffer_count(1);
         // SAFETY: the pool is externally synchronised by the submitter lock.
         let cmd = unsafe { device.allocate_command_buffers(&alloc) }.vk("vkAllocateCommandBuffers")?[0];
-        let mut shot = OneShot { device, pool: submitter.pool, cmd, fence: vk::Fence::null() };
+        let mut shot = OneShot { device, pool: submitter.pool, cmd, fence: vk::Fence::null(), queries: None };
         let begin = vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
         // SAFETY: a fresh command buffer, recorded under the submitter lock.
         unsafe { device.begin_command_buffer(cmd, &begin) }.vk("vkBeginCommandBuffer")?;
+        let earlier = vk::MemoryBarrier::default()
+            .src_access_mask(vk::AccessFlags::MEMORY_WRITE)
+            .dst_access_mask(vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE);
+        // SAFETY: a plain barrier in a recording command buffer.
+        unsafe {
+            device.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::ALL_COMMANDS,
+                vk::PipelineStageFlags::ALL_COMMANDS,
+                vk::DependencyFlags::empty(),
+                &[earlier],
+                &[],
+                &[],
+            );
+        }
         // The submission's device time (crate::timing): a timestamp before the commands and
-        // one after, in the pool only this lock's holder uses.
-        let timestamps = submitter.timestamps.zip(shared.timestamps);
-        if let Some((pool, _)) = timestamps {
-            // SAFETY: a pool of two timestamp queries of this device, reset before it is
-            // written; the queue family has timestamps (valid bits > 0).
+        // one after, in a two-query pool of its own (the submission may still run when the
+        // next one is recorded). Without a pool the submission goes untimed.
+        shot.queries = shared.timestamps.and_then(|_| {
+            let info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(2);
+            // SAFETY: a valid device; the pool is destroyed when the submission retires.
+            unsafe { device.create_query_pool(&info, None) }.ok()
+        });
+        if let Some(pool) = shot.queries {
+            // SAFETY: a fresh pool of two timestamp queries, reset before it is written; the
+            // queue family has timestamps (valid bits > 0).
             unsafe {
                 device.cmd_reset_query_pool(cmd, pool, 0, 2);
                 device.cmd_write_timestamp(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, pool, 0);
             }
         }
         let out = record(cmd);
-        if let Some((pool, _)) = timestamps {
+        if let Some(pool) = shot.queries {
             // SAFETY: as above.
             unsafe { device.cmd_write_timestamp(cmd, vk::PipelineStageFlags::BOTTOM_OF_PIPE, pool, 1) };
         }
@@ -295,17 +432,36 @@ impl VkContext {
         // SAFETY: the queue is externally synchronised by the submitter lock; the command buffer
         // is fully recorded.
         unsafe { device.queue_submit(submitter.queue, &[submit], shot.fence) }.vk("vkQueueSubmit")?;
-        // SAFETY: the fence belongs to this device.
-        unsafe { device.wait_for_fences(&[shot.fence], true, u64::MAX) }.vk("vkWaitForFences")?;
-        let seconds = timestamps.and_then(|(pool, ts)| {
-            let mut ticks = [0u64; 2];
-            // SAFETY: both queries were written by the submission the fence says is done.
-            let read = unsafe { device.get_query_pool_results(pool, 0, &mut ticks, vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT) };
-            read.ok().map(|()| ts.seconds(ticks[0], ticks[1]))
-        });
-        crate::timing::record(seconds);
-        drop(shot);
-        Ok(out)
+        let serial = Submission(shared.submissions.fetch_add(1, std::sync::atomic::Ordering::Relaxed));
+        let entry = InFlight { serial, cmd, fence: shot.fence, queries: shot.queries.take(), ticket: crate::timing::current(), keep };
+        shot.cmd = vk::CommandBuffer::null();
+        shot.fence = vk::Fence::null();
+        lock(&shared.in_flight).push(entry);
+        drop(submitter);
+        Ok((out, serial))
+    }
+
+    /// Waits for `submission` (and with it every submission in flight,
+    /// [`VkContext::finish`]) unless it has been waited for already, which costs nothing.
+    ///
+    /// Errors: as [`VkContext::finish`].
+    pub fn wait_for(&self, submission: Submission) -> Result<(), VkError> {
+        let pending = lock(&self.shared.in_flight).iter().any(|f| f.serial <= submission);
+        if pending { self.finish() } else { Ok(()) }
+    }
+
+    /// Submissions made and not waited for yet ([`VkContext::submit`]; another thread's
+    /// wait may retire them at any time).
+    pub fn in_flight(&self) -> usize {
+        lock(&self.shared.in_flight).len()
+    }
+
+    /// Waits until the device has finished every submission made so far and releases what
+    /// they kept (their device times go to their stages, [`crate::timing`]).
+    ///
+    /// Errors: [`VkError::DeviceLost`] when the device is lost during the wait.
+    pub fn finish(&self) -> Result<(), VkError> {
+        settle_checked(&self.shared)
     }
 
     /// Creates a buffer of `usage` (plus `TRANSFER_DST`) in device-local memory holding `data`,

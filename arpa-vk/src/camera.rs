@@ -4,7 +4,7 @@
 //! closest-hit shaders. Writes one [`QueryRecord`] per pixel. Descriptor set 0 is the scene
 //! ([`VkScene`]); set 1 the parameters ([`CameraParams`], uniform) and the query records.
 
-use crate::buffer::Buffer;
+use crate::buffer::{Buffer, KeepAlive, Submission};
 use crate::device::VkContext;
 use crate::error::VkError;
 use crate::pipeline::{BindingKind, Bindings, HitGroup, Resource, RtPipeline, RtPipelineDesc, ShaderEntry};
@@ -25,6 +25,8 @@ pub struct CameraPass {
     pipeline: Arc<RtPipeline>,
     params: Buffer,
     base: CameraParams,
+    /// The last trace, which reads `params` (host-visible) until it is done.
+    last: Option<Submission>,
 }
 
 /// A pipeline whose ray generation `raygen` of `module` traces the scene through
@@ -61,16 +63,23 @@ impl CameraPass {
         let mut uniform = ctx.create_buffer("camera pass parameters", size_of::<CameraParams>() as u64, vk::BufferUsageFlags::UNIFORM_BUFFER, MemoryLocation::CpuToGpu)?;
         uniform.write(0, bytemuck::bytes_of(&params))?;
         let bindings = pipeline.bind(&[&scene.resources(), &[Resource::UniformBuffer(&uniform), Resource::StorageBuffer(queries)]])?;
-        Ok(Self { bindings, pipeline, params: uniform, base: params })
+        Ok(Self { bindings, pipeline, params: uniform, base: params, last: None })
     }
 
-    /// Traces iteration `iteration`'s query records and waits for them.
+    /// Submits the trace of iteration `iteration`'s query records without waiting for it
+    /// (queue order runs it before later submissions; [`VkContext::finish`] waits). Waits
+    /// only when the previous trace is still in flight, since it reads the parameters this
+    /// one writes (a camera pass run twice in an iteration).
     pub fn run(&mut self, ctx: &VkContext, iteration: u32) -> Result<(), VkError> {
+        if let Some(last) = self.last.take() {
+            ctx.wait_for(last)?;
+        }
         let p = CameraParams { iteration, ..self.base };
         self.params.write(0, bytemuck::bytes_of(&p))?;
         if p.pixel_count == 0 {
             return Ok(());
         }
-        self.pipeline.trace_and_wait(ctx, &self.bindings, &[], [p.width, p.height, 1])
+        self.last = Some(self.pipeline.trace(ctx, &self.bindings, &[], [p.width, p.height, 1], KeepAlive::new())?);
+        Ok(())
     }
 }

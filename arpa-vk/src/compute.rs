@@ -232,6 +232,37 @@ impl ComputePipeline {
         Ok(())
     }
 
+    /// Records an indirect dispatch into `cmd`: binds the pipeline, `bindings` and `push` (as
+    /// [`ComputePipeline::record_dispatch`]) and dispatches the workgroups `[x, y, z]` that
+    /// the device finds at `offset` of `args` (`INDIRECT_BUFFER` usage; written before with a
+    /// barrier to the indirect-command stage; each count within `maxComputeWorkGroupCount`).
+    ///
+    /// Errors: [`VkError::InvalidInput`] for push constants of the wrong size, an `args`
+    /// buffer without `INDIRECT_BUFFER` usage or 12 bytes at `offset`.
+    pub fn record_dispatch_indirect(&self, cmd: vk::CommandBuffer, bindings: &Bindings, push: &[u8], args: &Buffer, offset: u64) -> Result<(), VkError> {
+        let invalid = |reason: String| VkError::InvalidInput { what: format!("indirect dispatch of compute pipeline {:?}", self.label), reason };
+        if push.len() != self.push_constant_size as usize {
+            return Err(invalid(format!("{} push-constant bytes, the layout has {}", push.len(), self.push_constant_size)));
+        }
+        if !args.usage().contains(vk::BufferUsageFlags::INDIRECT_BUFFER) || !offset.is_multiple_of(4) || offset + 12 > args.size() {
+            return Err(invalid(format!("arguments at {offset} of {:?} ({} bytes, {:?})", args.label(), args.size(), args.usage())));
+        }
+        let device = &self.shared.device.device;
+        // SAFETY: the pipeline, sets and arguments are alive while the caller's submission
+        // runs; sizes and usage checked above.
+        unsafe {
+            device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, self.pipeline);
+            if !bindings.sets.is_empty() {
+                device.cmd_bind_descriptor_sets(cmd, vk::PipelineBindPoint::COMPUTE, self.layout, 0, &bindings.sets, &[]);
+            }
+            if !push.is_empty() {
+                device.cmd_push_constants(cmd, self.layout, vk::ShaderStageFlags::COMPUTE, 0, push);
+            }
+            device.cmd_dispatch_indirect(cmd, args.raw(), offset);
+        }
+        Ok(())
+    }
+
     /// Records the linear dispatch of `invocations` invocations of a 64-wide kernel
     /// ([`linear_groups`] with this device's `maxComputeWorkGroupCount[0]`); at least one
     /// workgroup runs.

@@ -102,6 +102,11 @@ pub struct DeviceInfo {
     /// Whether the adapter also has `VK_KHR_ray_query` with the `rayQuery` feature. Information
     /// only: the backend traces with ray-tracing pipelines and does not enable ray queries.
     pub ray_query: bool,
+    /// Whether the adapter has the `accelerationStructureIndirectBuild` feature
+    /// (`vkCmdBuildAccelerationStructuresIndirectKHR`: builds whose primitive counts the
+    /// device reads). Queried, never assumed (lavapipe has it off); the backend builds with
+    /// counts the host read back either way (see [`crate::tracer::VkTracer`]).
+    pub acceleration_structure_indirect_build: bool,
 }
 
 /// Limits of ray-tracing pipelines and acceleration structures, queried from the adapter
@@ -355,6 +360,7 @@ struct Candidate {
     api_version: ApiVersion,
     queue_family_index: Option<u32>,
     ray_query: bool,
+    indirect_build: bool,
 }
 
 fn inspect(instance: &InstanceOwner, pd: vk::PhysicalDevice) -> Result<Candidate, VkError> {
@@ -372,6 +378,7 @@ fn inspect(instance: &InstanceOwner, pd: vk::PhysicalDevice) -> Result<Candidate
         }
     }
     let mut ray_query = false;
+    let mut indirect_build = false;
     if api_version.at_least(1, 2) {
         let mut v12 = vk::PhysicalDeviceVulkan12Features::default();
         let mut accel = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default();
@@ -405,6 +412,7 @@ fn inspect(instance: &InstanceOwner, pd: vk::PhysicalDevice) -> Result<Candidate
             missing.push("feature rayTracingPipeline".into());
         }
         ray_query = query_ext && query.ray_query == vk::TRUE;
+        indirect_build = has(ash::khr::acceleration_structure::NAME) && accel.acceleration_structure_indirect_build == vk::TRUE;
     } else {
         missing.insert(0, format!("Vulkan 1.2 (adapter has {api_version})"));
     }
@@ -417,7 +425,7 @@ fn inspect(instance: &InstanceOwner, pd: vk::PhysicalDevice) -> Result<Candidate
     }
     let summary =
         AdapterSummary { name: cstr_name(props.device_name_as_c_str()), device_type: DeviceType::from_vk(props.device_type), missing };
-    Ok(Candidate { physical_device: pd, summary, api_version, queue_family_index, ray_query })
+    Ok(Candidate { physical_device: pd, summary, api_version, queue_family_index, ray_query, indirect_build })
 }
 
 /// Index of the adapter to use among `adapters` (pure: testable without Vulkan). See the module
@@ -470,15 +478,19 @@ impl Drop for DeviceOwner {
 pub(crate) struct Submitter {
     pub(crate) queue: vk::Queue,
     pub(crate) pool: vk::CommandPool,
-    /// Two timestamp queries that frame each submission ([`crate::timing`]); `None` where
-    /// the queue family has no timestamps.
-    pub(crate) timestamps: Option<vk::QueryPool>,
 }
 
 /// Everything the context owns. Buffers hold an `Arc` of it, so the device and the allocator
 /// outlive every buffer.
 pub(crate) struct Shared {
     pub(crate) submitter: Mutex<Submitter>,
+    /// Submissions not waited for yet, in submission order ([`VkContext::submit`]).
+    pub(crate) in_flight: Mutex<Vec<crate::buffer::InFlight>>,
+    /// Command buffers of retired submissions; the next submission frees them (the pool
+    /// is guarded by the submitter lock, which retiring does not take).
+    pub(crate) spent: Mutex<Vec<vk::CommandBuffer>>,
+    /// Submissions made so far: the next one's number ([`crate::buffer::Submission`]).
+    pub(crate) submissions: std::sync::atomic::AtomicU64,
     /// Every pipeline of the context is created through it, so a pipeline made again (the
     /// next render's, another tracer's on a shared context) reuses the driver's compiled
     /// shaders; on lavapipe compiling the passes costs seconds.
@@ -506,11 +518,13 @@ impl Drop for Shared {
         // as a field), the device before the instance.
         unsafe {
             let _ = device.device_wait_idle();
+            // Submissions nobody waited for (what they keep holds no buffer of this context,
+            // or it would not be dropping): their command buffers go with the pool.
+            for f in std::mem::take(self.in_flight.get_mut().unwrap_or_else(|e| e.into_inner())) {
+                f.discard(device);
+            }
             let submitter = self.submitter.get_mut().unwrap_or_else(|e| e.into_inner());
             device.destroy_command_pool(submitter.pool, None);
-            if let Some(q) = submitter.timestamps {
-                device.destroy_query_pool(q, None);
-            }
             device.destroy_pipeline_cache(self.pipeline_cache, None);
             ManuallyDrop::drop(&mut self.allocator);
         }
@@ -611,17 +625,14 @@ impl VkContext {
         // SAFETY: as above.
         let period = unsafe { inst.get_physical_device_properties(pd) }.limits.timestamp_period;
         let valid_bits = families.get(queue_family_index as usize).map_or(0, |f| f.timestamp_valid_bits);
+        // Each submission makes its own two-query pool ([`VkContext::submit`]).
         let timestamps = Timestamps::new(valid_bits, period);
-        let query_pool = timestamps.and_then(|_| {
-            let info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(2);
-            // SAFETY: a valid device; the pool is destroyed with the context. Without it the
-            // submissions go untimed and the stats say so.
-            unsafe { dev.create_query_pool(&info, None) }.ok()
-        });
-        let timestamps = timestamps.filter(|_| query_pool.is_some());
         Ok(Self {
             shared: Arc::new(Shared {
-                submitter: Mutex::new(Submitter { queue, pool, timestamps: query_pool }),
+                submitter: Mutex::new(Submitter { queue, pool }),
+                in_flight: Mutex::default(),
+                spent: Mutex::default(),
+                submissions: std::sync::atomic::AtomicU64::new(0),
                 pipeline_cache,
                 allocator: ManuallyDrop::new(Mutex::new(allocator)),
                 debug_utils,
@@ -740,6 +751,7 @@ fn query_properties(instance: &InstanceOwner, c: &Candidate) -> (DeviceInfo, Ray
         api_version: ApiVersion::from_raw(base.api_version),
         instance_api_version: instance.api_version,
         ray_query: c.ray_query,
+        acceleration_structure_indirect_build: c.indirect_build,
     };
     let ray_tracing = RayTracingProperties {
         shader_group_handle_size: pipeline.shader_group_handle_size,

@@ -22,7 +22,8 @@
 //! error, not bit for bit.
 
 use crate::accel::AccelerationStructure;
-use crate::buffer::Buffer;
+use crate::buffer::{Buffer, KeepAlive};
+use crate::compute::{record_compute_barrier, record_fill};
 use crate::device::VkContext;
 use crate::error::VkError;
 use crate::pipeline::{BindingKind, HitGroup, Resource, RtPipeline, RtPipelineDesc, ShaderEntry};
@@ -75,10 +76,12 @@ pub fn gather_pipeline(ctx: &VkContext) -> Result<RtPipeline, VkError> {
     )
 }
 
-/// The gather of one render: pipeline and its parameter, count and batch-irradiance buffers.
+/// The gather of one render: pipeline and its count and batch-irradiance buffers (the
+/// parameters are a buffer per batch, [`GatherPass::run`]).
 pub struct GatherPass {
     pipeline: Arc<RtPipeline>,
-    params: Buffer,
+    /// The counts ([`layout::GatherCounts`]) summed over the batches since the first
+    /// (host-visible).
     counts: Buffer,
     /// Per scale and pixel (scale-major), the irradiance summed over the batches so far.
     batch_irradiance: Buffer,
@@ -113,8 +116,7 @@ impl GatherPass {
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
         Ok(Self {
             pipeline,
-            params: ctx.create_buffer("gather parameters", size_of::<GatherImageParams>() as u64, storage, MemoryLocation::CpuToGpu)?,
-            counts: ctx.create_buffer("gather counts", COUNTS_BYTES, storage, MemoryLocation::GpuToCpu)?,
+            counts: ctx.create_buffer("gather counts", COUNTS_BYTES, storage | vk::BufferUsageFlags::TRANSFER_DST, MemoryLocation::GpuToCpu)?,
             batch_irradiance: ctx.create_buffer("gather batch irradiance", ImageBufferSizes::new(pixels.max(1), bandwidth).batch_irradiance, storage, MemoryLocation::GpuOnly)?,
             kernel,
             bandwidth,
@@ -122,32 +124,54 @@ impl GatherPass {
         })
     }
 
-    /// Gathers every query record of `queries` from the photon batch `maps`, waits, and
-    /// returns the counts (valid query points only for the iteration's first batch). The
-    /// first batch starts each pixel's irradiance sums (one per scale), later ones add to
-    /// them, the last writes `radiance + weight · E_k` per scale and the moments into
-    /// `image` (one `vec4<f32>` per plane and pixel, plane-major:
-    /// [`ImageBufferSizes::image`] bytes); with one batch, `batch` is both first and last.
-    pub fn run(&mut self, ctx: &VkContext, queries: &Buffer, image: &Buffer, maps: &GatherInputs<'_>, batch: GatherBatch) -> Result<GatherCounts, VkError> {
-        let params = GatherImageParams::new(maps.radii, self.kernel, self.pixels, batch, self.bandwidth);
-        self.params.write(0, bytemuck::bytes_of(&params))?;
-        self.counts.write(0, &[0u8; COUNTS_BYTES as usize])?;
+    /// Submits the gather of every query record of `queries` from the photon batch `maps`
+    /// without waiting for it ([`VkContext::submit`]; its parameters and descriptor set
+    /// stay alive with the submission). The first batch starts each pixel's irradiance sums
+    /// (one per scale) and zeroes the counts on the device, later ones add to both, the last
+    /// writes `radiance + weight · E_k` per scale and the moments into `image` (one
+    /// `vec4<f32>` per plane and pixel, plane-major: [`ImageBufferSizes::image`] bytes); with
+    /// one batch, `batch` is both first and last. [`GatherPass::read_counts`] reads the
+    /// counts summed over the batches after a wait.
+    pub fn run(&mut self, ctx: &VkContext, queries: &Buffer, image: &Buffer, maps: &GatherInputs<'_>, batch: GatherBatch) -> Result<(), VkError> {
         if self.pixels == 0 {
-            return Ok(GatherCounts::default());
+            if batch.first {
+                // No trace zeroes them: the host does, once nothing in flight counts.
+                ctx.finish()?;
+                self.counts.write(0, &[0u8; COUNTS_BYTES as usize])?;
+            }
+            return Ok(());
         }
+        let gather_params = GatherImageParams::new(maps.radii, self.kernel, self.pixels, batch, self.bandwidth);
+        // A buffer per batch: the previous batch's trace may still read its own.
+        let mut params = ctx.create_buffer("gather parameters", size_of::<GatherImageParams>() as u64, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::CpuToGpu)?;
+        params.write(0, bytemuck::bytes_of(&gather_params))?;
         let set = [
             Resource::StorageBuffer(maps.footprints),
             Resource::StorageBuffer(maps.photons),
             Resource::StorageBuffer(queries),
             Resource::StorageBuffer(image),
-            Resource::StorageBuffer(&self.params),
+            Resource::StorageBuffer(&params),
             Resource::StorageBuffer(&self.counts),
             Resource::StorageBuffer(&self.batch_irradiance),
             Resource::AccelerationStructure(maps.tlas),
         ];
-        let bindings = self.pipeline.bind(&[&set])?;
+        let bindings = Arc::new(self.pipeline.bind(&[&set])?);
         let x = self.pixels.min(LAUNCH_WIDTH);
-        self.pipeline.trace_and_wait(ctx, &bindings, &[], [x, self.pixels.div_ceil(x), 1])?;
+        let device = ctx.device();
+        let keep: KeepAlive = vec![Box::new(Arc::clone(&bindings)), Box::new(params)];
+        let (recorded, _) = ctx.submit(keep, |cmd| {
+            if batch.first {
+                record_fill(device, cmd, &self.counts, 0);
+                record_compute_barrier(device, cmd);
+            }
+            self.pipeline.record_framed_trace(ctx, cmd, &bindings, &[], [x, self.pixels.div_ceil(x), 1])
+        })?;
+        recorded
+    }
+
+    /// The counts of the gather's batches since its first, read from host-visible memory:
+    /// valid once a wait ([`VkContext::finish`]) has found the last batch's trace done.
+    pub fn read_counts(&self) -> Result<GatherCounts, VkError> {
         let c: layout::GatherCounts = bytemuck::pod_read_unaligned(&self.counts.read(0, COUNTS_BYTES)?);
         Ok(GatherCounts { contributions: c.contributions(), candidates: c.candidates(), query_points: u64::from(c.query_points), covered: c.covered.map(u64::from) })
     }

@@ -76,8 +76,9 @@ impl MapAccel {
     /// (24-byte boxes, metres; usage `ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR |
     /// SHADER_DEVICE_ADDRESS`, written by an earlier submission that ended with a barrier to
     /// the build stage, as [`crate::maps::MapStore::sort`] does) as `counts` (the store's)
-    /// sizes them: the bottom levels in one submission, the top level in another, both waited
-    /// for.
+    /// sizes them: the bottom levels in one submission, the top level in another, neither
+    /// waited for (queue order runs them before later traces; dropping the structure waits
+    /// for them first).
     ///
     /// Errors: [`VkError::InvalidInput`] for a kind with [`MAX_RECORDS_PER_KIND`] records or
     /// more (the custom index holds 23 bits of record index), or counts past a buffer's end;

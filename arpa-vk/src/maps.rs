@@ -15,16 +15,21 @@
 //! is total, so the result does not depend on the order the photon pass appended in, and it
 //! is spatial, which the acceleration-structure build needs ([`crate::map_accel`]).
 //!
-//! Two submissions, with one documented host readback between them: [`MapStore::store`]
-//! runs the store and reads back the 48-byte [`StoreCounts`]; the sort's passes (their item
-//! counts and tiles) and the acceleration-structure build (sized on the host) depend on them. [`MapStore::sort`]
-//! pads, sorts and compacts. The store's parameters ([`StoreParams`], a storage buffer in
+//! Two halves with one documented host readback between them: the store half reads back
+//! the 48-byte [`StoreCounts`]; the sort's passes (their item counts and tiles) and the
+//! acceleration-structure build (sized on the host) depend on them. The tracer records the
+//! store half into the photon pass's submission ([`MapStore::prepare_scheduled`],
+//! [`MapStore::record_scheduled`]): the schedule kernel (`path/schedule.wgsl`) takes the
+//! record counts and dispatch sizes from the pass's counters on the device, and the host
+//! waits once for both counters. [`MapStore::store`] is the same half on counts the host
+//! gives, in a submission of its own. [`MapStore::submit_sort`] pads, sorts and compacts
+//! without waiting ([`MapStore::sort`] waits and reads the counts again). The store's parameters ([`StoreParams`], a storage buffer in
 //! `store.wgsl`) go through a small host-visible buffer per submission; the sort's pass (a
 //! uniform in `radix.wgsl`, read at dynamic offsets on wgpu) is written into one uniform
 //! buffer with `vkCmdUpdateBuffer` before each pass's dispatches.
 
 use std::sync::Arc;
-use crate::buffer::Buffer;
+use crate::buffer::{Buffer, KeepAlive};
 use crate::compute::{ComputePipeline, ComputePipelineDesc, record_compute_barrier, record_fill};
 use crate::device::VkContext;
 use crate::error::VkError;
@@ -61,6 +66,7 @@ pub const BOX_USAGE: vk::BufferUsageFlags = vk::BufferUsageFlags::from_raw(
 /// [`MapStore`] (on lavapipe a pipeline is compiled at its first dispatch, which takes
 /// seconds).
 pub struct StorePipelines {
+    schedule: ComputePipeline,
     keyed: ComputePipeline,
     photon_keys: ComputePipeline,
     pad_items: ComputePipeline,
@@ -74,11 +80,12 @@ pub struct StorePipelines {
     radix_scatter: ComputePipeline,
 }
 
-/// An item buffer with the radix scratch and the kernels' bindings to them, both directions.
+/// An item buffer with the radix scratch and the kernels' bindings to them, both directions
+/// (shared with the submissions that use them).
 struct RadixTarget<'a> {
     items: &'a Buffer,
     scratch: &'a RadixScratch,
-    bindings: [Bindings; 2],
+    bindings: Arc<[Bindings; 2]>,
 }
 
 /// The radix sort's scratch buffers for up to `capacity` items: the second item buffer, the
@@ -129,7 +136,9 @@ impl StorePipelines {
             ComputePipeline::new(ctx, &ComputePipelineDesc { label: entry, spirv, entry, sets: &[set], push_constant_size: 0 })
         };
 
+        let schedule_spirv = crate::shaders::compile_wgsl("arpa store schedule", &arpa_core::gpu::shaders::compose(&[&arpa_core::gpu::shaders::SCHEDULE]))?;
         Ok(Self {
+            schedule: make(&schedule_spirv, "store_schedule", &[BindingKind::StorageBuffer; 3])?,
             keyed: make(&store_spirv, "store_keyed", &store_set)?,
             photon_keys: make(&store_spirv, "photon_keys", &store_set)?,
             pad_items: make(&store_spirv, "pad_items", &store_set)?,
@@ -147,7 +156,7 @@ impl StorePipelines {
     /// Binds the radix kernels to `items` and the scratch, both directions.
     fn radix_bindings<'a>(&self, items: &'a Buffer, scratch: &'a RadixScratch) -> Result<RadixTarget<'a>, VkError> {
         let bind = |src, dst| self.radix_count.bind(&[&[Resource::StorageBuffer(src), Resource::StorageBuffer(dst), Resource::StorageBuffer(&scratch.counts), Resource::UniformBuffer(&scratch.pass)]]);
-        Ok(RadixTarget { items, scratch, bindings: [bind(items, &scratch.items)?, bind(&scratch.items, items)?] })
+        Ok(RadixTarget { items, scratch, bindings: Arc::new([bind(items, &scratch.items)?, bind(&scratch.items, items)?]) })
     }
 
     /// Records the radix sort of the first `n` items (`n` ≤ the scratch's capacity) of the
@@ -242,7 +251,8 @@ impl StorePipelines {
 
 /// The keyed store's device buffers for given input capacities: slots, sort items, counters
 /// and the sorted outputs (see the module docs), with the shared [`StorePipelines`].
-/// Dropping it frees the buffers (every submission it made was waited for).
+/// Dropping it frees the buffers (after waiting for the submissions in flight, as every
+/// buffer's drop does).
 pub struct MapStore {
     raw_capacity: u32,
     photon_capacity: u32,
@@ -252,6 +262,9 @@ pub struct MapStore {
     counts: Buffer,
     /// Host-visible copy of `counts`, read after each submission.
     counts_host: Buffer,
+    /// The store half's indirect dispatch arguments (`store_keyed`, `photon_keys`), written
+    /// by the schedule kernel.
+    args: Buffer,
     fp_slots: Buffer,
     fp_box_slots: Buffer,
     ph_extra: Buffer,
@@ -263,6 +276,15 @@ pub struct MapStore {
     footprint_boxes: Buffer,
     photons: Buffer,
     photon_boxes: Buffer,
+}
+
+/// What the store half recorded into the photon pass's submission uses
+/// ([`MapStore::prepare_scheduled`]): keep it until that submission has been waited for.
+pub struct ScheduledStore {
+    bindings: Bindings,
+    schedule: Bindings,
+    /// Bound in both sets.
+    _params: Buffer,
 }
 
 fn size_error(reason: String) -> VkError {
@@ -309,6 +331,7 @@ impl MapStore {
             pipelines: Arc::clone(pipelines),
             counts: gpu("counts", 1, COUNTS_BYTES, storage | U::TRANSFER_SRC | U::TRANSFER_DST)?,
             counts_host: ctx.create_buffer("arpa store counts (host)", COUNTS_BYTES, U::TRANSFER_DST, MemoryLocation::GpuToCpu)?,
+            args: gpu("dispatch arguments", 1, 24, storage | U::INDIRECT_BUFFER)?,
             fp_slots: gpu("footprint slots", raw_capacity, FOOTPRINT_BYTES, storage)?,
             fp_box_slots: gpu("footprint box slots", raw_capacity, BOX_BYTES, storage)?,
             ph_extra: gpu("fallback photons", raw_capacity, size_of::<KeyedPhoton>() as u64, storage)?,
@@ -409,7 +432,9 @@ impl MapStore {
         record_compute_barrier(device, cmd);
     }
 
-    fn read_counts(&self) -> Result<StoreCounts, VkError> {
+    /// The counters copied out by the last submission of [`MapStore::record_scheduled`] or
+    /// [`MapStore::store`], once it has been waited for.
+    pub fn read_counts(&self) -> Result<StoreCounts, VkError> {
         Ok(bytemuck::pod_read_unaligned(&self.counts_host.read(0, COUNTS_BYTES)?))
     }
 
@@ -439,16 +464,80 @@ impl MapStore {
         self.read_counts()
     }
 
-    /// The second half, one submission waited for, with the `counts` that
-    /// [`MapStore::store`] returned for the same `raw`, `photons` and `settings`: pads the
-    /// appended items to their sorted lengths, sorts them and compacts the records and boxes
-    /// into [`MapStore::footprints`], [`MapStore::footprint_boxes`], [`MapStore::photons`] and
-    /// [`MapStore::photon_boxes`]. The submission ends with a barrier that makes them visible
-    /// to later shaders, transfers, acceleration-structure builds and the host. Returns the
-    /// counters after the compaction (with [`StoreCounts::overflowed`]).
+    /// The store half for the photon pass's submission: checks the inputs (`raw` and
+    /// `photons`, the pass's append buffers with these capacities; `counters`, its
+    /// [`arpa_core::gpu::layout::PhotonCounters`], a storage buffer) and makes the
+    /// parameters (`settings`' record counts unused: the schedule kernel writes them) and
+    /// bindings that [`MapStore::record_scheduled`] records with; they must live until the
+    /// submission is done.
     ///
-    /// Errors: [`VkError::InvalidInput`] for more photons than [`MapStore::photons_out_capacity`]
-    /// and the errors of [`MapStore::store`].
+    /// Errors: [`VkError::MissingUsage`] for inputs without `STORAGE_BUFFER`; device errors.
+    pub fn prepare_scheduled(&self, ctx: &VkContext, raw: &Buffer, photons: &Buffer, counters: &Buffer, settings: &StoreSettings) -> Result<ScheduledStore, VkError> {
+        let capacities = StoreSettings { raw_count: self.raw_capacity, photon_count: self.photon_capacity, ..*settings };
+        self.check_inputs(raw, photons, &capacities)?;
+        if !counters.usage().contains(vk::BufferUsageFlags::STORAGE_BUFFER) {
+            return Err(VkError::MissingUsage { what: counters.label().into(), usage: "STORAGE_BUFFER" });
+        }
+        let params = Self::params(ctx, &StoreParams::new(settings, None))?;
+        let bindings = self.store_bindings(raw, photons, &params)?;
+        let schedule = self.pipelines.schedule.bind(&[&[Resource::StorageBuffer(counters), Resource::StorageBuffer(&params), Resource::StorageBuffer(&self.args)]])?;
+        Ok(ScheduledStore { bindings, schedule, _params: params })
+    }
+
+    /// Records the store half into `cmd` after the photon pass's trace: a barrier (the
+    /// pass's writes before compute reads), the schedule kernel (record counts and dispatch
+    /// sizes from the pass's counters), the store and the sort items as indirect dispatches,
+    /// and the copy of the counters to the host-visible buffer ([`MapStore::read_counts`]
+    /// after the wait).
+    ///
+    /// Errors: as [`ComputePipeline::record_dispatch_indirect`].
+    pub fn record_scheduled(&self, device: &ash::Device, cmd: vk::CommandBuffer, prepared: &ScheduledStore) -> Result<(), VkError> {
+        let after_trace = vk::MemoryBarrier::default()
+            .src_access_mask(vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::HOST_WRITE)
+            .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE);
+        let to_indirect = vk::MemoryBarrier::default()
+            .src_access_mask(vk::AccessFlags::SHADER_WRITE)
+            .dst_access_mask(vk::AccessFlags::INDIRECT_COMMAND_READ | vk::AccessFlags::SHADER_READ | vk::AccessFlags::UNIFORM_READ);
+        // SAFETY: plain barriers in a recording command buffer.
+        unsafe {
+            device.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR | vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::HOST,
+                vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER,
+                vk::DependencyFlags::empty(),
+                &[after_trace],
+                &[],
+                &[],
+            );
+        }
+        record_fill(device, cmd, &self.counts, 0);
+        record_compute_barrier(device, cmd);
+        self.pipelines.schedule.record_dispatch(cmd, &prepared.schedule, &[], [1, 1, 1])?;
+        // SAFETY: as above.
+        unsafe {
+            device.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::COMPUTE_SHADER,
+                vk::PipelineStageFlags::DRAW_INDIRECT | vk::PipelineStageFlags::COMPUTE_SHADER,
+                vk::DependencyFlags::empty(),
+                &[to_indirect],
+                &[],
+                &[],
+            );
+        }
+        self.pipelines.keyed.record_dispatch_indirect(cmd, &prepared.bindings, &[], &self.args, 0)?;
+        record_compute_barrier(device, cmd);
+        self.pipelines.photon_keys.record_dispatch_indirect(cmd, &prepared.bindings, &[], &self.args, 12)?;
+        self.record_counts_copy(device, cmd);
+        Ok(())
+    }
+
+    /// The second half, one submission waited for, with the `counts` that
+    /// [`MapStore::store`] returned for the same `raw`, `photons` and `settings`
+    /// ([`MapStore::submit_sort`], then the counters read back after the compaction, with
+    /// [`StoreCounts::overflowed`]).
+    ///
+    /// Errors: as [`MapStore::submit_sort`].
     pub fn sort(
         &self,
         ctx: &VkContext,
@@ -457,6 +546,24 @@ impl MapStore {
         counts: &StoreCounts,
         settings: &StoreSettings,
     ) -> Result<StoreCounts, VkError> {
+        self.submit_sort(ctx, raw, photons, counts, settings)?;
+        ctx.finish()?;
+        self.read_counts()
+    }
+
+    /// The second half without a wait ([`VkContext::submit`]; its parameters and bindings
+    /// live with the submission), with the `counts` the store half counted for the same
+    /// `raw`, `photons` and `settings` (whose record counts are the photon pass's): pads the
+    /// appended items to their sorted lengths, sorts them and compacts the records and boxes
+    /// into [`MapStore::footprints`], [`MapStore::footprint_boxes`], [`MapStore::photons`] and
+    /// [`MapStore::photon_boxes`]. The submission ends with a barrier that makes them visible
+    /// to later shaders, transfers, acceleration-structure builds and the host, and with the
+    /// copy of the counters after the compaction ([`MapStore::read_counts`] after a wait).
+    ///
+    /// Errors: [`VkError::InvalidInput`] for more photons than [`MapStore::photons_out_capacity`],
+    /// counts above the capacities or past the input buffers; [`VkError::MissingUsage`] for
+    /// inputs without `STORAGE_BUFFER`; device errors.
+    pub fn submit_sort(&self, ctx: &VkContext, raw: &Buffer, photons: &Buffer, counts: &StoreCounts, settings: &StoreSettings) -> Result<(), VkError> {
         self.check_inputs(raw, photons, settings)?;
         if counts.total_photons() > self.photons_out_capacity {
             return Err(size_error(format!(
@@ -470,13 +577,14 @@ impl MapStore {
         }
         let p = StoreParams::new(settings, Some(counts));
         let params = Self::params(ctx, &p)?;
-        let bindings = self.store_bindings(raw, photons, &params)?;
+        let bindings = Arc::new(self.store_bindings(raw, photons, &params)?);
         let fp_sort = self.pipelines.radix_bindings(&self.fp_items, &self.radix)?;
         let ph_sort = self.pipelines.radix_bindings(&self.ph_items, &self.radix)?;
         // Slots: footprints below raw_count, photons below photon_count + raw_count.
         let value_bound = settings.photon_count.saturating_add(settings.raw_count);
         let device = ctx.device();
-        ctx.submit_and_wait(|cmd| {
+        let keep: KeepAlive = vec![Box::new(params), Box::new(Arc::clone(&bindings)), Box::new(Arc::clone(&fp_sort.bindings)), Box::new(Arc::clone(&ph_sort.bindings))];
+        let (recorded, _) = ctx.submit(keep, |cmd| {
             self.pipelines.pad_items.record_dispatch_linear(cmd, &bindings, &[], p.fp_sorted.max(p.ph_sorted))?;
             record_compute_barrier(device, cmd);
             // The appended items only (the padding after them sorts last anyway).
@@ -486,9 +594,8 @@ impl MapStore {
             self.pipelines.compact_photons.record_dispatch_linear(cmd, &bindings, &[], p.ph_sorted)?;
             self.record_counts_copy(device, cmd);
             Ok::<(), VkError>(())
-        })??;
-        drop((bindings, fp_sort, ph_sort, params));
-        self.read_counts()
+        })?;
+        recorded
     }
 
     /// The sorted footprints of `counts` (caustic first), read back.

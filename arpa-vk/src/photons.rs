@@ -68,6 +68,17 @@ impl PhotonOutputs {
     pub fn photon_capacity(&self) -> u32 {
         self.photon_capacity
     }
+
+    /// The counters ([`PhotonCounters`], host-visible storage), for kernels that take the
+    /// pass's counts on the device.
+    pub fn counters(&self) -> &Buffer {
+        &self.counters
+    }
+
+    /// The counters of the last pass, once its submission has been waited for.
+    pub fn read_counters(&self) -> Result<PhotonCounters, VkError> {
+        Ok(bytemuck::pod_read_unaligned(&self.counters.read(0, size_of::<PhotonCounters>() as u64)?))
+    }
 }
 
 /// The photon pass of one render.
@@ -140,12 +151,25 @@ impl PhotonPass {
 
     /// Traces the photons `batch` (global indices of the iteration `setup`: their random
     /// streams, emitters and record keys are those of one pass over the whole iteration)
-    /// into `out` (bound with [`PhotonPass::bind`]), waits, and returns the counters.
+    /// into `out` (bound with [`PhotonPass::bind`]), waits, and returns the counters
+    /// ([`PhotonPass::prepare`], [`PhotonPass::record`] in a submission of its own).
+    ///
+    /// Errors: as [`PhotonPass::prepare`].
+    pub fn run(&mut self, ctx: &VkContext, setup: &PhotonPassSetup, batch: std::ops::Range<u32>, out: &mut PhotonOutputs) -> Result<PhotonCounters, VkError> {
+        if let Some(extent) = self.prepare(setup, batch, out)? {
+            ctx.submit_and_wait(|cmd| self.record(ctx, cmd, extent))??;
+        }
+        out.read_counters()
+    }
+
+    /// Checks the batch and writes its parameters, emitter tables and zeroed counters into
+    /// host-visible memory (no submission of this pass may be in flight); returns the launch
+    /// to record ([`PhotonPass::record`]), or `None` for an empty batch.
     ///
     /// Errors: [`VkError::InvalidInput`] when `setup` is for another emitter count, when the
     /// record keys `photons · max_depth` overflow `u32`, for a batch outside the iteration,
     /// or when nothing is bound.
-    pub fn run(&mut self, ctx: &VkContext, setup: &PhotonPassSetup, batch: std::ops::Range<u32>, out: &mut PhotonOutputs) -> Result<PhotonCounters, VkError> {
+    pub fn prepare(&mut self, setup: &PhotonPassSetup, batch: std::ops::Range<u32>, out: &mut PhotonOutputs) -> Result<Option<[u32; 3]>, VkError> {
         let invalid = |reason: String| VkError::InvalidInput { what: "photon pass".into(), reason };
         if setup.lights.len() != self.emitters || setup.allocation.len() != self.emitters || setup.first_index.len() != self.emitters {
             return Err(invalid(format!("{} emitters in the setup, the pass was made for {}", setup.lights.len(), self.emitters)));
@@ -167,14 +191,18 @@ impl PhotonPass {
         self.lights.write(0, bytemuck::cast_slice(&lights))?;
         self.ranges.write(0, bytemuck::cast_slice(&ranges))?;
         // Host-visible: zeroed by the host before the submission, read after the wait.
-        let mut counters = PhotonCounters::default();
-        out.counters.write(0, bytemuck::bytes_of(&counters))?;
-        if photons > 0 {
-            let x = photons.min(LAUNCH_WIDTH);
-            let bindings = self.bindings.as_ref().ok_or_else(|| invalid("no output buffers bound".into()))?;
-            self.pipeline.trace_and_wait(ctx, bindings, &[], [x, photons.div_ceil(x), 1])?;
-            counters = bytemuck::pod_read_unaligned(&out.counters.read(0, size_of::<PhotonCounters>() as u64)?);
-        }
-        Ok(counters)
+        out.counters.write(0, bytemuck::bytes_of(&PhotonCounters::default()))?;
+        let x = photons.min(LAUNCH_WIDTH);
+        Ok((photons > 0).then(|| [x, photons.div_ceil(x), 1]))
+    }
+
+    /// Records the trace that [`PhotonPass::prepare`] returned into `cmd`, framed by
+    /// barriers (host and earlier writes before it, its writes before transfers and the
+    /// host; [`RtPipeline::trace_and_wait`]).
+    ///
+    /// Errors: [`VkError::InvalidInput`] when nothing is bound or the launch is too large.
+    pub fn record(&self, ctx: &VkContext, cmd: vk::CommandBuffer, extent: [u32; 3]) -> Result<(), VkError> {
+        let bindings = self.bindings.as_ref().ok_or_else(|| VkError::InvalidInput { what: "photon pass".into(), reason: "no output buffers bound".into() })?;
+        self.pipeline.record_framed_trace(ctx, cmd, bindings, &[], extent)
     }
 }

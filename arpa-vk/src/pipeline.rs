@@ -9,7 +9,7 @@
 //! `shaderGroupBaseAlignment`, filled with `vkGetRayTracingShaderGroupHandlesKHR`.
 
 use crate::accel::AccelerationStructure;
-use crate::buffer::Buffer;
+use crate::buffer::{Buffer, KeepAlive, Submission};
 use crate::device::{RayTracingProperties, Shared, VkContext};
 use crate::error::{VkError, VkResultExt};
 use crate::shaders::SpirvModule;
@@ -444,47 +444,54 @@ impl RtPipeline {
     /// then waits for it.
     pub fn trace_and_wait(&self, ctx: &VkContext, bindings: &Bindings, push_constants: &[u8], extent: [u32; 3]) -> Result<(), VkError> {
         self.check_trace(push_constants, extent)?;
+        ctx.submit_and_wait(|cmd| self.record_framed_trace(ctx, cmd, bindings, push_constants, extent))?
+    }
+
+    /// As [`RtPipeline::trace_and_wait`] without the wait ([`VkContext::submit`]): `keep`
+    /// (what the trace uses that the caller does not keep, e.g. `bindings` themselves, moved
+    /// in after this call records them) lives until a later wait finds it done.
+    pub fn trace(&self, ctx: &VkContext, bindings: &Bindings, push_constants: &[u8], extent: [u32; 3], keep: KeepAlive) -> Result<Submission, VkError> {
+        self.check_trace(push_constants, extent)?;
+        let (recorded, submission) = ctx.submit(keep, |cmd| self.record_framed_trace(ctx, cmd, bindings, push_constants, extent))?;
+        recorded?;
+        Ok(submission)
+    }
+
+    /// Records the barriers and the trace of [`RtPipeline::trace_and_wait`].
+    pub(crate) fn record_framed_trace(&self, ctx: &VkContext, cmd: vk::CommandBuffer, bindings: &Bindings, push_constants: &[u8], extent: [u32; 3]) -> Result<(), VkError> {
         let device = ctx.device();
-        ctx.submit_and_wait(|cmd| {
-            let before = vk::MemoryBarrier::default()
-                .src_access_mask(
-                    vk::AccessFlags::HOST_WRITE | vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR,
-                )
-                .dst_access_mask(
-                    vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR,
-                );
-            let after = vk::MemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::SHADER_WRITE)
-                .dst_access_mask(vk::AccessFlags::HOST_READ | vk::AccessFlags::TRANSFER_READ);
-            // SAFETY: plain barriers in a recording command buffer.
-            unsafe {
-                device.cmd_pipeline_barrier(
-                    cmd,
-                    vk::PipelineStageFlags::HOST
-                        | vk::PipelineStageFlags::TRANSFER
-                        | vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR,
-                    vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
-                    vk::DependencyFlags::empty(),
-                    &[before],
-                    &[],
-                    &[],
-                );
-            }
-            self.record_trace(cmd, bindings, push_constants, extent)?;
-            // SAFETY: as above.
-            unsafe {
-                device.cmd_pipeline_barrier(
-                    cmd,
-                    vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
-                    vk::PipelineStageFlags::HOST | vk::PipelineStageFlags::TRANSFER,
-                    vk::DependencyFlags::empty(),
-                    &[after],
-                    &[],
-                    &[],
-                );
-            }
-            Ok(())
-        })?
+        let before = vk::MemoryBarrier::default()
+            .src_access_mask(vk::AccessFlags::HOST_WRITE | vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR)
+            .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR);
+        let after = vk::MemoryBarrier::default()
+            .src_access_mask(vk::AccessFlags::SHADER_WRITE)
+            .dst_access_mask(vk::AccessFlags::HOST_READ | vk::AccessFlags::TRANSFER_READ);
+        // SAFETY: plain barriers in a recording command buffer.
+        unsafe {
+            device.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::HOST | vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR,
+                vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
+                vk::DependencyFlags::empty(),
+                &[before],
+                &[],
+                &[],
+            );
+        }
+        self.record_trace(cmd, bindings, push_constants, extent)?;
+        // SAFETY: as above.
+        unsafe {
+            device.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR,
+                vk::PipelineStageFlags::HOST | vk::PipelineStageFlags::TRANSFER,
+                vk::DependencyFlags::empty(),
+                &[after],
+                &[],
+                &[],
+            );
+        }
+        Ok(())
     }
 }
 
@@ -533,7 +540,8 @@ pub struct Bindings {
 
 impl Drop for Bindings {
     fn drop(&mut self) {
-        // SAFETY: no submission using the sets is pending (every one is waited for).
+        crate::buffer::settle(&self.shared);
+        // SAFETY: no submission using the sets is pending (none is in flight after `settle`).
         unsafe { self.shared.device.device.destroy_descriptor_pool(self.pool, None) };
     }
 }

@@ -22,10 +22,10 @@ use arpa_core::render::prepared_scene::PreparedScene;
 use arpa_core::store::progressive_photon::PackedPhoton;
 use arpa_core::render::scene::{Scene, SceneError};
 use arpa_core::render::tracer::{
-    BackendKind, Call, Capabilities, DeviceTimes, Image, IterationStats, QueryRecord, RenderSettings, Stage, StageClock, StageError, StageTimes,
-    Tracer, prepare_upload, uploaded,
+    BackendKind, Call, Capabilities, Image, IterationStats, QueryRecord, RenderSettings, Stage, StageClock, StageError, Tracer, prepare_upload,
+    uploaded,
 };
-use crate::timing::DeviceClock;
+use crate::timing::{StageLedger, StageScope};
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 use std::ops::Range;
@@ -59,20 +59,28 @@ pub enum VkTracerError {
 ///
 /// | stage | on the device | host waits for / reads back |
 /// |---|---|---|
-/// | [`upload_scene`](Tracer::upload_scene) | validates scene and settings, builds the triangle structures, uploads the scene tables, compiles the pipelines | the builds |
-/// | [`camera_pass`](Tracer::camera_pass) | ray generation per pixel, closest-hit and miss over the triangles ([`CameraPass`]) | the trace |
-/// | [`photon_pass`](Tracer::photon_pass) | per photon batch: ray generation per photon appending keyed footprints and photons ([`PhotonPass`]); keyed store, sort and compaction into the batch's sorted maps and boxes ([`MapStore`]) | per batch, the photon counters (48 bytes: overflow and the store's sizes) and the store counts (48 bytes: the sort's schedule and the build's sizes) |
-/// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | per batch, AABB bottom levels per (kind, map) over the sorted boxes and one top level ([`MapAccel`]) | the build |
-/// | [`gather`](Tracer::gather) | per batch, ray generation per query record, one point query through the AABB hit group (GLSL intersection: exact test; any-hit: contribution, ignore) ([`GatherPass`]) | per batch, contribution and query-point counts (16 bytes) |
-/// | [`accumulate`](Tracer::accumulate) | compensated running sum of every plane ([`DeviceAccumulator`]) | the dispatch |
+/// | [`upload_scene`](Tracer::upload_scene) | validates scene and settings, builds the triangle structures, uploads the scene tables, compiles the pipelines | the uploads |
+/// | [`camera_pass`](Tracer::camera_pass) | ray generation per pixel, closest-hit and miss over the triangles ([`CameraPass`]) | nothing |
+/// | [`photon_pass`](Tracer::photon_pass) | per photon batch, in one submission: ray generation per photon appending keyed footprints and photons ([`PhotonPass`]), then the keyed store with its record counts and dispatch sizes from the pass's counters on the device (`schedule.wgsl`); then, in a second submission, sort and compaction into the batch's sorted maps and boxes ([`MapStore`]) | per batch, one wait for the first submission: the photon counters (48 bytes: overflow) and the store counts (48 bytes: the sort's schedule and the build's sizes) |
+/// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | per batch, AABB bottom levels per (kind, map) over the sorted boxes and one top level ([`MapAccel`]) | nothing |
+/// | [`gather`](Tracer::gather) | per batch, ray generation per query record, one point query through the AABB hit group (GLSL intersection: exact test; any-hit: contribution, ignore) ([`GatherPass`]) | nothing |
+/// | [`accumulate`](Tracer::accumulate) | compensated running sum of every plane ([`DeviceAccumulator`]) | one wait for the iteration's work: the gather's counts (16 bytes) and every submission's two timestamps |
 ///
-/// Each stage is one submission (or two, for the photon pass's store and sort) that the host
-/// waits for: the stage times of [`IterationStats::times`] are the host's around them, and
+/// A stage that reads nothing back submits and returns ([`VkContext::submit`]); queue
+/// order runs its work before the next stage's, and what its submissions use lives with
+/// them until a wait retires them. [`Tracer::read_stats`] reads the gather's counts itself
+/// (a wait) between a gather and its accumulate. The stage times of
+/// [`IterationStats::times`] are therefore the host's encoding and submission time plus
+/// the waits above (a wait also covers the device work submitted before it), and
 /// [`IterationStats::device_times`] the device's own, from a timestamp before and after
-/// every submission ([`crate::timing`]; where the queue family has no timestamps, they are
-/// [`DeviceTimes::Unavailable`]). Both readbacks of the photon pass stay because Vulkan's
-/// indirect build takes primitive counts from device memory but not the sizes of the
-/// structures, which must be allocated before the build.
+/// every submission, summed per stage once the accumulate's wait has retired them all
+/// ([`crate::timing`]; where the queue family has no timestamps, they are
+/// [`arpa_core::render::tracer::DeviceTimes::Unavailable`]). The photon pass's wait
+/// stays because the sort's passes are sized from the counts on the host and because
+/// Vulkan's indirect build takes primitive counts from device memory but not the sizes of
+/// the structures, which must be allocated before the build; the adapter's
+/// `accelerationStructureIndirectBuild` is reported in
+/// [`crate::DeviceInfo::acceleration_structure_indirect_build`] (lavapipe: off).
 ///
 /// # Photon records and batches
 /// The photon pass's buffers start at [`arpa_core::gpu::batch::INITIAL_RECORDS_PER_PHOTON`]
@@ -167,6 +175,10 @@ struct Loaded {
     queries: Buffer,
     image: Buffer,
     limits: RecordLimits,
+    /// Device time per stage of the iteration in progress.
+    ledger: Arc<StageLedger>,
+    /// A gather ran and its counts are not in the stats yet (accumulate's wait reads them).
+    gather_counts_pending: bool,
     clock: StageClock,
 }
 
@@ -247,31 +259,21 @@ impl VkTracer {
     }
 }
 
-/// Runs `stage` on `clock` ([`StageClock::run`]) and records its device time: the device
-/// time of the submissions this thread made during the stage ([`DeviceClock`]), or
-/// [`DeviceTimes::Unavailable`] where one of them was not timed. Each stage's time is known
-/// when the stage ends.
-fn timed<E: From<StageError>>(clock: &mut StageClock, stage: Stage, body: impl FnOnce(&mut StageClock) -> Result<(), E>) -> Result<(), E> {
-    let before = DeviceClock::now();
-    clock.run(stage, body)?;
-    let stats = clock.stats_mut();
-    match (DeviceClock::now().since(&before), &mut stats.device_times) {
-        (None, d) => *d = DeviceTimes::Unavailable,
-        (Some(_), DeviceTimes::Unavailable) => {}
-        (Some(seconds), DeviceTimes::Measured(t)) => {
-            if let Some(v) = t.of_mut(stage) {
-                *v = seconds;
-            }
-        }
-        (Some(seconds), d @ DeviceTimes::Host) => {
-            let mut t = StageTimes::default();
-            if let Some(v) = t.of_mut(stage) {
-                *v = seconds;
-            }
-            *d = DeviceTimes::Measured(t);
-        }
-    }
-    Ok(())
+/// Runs `stage` on `clock` ([`StageClock::run`]) with the submissions this thread makes
+/// meanwhile timed into `stage` of `ledger` ([`StageScope`]); their device time arrives
+/// when a later wait retires them, and [`Tracer::accumulate`] copies the iteration's into
+/// the stats.
+fn timed<E: From<StageError>>(ledger: &Arc<StageLedger>, clock: &mut StageClock, stage: Stage, body: impl FnOnce(&mut StageClock) -> Result<(), E>) -> Result<(), E> {
+    let _scope = StageScope::enter(ledger, stage, clock.completed());
+    clock.run(stage, body)
+}
+
+/// Writes the gather's counts (summed over the photon batches) into `stats`.
+fn set_gather_counts(stats: &mut IterationStats, counts: &crate::gather::GatherCounts) {
+    stats.contributions = counts.contributions;
+    stats.candidates = counts.candidates;
+    stats.covered = counts.covered;
+    stats.query_points = counts.query_points;
 }
 
 /// The pipelines of a context, once made.
@@ -305,13 +307,41 @@ fn trace_batch(ctx: &VkContext, adapter: &str, st: &mut Loaded, clock: &mut Stag
     let photons = range.end - range.start;
     let limits = st.limits;
     let size = |message: String| VkTracerError::Size { adapter: adapter.to_string(), message };
-    let counters = loop {
-        let c = st.photon.run(ctx, setup, range.clone(), &mut st.outputs)?;
+    // The store's parameters; its record counts come from the pass's counters on the device.
+    let mut settings = StoreSettings {
+        heuristics: setup.heuristics.pack(),
+        radii: setup.radii.map(|r| r as f32),
+        bounds: st.prepared.bounds().to_f32_conservative(),
+        raw_count: 0,
+        photon_count: 0,
+    };
+    // Trace and store in one submission, then one wait for both counters; on overflow
+    // discard the batch's records, grow the buffers and trace the same photons again.
+    let (counters, counts) = loop {
+        let caps = (st.outputs.footprint_capacity(), st.outputs.photon_capacity());
+        if st.batches.get(k).is_none_or(|b| b.store.capacities() != caps) {
+            // Free this batch's old buffers first.
+            st.batches.truncate(k);
+            let store = MapStore::new(ctx, &st.pipelines.store, caps.0, caps.1)?;
+            st.batches.push(Batch { accel: None, store, counts: StoreCounts::default() });
+        }
+        let extent = st.photon.prepare(setup, range.clone(), &mut st.outputs)?;
+        let store = &st.batches[k].store;
+        let outputs = &st.outputs;
+        let scheduled = store.prepare_scheduled(ctx, outputs.footprints(), outputs.photons(), outputs.counters(), &settings)?;
+        let photon = &st.photon;
+        ctx.submit_and_wait(|cmd| {
+            if let Some(extent) = extent {
+                photon.record(ctx, cmd, extent)?;
+            }
+            store.record_scheduled(ctx.device(), cmd, &scheduled)
+        })??;
+        drop(scheduled);
+        let c = outputs.read_counters()?;
         if c.overflowed() == 0 {
-            break c;
+            break (c, store.read_counts()?);
         }
         clock.stats_mut().overflowed += c.overflowed();
-        let caps = (st.outputs.footprint_capacity(), st.outputs.photon_capacity());
         let (fp_cap, ph_cap) = match after_overflow(&limits, photons, c.footprint_appends, c.photon_appends, caps) {
             Overflow::Grow(f, p) => (f, p),
             Overflow::Shrink(b) => return Ok(Some(b)),
@@ -327,23 +357,11 @@ fn trace_batch(ctx: &VkContext, adapter: &str, st: &mut Loaded, clock: &mut Stag
         st.outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
         st.photon.bind(&st.scene, &st.outputs)?;
     };
-    let caps = (st.outputs.footprint_capacity(), st.outputs.photon_capacity());
-    if st.batches.get(k).is_none_or(|b| b.store.capacities() != caps) {
-        // Free this batch's old buffers first.
-        st.batches.truncate(k);
-        let store = MapStore::new(ctx, &st.pipelines.store, caps.0, caps.1)?;
-        st.batches.push(Batch { accel: None, store, counts: StoreCounts::default() });
-    }
-    let settings = StoreSettings {
-        heuristics: setup.heuristics.pack(),
-        radii: setup.radii.map(|r| r as f32),
-        bounds: st.prepared.bounds().to_f32_conservative(),
-        raw_count: counters.footprints_written(),
-        photon_count: counters.photons_written(),
-    };
+    // The counts the schedule kernel gave the store.
+    settings.raw_count = counters.footprints_written();
+    settings.photon_count = counters.photons_written();
     let outputs = &st.outputs;
     let batch = &mut st.batches[k];
-    let counts = batch.store.store(ctx, outputs.footprints(), outputs.photons(), &settings)?;
     // The sorted progressive photons (the pass's plus the footprints' fallbacks) must fit one
     // binding too.
     if u64::from(counts.photon_items) > u64::from(batch.store.photons_out_capacity()) {
@@ -353,7 +371,9 @@ fn trace_batch(ctx: &VkContext, adapter: &str, st: &mut Loaded, clock: &mut Stag
         }
         return Ok(Some(shrink(photons, f64::from(batch.store.photons_out_capacity()) / f64::from(counts.photon_items))));
     }
-    let counts = batch.store.sort(ctx, outputs.footprints(), outputs.photons(), &counts, &settings)?;
+    // Not waited for: nothing after it in the photon pass reads what it writes (the
+    // compaction cannot overflow, the check above ensures it).
+    batch.store.submit_sort(ctx, outputs.footprints(), outputs.photons(), &counts, &settings)?;
     batch.counts = counts;
     clock.stats_mut().add_photon_batch(&counters, &counts);
     Ok(None)
@@ -421,6 +441,8 @@ impl Tracer for VkTracer {
             queries,
             image,
             limits,
+            ledger: Arc::default(),
+            gather_counts_pending: false,
             clock: StageClock::new(),
         }));
         Ok(())
@@ -428,7 +450,7 @@ impl Tracer for VkTracer {
 
     fn camera_pass(&mut self) -> Result<(), VkTracerError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::CameraPass)?;
-        timed(&mut st.clock, Stage::CameraPass, |clock| Ok(st.camera.run(&self.ctx, clock.completed())?))
+        timed(&st.ledger, &mut st.clock, Stage::CameraPass, |clock| Ok(st.camera.run(&self.ctx, clock.completed())?))
     }
 
     fn photon_pass(&mut self) -> Result<(), VkTracerError> {
@@ -437,7 +459,8 @@ impl Tracer for VkTracer {
         let st = uploaded(self.state.as_deref_mut(), Stage::PhotonPass)?;
         // The batches read and write the whole state; the clock steps out of it meanwhile.
         let mut clock = std::mem::take(&mut st.clock);
-        let result = timed(&mut clock, Stage::PhotonPass, |clock| {
+        let ledger = Arc::clone(&st.ledger);
+        let result = timed(&ledger, &mut clock, Stage::PhotonPass, |clock| {
             // The previous iteration's structures refer to the buffers the store rewrites.
             for b in &mut st.batches {
                 b.accel = None;
@@ -466,7 +489,7 @@ impl Tracer for VkTracer {
 
     fn build_acceleration_structure(&mut self) -> Result<(), VkTracerError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::BuildAccelerationStructure)?;
-        timed(&mut st.clock, Stage::BuildAccelerationStructure, |_| {
+        timed(&st.ledger, &mut st.clock, Stage::BuildAccelerationStructure, |_| {
             for b in &mut st.batches[..st.batch_count] {
                 b.accel = None;
                 b.accel = Some(MapAccel::build(&self.ctx, b.store.footprint_boxes(), b.store.photon_boxes(), &b.counts)?);
@@ -477,33 +500,40 @@ impl Tracer for VkTracer {
 
     fn gather(&mut self) -> Result<(), VkTracerError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::Gather)?;
-        timed(&mut st.clock, Stage::Gather, |clock| {
+        timed(&st.ledger, &mut st.clock, Stage::Gather, |_| {
             let batches = st.batch_count;
-            let (mut contributions, mut candidates, mut covered, mut query_points) = ([0u64; 2], [0u64; 2], [0u64; 2], 0u64);
             for (k, b) in st.batches[..batches].iter().enumerate() {
                 let accel = b.accel.as_ref().ok_or_else(|| StageError::order(Stage::Gather, Stage::BuildAccelerationStructure))?;
                 let inputs = GatherInputs { footprints: b.store.footprints(), photons: b.store.photons(), tlas: accel.tlas(), radii: st.radii };
                 let batch = GatherBatch { first: k == 0, last: k + 1 == batches };
-                let counts = st.gather.run(&self.ctx, &st.queries, &st.image, &inputs, batch)?;
-                for m in 0..2 {
-                    contributions[m] += counts.contributions[m];
-                    candidates[m] += counts.candidates[m];
-                    covered[m] += counts.covered[m];
-                }
-                query_points += counts.query_points;
+                st.gather.run(&self.ctx, &st.queries, &st.image, &inputs, batch)?;
             }
-            let stats = clock.stats_mut();
-            stats.contributions = contributions;
-            stats.candidates = candidates;
-            stats.covered = covered;
-            stats.query_points = query_points;
+            // Its counts come back in accumulate's wait (or read_stats's).
+            st.gather_counts_pending = true;
             Ok(())
         })
     }
 
     fn accumulate(&mut self) -> Result<(), VkTracerError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::Accumulate)?;
-        timed(&mut st.clock, Stage::Accumulate, |_| Ok(st.accumulator.accumulate_and_wait(&self.ctx, &st.image)?))
+        timed(&st.ledger, &mut st.clock, Stage::Accumulate, |clock| {
+            // The iteration's one wait outside the photon pass: it retires every submission
+            // of the iteration (their device times arrive in the ledger).
+            st.accumulator.accumulate_and_wait(&self.ctx, &st.image)?;
+            if st.gather_counts_pending {
+                set_gather_counts(clock.stats_mut(), &st.gather.read_counts()?);
+                st.gather_counts_pending = false;
+            }
+            // The structures are not read again this iteration; dropped now, while nothing is
+            // in flight, they cost the next iteration no wait.
+            for b in &mut st.batches {
+                b.accel = None;
+            }
+            Ok::<(), VkTracerError>(())
+        })?;
+        // The accumulation's own submission has retired too.
+        st.clock.stats_mut().device_times = st.ledger.times();
+        Ok(())
     }
 
     fn iterations(&self) -> u32 {
@@ -565,7 +595,15 @@ impl Tracer for VkTracer {
         Ok(all)
     }
 
+    /// The stats; after a gather whose accumulate has not run yet, its counts are read here
+    /// (a wait), since the gather itself does not wait for them.
     fn read_stats(&self) -> Result<IterationStats, VkTracerError> {
-        Ok(*self.loaded(Call::ReadStats)?.clock.stats())
+        let st = self.loaded(Call::ReadStats)?;
+        let mut stats = *st.clock.stats();
+        if st.gather_counts_pending {
+            self.ctx.finish()?;
+            set_gather_counts(&mut stats, &st.gather.read_counts()?);
+        }
+        Ok(stats)
     }
 }

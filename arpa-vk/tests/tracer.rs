@@ -206,8 +206,8 @@ fn per_pixel_planes_are_accumulated_and_resume_exactly() {
 
 /// Device times of a finished iteration: measured on an adapter with timestamps (lavapipe
 /// has them), every stage finite and non-negative, the traced passes non-zero, each stage
-/// within the host time of its call and the total within the iteration's wall time (plus
-/// 1 ms and 1 % for the two clocks' rounding).
+/// and the total within the iteration's wall time (plus 1 ms and 1 % for the two clocks'
+/// rounding).
 fn check_device_times(stats: &IterationStats, wall: f64, has_timestamps: bool) {
     use arpa_core::render::tracer::DeviceTimes;
     let d = match stats.device_times {
@@ -217,9 +217,11 @@ fn check_device_times(stats: &IterationStats, wall: f64, has_timestamps: bool) {
             return;
         }
     };
-    let (host, slack) = (stats.times, |t: f64| t * 1.01 + 1e-3);
-    for (name, dev, host) in [("camera", d.camera, host.camera), ("photon", d.photon, host.photon), ("build", d.build, host.build), ("gather", d.gather, host.gather), ("accumulate", d.accumulate, host.accumulate)] {
-        assert!(dev.is_finite() && dev >= 0.0 && dev <= slack(host), "{name}: device {dev} s, host {host} s");
+    // A stage that reads nothing back returns before its device work is done, so a
+    // stage's device time may exceed its host time; each is within the iteration's.
+    let slack = |t: f64| t * 1.01 + 1e-3;
+    for (name, dev) in [("camera", d.camera), ("photon", d.photon), ("build", d.build), ("gather", d.gather), ("accumulate", d.accumulate)] {
+        assert!(dev.is_finite() && dev >= 0.0 && dev <= slack(wall), "{name}: device {dev} s, iteration wall {wall} s");
     }
     assert!(d.camera > 0.0 && d.photon > 0.0 && d.gather > 0.0, "the passes that trace take device time: {d:?}");
     assert!(d.total() <= slack(wall), "device total {} s over the iteration's wall time {wall} s", d.total());
@@ -241,4 +243,30 @@ fn every_iteration_reports_device_time_per_stage() {
         check_device_times(&t.read_stats().unwrap(), wall, has_timestamps);
     }
     assert_clean(&t.context().validation_log(), "while timing stages");
+}
+
+/// The stages that read nothing back return with their work in flight, and the gather's
+/// counts, read back at the iteration's one wait, are what `read_stats` reads (with a wait
+/// of its own) between a gather and its accumulate; the accumulate leaves nothing in flight.
+#[test]
+fn stages_that_read_nothing_leave_their_work_in_flight() {
+    let Some(mut t) = tracer() else { return };
+    t.upload_scene(&scene(), &RenderSettings { photons_per_iteration: 20_000, seed: 5, ..RenderSettings::default() }).unwrap();
+    for _ in 0..2 {
+        t.camera_pass().unwrap();
+        assert!(t.context().in_flight() > 0, "the camera pass waited for its trace");
+        t.photon_pass().unwrap();
+        t.build_acceleration_structure().unwrap();
+        assert!(t.context().in_flight() > 0, "the build waited for its structures");
+        t.gather().unwrap();
+        assert!(t.context().in_flight() > 0, "the gather waited for its trace");
+        let early = t.read_stats().unwrap();
+        assert_eq!(t.context().in_flight(), 0, "read_stats waits for the gather's counts");
+        t.accumulate().unwrap();
+        assert_eq!(t.context().in_flight(), 0, "the accumulate is the iteration's wait");
+        let late = t.read_stats().unwrap();
+        assert!(late.query_points > 0 && late.gathered() > 0, "{late:?}");
+        assert_eq!((early.contributions, early.candidates, early.covered, early.query_points), (late.contributions, late.candidates, late.covered, late.query_points));
+    }
+    assert_clean(&t.context().validation_log(), "with stages in flight");
 }

@@ -3,8 +3,9 @@
 //! ([`crate::store::MapStore`]) on the photon pass's buffers, every batch's sorted records
 //! kept ([`BatchMaps`]), their acceleration structures ([`crate::accel`]) and the image
 //! gather over them in batch order ([`crate::gather::ImageGather`]). Everything stays on
-//! the device; the host reads back the store's 48-byte counters (they size the sort and
-//! the build: wgpu has no indirect build) and what the caller asks for.
+//! the device; the host reads back the store's 48-byte counters, together with the photon
+//! pass's (they size the sort and the build: wgpu has no indirect build), and what the
+//! caller asks for.
 
 use crate::accel::MapAccel;
 use crate::device::GpuContext;
@@ -61,6 +62,59 @@ pub(crate) fn read_buffer(ctx: &GpuContext, stage: &'static str, buffer: &wgpu::
     Ok(out)
 }
 
+/// Copies of device buffers into one mappable buffer, recorded into the encoder of a
+/// submission that runs anyway, so that reading them costs no submission and no wait of its
+/// own: [`Readback::new`] allocates it, [`Readback::copy`] records each copy, then after the
+/// encoder is submitted [`Readback::map`] requests the mapping and, after the caller's next
+/// wait (`wgpu::Device::poll`), [`Readback::bytes`] returns the bytes.
+pub struct Readback {
+    stage: &'static str,
+    staging: wgpu::Buffer,
+    used: u64,
+    mapped: Option<std::sync::mpsc::Receiver<Result<(), wgpu::BufferAsyncError>>>,
+}
+
+impl Readback {
+    /// A read-back of up to `bytes` bytes (a multiple of 4) for `stage` (named in errors).
+    pub fn new(ctx: &GpuContext, stage: &'static str, bytes: u64) -> Self {
+        let staging = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("arpa read-back"),
+            size: bytes.max(16),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Self { stage, staging, used: 0, mapped: None }
+    }
+
+    /// Records the copy of the first `bytes` (a multiple of 4) of `source` (`COPY_SRC`) after
+    /// the bytes copied so far; returns their offset in [`Readback::bytes`].
+    pub fn copy(&mut self, encoder: &mut wgpu::CommandEncoder, source: &wgpu::Buffer, bytes: u64) -> usize {
+        let at = self.used;
+        encoder.copy_buffer_to_buffer(source, 0, &self.staging, at, bytes);
+        self.used += bytes;
+        at as usize
+    }
+
+    /// Requests the mapping; call after submitting the encoder that holds the copies.
+    pub fn map(&mut self) {
+        let (tx, rx) = std::sync::mpsc::channel();
+        self.staging.map_async(wgpu::MapMode::Read, .., move |r| {
+            let _ = tx.send(r);
+        });
+        self.mapped = Some(rx);
+    }
+
+    /// The bytes copied, once a wait after [`Readback::map`] has completed the mapping.
+    pub fn bytes(self) -> Result<Vec<u8>, WgpuError> {
+        let readback = |e: String| WgpuError::Readback { stage: self.stage, message: e };
+        let rx = self.mapped.as_ref().ok_or_else(|| readback("read back before it was mapped".into()))?;
+        rx.recv().map_err(|e| readback(e.to_string()))?.map_err(|e| readback(e.to_string()))?;
+        let out = self.staging.get_mapped_range(..).map_err(|e| readback(e.to_string()))?[..self.used as usize].to_vec();
+        self.staging.unmap();
+        Ok(out)
+    }
+}
+
 /// One photon batch's maps: its sorted records and their boxes (caustic first), the
 /// counts, the progressive radii they were stored with, and, once built, their
 /// acceleration structure.
@@ -90,12 +144,20 @@ pub struct PhotonMaps {
     batches: Vec<BatchMaps>,
 }
 
-/// A batch the store half has stored ([`PhotonMaps::store`]), for [`PhotonMaps::sort`].
+/// A batch the store half has stored ([`PhotonMaps::encode_store`]), for [`PhotonMaps::sort`].
 #[derive(Debug)]
 pub struct Stored {
     /// What the store counted.
     pub counts: StoreCounts,
     settings: StoreSettings,
+}
+
+impl Stored {
+    /// The batch stored with `settings` (their record counts those of the photon pass's
+    /// counters read back), whose store counted `counts`.
+    pub fn new(counts: StoreCounts, settings: StoreSettings) -> Self {
+        Self { counts, settings }
+    }
 }
 
 impl PhotonMaps {
@@ -107,12 +169,12 @@ impl PhotonMaps {
     }
 
     /// Binds the photon pass's output buffers (`raw`: keyed footprints, `photons`: keyed
-    /// photons) with their capacities; call again whenever they are reallocated. The
-    /// batches kept so far stay.
-    pub fn bind_inputs(&mut self, ctx: &GpuContext, raw: &wgpu::Buffer, photons: &wgpu::Buffer, raw_capacity: u32, photon_capacity: u32) -> Result<(), WgpuError> {
+    /// photons, `counters`: its [`arpa_core::gpu::layout::PhotonCounters`]) with their
+    /// capacities; call again whenever they are reallocated. The batches kept so far stay.
+    pub fn bind_inputs(&mut self, ctx: &GpuContext, raw: &wgpu::Buffer, photons: &wgpu::Buffer, counters: &wgpu::Buffer, raw_capacity: u32, photon_capacity: u32) -> Result<(), WgpuError> {
         self.store = None;
         let store = scoped(ctx, "allocating the store buffers", || {
-            MapStore::new(&ctx.device, &self.pipelines, raw, photons, raw_capacity, photon_capacity).map_err(|e| WgpuError::Size(e.to_string()))
+            MapStore::new(&ctx.device, &self.pipelines, raw, photons, counters, raw_capacity, photon_capacity).map_err(|e| WgpuError::Size(e.to_string()))
         })?;
         self.store = Some(store);
         Ok(())
@@ -127,22 +189,19 @@ impl PhotonMaps {
         self.batches.clear();
     }
 
-    /// The first half of a batch's store: stores the photon pass's output (heuristics,
-    /// fallbacks, sort items) and reads the counts back. Then [`PhotonMaps::sort`] (before
-    /// the next [`PhotonMaps::bind_inputs`]) or, to drop the batch, nothing.
-    pub fn store(&self, ctx: &GpuContext, settings: &StoreSettings) -> Result<Stored, WgpuError> {
+    /// The first half of a batch's store, recorded into the photon pass's `encoder` after
+    /// the pass: stores its output (heuristics, fallbacks, sort items) with the record
+    /// counts taken from its counters on the device, and records the copy of the store's
+    /// counts ([`StoreCounts`]) into `readback`, at the offset returned. After the wait,
+    /// [`Stored::new`] and [`PhotonMaps::sort`] (before the next
+    /// [`PhotonMaps::bind_inputs`]) or, to drop the batch, nothing.
+    pub fn encode_store(&self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, settings: &StoreSettings, readback: &mut Readback) -> Result<usize, WgpuError> {
         let store = self.store_for(Stage::PhotonPass)?;
-        scoped(ctx, "store", || {
-            let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa store") });
-            store.encode_store(&ctx.queue, &self.pipelines, &mut encoder, settings).map_err(|e| WgpuError::Size(e.to_string()))?;
-            ctx.submit(encoder);
-            Ok(())
-        })?;
-        let bytes = read_buffer(ctx, "store counts", store.counts_buffer(), size_of::<StoreCounts>() as u64)?;
-        Ok(Stored { counts: bytemuck::pod_read_unaligned(&bytes), settings: *settings })
+        store.encode_store(&ctx.queue, &self.pipelines, encoder, settings);
+        Ok(readback.copy(encoder, store.counts_buffer(), size_of::<StoreCounts>() as u64))
     }
 
-    /// The second half: sorts and compacts what [`PhotonMaps::store`] stored and keeps it
+    /// The second half: sorts and compacts what [`PhotonMaps::encode_store`] stored and keeps it
     /// as the next batch. `last`: the iteration's last batch, which keeps the store's
     /// output buffers themselves; an earlier batch's records are copied out, since the
     /// next batch's store reuses those buffers.

@@ -50,6 +50,11 @@ pub fn store() -> String {
     compose(&[&core::STORE])
 }
 
+/// The store's schedule from the device's counters (entry point `store_schedule`).
+pub fn schedule() -> String {
+    compose(&[&core::SCHEDULE])
+}
+
 /// The sort (entry points `sort_local`, `sort_merge`, `sort_global`).
 pub fn sort() -> String {
     compose(&[&core::SORT])

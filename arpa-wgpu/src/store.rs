@@ -8,9 +8,12 @@
 //! not depend on the order the photon pass appended in (bit-identical), and it is spatially
 //! sorted for the acceleration-structure build ([`crate::accel`]).
 //!
-//! The host reads back the store's counters between the two halves
-//! ([`MapStore::encode_store`], [`MapStore::encode_sort`]): the sort's passes (item counts
-//! and tiles) and the acceleration-structure build (wgpu has no indirect build) depend on them.
+//! The store half runs in the photon pass's submission: the schedule kernel (the core's
+//! `schedule.wgsl`) writes its record counts and indirect dispatch sizes from the photon
+//! pass's counters on the device ([`MapStore::encode_store`]). The host reads back the
+//! pass's and the store's counters together after it (one wait per photon batch): the
+//! overflow check, the sort's passes (item counts and tiles, [`MapStore::encode_sort`]) and
+//! the acceleration-structure build (wgpu has no indirect build) depend on them.
 
 use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::{gpu::layout::{KeyedPhoton, StoreCounts, StoreParams, StoreSettings}, gpu::sort::SortItem};
@@ -34,6 +37,8 @@ pub struct StorePipelines {
     compact_footprints: wgpu::ComputePipeline,
     compact_photons: wgpu::ComputePipeline,
     pad_items: wgpu::ComputePipeline,
+    schedule_layout: wgpu::BindGroupLayout,
+    schedule: wgpu::ComputePipeline,
     sorter: crate::sort::Sorter,
 }
 
@@ -45,7 +50,15 @@ impl StorePipelines {
         let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label, entries: &entries });
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label, source: wgpu::ShaderSource::Wgsl(crate::shaders::store().into()) });
         let pipeline = |entry: &str| crate::harness::pipeline(device, "arpa keyed store", &module, &[Some(&layout)], entry);
+        let schedule_label = Some("arpa store schedule");
+        let entries = [crate::harness::storage_entry(0, true), crate::harness::storage_entry(1, false), crate::harness::storage_entry(2, false)];
+        let schedule_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: schedule_label, entries: &entries });
+        let schedule_module =
+            device.create_shader_module(wgpu::ShaderModuleDescriptor { label: schedule_label, source: wgpu::ShaderSource::Wgsl(crate::shaders::schedule().into()) });
+        let schedule = crate::harness::pipeline(device, "arpa store schedule", &schedule_module, &[Some(&schedule_layout)], "store_schedule");
         Self {
+            schedule_layout,
+            schedule,
             keyed: pipeline("store_keyed"),
             photon_keys: pipeline("photon_keys"),
             compact_footprints: pipeline("compact_footprints"),
@@ -84,6 +97,10 @@ pub struct MapStore {
     ph_items: wgpu::Buffer,
     /// The radix sort's second item buffer and counters (for either item buffer).
     radix: RadixScratch,
+    /// The store half's indirect dispatch arguments (store_keyed, photon_keys), written by
+    /// the schedule kernel.
+    args: wgpu::Buffer,
+    schedule_group: wgpu::BindGroup,
     photons_out_capacity: u32,
     /// Sorted footprint records ([`PackedFootprint`]); the first
     /// [`StoreCounts::total_footprints`] are valid, caustic first.
@@ -101,12 +118,14 @@ pub struct MapStore {
 
 impl MapStore {
     /// Buffers for up to `raw_capacity` raw footprints in `raw` ([`arpa_core::gpu::layout::KeyedFootprint`]) and
-    /// `photon_capacity` progressive photons in `photons` ([`KeyedPhoton`]).
+    /// `photon_capacity` progressive photons in `photons` ([`KeyedPhoton`]), appended by the
+    /// photon pass whose counters ([`arpa_core::gpu::layout::PhotonCounters`]) are `counters`.
     pub fn new(
         device: &wgpu::Device,
         pipelines: &StorePipelines,
         raw: &wgpu::Buffer,
         photons: &wgpu::Buffer,
+        counters: &wgpu::Buffer,
         raw_capacity: u32,
         photon_capacity: u32,
     ) -> Result<Self, StoreSizeError> {
@@ -149,7 +168,12 @@ impl MapStore {
         ];
         let entries: Vec<_> = resources.iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() }).collect();
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor { label, layout: &pipelines.layout, entries: &entries });
+        let args = device.create_buffer(&wgpu::BufferDescriptor { label: Some("arpa store dispatch"), size: 24, usage: U::STORAGE | U::INDIRECT, mapped_at_creation: false });
+        let entries: Vec<_> = [counters, &params, &args].iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() }).collect();
+        let schedule_group = device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("arpa store schedule"), layout: &pipelines.schedule_layout, entries: &entries });
         Ok(Self {
+            args,
+            schedule_group,
             raw_capacity,
             photon_capacity,
             params,
@@ -177,25 +201,24 @@ impl MapStore {
         &self.counts
     }
 
-    /// First half: writes this iteration's parameters (through `queue`, before the next
-    /// submission) and records the store and the appending of the sort items. Submit it
-    /// and read the counts ([`MapStore::counts_buffer`]) before [`MapStore::encode_sort`].
-    pub fn encode_store(&self, queue: &wgpu::Queue, pipelines: &StorePipelines, encoder: &mut wgpu::CommandEncoder, settings: &StoreSettings) -> Result<(), StoreSizeError> {
-        if settings.raw_count > self.raw_capacity || settings.photon_count > self.photon_capacity {
-            return Err(StoreSizeError(format!(
-                "{} raw footprints / {} photons given for capacities {} / {}",
-                settings.raw_count, settings.photon_count, self.raw_capacity, self.photon_capacity
-            )));
-        }
+    /// First half, after the photon pass's commands in the same submission: writes this
+    /// iteration's parameters (through `queue`, before the next submission; `settings`'
+    /// record counts are not used), records the schedule kernel, which sets the record
+    /// counts and the dispatch sizes from the photon pass's counters on the device, and the
+    /// store and the appending of the sort items (indirect dispatches). Submit it and read
+    /// the counts ([`MapStore::counts_buffer`]) before [`MapStore::encode_sort`].
+    pub fn encode_store(&self, queue: &wgpu::Queue, pipelines: &StorePipelines, encoder: &mut wgpu::CommandEncoder, settings: &StoreSettings) {
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&StoreParams::new(settings, None)));
         encoder.clear_buffer(&self.counts, 0, None);
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("arpa keyed store"), timestamp_writes: None });
+        pass.set_bind_group(0, &self.schedule_group, &[]);
+        pass.set_pipeline(&pipelines.schedule);
+        pass.dispatch_workgroups(1, 1, 1);
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.set_pipeline(&pipelines.keyed);
-        dispatch_linear(&mut pass, settings.raw_count);
+        pass.dispatch_workgroups_indirect(&self.args, 0);
         pass.set_pipeline(&pipelines.photon_keys);
-        dispatch_linear(&mut pass, settings.photon_count);
-        Ok(())
+        pass.dispatch_workgroups_indirect(&self.args, 12);
     }
 
     /// Second half, with the `counts` read back after [`MapStore::encode_store`]: pads the

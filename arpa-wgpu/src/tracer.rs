@@ -4,13 +4,13 @@ use crate::accumulate::{AccumPixel, DeviceAccumulator};
 use crate::camera::CameraPass;
 use crate::device::{AdapterChoice, GpuContext};
 use crate::error::WgpuError;
-use crate::maps::{PhotonMaps, read_buffer, scoped};
+use crate::maps::{PhotonMaps, Readback, Stored, read_buffer, scoped};
 use crate::photon::{PhotonOutputs, PhotonPass};
 use crate::scene::GpuScene;
 use arpa_core::accumulate::image::Accumulation;
 use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::gpu::batch::{Overflow, RecordLimits, after_overflow, for_each_batch, initial_capacity, shrink};
-use arpa_core::{gpu::layout::{GatherCounts, ImageBufferSizes, PhotonCounters, StoreSettings}, gpu::fill::check_record_keys};
+use arpa_core::{gpu::layout::{GatherCounts, ImageBufferSizes, PhotonCounters, StoreCounts, StoreSettings}, gpu::fill::check_record_keys};
 use arpa_core::gpu::sort::{MAX_SORT_ITEMS, sorted_len};
 use arpa_core::render::photon_path::PhotonPassSetup;
 use arpa_core::render::prepared_scene::PreparedScene;
@@ -31,18 +31,24 @@ const QUERY_BYTES: u64 = std::mem::size_of::<QueryRecord>() as u64;
 /// structures ([`PhotonMaps`]), the iteration image and the running mean
 /// ([`DeviceAccumulator`]). The stage bookkeeping is the core's ([`StageClock`]).
 ///
-/// | stage | on the device | read back |
+/// | stage | on the device | the host waits for and reads back |
 /// |---|---|---|
 /// | [`upload_scene`](Tracer::upload_scene) | validates scene and settings ([`prepare_upload`]), uploads the scene, zeroes the accumulation | — |
-/// | [`camera_pass`](Tracer::camera_pass) | one query record per pixel ([`CameraPass`]) | — |
-/// | [`photon_pass`](Tracer::photon_pass) | every photon batch of the iteration: photons traced into append buffers ([`PhotonPass`]), keyed store, sort and compaction into the batch's maps ([`crate::store::MapStore`], [`crate::maps::BatchMaps`]) | per batch, the pass's and the store's counters (overflow check, sizes for the sort and the build) |
-/// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | per batch, AABB BLAS per (kind, map) and one TLAS ([`crate::accel`]) | — |
-/// | [`gather`](Tracer::gather) | per pixel and scale `radiance + weight · E_k`, `E_k` summed over the batches in batch order, and the moment planes ([`crate::gather::ImageGather`]) | contribution and query-point counts (16 bytes) |
-/// | [`accumulate`](Tracer::accumulate) | compensated running sum of every plane | the iteration's stage timestamps (8 bytes per timed submission, in the same wait) |
+/// | [`camera_pass`](Tracer::camera_pass) | one query record per pixel ([`CameraPass`]) | nothing |
+/// | [`photon_pass`](Tracer::photon_pass) | every photon batch of the iteration: photons traced into append buffers ([`PhotonPass`]) and, in the same submission, the keyed store with its sizes from the pass's counters on the device; then sort and compaction into the batch's maps ([`crate::store::MapStore`], [`crate::maps::BatchMaps`]) | per batch, one wait for the pass's and the store's counters together (96 bytes: overflow check, sizes for the sort and the build) |
+/// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | per batch, AABB BLAS per (kind, map) and one TLAS ([`crate::accel`]) | nothing |
+/// | [`gather`](Tracer::gather) | per pixel and scale `radiance + weight · E_k`, `E_k` summed over the batches in batch order, and the moment planes ([`crate::gather::ImageGather`]) | nothing |
+/// | [`accumulate`](Tracer::accumulate) | compensated running sum of every plane | one wait: the gather's contribution and query-point counts (16 bytes) and the iteration's stage timestamps (8 bytes per timed submission) |
+///
+/// A stage that reads nothing back submits its work and returns; queue order runs it
+/// before the next stage's. [`Tracer::read_stats`] reads the gather's counts itself (a
+/// wait) when it is called between a gather and its accumulate.
 ///
 /// # Stage times
-/// [`IterationStats::times`] are the host's wall-clock time of each stage call (every stage
-/// waits for its submissions). Where the adapter has timestamp queries inside encoders,
+/// [`IterationStats::times`] are the host's wall-clock time of each stage call: the
+/// encoding and submission of its work, plus the waits above (a wait also covers the
+/// device work of the stages submitted before it that nobody waited for, e.g. the photon
+/// pass's first wait covers the camera pass). Where the adapter has timestamp queries inside encoders,
 /// every submission of a stage is framed by two timestamps ([`crate::timing`]) and
 /// [`IterationStats::device_times`] holds the device's own time per stage once the
 /// iteration's accumulate has run; elsewhere it is [`DeviceTimes::Unavailable`].
@@ -137,6 +143,8 @@ struct Loaded {
     /// What one photon-pass binding holds ([`WgpuTracer::set_binding_limit`] at upload, or
     /// the adapter's limits).
     limits: RecordLimits,
+    /// A gather ran and its counts are not in the stats yet (accumulate's wait reads them).
+    gather_counts_pending: bool,
     clock: StageClock,
 }
 
@@ -223,7 +231,23 @@ fn timed<E: From<StageError>>(ctx: &GpuContext, clock: &mut StageClock, stage: S
     result
 }
 
-/// Waits until the device has finished the submitted work (stage timings).
+/// Bytes of the photon pass's counters ([`PhotonCounters`]).
+const COUNTERS_BYTES: u64 = size_of::<PhotonCounters>() as u64;
+/// Bytes of the store's counters ([`StoreCounts`]).
+const STORE_COUNTS_BYTES: u64 = size_of::<StoreCounts>() as u64;
+/// Bytes of the gather's counters ([`GatherCounts`]).
+const GATHER_COUNTS_BYTES: u64 = size_of::<GatherCounts>() as u64;
+
+/// Writes the gather's counters (`bytes`: one [`GatherCounts`] read back) into `stats`.
+fn set_gather_counts(stats: &mut IterationStats, bytes: &[u8]) {
+    let total: GatherCounts = bytemuck::pod_read_unaligned(bytes);
+    stats.contributions = total.contributions();
+    stats.candidates = total.candidates();
+    stats.covered = total.covered.map(u64::from);
+    stats.query_points = u64::from(total.query_points);
+}
+
+/// Waits until the device has finished the submitted work.
 fn wait(ctx: &GpuContext, stage: &'static str) -> Result<(), WgpuError> {
     ctx.device.poll(wgpu::PollType::wait_indefinitely()).map(|_| ()).map_err(|e| WgpuError::Readback { stage, message: e.to_string() })
 }
@@ -242,18 +266,32 @@ fn binding_bytes(ctx: &GpuContext, binding_limit: Option<u64>) -> u64 {
 fn trace_batch(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, clock: &mut StageClock, setup: &PhotonPassSetup, range: std::ops::Range<u32>, last: bool) -> Result<Option<u32>, WgpuError> {
     let photons = range.end - range.start;
     let limits = st.limits;
-    // Trace; on overflow discard the batch's records, grow the buffers and trace the same
-    // photons again.
-    let counters = loop {
-        scoped(ctx, "photon_pass", || {
+    // The store's parameters; its record counts come from the pass's counters on the device.
+    let mut settings = StoreSettings {
+        heuristics: setup.heuristics.pack(),
+        radii: setup.radii.map(|r| r as f32),
+        bounds: st.prepared.bounds().to_f32_conservative(),
+        raw_count: 0,
+        photon_count: 0,
+    };
+    // Trace and store in one submission, then one wait for both counters; on overflow
+    // discard the batch's records, grow the buffers and trace the same photons again.
+    let (counters, counts) = loop {
+        let mut readback = Readback::new(ctx, "photon and store counters", COUNTERS_BYTES + STORE_COUNTS_BYTES);
+        let at = scoped(ctx, "photon_pass", || {
             let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa photon pass") });
             st.photon.encode_batch(ctx, &mut encoder, &st.scene, setup, range.clone(), &st.outputs)?;
+            let counters_at = readback.copy(&mut encoder, st.outputs.counters(), COUNTERS_BYTES);
+            let counts_at = maps.encode_store(ctx, &mut encoder, &settings, &mut readback)?;
             ctx.submit(encoder);
-            Ok(())
+            Ok((counters_at, counts_at))
         })?;
-        let c: PhotonCounters = bytemuck::pod_read_unaligned(&read_buffer(ctx, "photon counters", st.outputs.counters(), std::mem::size_of::<PhotonCounters>() as u64)?);
+        readback.map();
+        wait(ctx, "photon_pass")?;
+        let bytes = readback.bytes()?;
+        let c: PhotonCounters = bytemuck::pod_read_unaligned(&bytes[at.0..at.0 + COUNTERS_BYTES as usize]);
         if c.overflowed() == 0 {
-            break c;
+            break (c, bytemuck::pod_read_unaligned::<StoreCounts>(&bytes[at.1..at.1 + STORE_COUNTS_BYTES as usize]));
         }
         clock.stats_mut().overflowed += c.overflowed();
         let caps = (st.outputs.footprint_capacity(), st.outputs.photon_capacity());
@@ -273,17 +311,11 @@ fn trace_batch(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, clock: 
         // Free the old buffers before allocating the larger ones.
         st.outputs = PhotonOutputs::new(ctx, 1, 1)?;
         st.outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
-        maps.bind_inputs(ctx, st.outputs.footprints(), st.outputs.photons(), fp_cap, ph_cap)?;
+        maps.bind_inputs(ctx, st.outputs.footprints(), st.outputs.photons(), st.outputs.counters(), fp_cap, ph_cap)?;
     };
-    let settings = StoreSettings {
-        heuristics: setup.heuristics.pack(),
-        radii: setup.radii.map(|r| r as f32),
-        bounds: st.prepared.bounds().to_f32_conservative(),
-        raw_count: counters.footprints_written(),
-        photon_count: counters.photons_written(),
-    };
-    let stored = maps.store(ctx, &settings)?;
-    let counts = stored.counts;
+    // The counts the schedule kernel gave the store.
+    settings.raw_count = counters.footprints_written();
+    settings.photon_count = counters.photons_written();
     // The sorted progressive photons (the pass's plus the footprints' fallbacks) must fit
     // one binding too.
     if counts.photon_items as u64 > limits.sorted_photons {
@@ -293,9 +325,7 @@ fn trace_batch(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, clock: 
         }
         return Ok(Some(shrink(photons, limits.sorted_photons as f64 / counts.photon_items as f64)));
     }
-    maps.sort(ctx, stored, last)?;
-    // The sort's device time belongs to the photon stage.
-    wait(ctx, "photon_pass")?;
+    maps.sort(ctx, Stored::new(counts, settings), last)?;
     clock.stats_mut().add_photon_batch(&counters, &counts);
     Ok(None)
 }
@@ -334,7 +364,7 @@ impl Tracer for WgpuTracer {
         let ph_cap = initial_capacity(batch_photons, self.initial_capacity, limits.photons);
         let outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
         self.maps.clear_batches();
-        self.maps.bind_inputs(ctx, outputs.footprints(), outputs.photons(), fp_cap, ph_cap)?;
+        self.maps.bind_inputs(ctx, outputs.footprints(), outputs.photons(), outputs.counters(), fp_cap, ph_cap)?;
         let (queries, image, irradiance, accumulator) = scoped(ctx, "allocating the image buffers", || {
             let buffer = |size: u64| {
                 ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -362,6 +392,7 @@ impl Tracer for WgpuTracer {
             accumulator,
             batch_photons,
             limits,
+            gather_counts_pending: false,
             clock: StageClock::new(),
         }));
         Ok(())
@@ -376,8 +407,7 @@ impl Tracer for WgpuTracer {
                 st.camera.encode(&mut encoder, clock.completed(), &st.queries);
                 ctx.submit(encoder);
                 Ok(())
-            })?;
-            wait(ctx, "camera_pass")
+            })
         })
     }
 
@@ -412,8 +442,7 @@ impl Tracer for WgpuTracer {
     fn build_acceleration_structure(&mut self) -> Result<(), WgpuError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::BuildAccelerationStructure)?;
         timed(&self.ctx, &mut st.clock, Stage::BuildAccelerationStructure, |_| {
-            self.maps.build(&self.ctx)?;
-            wait(&self.ctx, "build_acceleration_structure")
+            self.maps.build(&self.ctx)
         })
     }
 
@@ -421,7 +450,7 @@ impl Tracer for WgpuTracer {
         let st = uploaded(self.state.as_deref_mut(), Stage::Gather)?;
         let ctx = &self.ctx;
         let maps = &self.maps;
-        timed(ctx, &mut st.clock, Stage::Gather, |clock| {
+        timed(ctx, &mut st.clock, Stage::Gather, |_| {
             // One submission per batch: each writes its gather parameters through the queue.
             for k in 0..maps.batch_count() {
                 scoped(ctx, "gather", || {
@@ -431,13 +460,8 @@ impl Tracer for WgpuTracer {
                     Ok(())
                 })?;
             }
-            let size = size_of::<GatherCounts>() as u64;
-            let total: GatherCounts = bytemuck::pod_read_unaligned(&read_buffer(ctx, "gather counts", maps.gathered_buffer(), size)?);
-            let stats = clock.stats_mut();
-            stats.contributions = total.contributions();
-            stats.candidates = total.candidates();
-            stats.covered = total.covered.map(u64::from);
-            stats.query_points = u64::from(total.query_points);
+            // Its counts come back in accumulate's wait (or read_stats's).
+            st.gather_counts_pending = true;
             Ok(())
         })
     }
@@ -445,16 +469,30 @@ impl Tracer for WgpuTracer {
     fn accumulate(&mut self) -> Result<(), WgpuError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::Accumulate)?;
         let ctx = &self.ctx;
+        let maps = &self.maps;
         timed(ctx, &mut st.clock, Stage::Accumulate, |clock| {
+            // The gather's counts are copied out in the accumulation's submission.
+            let mut counts = st.gather_counts_pending.then(|| Readback::new(ctx, "gather counts", GATHER_COUNTS_BYTES));
             scoped(ctx, "accumulate", || {
                 let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa accumulate") });
                 st.accumulator.encode(&ctx.device, &mut encoder, &st.image);
+                if let Some(r) = counts.as_mut() {
+                    r.copy(&mut encoder, maps.gathered_buffer(), GATHER_COUNTS_BYTES);
+                }
                 ctx.submit(encoder);
                 Ok(())
             })?;
-            // The iteration's timestamps come back in the same wait as the accumulation.
+            if let Some(r) = counts.as_mut() {
+                r.map();
+            }
+            // The iteration's timestamps and the gather's counts come back in the same
+            // wait as the accumulation: the iteration's one wait outside the photon pass.
             let timestamps = ctx.timer().map(|t| (t, t.resolve(&ctx.device, &ctx.queue)));
             wait(ctx, "accumulate")?;
+            if let Some(r) = counts {
+                set_gather_counts(clock.stats_mut(), &r.bytes()?);
+                st.gather_counts_pending = false;
+            }
             clock.stats_mut().device_times = match timestamps {
                 Some((timer, pending)) => timer.read(pending).map_err(|message| WgpuError::Readback { stage: "stage timestamps", message })?,
                 None => DeviceTimes::Unavailable,
@@ -514,7 +552,14 @@ impl Tracer for WgpuTracer {
         self.maps.read_photons(&self.ctx)
     }
 
+    /// The stats; after a gather whose accumulate has not run yet, its counts are read
+    /// back here (a wait), since the gather itself does not wait for them.
     fn read_stats(&self) -> Result<IterationStats, WgpuError> {
-        Ok(*self.loaded(Call::ReadStats)?.clock.stats())
+        let st = self.loaded(Call::ReadStats)?;
+        let mut stats = *st.clock.stats();
+        if st.gather_counts_pending {
+            set_gather_counts(&mut stats, &read_buffer(&self.ctx, "gather counts", self.maps.gathered_buffer(), GATHER_COUNTS_BYTES)?);
+        }
+        Ok(stats)
     }
 }

@@ -237,6 +237,13 @@ pub const RADIX: WgslFile = WgslFile { name: "path/radix.wgsl", source: include_
 /// states its contract).
 pub const GATHER: WgslFile = WgslFile { name: "path/gather.wgsl", source: include_str!("../../shaders/path/gather.wgsl"), deps: &[&KERNEL, &FOOTPRINT, &BANDWIDTH, &RECORDS] };
 
+/// `path/schedule.wgsl`: entry point `store_schedule` (one invocation; group 0: the photon
+/// pass's [`crate::gpu::layout::PhotonCounters`], the store's
+/// [`crate::gpu::layout::StoreParams`], six words of indirect dispatch arguments): the
+/// store half's record counts and dispatch sizes from the device's counters, so that no
+/// readback sits between the photon pass and the store.
+pub const SCHEDULE: WgslFile = WgslFile { name: "path/schedule.wgsl", source: include_str!("../../shaders/path/schedule.wgsl"), deps: &[] };
+
 /// `path/accumulate.wgsl`: entry point `accumulate` ([`crate::gpu::layout::AccumPixel`]).
 pub const ACCUMULATE: WgslFile = WgslFile { name: "path/accumulate.wgsl", source: include_str!("../../shaders/path/accumulate.wgsl"), deps: &[&MATH] };
 
@@ -246,7 +253,7 @@ pub const TWIN: [&WgslFile; 17] =
     [&MATH, &RNG, &KERNEL, &FOOTPRINT, &RADIUS, &DIFFERENTIAL, &FRESNEL, &FRAME, &SAMPLING, &EMISSION, &HEURISTICS, &REEMISSION, &LAMBERTIAN, &AABB, &MORTON, &BANDWIDTH, &NORMAL_MAP];
 
 /// The path-level files.
-pub const PATH: [&WgslFile; 11] = [&RECORDS, &TEXTURE, &ENVIRONMENT, &SCENE, &CAMERA_PASS, &PHOTON_PASS, &STORE, &SORT, &RADIX, &GATHER, &ACCUMULATE];
+pub const PATH: [&WgslFile; 12] = [&RECORDS, &TEXTURE, &ENVIRONMENT, &SCENE, &CAMERA_PASS, &PHOTON_PASS, &STORE, &SCHEDULE, &SORT, &RADIX, &GATHER, &ACCUMULATE];
 
 /// One WGSL file with the files it needs (WGSL has no imports: [`compose`] includes them).
 #[derive(Clone, Copy, Debug)]

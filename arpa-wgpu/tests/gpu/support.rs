@@ -19,7 +19,7 @@ use arpa_core::render::ray_cast::RayHit;
 use arpa_core::render::tracer::QueryRecord;
 use arpa_wgpu::GpuContext;
 use arpa_wgpu::accumulate::DeviceAccumulator;
-use arpa_wgpu::maps::PhotonMaps;
+use arpa_wgpu::maps::{PhotonMaps, Readback, Stored};
 use arpa_wgpu::photon::PhotonOutputs;
 use arpa_wgpu::scene::GpuGeometry;
 use arpa_wgpu::sort::{RadixScratch, Sorter};
@@ -488,11 +488,20 @@ pub fn run_from_host(
     let raw_buf = upload(ctx, bytemuck::cast_slice(raw), wgpu::BufferUsages::empty());
     let ph_buf = upload(ctx, bytemuck::cast_slice(photons), wgpu::BufferUsages::empty());
     let rec_buf = upload(ctx, bytemuck::cast_slice(records), wgpu::BufferUsages::empty());
+    // The photon pass's counters as it would leave them: the store takes its record counts
+    // from them on the device (the schedule kernel).
+    let pass = PhotonCounters { footprint_appends: settings.raw_count, photon_appends: settings.photon_count, ..PhotonCounters::default() };
+    let counters_buf = upload(ctx, bytemuck::bytes_of(&pass), wgpu::BufferUsages::empty());
     let mut maps = PhotonMaps::new(ctx).unwrap();
-    maps.bind_inputs(ctx, &raw_buf, &ph_buf, raw.len() as u32, photons.len() as u32).unwrap();
-    let stored = maps.store(ctx, settings).unwrap();
-    let counts = stored.counts;
-    maps.sort(ctx, stored, true).unwrap();
+    maps.bind_inputs(ctx, &raw_buf, &ph_buf, &counters_buf, raw.len() as u32, photons.len() as u32).unwrap();
+    let mut readback = Readback::new(ctx, "store counts", size_of::<StoreCounts>() as u64);
+    let mut encoder = device.create_command_encoder(&Default::default());
+    let at = maps.encode_store(ctx, &mut encoder, &StoreSettings { raw_count: 0, photon_count: 0, ..*settings }, &mut readback).unwrap();
+    ctx.queue.submit([encoder.finish()]);
+    readback.map();
+    device.poll(wgpu::PollType::wait_indefinitely()).unwrap();
+    let counts: StoreCounts = bytemuck::pod_read_unaligned(&readback.bytes().unwrap()[at..at + size_of::<StoreCounts>()]);
+    maps.sort(ctx, Stored::new(counts, *settings), true).unwrap();
     maps.build(ctx).unwrap();
     let sizes = ImageBufferSizes::new(pixels, bandwidth);
     let entries = bandwidth.planes() as u32 * pixels;

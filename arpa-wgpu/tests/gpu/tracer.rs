@@ -408,8 +408,8 @@ fn planes_beyond_one_binding_are_refused() {
 
 /// Device times of a finished iteration: measured on an adapter with timestamp queries
 /// inside encoders (lavapipe has them), every stage finite and non-negative, the traced
-/// passes non-zero, each stage within the host time of its call and the total within the
-/// iteration's wall time (plus 1 ms and 1 % for the two clocks' rounding).
+/// passes non-zero, each stage and the total within the iteration's wall time (plus 1 ms
+/// and 1 % for the two clocks' rounding).
 #[test]
 fn every_iteration_reports_device_time_per_stage() {
     use arpa_core::render::tracer::DeviceTimes;
@@ -431,11 +431,33 @@ fn every_iteration_reports_device_time_per_stage() {
                 continue;
             }
         };
-        let (host, slack) = (stats.times, |t: f64| t * 1.01 + 1e-3);
-        for (name, dev, host) in [("camera", d.camera, host.camera), ("photon", d.photon, host.photon), ("build", d.build, host.build), ("gather", d.gather, host.gather), ("accumulate", d.accumulate, host.accumulate)] {
-            assert!(dev.is_finite() && dev >= 0.0 && dev <= slack(host), "{name}: device {dev} s, host {host} s");
+        // A stage that reads nothing back returns before its device work is done, so a
+        // stage's device time may exceed its host time; each is within the iteration's.
+        let slack = |t: f64| t * 1.01 + 1e-3;
+        for (name, dev) in [("camera", d.camera), ("photon", d.photon), ("build", d.build), ("gather", d.gather), ("accumulate", d.accumulate)] {
+            assert!(dev.is_finite() && dev >= 0.0 && dev <= slack(wall), "{name}: device {dev} s, iteration wall {wall} s");
         }
         assert!(d.camera > 0.0 && d.photon > 0.0 && d.gather > 0.0, "the passes that trace take device time: {d:?}");
         assert!(d.total() <= slack(wall), "device total {} s over the iteration's wall time {wall} s", d.total());
+    }
+}
+
+/// The gather reads nothing back: its counts come back at the accumulate's wait, and
+/// `read_stats` between the two reads the same counts itself.
+#[test]
+fn the_gathers_counts_arrive_with_the_accumulate() {
+    let Some(mut t) = tracer() else { return };
+    t.set_batch_photons(Some(2000));
+    t.upload_scene(&cornell(24), &settings(Method::Arpa, 7)).unwrap();
+    for _ in 0..2 {
+        t.camera_pass().unwrap();
+        t.photon_pass().unwrap();
+        t.build_acceleration_structure().unwrap();
+        t.gather().unwrap();
+        let early = t.read_stats().unwrap();
+        t.accumulate().unwrap();
+        let late = t.read_stats().unwrap();
+        assert!(late.query_points > 0 && late.gathered() > 0, "{late:?}");
+        assert_eq!((early.contributions, early.candidates, early.covered, early.query_points), (late.contributions, late.candidates, late.covered, late.query_points));
     }
 }
