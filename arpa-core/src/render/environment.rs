@@ -94,22 +94,42 @@ const GAUSS4: [(f64, f64); 4] = [
     (0.930_568_155_797_026_3, 0.173_927_422_568_726_93),
 ];
 
-impl MapTables {
-    fn new(map: &EnvironmentMap) -> Result<Self, EnvironmentError> {
-        let b = &map.bitmap;
+impl EnvironmentMap {
+    /// Whether the map can be sampled, without building its tables: a valid bitmap, an
+    /// invertible transform, no negative texel and some light. Every patch weight is the
+    /// largest luminance of its four texels times a positive `sin`, and every texel is in a
+    /// patch, so the tables' total is positive exactly when some texel's luminance is.
+    pub fn check(&self) -> Result<(), EnvironmentError> {
+        let b = &self.bitmap;
         if !b.is_valid() {
             return Err(EnvironmentError::Bitmap);
         }
-        let m = map.to_world;
+        let m = self.to_world;
         let det = m.determinant();
         if !(det.abs() > 1e-12) || !det.is_finite() || !m.is_finite() {
             return Err(EnvironmentError::Transform);
         }
+        let mut lit = false;
+        for i in 0..b.texels.len() {
+            let t = b.texels.linear(i);
+            if t.min_element() < 0.0 {
+                return Err(EnvironmentError::Negative);
+            }
+            lit |= t.dot(LUMINANCE) > 0.0;
+        }
+        if !lit {
+            return Err(EnvironmentError::Black);
+        }
+        Ok(())
+    }
+}
+
+impl MapTables {
+    fn new(map: &EnvironmentMap) -> Result<Self, EnvironmentError> {
+        map.check()?;
+        let (b, m) = (&map.bitmap, map.to_world);
         let (w, h) = (b.width, b.height);
         let texels: Vec<Vec3> = (0..b.texels.len()).map(|i| b.texels.linear(i)).collect();
-        if texels.iter().any(|t| t.min_element() < 0.0) {
-            return Err(EnvironmentError::Negative);
-        }
         let prows = (h - 1).max(1);
         let lum = |i: u32, j: u32| texels[(j.min(h - 1) * w + i % w) as usize].dot(LUMINANCE) as f64;
         let mut density = Vec::with_capacity((w * prows) as usize);
@@ -375,6 +395,24 @@ mod tests {
     fn environment(m: &EnvironmentMap) -> Environment {
         let light = EnvironmentLight { radiance: DVec3::ONE, mean: m.mean().unwrap() };
         Environment::new(0, light, Some(m)).unwrap()
+    }
+
+    /// `EnvironmentMap::check` (what scene validation runs) refuses exactly the maps the
+    /// tables refuse, with the same error: a black map, one with a negative texel, a
+    /// singular transform; a map lit by one texel of the last row passes both.
+    #[test]
+    fn check_agrees_with_the_tables() {
+        let cases = [
+            (map(4, 3, |_, _| [0.0; 3], DMat3::IDENTITY), Err(EnvironmentError::Black)),
+            (map(4, 3, |i, j| if (i, j) == (3, 2) { [0.0, 0.0, -1.0] } else { [1.0; 3] }, DMat3::IDENTITY), Err(EnvironmentError::Negative)),
+            (map(4, 3, |_, _| [1.0; 3], DMat3::from_cols(DVec3::X, DVec3::X, DVec3::Z)), Err(EnvironmentError::Transform)),
+            (map(4, 3, |i, j| if (i, j) == (3, 2) { [0.0, 1e-3, 0.0] } else { [0.0; 3] }, DMat3::IDENTITY), Ok(())),
+            (map(5, 1, |i, _| if i == 4 { [2.0, 0.0, 0.0] } else { [0.0; 3] }, DMat3::IDENTITY), Ok(())),
+        ];
+        for (k, (m, expected)) in cases.iter().enumerate() {
+            assert_eq!(&m.check(), expected, "case {k}");
+            assert_eq!(MapTables::new(m).map(|_| ()), *expected, "case {k}");
+        }
     }
 
     /// The sampling density integrates to 1 over the sphere and matches the histogram of

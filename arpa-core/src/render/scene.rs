@@ -780,7 +780,7 @@ impl Scene {
             if environments == 0 {
                 return Err(SceneError::Environment("an environment map without an environment light"));
             }
-            crate::render::environment::Environment::new(0, crate::emit::emission::EnvironmentLight { radiance: DVec3::ONE, mean: DVec3::ONE }, Some(map))?;
+            map.check()?;
         }
         if self.emitters().is_empty() {
             return Err(SceneError::NoLights);
