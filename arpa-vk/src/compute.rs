@@ -216,9 +216,17 @@ impl ComputePipeline {
         if groups.contains(&0) {
             return Ok(());
         }
+        self.record_bind(cmd, bindings, push);
+        // SAFETY: bound above; the counts are checked against the device's limits.
+        unsafe { self.shared.device.device.cmd_dispatch(cmd, groups[0], groups[1], groups[2]) };
+        Ok(())
+    }
+
+    /// Binds the pipeline, `bindings` and `push` (its size checked by the caller) into `cmd`.
+    fn record_bind(&self, cmd: vk::CommandBuffer, bindings: &Bindings, push: &[u8]) {
         let device = &self.shared.device.device;
         // SAFETY: the pipeline and sets are alive while the caller's submission runs (the
-        // caller keeps `bindings` and its buffers until it has waited); sizes checked above.
+        // caller keeps `bindings` and its buffers until it has waited); push size checked.
         unsafe {
             device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, self.pipeline);
             if !bindings.sets.is_empty() {
@@ -227,9 +235,7 @@ impl ComputePipeline {
             if !push.is_empty() {
                 device.cmd_push_constants(cmd, self.layout, vk::ShaderStageFlags::COMPUTE, 0, push);
             }
-            device.cmd_dispatch(cmd, groups[0], groups[1], groups[2]);
         }
-        Ok(())
     }
 
     /// Records an indirect dispatch into `cmd`: binds the pipeline, `bindings` and `push` (as
@@ -247,19 +253,10 @@ impl ComputePipeline {
         if !args.usage().contains(vk::BufferUsageFlags::INDIRECT_BUFFER) || !offset.is_multiple_of(4) || offset + 12 > args.size() {
             return Err(invalid(format!("arguments at {offset} of {:?} ({} bytes, {:?})", args.label(), args.size(), args.usage())));
         }
-        let device = &self.shared.device.device;
-        // SAFETY: the pipeline, sets and arguments are alive while the caller's submission
-        // runs; sizes and usage checked above.
-        unsafe {
-            device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, self.pipeline);
-            if !bindings.sets.is_empty() {
-                device.cmd_bind_descriptor_sets(cmd, vk::PipelineBindPoint::COMPUTE, self.layout, 0, &bindings.sets, &[]);
-            }
-            if !push.is_empty() {
-                device.cmd_push_constants(cmd, self.layout, vk::ShaderStageFlags::COMPUTE, 0, push);
-            }
-            device.cmd_dispatch_indirect(cmd, args.raw(), offset);
-        }
+        self.record_bind(cmd, bindings, push);
+        // SAFETY: bound above; the arguments are alive while the caller's submission runs,
+        // their size and usage checked above.
+        unsafe { self.shared.device.device.cmd_dispatch_indirect(cmd, args.raw(), offset) };
         Ok(())
     }
 

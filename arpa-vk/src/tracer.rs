@@ -308,13 +308,7 @@ fn trace_batch(ctx: &VkContext, adapter: &str, st: &mut Loaded, clock: &mut Stag
     let limits = st.limits;
     let size = |message: String| VkTracerError::Size { adapter: adapter.to_string(), message };
     // The store's parameters; its record counts come from the pass's counters on the device.
-    let mut settings = StoreSettings {
-        heuristics: setup.heuristics.pack(),
-        radii: setup.radii.map(|r| r as f32),
-        bounds: st.prepared.bounds().to_f32_conservative(),
-        raw_count: 0,
-        photon_count: 0,
-    };
+    let mut settings = StoreSettings::for_iteration(setup, &st.prepared);
     // Trace and store in one submission, then one wait for both counters; on overflow
     // discard the batch's records, grow the buffers and trace the same photons again.
     let (counters, counts) = loop {

@@ -192,6 +192,15 @@ pub struct StoreSettings {
     pub photon_count: u32,
 }
 
+impl StoreSettings {
+    /// The settings of an iteration's store: `setup`'s heuristics and radii, the Morton grid
+    /// over `scene`'s bounds (rounded outwards to `f32`), and no record counts yet (the
+    /// store's schedule kernel writes them from the photon pass's counters on the device).
+    pub fn for_iteration(setup: &crate::render::photon_path::PhotonPassSetup, scene: &crate::render::prepared_scene::PreparedScene) -> Self {
+        Self { heuristics: setup.heuristics.pack(), radii: setup.radii.map(|r| r as f32), bounds: scene.bounds().to_f32_conservative(), raw_count: 0, photon_count: 0 }
+    }
+}
+
 /// Parameters of the store kernels (`StoreParams` of `store.wgsl`, 112 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
