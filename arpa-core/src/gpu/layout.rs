@@ -192,6 +192,7 @@ pub struct StoreSettings {
     pub photon_count: u32,
 }
 
+#[cfg(feature = "alloc")]
 impl StoreSettings {
     /// The settings of an iteration's store: `setup`'s heuristics and radii, the Morton grid
     /// over `scene`'s bounds (rounded outwards to `f32`), and no record counts yet (the
