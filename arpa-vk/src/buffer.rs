@@ -15,7 +15,8 @@
 //! iteration.
 
 use crate::device::{Shared, VkContext, lock};
-use crate::timing::StageTicket;
+pub use crate::submission::{KeepAlive, Submission};
+use crate::submission::InFlight;
 use crate::error::{VkError, VkResultExt};
 use ash::vk;
 use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
@@ -169,41 +170,6 @@ impl Drop for Buffer {
 /// Bytes read back as `T`s (whole records; the host copy need not be aligned for `T`).
 pub(crate) fn pod_vec<T: bytemuck::Pod>(bytes: &[u8]) -> Vec<T> {
     bytes.chunks_exact(size_of::<T>()).map(bytemuck::pod_read_unaligned).collect()
-}
-
-/// What a submission keeps alive until the device has finished it ([`VkContext::submit`]):
-/// buffers, descriptor sets, structures its commands use that no one else owns.
-pub type KeepAlive = Vec<Box<dyn std::any::Any + Send>>;
-
-/// A submission made by [`VkContext::submit`], for [`VkContext::wait_for`]: numbered in
-/// submission order per context.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
-pub struct Submission(u64);
-
-/// A submission not yet waited for: its command buffer, fence and timestamp queries, the
-/// stage its device time belongs to, and what it keeps alive.
-pub(crate) struct InFlight {
-    serial: Submission,
-    cmd: vk::CommandBuffer,
-    fence: vk::Fence,
-    queries: Option<vk::QueryPool>,
-    ticket: Option<StageTicket>,
-    keep: KeepAlive,
-}
-
-impl InFlight {
-    /// Destroys the fence and queries of a submission that has completed (the context is
-    /// going: its command buffer goes with the pool) and drops what it kept.
-    pub(crate) fn discard(self, device: &ash::Device) {
-        // SAFETY: the device is idle (the caller waited for it).
-        unsafe {
-            if let Some(q) = self.queries {
-                device.destroy_query_pool(q, None);
-            }
-            device.destroy_fence(self.fence, None);
-        }
-        drop(self.keep);
-    }
 }
 
 /// A submission being recorded: frees its command buffer, fence and queries if it fails
@@ -432,7 +398,7 @@ impl VkContext {
         // SAFETY: the queue is externally synchronised by the submitter lock; the command buffer
         // is fully recorded.
         unsafe { device.queue_submit(submitter.queue, &[submit], shot.fence) }.vk("vkQueueSubmit")?;
-        let serial = Submission(shared.submissions.fetch_add(1, std::sync::atomic::Ordering::Relaxed));
+        let serial = Submission::new(shared.submissions.fetch_add(1, std::sync::atomic::Ordering::Relaxed));
         let entry = InFlight { serial, cmd, fence: shot.fence, queries: shot.queries.take(), ticket: crate::timing::current(), keep };
         shot.cmd = vk::CommandBuffer::null();
         shot.fence = vk::Fence::null();

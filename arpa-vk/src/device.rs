@@ -485,11 +485,11 @@ pub(crate) struct Submitter {
 pub(crate) struct Shared {
     pub(crate) submitter: Mutex<Submitter>,
     /// Submissions not waited for yet, in submission order ([`VkContext::submit`]).
-    pub(crate) in_flight: Mutex<Vec<crate::buffer::InFlight>>,
+    pub(crate) in_flight: Mutex<Vec<crate::submission::InFlight>>,
     /// Command buffers of retired submissions; the next submission frees them (the pool
     /// is guarded by the submitter lock, which retiring does not take).
     pub(crate) spent: Mutex<Vec<vk::CommandBuffer>>,
-    /// Submissions made so far: the next one's number ([`crate::buffer::Submission`]).
+    /// Submissions made so far: the next one's number ([`crate::submission::Submission`]).
     pub(crate) submissions: std::sync::atomic::AtomicU64,
     /// Every pipeline of the context is created through it, so a pipeline made again (the
     /// next render's, another tracer's on a shared context) reuses the driver's compiled

@@ -61,6 +61,7 @@ pub mod photons;
 pub mod pipeline;
 pub mod scene;
 pub mod shaders;
+pub mod submission;
 pub mod timing;
 pub mod tracer;
 
