@@ -7,9 +7,7 @@
 //! cargo bench -p arpa-vk --bench sort
 //! ```
 //!
-//! Keys as the store makes them (`SortItem`: `hi` = `map << 30 | Morton code` of uniform
-//! random points, a fifth caustic; `lo` = photon key `photon · 8 + depth`; `value` = slot) in
-//! a shuffled order (the photon pass appends with atomics). For 1 000 000 and 4 000 000
+//! Keys as the store makes them, in a shuffled order ([`store_like_items`]). For 1 000 000 and 4 000 000
 //! items (`ARPA_SORT_SIZES=...` picks others) each sort runs once to warm up, then
 //! `ARPA_SORT_RUNS` (default 3) timed runs of one submission each, waited for (wall clock; a
 //! fresh upload before each, not timed); prints `vk.sort.N.METHOD: best ms (mean ms)` lines
@@ -18,28 +16,9 @@
 
 use std::time::Instant;
 
-use arpa_core::base::morton::morton_code;
-use arpa_core::base::rng::{Rng, StreamDomain};
-use arpa_core::gpu::sort::{SortItem, sorted_len};
+use arpa_core::gpu::sort::{SortItem, sorted_len, store_like_items};
 use arpa_vk::maps::{RadixScratch, StorePipelines};
 use arpa_vk::{AdapterChoice, ContextOptions, VkContext, vk};
-
-/// `n` store-like items in a shuffled order.
-fn store_items(n: u32) -> Vec<SortItem> {
-    let mut rng = Rng::new(35, 0, 0, StreamDomain::User);
-    let mut items: Vec<SortItem> = (0..n)
-        .map(|slot| {
-            let p = [rng.next_f64() as f32, rng.next_f64() as f32, rng.next_f64() as f32];
-            let map = u32::from(!rng.next_u32().is_multiple_of(5));
-            let key = (slot / 3) * 8 + slot % 3;
-            SortItem { hi: map << 30 | morton_code(p, [0.0; 3], [1.0; 3]), lo: key, value: slot }
-        })
-        .collect();
-    for i in (1..items.len()).rev() {
-        items.swap(i, rng.next_u32() as usize % (i + 1));
-    }
-    items
-}
 
 fn main() {
     let full = std::env::args().any(|a| a == "--bench");
@@ -60,7 +39,7 @@ fn main() {
     println!("vk.sort.adapter: {}", ctx.info().name);
     let pipelines = StorePipelines::new(&ctx).expect("sort pipelines");
     for &n in &sizes {
-        let items = store_items(n);
+        let items = store_like_items(n, 35);
         let mut want = items.clone();
         want.sort();
         let padded_len = sorted_len(n);

@@ -145,6 +145,30 @@ pub fn radix_passes(n: u32, value_bound: u32) -> alloc::vec::Vec<RadixPass> {
     (0..value_digits).map(|d| pass(0, d)).chain((0..4).map(|d| pass(1, d))).chain((0..4).map(|d| pass(2, d))).collect()
 }
 
+/// `n` items shaped as the store makes them, in a shuffled order (the photon pass appends
+/// with atomics), for the backends' sort benchmarks: `hi` = `map << 30 | Morton code` of
+/// uniform random points in the unit cube, a fifth of them caustic (map 0); `lo` = photon
+/// key `photon · 8 + depth` (three records a photon); `value` = slot. Drawn from `seed`'s
+/// user stream.
+#[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
+pub fn store_like_items(n: u32, seed: u32) -> alloc::vec::Vec<SortItem> {
+    use crate::base::rng::{Rng, StreamDomain};
+    let mut rng = Rng::new(seed, 0, 0, StreamDomain::User);
+    let mut items: alloc::vec::Vec<SortItem> = (0..n)
+        .map(|slot| {
+            let p = [rng.next_f64() as f32, rng.next_f64() as f32, rng.next_f64() as f32];
+            let map = u32::from(!rng.next_u32().is_multiple_of(5));
+            let key = (slot / 3) * 8 + slot % 3;
+            SortItem { hi: map << 30 | crate::base::morton::morton_code(p, [0.0; 3], [1.0; 3]), lo: key, value: slot }
+        })
+        .collect();
+    for i in (1..items.len()).rev() {
+        items.swap(i, rng.next_u32() as usize % (i + 1));
+    }
+    items
+}
+
 #[cfg(all(test, feature = "alloc"))]
 mod tests {
     use super::*;
