@@ -254,8 +254,8 @@ pub struct Projector<'t> {
     scene_sphere: (DVec3, f64),
     targets: &'t Targets,
     delta_grid: u32,
-    area_grid: u32,
-    /// The caps of `area_grid` over the cosine-weighted hemisphere, in its own frame.
+    /// The caps of the area lights' grid over the cosine-weighted hemisphere, in its own
+    /// frame.
     area_caps: CapGrid,
 }
 
@@ -265,7 +265,7 @@ impl<'t> Projector<'t> {
     /// area lights (each at most [`crate::base::sampling::MAX_CELL_GRID`]).
     pub fn new(scene_sphere: (DVec3, f64), targets: &'t Targets, delta_grid: u32, area_grid: u32) -> Self {
         let (delta_grid, area_grid) = (delta_grid.clamp(1, crate::base::sampling::MAX_CELL_GRID), area_grid.clamp(1, crate::base::sampling::MAX_CELL_GRID));
-        Self { scene_sphere, targets, delta_grid, area_grid, area_caps: CapGrid::new(area_grid, Space::Directions, Box::new(cosine_hemisphere)) }
+        Self { scene_sphere, targets, delta_grid, area_caps: CapGrid::new(area_grid, Space::Directions, Box::new(cosine_hemisphere)) }
     }
 
     /// The cells of `light`'s emission domain that may reach a target.
@@ -311,7 +311,6 @@ impl<'t> Projector<'t> {
                 let r = corners.iter().map(|p| (*p - c).length()).fold(0.0, f64::max);
                 // From any point of the emitter's bounding ball: the cone towards the sphere
                 // grown by the ball's radius; a cluster that overlaps the ball sees everything.
-                debug_assert_eq!(self.area_caps.grid, self.area_grid);
                 project_with(&mut self.area_caps, &|v| frame.to_local(v), targets, |t: Target| match t {
                     Target::Sphere(s) => cone(c, r, s).unwrap_or(Seen::All),
                     Target::Triangle(_) => Seen::All,
@@ -396,10 +395,10 @@ fn cap_meets_spherical_triangle(x: DVec3, rho: f64, t: &[DVec3; 3]) -> bool {
 /// The bounding caps of a `grid` × `grid` grid's cells under the map `map` from the unit
 /// square, in the map's own frame, as a quadtree: one node over the whole grid (its side
 /// the next power of two), each split in four down to single cells (nodes at the grid's
-/// edge clipped to it). A
-/// cell is kept when its cap and every enclosing node's cap meet what the light sees of a
-/// target; each cap bounds its node's image, so the test stays conservative. A node's cap
-/// is computed when a test first needs it and kept for the next target and light.
+/// edge clipped to it). A cell is kept when its cap and every enclosing node's cap meet
+/// what the light sees of a target; each cap bounds its node's image, so the test stays
+/// conservative. A node's cap is computed when a test first needs it and kept for the next
+/// target and light.
 struct CapGrid {
     grid: u32,
     space: Space,
@@ -465,7 +464,7 @@ impl CapGrid {
         match s {
             Seen::Cap(t) => match self.space {
                 Space::Directions => c.meets_directions(t),
-                Space::Aperture => (c.centre - t.centre).length() <= c.radius + t.radius,
+                Space::Aperture => self.dist(c.centre, t.centre) <= c.radius + t.radius,
             },
             Seen::Triangle(t) => cap_meets_spherical_triangle(c.centre, c.radius, t),
             Seen::All => true,
@@ -474,14 +473,10 @@ impl CapGrid {
 
     /// Marks in `kept` every cell whose cap, and its enclosing nodes' caps, meet `s`.
     fn mark(&mut self, s: &Seen, kept: &mut [bool]) {
-        let nodes = self.levels[0].1;
-        for y in 0..nodes {
-            for x in 0..nodes {
-                self.mark_node(0, x, y, s, kept);
-            }
-        }
+        self.mark_node(0, 0, 0, s, kept);
     }
 
+    /// [`CapGrid::mark`] below node `(x, y)` of `level`.
     fn mark_node(&mut self, level: usize, x: u32, y: u32, s: &Seen, kept: &mut [bool]) {
         let (side, nodes) = (self.levels[level].0, self.levels[level].1);
         let (x0, y0) = (x * side, y * side);
