@@ -5,6 +5,10 @@
 
 pub use arpa_core::gpu::layout::AccumPixel;
 
+/// Bytes of an iteration's status word buffer (`schedule.wgsl`, `accumulate.wgsl`: four
+/// `u32`, the first used).
+pub const STATUS_BYTES: u64 = 16;
+
 /// The accumulation buffer and pipeline of one image size: one sum per entry of the
 /// iteration image (planes × pixels, plane-major, [`arpa_core::gather::scales::Bandwidth::planes`]).
 pub struct DeviceAccumulator {
@@ -12,6 +16,8 @@ pub struct DeviceAccumulator {
     /// `entries` × [`AccumPixel`] (`COPY_SRC` for read-back).
     pub pixels: wgpu::Buffer,
     count: u32,
+    /// A status word that is always zero, for accumulations no iteration status guards.
+    clear: wgpu::Buffer,
 }
 
 impl DeviceAccumulator {
@@ -35,7 +41,8 @@ impl DeviceAccumulator {
         });
         // Created mapped: zero-initialised by wgpu.
         pixels_buf.unmap();
-        Self { pipeline, pixels: pixels_buf, count: pixels }
+        let clear = device.create_buffer(&wgpu::BufferDescriptor { label: Some("arpa clear status"), size: STATUS_BYTES, usage: wgpu::BufferUsages::STORAGE, mapped_at_creation: false });
+        Self { pipeline, pixels: pixels_buf, count: pixels, clear }
     }
 
     /// Replaces the sums with `pixels` (one per entry; a checkpoint resumed), through the
@@ -44,8 +51,11 @@ impl DeviceAccumulator {
         (pixels.len() == self.count as usize).then(|| queue.write_buffer(&self.pixels, 0, bytemuck::cast_slice(pixels)))
     }
 
-    /// Records the addition of `image` (`vec4<f32>` per entry, RGB used) to the sums.
-    pub fn encode(&self, device: &wgpu::Device, encoder: &mut wgpu::CommandEncoder, image: &wgpu::Buffer) {
+    /// Records the addition of `image` (`vec4<f32>` per entry, RGB used) to the sums, unless
+    /// the first word of `status` (the iteration's status, [`STATUS_BYTES`] bytes, written by
+    /// the store's schedule kernel: its photon pass dropped records) is non-zero when it
+    /// runs; `None`: always.
+    pub fn encode(&self, device: &wgpu::Device, encoder: &mut wgpu::CommandEncoder, image: &wgpu::Buffer, status: Option<&wgpu::Buffer>) {
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("arpa accumulate"),
             layout: &self.pipeline.get_bind_group_layout(0),
@@ -59,6 +69,7 @@ impl DeviceAccumulator {
                         size: wgpu::BufferSize::new(self.count.max(1) as u64 * size_of::<AccumPixel>() as u64),
                     }),
                 },
+                wgpu::BindGroupEntry { binding: 2, resource: status.unwrap_or(&self.clear).as_entire_binding() },
             ],
         });
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("arpa accumulate"), timestamp_writes: None });

@@ -3,18 +3,20 @@
 //! ([`crate::store::MapStore`]) on the photon pass's buffers, every batch's sorted records
 //! kept ([`BatchMaps`]), their acceleration structures ([`crate::accel`]) and the image
 //! gather over them in batch order ([`crate::gather::ImageGather`]). Everything stays on
-//! the device; the host reads back the store's 48-byte counters, together with the photon
-//! pass's (they size the sort and the build: wgpu has no indirect build), and what the
-//! caller asks for.
+//! the device and nothing is sized by a count: the store, the sort and the build run over
+//! the buffers' capacities. Each batch's photon-pass and store counters are copied into
+//! one buffer of the iteration ([`PhotonMaps::batch_counts`]), which the tracer reads with
+//! the accumulate's wait (the overflow check, the stats) or when the caller asks for the
+//! records.
 
 use crate::accel::MapAccel;
 use crate::device::GpuContext;
 use crate::gather::ImageGather;
-use crate::store::{BOX_BYTES, FOOTPRINT_BYTES, MapStore, PHOTON_BYTES, StorePipelines};
+use crate::store::{BATCH_COUNTS_BYTES, FOOTPRINT_BYTES, MapStore, PHOTON_BYTES, StorePipelines};
 use crate::error::WgpuError;
 use arpa_core::gather::scales::Bandwidth;
 use arpa_core::store::footprint::PackedFootprint;
-use arpa_core::gpu::layout::{GatherBatch, StoreCounts, StoreSettings};
+use arpa_core::gpu::layout::{GatherBatch, PhotonCounters, StoreCounts, StoreSettings};
 use arpa_core::gather::kernel::Kernel;
 use arpa_core::store::progressive_photon::PackedPhoton;
 use arpa_core::render::tracer::{Call, Stage, StageError};
@@ -115,22 +117,22 @@ impl Readback {
     }
 }
 
-/// One photon batch's maps: its sorted records and their boxes (caustic first), the
-/// counts, the progressive radii they were stored with, and, once built, their
-/// acceleration structure.
+/// One photon batch's maps: its sorted records and their boxes (caustic first; inactive
+/// boxes past the records up to the capacities), the progressive radii they were stored
+/// with, and, once built, their acceleration structure.
 pub struct BatchMaps {
     /// Sorted footprint records ([`PackedFootprint`]); the first
     /// [`StoreCounts::total_footprints`] are valid.
     pub footprints: wgpu::Buffer,
-    /// Their boxes (`BLAS_INPUT`).
+    /// Their boxes (`BLAS_INPUT`), [`BatchMaps::capacities`]`.0` of them.
     pub footprint_boxes: wgpu::Buffer,
     /// Sorted progressive photons ([`PackedPhoton`]); the first
     /// [`StoreCounts::total_photons`] are valid.
     pub photons: wgpu::Buffer,
-    /// Their boxes (`BLAS_INPUT`).
+    /// Their boxes (`BLAS_INPUT`), [`BatchMaps::capacities`]`.1` of them.
     pub photon_boxes: wgpu::Buffer,
-    /// What the store counted.
-    pub counts: StoreCounts,
+    /// Sorted footprints and photons the buffers hold (the store's capacities).
+    pub capacities: (u32, u32),
     radii: [f32; 2],
     accel: Option<MapAccel>,
 }
@@ -142,21 +144,31 @@ pub struct PhotonMaps {
     gather: ImageGather,
     store: Option<MapStore>,
     batches: Vec<BatchMaps>,
+    /// The iteration's status word ([`crate::accumulate::STATUS_BYTES`]): set on the device
+    /// when a photon pass dropped appends.
+    status: wgpu::Buffer,
+    /// Per batch of the iteration, its [`PhotonCounters`] then its [`StoreCounts`]
+    /// ([`BATCH_COUNTS_BYTES`] each).
+    batch_counts: wgpu::Buffer,
 }
 
-/// A batch the store half has stored ([`PhotonMaps::encode_store`]), for [`PhotonMaps::sort`].
-#[derive(Debug)]
-pub struct Stored {
-    /// What the store counted.
-    pub counts: StoreCounts,
-    settings: StoreSettings,
+/// One batch's counters read back ([`PhotonMaps::batch_counts`]).
+#[derive(Clone, Copy, Debug)]
+pub struct BatchCounts {
+    /// The photon pass's.
+    pub photon: PhotonCounters,
+    /// The store's.
+    pub store: StoreCounts,
 }
 
-impl Stored {
-    /// The batch stored with `settings` (their record counts those of the photon pass's
-    /// counters read back), whose store counted `counts`.
-    pub fn new(counts: StoreCounts, settings: StoreSettings) -> Self {
-        Self { counts, settings }
+impl BatchCounts {
+    /// The batches' counters in `bytes` ([`BATCH_COUNTS_BYTES`] per batch).
+    pub fn parse(bytes: &[u8]) -> Vec<Self> {
+        let p = size_of::<PhotonCounters>();
+        bytes
+            .chunks_exact(BATCH_COUNTS_BYTES as usize)
+            .map(|c| Self { photon: bytemuck::pod_read_unaligned(&c[..p]), store: bytemuck::pod_read_unaligned(&c[p..]) })
+            .collect()
     }
 }
 
@@ -164,7 +176,13 @@ impl PhotonMaps {
     /// Compiles the pipelines.
     pub fn new(ctx: &GpuContext) -> Result<Self, WgpuError> {
         scoped(ctx, "compiling the store and gather pipelines", || {
-            Ok(Self { pipelines: StorePipelines::new(&ctx.device), gather: ImageGather::new(&ctx.device), store: None, batches: Vec::new() })
+            let status = ctx.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("arpa iteration status"),
+                size: crate::accumulate::STATUS_BYTES,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            Ok(Self { pipelines: StorePipelines::new(&ctx.device), gather: ImageGather::new(&ctx.device), store: None, batches: Vec::new(), status, batch_counts: batch_counts_buffer(ctx, 1) })
         })
     }
 
@@ -174,7 +192,7 @@ impl PhotonMaps {
     pub fn bind_inputs(&mut self, ctx: &GpuContext, raw: &wgpu::Buffer, photons: &wgpu::Buffer, counters: &wgpu::Buffer, raw_capacity: u32, photon_capacity: u32) -> Result<(), WgpuError> {
         self.store = None;
         let store = scoped(ctx, "allocating the store buffers", || {
-            MapStore::new(&ctx.device, &self.pipelines, raw, photons, counters, raw_capacity, photon_capacity).map_err(|e| WgpuError::Size(e.to_string()))
+            MapStore::new(&ctx.device, &self.pipelines, raw, photons, counters, &self.status, raw_capacity, photon_capacity).map_err(|e| WgpuError::Size(e.to_string()))
         })?;
         self.store = Some(store);
         Ok(())
@@ -184,73 +202,70 @@ impl PhotonMaps {
         self.store.as_ref().ok_or_else(|| StageError::order(call, Stage::UploadScene))
     }
 
-    /// Drops every batch (the start of an iteration's photon pass).
-    pub fn clear_batches(&mut self) {
+    /// Drops every batch and makes room for the counters of `batches` batches (the start
+    /// of an iteration's photon pass).
+    pub fn begin_iteration(&mut self, ctx: &GpuContext, batches: u32) {
         self.batches.clear();
+        if self.batch_counts.size() < u64::from(batches) * BATCH_COUNTS_BYTES {
+            self.batch_counts = batch_counts_buffer(ctx, batches);
+        }
     }
 
-    /// The first half of a batch's store, recorded into the photon pass's `encoder` after
-    /// the pass: stores its output (heuristics, fallbacks, sort items) with the record
-    /// counts taken from its counters on the device, and records the copy of the store's
-    /// counts ([`StoreCounts`]) into `readback`, at the offset returned. After the wait,
-    /// [`Stored::new`] and [`PhotonMaps::sort`] (before the next
-    /// [`PhotonMaps::bind_inputs`]) or, to drop the batch, nothing.
-    pub fn encode_store(&self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, settings: &StoreSettings, readback: &mut Readback) -> Result<usize, WgpuError> {
-        let store = self.store_for(Stage::PhotonPass)?;
-        store.encode_store(&ctx.queue, &self.pipelines, encoder, settings);
-        Ok(readback.copy(encoder, store.counts_buffer(), size_of::<StoreCounts>() as u64))
+    /// The iteration's status word ([`crate::accumulate::STATUS_BYTES`] bytes): non-zero
+    /// once a photon pass since it was cleared dropped appends.
+    pub fn status(&self) -> &wgpu::Buffer {
+        &self.status
     }
 
-    /// The second half: sorts and compacts what [`PhotonMaps::encode_store`] stored and keeps it
-    /// as the next batch. `last`: the iteration's last batch, which keeps the store's
-    /// output buffers themselves; an earlier batch's records are copied out, since the
-    /// next batch's store reuses those buffers.
-    pub fn sort(&mut self, ctx: &GpuContext, stored: Stored, last: bool) -> Result<(), WgpuError> {
-        let Stored { counts, settings } = stored;
+    /// The buffer of the batches' counters: batch `k`'s [`PhotonCounters`] and
+    /// [`StoreCounts`] at `k ·` [`BATCH_COUNTS_BYTES`] (`COPY_SRC`), [`BatchCounts::parse`].
+    pub fn batch_counts(&self) -> &wgpu::Buffer {
+        &self.batch_counts
+    }
+
+    /// Records batch `k`'s store, sort and compaction into the photon pass's `encoder`
+    /// after the pass ([`MapStore::encode`]), with the copy of the pass's `counters` and the
+    /// store's counts into [`PhotonMaps::batch_counts`], and keeps its maps as batch `k`.
+    /// `last`: the iteration's last batch, which keeps the store's output buffers
+    /// themselves; an earlier batch's records are copied out (the whole capacity: nothing
+    /// waits for their count), since the next batch's store reuses those buffers.
+    pub fn encode_batch(&mut self, ctx: &GpuContext, encoder: &mut wgpu::CommandEncoder, settings: &StoreSettings, counters: &wgpu::Buffer, k: u32, last: bool) -> Result<(), WgpuError> {
         let store = self.store_for(Stage::PhotonPass)?;
         let device = &ctx.device;
-        let batch = scoped(ctx, "sort", || {
-            let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa sort") });
-            store.encode_sort(device, &ctx.queue, &self.pipelines, &mut encoder, &settings, &counts).map_err(|e| WgpuError::Size(e.to_string()))?;
-            let batch = if last {
-                BatchMaps {
-                    footprints: store.footprints.clone(),
-                    footprint_boxes: store.footprint_boxes.clone(),
-                    photons: store.photons.clone(),
-                    photon_boxes: store.photon_boxes.clone(),
-                    counts,
-                    radii: settings.radii,
-                    accel: None,
-                }
-            } else {
-                use wgpu::BufferUsages as U;
-                let copy = |encoder: &mut wgpu::CommandEncoder, source: &wgpu::Buffer, bytes: u64, usage: U| {
-                    let b = device.create_buffer(&wgpu::BufferDescriptor {
-                        label: Some("arpa photon batch"),
-                        // Bindings must hold at least one record.
-                        size: bytes.max(FOOTPRINT_BYTES),
-                        usage: U::STORAGE | U::COPY_SRC | U::COPY_DST | usage,
-                        mapped_at_creation: false,
-                    });
-                    if bytes > 0 {
-                        encoder.copy_buffer_to_buffer(source, 0, &b, 0, bytes);
-                    }
-                    b
-                };
-                let (nf, np) = (counts.total_footprints() as u64, counts.total_photons() as u64);
-                BatchMaps {
-                    footprints: copy(&mut encoder, &store.footprints, nf * FOOTPRINT_BYTES, U::empty()),
-                    footprint_boxes: copy(&mut encoder, &store.footprint_boxes, nf * BOX_BYTES, U::BLAS_INPUT),
-                    photons: copy(&mut encoder, &store.photons, np * PHOTON_BYTES, U::empty()),
-                    photon_boxes: copy(&mut encoder, &store.photon_boxes, np * BOX_BYTES, U::BLAS_INPUT),
-                    counts,
-                    radii: settings.radii,
-                    accel: None,
-                }
+        store.encode(device, &ctx.queue, &self.pipelines, encoder, settings);
+        let at = u64::from(k) * BATCH_COUNTS_BYTES;
+        let photon_bytes = size_of::<PhotonCounters>() as u64;
+        encoder.copy_buffer_to_buffer(counters, 0, &self.batch_counts, at, photon_bytes);
+        encoder.copy_buffer_to_buffer(store.counts_buffer(), 0, &self.batch_counts, at + photon_bytes, size_of::<StoreCounts>() as u64);
+        let capacities = (store.capacities().0, store.photons_out_capacity());
+        let batch = if last {
+            BatchMaps {
+                footprints: store.footprints.clone(),
+                footprint_boxes: store.footprint_boxes.clone(),
+                photons: store.photons.clone(),
+                photon_boxes: store.photon_boxes.clone(),
+                capacities,
+                radii: settings.radii,
+                accel: None,
+            }
+        } else {
+            use wgpu::BufferUsages as U;
+            let copy = |encoder: &mut wgpu::CommandEncoder, source: &wgpu::Buffer, usage: U| {
+                let b = device.create_buffer(&wgpu::BufferDescriptor { label: Some("arpa photon batch"), size: source.size(), usage: U::STORAGE | U::COPY_SRC | U::COPY_DST | usage, mapped_at_creation: false });
+                encoder.copy_buffer_to_buffer(source, 0, &b, 0, source.size());
+                b
             };
-            ctx.submit(encoder);
-            Ok(batch)
-        })?;
+            BatchMaps {
+                footprints: copy(encoder, &store.footprints, U::empty()),
+                footprint_boxes: copy(encoder, &store.footprint_boxes, U::BLAS_INPUT),
+                photons: copy(encoder, &store.photons, U::empty()),
+                photon_boxes: copy(encoder, &store.photon_boxes, U::BLAS_INPUT),
+                capacities,
+                radii: settings.radii,
+                accel: None,
+            }
+        };
+        self.batches.truncate(k as usize);
         self.batches.push(batch);
         Ok(())
     }
@@ -265,7 +280,8 @@ impl PhotonMaps {
         &self.batches
     }
 
-    /// Builds every batch's acceleration structure over its sorted boxes (one submission).
+    /// Builds every batch's acceleration structure over its sorted boxes, the whole
+    /// capacity (one submission).
     pub fn build(&mut self, ctx: &GpuContext) -> Result<(), WgpuError> {
         let device = &ctx.device;
         let batches = &mut self.batches;
@@ -275,7 +291,7 @@ impl PhotonMaps {
         scoped(ctx, "acceleration-structure build", || {
             let mut encoder = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa build") });
             for b in batches.iter_mut() {
-                let accel = crate::accel::build(device, &mut encoder, &b.footprint_boxes, &b.photon_boxes, &b.counts).map_err(|e| WgpuError::Size(e.to_string()))?;
+                let accel = crate::accel::build(device, &mut encoder, &b.footprint_boxes, b.capacities.0, &b.photon_boxes, b.capacities.1).map_err(|e| WgpuError::Size(e.to_string()))?;
                 b.accel = Some(accel);
             }
             ctx.submit(encoder);
@@ -312,11 +328,12 @@ impl PhotonMaps {
         self.gather.total_buffer()
     }
 
-    /// The sorted footprints of every batch, batch after batch (each caustic first).
-    pub fn read_footprints(&self, ctx: &GpuContext) -> Result<Vec<PackedFootprint>, WgpuError> {
+    /// The sorted footprints of every batch, batch after batch (each caustic first), with
+    /// the batches' `counts`.
+    pub fn read_footprints(&self, ctx: &GpuContext, counts: &[BatchCounts]) -> Result<Vec<PackedFootprint>, WgpuError> {
         let mut out = Vec::new();
-        for b in &self.batches {
-            let n = b.counts.total_footprints() as u64;
+        for (b, c) in self.batches.iter().zip(counts) {
+            let n = c.store.total_footprints() as u64;
             out.extend(bytemuck::pod_collect_to_vec::<u8, PackedFootprint>(&read_buffer(ctx, "read_footprints", &b.footprints, n * FOOTPRINT_BYTES)?));
         }
         Ok(out)
@@ -324,12 +341,22 @@ impl PhotonMaps {
 
     /// The sorted progressive photons of every batch, batch after batch (each caustic
     /// first, padding zero).
-    pub fn read_photons(&self, ctx: &GpuContext) -> Result<Vec<PackedPhoton>, WgpuError> {
+    pub fn read_photons(&self, ctx: &GpuContext, counts: &[BatchCounts]) -> Result<Vec<PackedPhoton>, WgpuError> {
         let mut out = Vec::new();
-        for b in &self.batches {
-            let n = b.counts.total_photons() as u64;
+        for (b, c) in self.batches.iter().zip(counts) {
+            let n = (c.store.total_photons().min(b.capacities.1)) as u64;
             out.extend(bytemuck::pod_collect_to_vec::<u8, PackedPhoton>(&read_buffer(ctx, "read_photons", &b.photons, n * PHOTON_BYTES)?));
         }
         Ok(out)
     }
+}
+
+/// A buffer for the counters of `batches` batches.
+fn batch_counts_buffer(ctx: &GpuContext, batches: u32) -> wgpu::Buffer {
+    ctx.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("arpa batch counters"),
+        size: u64::from(batches.max(1)) * BATCH_COUNTS_BYTES,
+        usage: wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
 }

@@ -8,16 +8,18 @@
 //! not depend on the order the photon pass appended in (bit-identical), and it is spatially
 //! sorted for the acceleration-structure build ([`crate::accel`]).
 //!
-//! The store half runs in the photon pass's submission: the schedule kernel (the core's
-//! `schedule.wgsl`) writes its record counts and indirect dispatch sizes from the photon
-//! pass's counters on the device ([`MapStore::encode_store`]). The host reads back the
-//! pass's and the store's counters together after it (one wait per photon batch): the
-//! overflow check, the sort's passes (item counts and tiles, [`MapStore::encode_sort`]) and
-//! the acceleration-structure build (wgpu has no indirect build) depend on them.
+//! The whole store runs in the photon pass's submission and nothing of it waits for a count
+//! on the host ([`MapStore::encode`]): the schedule kernel (the core's `schedule.wgsl`)
+//! writes the store's record counts and indirect dispatch sizes from the photon pass's
+//! counters on the device, and the sort and the compaction run over the buffers' capacity
+//! ([`StoreParams::new`]): the items past the appended ones are padding that sorts last,
+//! and their slots get inactive boxes, so that the acceleration structures are built over
+//! the capacity too ([`crate::accel`]).
 
 use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::{gpu::layout::{KeyedPhoton, StoreCounts, StoreParams, StoreSettings}, gpu::sort::SortItem};
 use arpa_core::gpu::sort::{MAX_SORT_ITEMS, sorted_len};
+use arpa_core::gpu::layout::PhotonCounters;
 use crate::sort::RadixScratch;
 use arpa_core::store::progressive_photon::PackedPhoton;
 
@@ -51,7 +53,7 @@ impl StorePipelines {
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label, source: wgpu::ShaderSource::Wgsl(crate::shaders::store().into()) });
         let pipeline = |entry: &str| crate::harness::pipeline(device, "arpa keyed store", &module, &[Some(&layout)], entry);
         let schedule_label = Some("arpa store schedule");
-        let entries = [crate::harness::storage_entry(0, true), crate::harness::storage_entry(1, false), crate::harness::storage_entry(2, false)];
+        let entries = [crate::harness::storage_entry(0, true), crate::harness::storage_entry(1, false), crate::harness::storage_entry(2, false), crate::harness::storage_entry(3, false)];
         let schedule_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: schedule_label, entries: &entries });
         let schedule_module =
             device.create_shader_module(wgpu::ShaderModuleDescriptor { label: schedule_label, source: wgpu::ShaderSource::Wgsl(crate::shaders::schedule().into()) });
@@ -119,13 +121,16 @@ pub struct MapStore {
 impl MapStore {
     /// Buffers for up to `raw_capacity` raw footprints in `raw` ([`arpa_core::gpu::layout::KeyedFootprint`]) and
     /// `photon_capacity` progressive photons in `photons` ([`KeyedPhoton`]), appended by the
-    /// photon pass whose counters ([`arpa_core::gpu::layout::PhotonCounters`]) are `counters`.
+    /// photon pass whose counters ([`PhotonCounters`]) are `counters`; the schedule kernel
+    /// sets the iteration's `status` word when the pass dropped appends.
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         device: &wgpu::Device,
         pipelines: &StorePipelines,
         raw: &wgpu::Buffer,
         photons: &wgpu::Buffer,
         counters: &wgpu::Buffer,
+        status: &wgpu::Buffer,
         raw_capacity: u32,
         photon_capacity: u32,
     ) -> Result<Self, StoreSizeError> {
@@ -169,7 +174,7 @@ impl MapStore {
         let entries: Vec<_> = resources.iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() }).collect();
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor { label, layout: &pipelines.layout, entries: &entries });
         let args = device.create_buffer(&wgpu::BufferDescriptor { label: Some("arpa store dispatch"), size: 24, usage: U::STORAGE | U::INDIRECT, mapped_at_creation: false });
-        let entries: Vec<_> = [counters, &params, &args].iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() }).collect();
+        let entries: Vec<_> = [counters, &params, &args, status].iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() }).collect();
         let schedule_group = device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("arpa store schedule"), layout: &pipelines.schedule_layout, entries: &entries });
         Ok(Self {
             args,
@@ -195,69 +200,56 @@ impl MapStore {
         (self.raw_capacity, self.photon_capacity)
     }
 
+    /// Sorted progressive photons one batch can hold (both capacities together, capped at
+    /// one storage binding; more are counted in [`StoreCounts::overflowed`]).
+    pub fn photons_out_capacity(&self) -> u32 {
+        self.photons_out_capacity
+    }
+
     /// The counters buffer ([`StoreCounts`], 48 bytes; `COPY_SRC`), valid after the
-    /// commands of [`MapStore::encode_store`] ran.
+    /// commands of [`MapStore::encode`] ran.
     pub fn counts_buffer(&self) -> &wgpu::Buffer {
         &self.counts
     }
 
-    /// First half, after the photon pass's commands in the same submission: writes this
-    /// iteration's parameters (through `queue`, before the next submission; `settings`'
-    /// record counts are not used), records the schedule kernel, which sets the record
-    /// counts and the dispatch sizes from the photon pass's counters on the device, and the
-    /// store and the appending of the sort items (indirect dispatches). Submit it and read
-    /// the counts ([`MapStore::counts_buffer`]) before [`MapStore::encode_sort`].
-    pub fn encode_store(&self, queue: &wgpu::Queue, pipelines: &StorePipelines, encoder: &mut wgpu::CommandEncoder, settings: &StoreSettings) {
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&StoreParams::new(settings, None)));
-        encoder.clear_buffer(&self.counts, 0, None);
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("arpa keyed store"), timestamp_writes: None });
-        pass.set_bind_group(0, &self.schedule_group, &[]);
-        pass.set_pipeline(&pipelines.schedule);
-        pass.dispatch_workgroups(1, 1, 1);
-        pass.set_bind_group(0, &self.bind_group, &[]);
-        pass.set_pipeline(&pipelines.keyed);
-        pass.dispatch_workgroups_indirect(&self.args, 0);
-        pass.set_pipeline(&pipelines.photon_keys);
-        pass.dispatch_workgroups_indirect(&self.args, 12);
-    }
-
-    /// Second half, with the `counts` read back after [`MapStore::encode_store`]: pads the
-    /// appended items to their sorted lengths, sorts the appended ones (the radix sort; the
-    /// padding sorts last anyway) and compacts the records.
-    pub fn encode_sort(
-        &self,
-        device: &wgpu::Device,
-        queue: &wgpu::Queue,
-        pipelines: &StorePipelines,
-        encoder: &mut wgpu::CommandEncoder,
-        settings: &StoreSettings,
-        counts: &StoreCounts,
-    ) -> Result<(), StoreSizeError> {
-        if counts.total_photons() > self.photons_out_capacity {
-            return Err(StoreSizeError(format!(
-                "{} progressive photons in one iteration; one storage binding of this device holds {}",
-                counts.total_photons(),
-                self.photons_out_capacity
-            )));
-        }
-        let params = StoreParams::new(settings, Some(counts));
+    /// Records one batch's whole store into the photon pass's `encoder`, after the pass:
+    /// writes the parameters (through `queue`, before the next submission; `settings`'
+    /// record counts are not used), then the schedule kernel (record counts and dispatch
+    /// sizes from the photon pass's counters, the iteration's status), the store and the
+    /// sort items (indirect dispatches), the padding of the items up to the capacities, the
+    /// radix sort of both item buffers over their capacities and the compaction into the
+    /// sorted records and boxes (inactive boxes past the records). Nothing is read back.
+    pub fn encode(&self, device: &wgpu::Device, queue: &wgpu::Queue, pipelines: &StorePipelines, encoder: &mut wgpu::CommandEncoder, settings: &StoreSettings) {
+        let params = StoreParams::new(settings, self.raw_capacity, self.photon_capacity);
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        encoder.clear_buffer(&self.counts, 0, None);
         {
-            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("arpa sort padding"), timestamp_writes: None });
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("arpa keyed store"), timestamp_writes: None });
+            pass.set_bind_group(0, &self.schedule_group, &[]);
+            pass.set_pipeline(&pipelines.schedule);
+            pass.dispatch_workgroups(1, 1, 1);
             pass.set_bind_group(0, &self.bind_group, &[]);
+            pass.set_pipeline(&pipelines.keyed);
+            pass.dispatch_workgroups_indirect(&self.args, 0);
+            pass.set_pipeline(&pipelines.photon_keys);
+            pass.dispatch_workgroups_indirect(&self.args, 12);
             pass.set_pipeline(&pipelines.pad_items);
             dispatch_linear(&mut pass, params.fp_sorted.max(params.ph_sorted));
         }
-        // Slots: footprints below raw_count, photons below photon_count + raw_count.
-        let value_bound = settings.photon_count.saturating_add(settings.raw_count);
-        pipelines.sorter.encode_radix(device, encoder, &self.fp_items, &self.radix, params.fp_count, value_bound);
-        pipelines.sorter.encode_radix(device, encoder, &self.ph_items, &self.radix, params.ph_count, value_bound);
+        // Slots: footprints below raw_count, photons below photon_count + raw_count, both
+        // within the capacities; the padding's value sorts last with its keys anyway.
+        let value_bound = self.raw_capacity.saturating_add(self.photon_capacity);
+        pipelines.sorter.encode_radix(device, encoder, &self.fp_items, &self.radix, params.fp_sorted, value_bound);
+        pipelines.sorter.encode_radix(device, encoder, &self.ph_items, &self.radix, params.ph_sorted, value_bound);
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("arpa compaction"), timestamp_writes: None });
         pass.set_bind_group(0, &self.bind_group, &[]);
         pass.set_pipeline(&pipelines.compact_footprints);
         dispatch_linear(&mut pass, params.fp_sorted);
         pass.set_pipeline(&pipelines.compact_photons);
         dispatch_linear(&mut pass, params.ph_sorted);
-        Ok(())
     }
 }
+
+/// Bytes of one batch's counters as the tracer keeps them: the photon pass's
+/// ([`PhotonCounters`]) then the store's ([`StoreCounts`]).
+pub const BATCH_COUNTS_BYTES: u64 = (size_of::<PhotonCounters>() + size_of::<StoreCounts>()) as u64;

@@ -4,13 +4,14 @@ use crate::accumulate::{AccumPixel, DeviceAccumulator};
 use crate::camera::CameraPass;
 use crate::device::{AdapterChoice, GpuContext};
 use crate::error::WgpuError;
-use crate::maps::{PhotonMaps, Readback, Stored, read_buffer, scoped};
+use crate::maps::{BatchCounts, PhotonMaps, Readback, read_buffer, scoped};
+use crate::store::BATCH_COUNTS_BYTES;
 use crate::photon::{PhotonOutputs, PhotonPass};
 use crate::scene::GpuScene;
 use arpa_core::accumulate::image::Accumulation;
 use arpa_core::store::footprint::PackedFootprint;
-use arpa_core::gpu::batch::{Overflow, RecordLimits, after_overflow, for_each_batch, initial_capacity, shrink};
-use arpa_core::{gpu::layout::{GatherCounts, ImageBufferSizes, PhotonCounters, StoreCounts, StoreSettings}, gpu::fill::check_record_keys};
+use arpa_core::gpu::batch::{Overflow, RecordLimits, after_overflow, batch_count, batch_range, calibrated_capacity, for_each_batch, initial_capacity, shrink};
+use arpa_core::{gpu::layout::{GatherCounts, ImageBufferSizes, PhotonCounters, StoreSettings}, gpu::fill::check_record_keys};
 use arpa_core::gpu::sort::{MAX_SORT_ITEMS, sorted_len};
 use arpa_core::render::photon_path::PhotonPassSetup;
 use arpa_core::render::prepared_scene::PreparedScene;
@@ -145,6 +146,14 @@ struct Loaded {
     limits: RecordLimits,
     /// A gather ran and its counts are not in the stats yet (accumulate's wait reads them).
     gather_counts_pending: bool,
+    /// The calibrated capacities of the photon pass's append buffers (raw footprints,
+    /// progressive photons): every iteration starts on them ([`arpa_core::gpu::batch`]).
+    capacities: (u32, u32),
+    /// Batches of the current iteration's photon pass.
+    batches: u32,
+    /// A photon pass ran without waiting and its counters are still on the device only
+    /// (accumulate's wait reads them).
+    photon_counts_pending: bool,
     clock: StageClock,
 }
 
@@ -216,6 +225,16 @@ impl WgpuTracer {
     fn loaded(&self, call: impl Into<Call>) -> Result<&Loaded, StageError> {
         uploaded(self.state.as_deref(), call)
     }
+
+    /// The counters of the batches the maps hold, read back; an error when the last photon
+    /// pass dropped records (its accumulate traces the iteration again).
+    fn kept_counts(&self, st: &Loaded) -> Result<Vec<BatchCounts>, WgpuError> {
+        let counts = read_batch_counts(&self.ctx, &self.maps, st)?;
+        if dropped(&counts) {
+            return Err(WgpuError::Size("the last photon pass dropped records for lack of buffer space; its accumulate traces the iteration again with larger buffers".into()));
+        }
+        Ok(counts)
+    }
 }
 
 /// Runs `stage` on `clock` ([`StageClock::run`]) with the device timer, where the adapter
@@ -231,10 +250,6 @@ fn timed<E: From<StageError>>(ctx: &GpuContext, clock: &mut StageClock, stage: S
     result
 }
 
-/// Bytes of the photon pass's counters ([`PhotonCounters`]).
-const COUNTERS_BYTES: u64 = size_of::<PhotonCounters>() as u64;
-/// Bytes of the store's counters ([`StoreCounts`]).
-const STORE_COUNTS_BYTES: u64 = size_of::<StoreCounts>() as u64;
 /// Bytes of the gather's counters ([`GatherCounts`]).
 const GATHER_COUNTS_BYTES: u64 = size_of::<GatherCounts>() as u64;
 
@@ -258,70 +273,227 @@ fn binding_bytes(ctx: &GpuContext, binding_limit: Option<u64>) -> u64 {
     limits.max_storage_buffer_binding_size.min(limits.max_buffer_size).min(binding_limit.unwrap_or(u64::MAX))
 }
 
-/// Traces the photons `range` of the iteration `setup` into the photon buffers, stores,
-/// sorts and compacts them into the next batch of `maps` (growing the buffers and tracing
-/// again on overflow) and adds the batch's counts to the stats. `Some(B)`: the batch needs
-/// more than one storage binding of this adapter holds; nothing was kept and the caller
-/// traces the iteration again with B photons per batch.
-fn trace_batch(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, clock: &mut StageClock, setup: &PhotonPassSetup, range: std::ops::Range<u32>, last: bool) -> Result<Option<u32>, WgpuError> {
+/// Reallocates the photon pass's append buffers (and the store's buffers bound to them) for
+/// `capacities` (raw footprints, progressive photons).
+fn resize(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, capacities: (u32, u32)) -> Result<(), WgpuError> {
+    let (fp_cap, ph_cap) = capacities;
+    if fp_cap.checked_add(ph_cap).is_none_or(|t| sorted_len(t) > MAX_SORT_ITEMS) {
+        return Err(WgpuError::Size(format!("{fp_cap} footprints and {ph_cap} photons in one batch exceed the device sort's {MAX_SORT_ITEMS} records")));
+    }
+    // Free the old buffers before allocating the new ones.
+    st.outputs = PhotonOutputs::new(ctx, 1, 1)?;
+    st.outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
+    maps.bind_inputs(ctx, st.outputs.footprints(), st.outputs.photons(), st.outputs.counters(), fp_cap, ph_cap)
+}
+
+/// Records and submits batch `k` of the iteration `setup` (its photons `range`): the
+/// photon pass and the whole store ([`PhotonMaps::encode_batch`]) in one submission, which
+/// first clears the iteration's status word when `clear_status`. Nothing waits.
+#[allow(clippy::too_many_arguments)]
+fn submit_batch(ctx: &GpuContext, maps: &mut PhotonMaps, st: &Loaded, setup: &PhotonPassSetup, settings: &StoreSettings, range: std::ops::Range<u32>, k: u32, last: bool, clear_status: bool) -> Result<(), WgpuError> {
+    scoped(ctx, "photon_pass", || {
+        let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa photon pass") });
+        if clear_status {
+            encoder.clear_buffer(maps.status(), 0, None);
+        }
+        st.photon.encode_batch(ctx, &mut encoder, &st.scene, setup, range, &st.outputs)?;
+        maps.encode_batch(ctx, &mut encoder, settings, st.outputs.counters(), k, last)?;
+        ctx.submit(encoder);
+        Ok(())
+    })
+}
+
+/// Whether the pipelined photon pass can run with the current buffers: every sorted
+/// progressive photon a batch can make (both capacities) fits one binding, so that only
+/// the photon pass's appends can overflow (the status word catches those).
+fn pipelines_fit(st: &Loaded) -> bool {
+    u64::from(st.capacities.0) + u64::from(st.capacities.1) <= st.limits.sorted_photons
+}
+
+/// The photon pass without a wait: every batch of the iteration `setup` is traced and
+/// stored over the calibrated capacities; the counters stay on the device until the
+/// accumulate's wait (or a read of the stats or the records) reads them.
+fn trace_pipelined(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, setup: &PhotonPassSetup) -> Result<(), WgpuError> {
+    let n = setup.photon_count();
+    let b = st.batch_photons;
+    let batches = batch_count(n, b);
+    maps.begin_iteration(ctx, batches);
+    let settings = StoreSettings::for_iteration(setup, &st.prepared);
+    for k in 0..batches {
+        submit_batch(ctx, maps, st, setup, &settings, batch_range(n, b, k), k, k + 1 == batches, k == 0)?;
+    }
+    st.batches = batches;
+    st.photon_counts_pending = true;
+    Ok(())
+}
+
+/// The photon pass with one wait per batch (the calibration, an iteration traced again
+/// after an overflow, or capacities too large for the pipelined pass): every batch of the
+/// iteration `setup`, each checked as soon as it ran ([`trace_batch`]); a batch too large
+/// for one binding shrinks B and starts the iteration again. Returns the largest appends
+/// of a batch (raw footprints, progressive photons).
+fn trace_waiting(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, stats: &mut IterationStats, setup: &PhotonPassSetup) -> Result<(u32, u32), WgpuError> {
+    let n = setup.photon_count();
+    stats.overflowed = 0;
+    let mut most = (0, 0);
+    let mut batch_photons = st.batch_photons;
+    let batches = for_each_batch(n, &mut batch_photons, |range, k, batches| {
+        if k == 0 {
+            stats.reset_photon_counts();
+            maps.begin_iteration(ctx, batches);
+            most = (0, 0);
+        }
+        let c = trace_batch(ctx, maps, st, stats, setup, range, k, k + 1 == batches)?;
+        Ok::<_, WgpuError>(match c {
+            Ok(c) => {
+                most = (most.0.max(c.footprint_appends), most.1.max(c.photon_appends));
+                None
+            }
+            Err(b) => Some(b),
+        })
+    })?;
+    st.batch_photons = batch_photons;
+    st.batches = batches;
+    st.photon_counts_pending = false;
+    Ok(most)
+}
+
+/// Traces batch `k` (the photons `range` of the iteration `setup`) and stores it, then
+/// waits for its counters: on overflow the batch's records are dropped, the buffers grow
+/// and the same photons are traced again. `Ok(Ok(counters))`: the batch is kept and its
+/// counts are in `stats`; `Ok(Err(B))`: it needs more than one storage binding of this
+/// adapter holds, and the caller traces the iteration again with B photons per batch.
+#[allow(clippy::too_many_arguments)]
+fn trace_batch(
+    ctx: &GpuContext,
+    maps: &mut PhotonMaps,
+    st: &mut Loaded,
+    stats: &mut IterationStats,
+    setup: &PhotonPassSetup,
+    range: std::ops::Range<u32>,
+    k: u32,
+    last: bool,
+) -> Result<Result<PhotonCounters, u32>, WgpuError> {
     let photons = range.end - range.start;
     let limits = st.limits;
-    // The store's parameters; its record counts come from the pass's counters on the device.
-    let mut settings = StoreSettings::for_iteration(setup, &st.prepared);
-    // Trace and store in one submission, then one wait for both counters; on overflow
-    // discard the batch's records, grow the buffers and trace the same photons again.
-    let (counters, counts) = loop {
-        let mut readback = Readback::new(ctx, "photon and store counters", COUNTERS_BYTES + STORE_COUNTS_BYTES);
-        let at = scoped(ctx, "photon_pass", || {
-            let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa photon pass") });
-            st.photon.encode_batch(ctx, &mut encoder, &st.scene, setup, range.clone(), &st.outputs)?;
-            let counters_at = readback.copy(&mut encoder, st.outputs.counters(), COUNTERS_BYTES);
-            let counts_at = maps.encode_store(ctx, &mut encoder, &settings, &mut readback)?;
-            ctx.submit(encoder);
-            Ok((counters_at, counts_at))
-        })?;
-        readback.map();
-        wait(ctx, "photon_pass")?;
-        let bytes = readback.bytes()?;
-        let c: PhotonCounters = bytemuck::pod_read_unaligned(&bytes[at.0..at.0 + COUNTERS_BYTES as usize]);
+    let settings = StoreSettings::for_iteration(setup, &st.prepared);
+    loop {
+        // Every earlier batch fitted: the status word only tells of this one.
+        submit_batch(ctx, maps, st, setup, &settings, range.clone(), k, last, true)?;
+        let bytes = read_buffer(ctx, "photon_pass", maps.batch_counts(), (u64::from(k) + 1) * BATCH_COUNTS_BYTES)?;
+        let BatchCounts { photon: c, store: counts } = BatchCounts::parse(&bytes)[k as usize];
         if c.overflowed() == 0 {
-            break (c, bytemuck::pod_read_unaligned::<StoreCounts>(&bytes[at.1..at.1 + STORE_COUNTS_BYTES as usize]));
+            // The sorted progressive photons (the pass's plus the footprints' fallbacks)
+            // must fit one binding too.
+            if counts.overflowed > 0 || u64::from(counts.photon_items) > limits.sorted_photons {
+                stats.overflowed += u64::from(counts.overflowed.max(1));
+                if photons <= 1 {
+                    return Err(WgpuError::Size(format!("one photon stores {} progressive photons; adapter {:?} binds at most {}", counts.photon_items, ctx.info.name, limits.sorted_photons)));
+                }
+                return Ok(Err(shrink(photons, limits.sorted_photons as f64 / f64::from(counts.photon_items.max(1)))));
+            }
+            stats.add_photon_batch(&c, &counts);
+            return Ok(Ok(c));
         }
-        clock.stats_mut().overflowed += c.overflowed();
+        stats.overflowed += c.overflowed();
         let caps = (st.outputs.footprint_capacity(), st.outputs.photon_capacity());
-        let (fp_cap, ph_cap) = match after_overflow(&limits, photons, c.footprint_appends, c.photon_appends, caps) {
-            Overflow::Grow(f, p) => (f, p),
-            Overflow::Shrink(b) => return Ok(Some(b)),
+        match after_overflow(&limits, photons, c.footprint_appends, c.photon_appends, caps) {
+            Overflow::Grow(f, p) => resize(ctx, maps, st, (f, p))?,
+            Overflow::Shrink(b) => return Ok(Err(b)),
             Overflow::TooLarge => {
                 return Err(WgpuError::Size(format!(
                     "one photon stores {} raw footprints and {} progressive photons; adapter {:?} binds at most {} and {}",
                     c.footprint_appends, c.photon_appends, ctx.info.name, limits.raw_footprints, limits.photons
                 )));
             }
-        };
-        if sorted_len(fp_cap.saturating_add(ph_cap)) > MAX_SORT_ITEMS || fp_cap.saturating_add(ph_cap) < fp_cap {
-            return Err(WgpuError::Size(format!("{} footprints and {} photons in one batch exceed the device sort's {MAX_SORT_ITEMS} records", c.footprint_appends, c.photon_appends)));
         }
-        // Free the old buffers before allocating the larger ones.
-        st.outputs = PhotonOutputs::new(ctx, 1, 1)?;
-        st.outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
-        maps.bind_inputs(ctx, st.outputs.footprints(), st.outputs.photons(), st.outputs.counters(), fp_cap, ph_cap)?;
-    };
-    // The counts the schedule kernel gave the store.
-    settings.raw_count = counters.footprints_written();
-    settings.photon_count = counters.photons_written();
-    // The sorted progressive photons (the pass's plus the footprints' fallbacks) must fit
-    // one binding too.
-    if counts.photon_items as u64 > limits.sorted_photons {
-        clock.stats_mut().overflowed += counts.photon_items as u64 - limits.sorted_photons;
-        if photons <= 1 {
-            return Err(WgpuError::Size(format!("one photon stores {} progressive photons; adapter {:?} binds at most {}", counts.photon_items, ctx.info.name, limits.sorted_photons)));
-        }
-        return Ok(Some(shrink(photons, limits.sorted_photons as f64 / counts.photon_items as f64)));
     }
-    maps.sort(ctx, Stored::new(counts, settings), last)?;
-    clock.stats_mut().add_photon_batch(&counters, &counts);
-    Ok(None)
+}
+
+/// The counters of the iteration's batches, read back (a wait).
+fn read_batch_counts(ctx: &GpuContext, maps: &PhotonMaps, st: &Loaded) -> Result<Vec<BatchCounts>, WgpuError> {
+    Ok(BatchCounts::parse(&read_buffer(ctx, "photon counters", maps.batch_counts(), u64::from(st.batches) * BATCH_COUNTS_BYTES)?))
+}
+
+/// Whether the batches' counters show a dropped record (the iteration must be traced again).
+fn dropped(counts: &[BatchCounts]) -> bool {
+    counts.iter().any(|c| c.photon.overflowed() > 0 || c.store.overflowed > 0)
+}
+
+/// Adds the batches' counts to `stats` (whose photon counts the photon pass reset).
+fn add_batches(stats: &mut IterationStats, counts: &[BatchCounts]) {
+    for c in counts {
+        stats.add_photon_batch(&c.photon, &c.store);
+    }
+}
+
+/// Records and submits the accumulation of the iteration image (left out on the device when
+/// the status word says the photon pass dropped records), with the copies of the gather's
+/// counts and, for a pipelined photon pass, the batches' counters; then waits once for the
+/// iteration and reads them, and the device's stage times. Returns the batches' counters
+/// when they were read.
+fn accumulate_and_wait(ctx: &GpuContext, maps: &PhotonMaps, st: &mut Loaded, stats: &mut IterationStats) -> Result<Option<Vec<BatchCounts>>, WgpuError> {
+    let mut gather = st.gather_counts_pending.then(|| Readback::new(ctx, "gather counts", GATHER_COUNTS_BYTES));
+    let batch_bytes = u64::from(st.batches) * BATCH_COUNTS_BYTES;
+    let mut batches = st.photon_counts_pending.then(|| Readback::new(ctx, "photon counters", batch_bytes));
+    scoped(ctx, "accumulate", || {
+        let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa accumulate") });
+        st.accumulator.encode(&ctx.device, &mut encoder, &st.image, Some(maps.status()));
+        if let Some(r) = gather.as_mut() {
+            r.copy(&mut encoder, maps.gathered_buffer(), GATHER_COUNTS_BYTES);
+        }
+        if let Some(r) = batches.as_mut() {
+            r.copy(&mut encoder, maps.batch_counts(), batch_bytes);
+        }
+        ctx.submit(encoder);
+        Ok(())
+    })?;
+    for r in [gather.as_mut(), batches.as_mut()].into_iter().flatten() {
+        r.map();
+    }
+    // The iteration's timestamps and counters come back in the same wait as the
+    // accumulation: the iteration's one wait.
+    let timestamps = ctx.timer().map(|t| (t, t.resolve(&ctx.device, &ctx.queue)));
+    wait(ctx, "accumulate")?;
+    if let Some(r) = gather {
+        set_gather_counts(stats, &r.bytes()?);
+        st.gather_counts_pending = false;
+    }
+    stats.device_times = match timestamps {
+        Some((timer, pending)) => timer.read(pending).map_err(|message| WgpuError::Readback { stage: "stage timestamps", message })?,
+        None => DeviceTimes::Unavailable,
+    };
+    st.photon_counts_pending = false;
+    batches.map(|r| r.bytes().map(|b| BatchCounts::parse(&b))).transpose()
+}
+
+/// Records and submits the gather of every batch, one submission each (each writes its
+/// gather parameters through the queue); its counts come back in the accumulate's wait (or
+/// `read_stats`'s).
+fn gather_batches(ctx: &GpuContext, maps: &PhotonMaps, st: &mut Loaded) -> Result<(), WgpuError> {
+    for k in 0..maps.batch_count() {
+        scoped(ctx, "gather", || {
+            let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa gather") });
+            maps.encode_gather(ctx, &mut encoder, k, &st.queries, &st.image, &st.irradiance, st.settings.kernel, st.settings.bandwidth, st.pixels)?;
+            ctx.submit(encoder);
+            Ok(())
+        })?;
+    }
+    st.gather_counts_pending = true;
+    Ok(())
+}
+
+/// Runs `body` with the device timer timing its submissions as `stage` of `iteration`, then
+/// as `resume` (an iteration traced again inside the accumulate keeps its stages' times).
+fn timed_as<T>(ctx: &GpuContext, stage: Stage, resume: Stage, iteration: u32, body: impl FnOnce() -> Result<T, WgpuError>) -> Result<T, WgpuError> {
+    if let Some(t) = ctx.timer() {
+        t.begin_stage(stage, iteration);
+    }
+    let out = body();
+    if let Some(t) = ctx.timer() {
+        t.begin_stage(resume, iteration);
+    }
+    out
 }
 
 impl Tracer for WgpuTracer {
@@ -357,7 +529,7 @@ impl Tracer for WgpuTracer {
         let fp_cap = initial_capacity(batch_photons, self.initial_capacity, limits.raw_footprints);
         let ph_cap = initial_capacity(batch_photons, self.initial_capacity, limits.photons);
         let outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
-        self.maps.clear_batches();
+        self.maps.begin_iteration(ctx, 1);
         self.maps.bind_inputs(ctx, outputs.footprints(), outputs.photons(), outputs.counters(), fp_cap, ph_cap)?;
         let (queries, image, irradiance, accumulator) = scoped(ctx, "allocating the image buffers", || {
             let buffer = |size: u64| {
@@ -370,7 +542,7 @@ impl Tracer for WgpuTracer {
             };
             Ok((buffer(pixels as u64 * QUERY_BYTES), buffer(sizes.image), buffer(sizes.batch_irradiance), DeviceAccumulator::new(&ctx.device, entries)))
         })?;
-        self.state = Some(Box::new(Loaded {
+        let mut st = Box::new(Loaded {
             prepared,
             settings: *settings,
             scene: gpu_scene,
@@ -387,8 +559,21 @@ impl Tracer for WgpuTracer {
             batch_photons,
             limits,
             gather_counts_pending: false,
+            capacities: (fp_cap, ph_cap),
+            batches: 1,
+            photon_counts_pending: false,
             clock: StageClock::new(),
-        }));
+        });
+        if self.initial_capacity.is_none() {
+            // The calibration: iteration 0's photon pass, waited for batch by batch, sets
+            // the capacities every iteration of the render starts on (and B).
+            let setup = PhotonPassSetup::new(&st.prepared, &st.settings, 0);
+            let mut stats = IterationStats::default();
+            let (fp, ph) = trace_waiting(ctx, &mut self.maps, &mut st, &mut stats, &setup)?;
+            st.capacities = (calibrated_capacity(fp, limits.raw_footprints), calibrated_capacity(ph, limits.photons));
+            self.maps.begin_iteration(ctx, 1);
+        }
+        self.state = Some(st);
         Ok(())
     }
 
@@ -412,21 +597,21 @@ impl Tracer for WgpuTracer {
         let mut clock = std::mem::take(&mut st.clock);
         let result = timed(ctx, &mut clock, Stage::PhotonPass, |clock| {
             let setup = PhotonPassSetup::new(&st.prepared, &st.settings, clock.completed());
-            let n = setup.photon_count();
-            clock.stats_mut().overflowed = 0;
-            // Every batch; a batch too large for one binding shrinks B and starts the
-            // iteration again.
-            let mut batch_photons = st.batch_photons;
-            for_each_batch(n, &mut batch_photons, |range, k, batches| {
-                if k == 0 {
-                    clock.stats_mut().reset_photon_counts();
-                    maps.clear_batches();
-                }
-                trace_batch(ctx, maps, st, clock, &setup, range, k + 1 == batches)
-            })?;
-            st.batch_photons = batch_photons;
-            clock.stats_mut().radii = setup.radii;
-            setup.record_plan(clock.stats_mut());
+            let stats = clock.stats_mut();
+            stats.overflowed = 0;
+            stats.reset_photon_counts();
+            if (st.outputs.footprint_capacity(), st.outputs.photon_capacity()) != st.capacities {
+                // An iteration traced again grew them: every iteration starts on the
+                // calibrated ones.
+                resize(ctx, maps, st, st.capacities)?;
+            }
+            if pipelines_fit(st) {
+                trace_pipelined(ctx, maps, st, &setup)?;
+            } else {
+                trace_waiting(ctx, maps, st, stats, &setup)?;
+            }
+            stats.radii = setup.radii;
+            setup.record_plan(stats);
             Ok(())
         });
         st.clock = clock;
@@ -444,55 +629,42 @@ impl Tracer for WgpuTracer {
         let st = uploaded(self.state.as_deref_mut(), Stage::Gather)?;
         let ctx = &self.ctx;
         let maps = &self.maps;
-        timed(ctx, &mut st.clock, Stage::Gather, |_| {
-            // One submission per batch: each writes its gather parameters through the queue.
-            for k in 0..maps.batch_count() {
-                scoped(ctx, "gather", || {
-                    let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa gather") });
-                    maps.encode_gather(ctx, &mut encoder, k, &st.queries, &st.image, &st.irradiance, st.settings.kernel, st.settings.bandwidth, st.pixels)?;
-                    ctx.submit(encoder);
-                    Ok(())
-                })?;
-            }
-            // Its counts come back in accumulate's wait (or read_stats's).
-            st.gather_counts_pending = true;
-            Ok(())
-        })
+        let mut clock = std::mem::take(&mut st.clock);
+        let result = timed(ctx, &mut clock, Stage::Gather, |_| gather_batches(ctx, maps, st));
+        st.clock = clock;
+        result
     }
 
+    /// The iteration's one wait ([`WgpuTracer`]'s table). When it finds that the photon pass
+    /// dropped records (the accumulation was then left out on the device), the iteration is
+    /// traced again here with grown buffers and one wait per batch, built, gathered and
+    /// accumulated; those stages' device times are the second trace's.
     fn accumulate(&mut self) -> Result<(), WgpuError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::Accumulate)?;
-        let ctx = &self.ctx;
-        let maps = &self.maps;
-        timed(ctx, &mut st.clock, Stage::Accumulate, |clock| {
-            // The gather's counts are copied out in the accumulation's submission.
-            let mut counts = st.gather_counts_pending.then(|| Readback::new(ctx, "gather counts", GATHER_COUNTS_BYTES));
-            scoped(ctx, "accumulate", || {
-                let mut encoder = ctx.device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("arpa accumulate") });
-                st.accumulator.encode(&ctx.device, &mut encoder, &st.image);
-                if let Some(r) = counts.as_mut() {
-                    r.copy(&mut encoder, maps.gathered_buffer(), GATHER_COUNTS_BYTES);
-                }
-                ctx.submit(encoder);
-                Ok(())
-            })?;
-            if let Some(r) = counts.as_mut() {
-                r.map();
-            }
-            // The iteration's timestamps and the gather's counts come back in the same
-            // wait as the accumulation: the iteration's one wait outside the photon pass.
-            let timestamps = ctx.timer().map(|t| (t, t.resolve(&ctx.device, &ctx.queue)));
-            wait(ctx, "accumulate")?;
-            if let Some(r) = counts {
-                set_gather_counts(clock.stats_mut(), &r.bytes()?);
-                st.gather_counts_pending = false;
-            }
-            clock.stats_mut().device_times = match timestamps {
-                Some((timer, pending)) => timer.read(pending).map_err(|message| WgpuError::Readback { stage: "stage timestamps", message })?,
-                None => DeviceTimes::Unavailable,
+        let (ctx, maps) = (&self.ctx, &mut self.maps);
+        let mut clock = std::mem::take(&mut st.clock);
+        let result = timed(ctx, &mut clock, Stage::Accumulate, |clock| {
+            let Some(counts) = accumulate_and_wait(ctx, maps, st, clock.stats_mut())? else {
+                return Ok(());
             };
+            if !dropped(&counts) {
+                add_batches(clock.stats_mut(), &counts);
+                return Ok(());
+            }
+            let iteration = clock.completed();
+            let stats = clock.stats_mut();
+            let lost: u64 = counts.iter().map(|c| c.photon.overflowed() + u64::from(c.store.overflowed)).sum();
+            let setup = PhotonPassSetup::new(&st.prepared, &st.settings, iteration);
+            timed_as(ctx, Stage::PhotonPass, Stage::Accumulate, iteration, || trace_waiting(ctx, maps, st, stats, &setup))?;
+            stats.overflowed += lost;
+            setup.record_plan(stats);
+            timed_as(ctx, Stage::BuildAccelerationStructure, Stage::Accumulate, iteration, || maps.build(ctx))?;
+            timed_as(ctx, Stage::Gather, Stage::Accumulate, iteration, || gather_batches(ctx, maps, st))?;
+            accumulate_and_wait(ctx, maps, st, stats)?;
             Ok(())
-        })
+        });
+        st.clock = clock;
+        result
     }
 
     fn iterations(&self) -> u32 {
@@ -536,14 +708,14 @@ impl Tracer for WgpuTracer {
     fn read_footprints(&self) -> Result<Vec<PackedFootprint>, WgpuError> {
         let st = self.loaded(Call::ReadFootprints)?;
         st.clock.require_output(Call::ReadFootprints, Stage::PhotonPass)?;
-        self.maps.read_footprints(&self.ctx)
+        self.maps.read_footprints(&self.ctx, &self.kept_counts(st)?)
     }
 
     /// The last photon pass's progressive photons: every batch's, batch after batch.
     fn read_photons(&self) -> Result<Vec<PackedPhoton>, WgpuError> {
         let st = self.loaded(Call::ReadPhotons)?;
         st.clock.require_output(Call::ReadPhotons, Stage::PhotonPass)?;
-        self.maps.read_photons(&self.ctx)
+        self.maps.read_photons(&self.ctx, &self.kept_counts(st)?)
     }
 
     /// The stats; after a gather whose accumulate has not run yet, its counts are read
@@ -551,6 +723,11 @@ impl Tracer for WgpuTracer {
     fn read_stats(&self) -> Result<IterationStats, WgpuError> {
         let st = self.loaded(Call::ReadStats)?;
         let mut stats = *st.clock.stats();
+        if st.photon_counts_pending {
+            let counts = read_batch_counts(&self.ctx, &self.maps, st)?;
+            add_batches(&mut stats, &counts);
+            stats.overflowed += counts.iter().map(|c| c.photon.overflowed() + u64::from(c.store.overflowed)).sum::<u64>();
+        }
         if st.gather_counts_pending {
             set_gather_counts(&mut stats, &read_buffer(&self.ctx, "gather counts", self.maps.gathered_buffer(), GATHER_COUNTS_BYTES)?);
         }

@@ -14,11 +14,14 @@ struct AccumPixel {
 
 @group(0) @binding(0) var<storage, read> acc_image: array<vec4<f32>>;
 @group(0) @binding(1) var<storage, read_write> acc_pixels: array<AccumPixel>;
+// The iteration's status word (schedule.wgsl): non-zero when its photon pass dropped
+// records; the sums are then left as they are (the host traces the iteration again).
+@group(0) @binding(2) var<storage, read> acc_status: array<u32, 4>;
 
 @compute @workgroup_size(64)
 fn accumulate(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let i = gid.x + gid.y * groups.x * 64u;
-    if i >= arrayLength(&acc_pixels) {
+    if i >= arrayLength(&acc_pixels) || acc_status[0] != 0u {
         return;
     }
     let x = acc_image[i].xyz;

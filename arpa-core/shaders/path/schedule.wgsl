@@ -13,8 +13,14 @@
 //   invocation per record of the 64-wide kernels, as the host's linear dispatch lays them
 //   out: one row of workgroups up to 65 535, else rows of 32 768 (store.wgsl's store_index
 //   linearises gid.x + gid.y · groups.x · 64); at least one workgroup, since the kernels
-//   return past their counts.
-// Group 0: binding 0 the counters (read), 1 the store parameters, 2 the arguments.
+//   return past their counts;
+// - the iteration's status word: 1 when the photon pass dropped appends (a buffer was
+//   full), else left as it is. The host clears it at the start of an iteration's photon
+//   pass; the accumulation leaves the sums alone while it is set (accumulate.wgsl), and the
+//   host, which reads it with the iteration's counters at the accumulate's wait, traces the
+//   iteration again with larger buffers.
+// Group 0: binding 0 the counters (read), 1 the store parameters, 2 the arguments, 3 the
+// status word.
 
 struct ArpaScheduleCounters {
     emitted: u32,
@@ -43,13 +49,13 @@ struct ArpaScheduleStoreParams {
     photon_count: u32,
     fp_sorted: u32,
     ph_sorted: u32,
-    fp_count: u32,
-    ph_count: u32,
+    pad1: vec2<u32>,
 }
 
 @group(0) @binding(0) var<storage, read> schedule_counters: ArpaScheduleCounters;
 @group(0) @binding(1) var<storage, read_write> schedule_params: ArpaScheduleStoreParams;
 @group(0) @binding(2) var<storage, read_write> schedule_args: array<u32, 6>;
+@group(0) @binding(3) var<storage, read_write> schedule_status: array<u32, 4>;
 
 // Workgroups (x, y, 1) of a linear dispatch of `invocations` invocations of a 64-wide kernel.
 fn arpa_linear_groups(invocations: u32) -> vec3<u32> {
@@ -74,4 +80,7 @@ fn store_schedule() {
     schedule_args[3] = keys.x;
     schedule_args[4] = keys.y;
     schedule_args[5] = keys.z;
+    if schedule_counters.footprint_overflowed + schedule_counters.photon_overflowed > 0u {
+        schedule_status[0] = 1u;
+    }
 }

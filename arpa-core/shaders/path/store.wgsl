@@ -8,9 +8,13 @@
 // global), so the maps do not depend on the order the photon pass appended in.
 //
 // Entry points, in order (64-wide workgroups over a 2D grid, linearised): store_keyed
-// (raw_count invocations) and photon_keys (photon_count); then, with the appended counts,
-// pad_items (max of the sorted lengths), the sort of fp_items and ph_items, and
-// compact_footprints (fp_sorted), compact_photons (ph_sorted). Group 0, bindings 0 to 12.
+// (raw_count invocations) and photon_keys (photon_count), sized by the schedule kernel on
+// the device; then, over the store's capacities (fp_sorted, ph_sorted: no size waits for a
+// count), pad_items (the larger of the two; it reads the appended counts from the store's
+// counters), the sort of fp_items and ph_items, and compact_footprints (fp_sorted),
+// compact_photons (ph_sorted), which give every slot past the records an inactive box
+// (arpa_inactive_point, aabb.wgsl), so that the acceleration structures can be built over
+// the whole capacity. Group 0, bindings 0 to 12.
 
 // arpa_core::gpu::layout::StoreParams (112 bytes).
 struct StoreParams {
@@ -21,10 +25,9 @@ struct StoreParams {
     raw_count: u32,        // raw footprints appended by the photon pass
     scene_inv: vec3<f32>,  // 1 / scene extent per axis (1/m; 0 on a flat axis)
     photon_count: u32,     // progressive photons appended by the photon pass
-    fp_sorted: u32,        // sorted length of the footprint items (power of two)
-    ph_sorted: u32,        // sorted length of the photon items
-    fp_count: u32,         // footprint items appended by store_keyed
-    ph_count: u32,         // photon items appended by store_keyed and photon_keys
+    fp_sorted: u32,        // footprint items sorted and compacted (the raw capacity)
+    ph_sorted: u32,        // photon items sorted and compacted (both capacities)
+    pad3: vec2<u32>,
 }
 
 // Counter words of `store_counts` (layout::StoreCounts).
@@ -106,26 +109,43 @@ fn photon_keys(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workg
     atomicAdd(&store_counts[STORE_COUNT_PHOTONS + map], 1u);
 }
 
-// Fills the items after the appended ones up to the sorted lengths with invalid items.
+// Fills the items after the appended ones (counted in store_counts) up to the lengths the
+// sort runs over with invalid items.
 @compute @workgroup_size(64)
 fn pad_items(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let i = store_index(gid, groups);
-    if i >= kparams.fp_count && i < kparams.fp_sorted {
+    if i >= atomicLoad(&store_counts[STORE_COUNT_FP_ITEMS]) && i < kparams.fp_sorted {
         fp_items[i] = STORE_INVALID_ITEM;
     }
-    if i >= kparams.ph_count && i < kparams.ph_sorted {
+    if i >= atomicLoad(&store_counts[STORE_COUNT_PH_ITEMS]) && i < kparams.ph_sorted {
         ph_items[i] = STORE_INVALID_ITEM;
     }
 }
 
+// Writes box s of `boxes` (6 f32 per box) as [lower, upper].
+fn store_write_box(s: u32, lower: vec3<f32>, upper: vec3<f32>, to_photons: bool) {
+    let b = 6u * s;
+    if to_photons {
+        ph_box_out[b] = lower.x; ph_box_out[b + 1u] = lower.y; ph_box_out[b + 2u] = lower.z;
+        ph_box_out[b + 3u] = upper.x; ph_box_out[b + 4u] = upper.y; ph_box_out[b + 5u] = upper.z;
+    } else {
+        fp_box_out[b] = lower.x; fp_box_out[b + 1u] = lower.y; fp_box_out[b + 2u] = lower.z;
+        fp_box_out[b + 3u] = upper.x; fp_box_out[b + 4u] = upper.y; fp_box_out[b + 5u] = upper.z;
+    }
+}
+
+// Copies sorted footprint s and its box; a slot past the footprints (a padding item) gets
+// the inactive box.
 @compute @workgroup_size(64)
 fn compact_footprints(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let s = store_index(gid, groups);
-    if s >= kparams.fp_sorted {
+    if s >= kparams.fp_sorted || s >= arrayLength(&fp_out) {
         return;
     }
     let item = fp_items[s];
     if item.hi == STORE_INVALID {
+        let p = arpa_inactive_point(kparams.scene_lo);
+        store_write_box(s, p, p, false);
         return;
     }
     let i = item.value;
@@ -137,7 +157,8 @@ fn compact_footprints(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(nu
 
 // Copies sorted photon s and writes its box: the sphere of the map's progressive radius
 // around it, padded as every acceleration-structure box (aabb.wgsl), so that the box holds
-// every point the gather's f32 sphere test accepts.
+// every point the gather's f32 sphere test accepts; a slot past the photons gets the
+// inactive box.
 @compute @workgroup_size(64)
 fn compact_photons(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let s = store_index(gid, groups);
@@ -146,6 +167,10 @@ fn compact_photons(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_w
     }
     let item = ph_items[s];
     if item.hi == STORE_INVALID {
+        if s < arrayLength(&ph_out) {
+            let p = arpa_inactive_point(kparams.scene_lo);
+            store_write_box(s, p, p, true);
+        }
         return;
     }
     if s >= arrayLength(&ph_out) {
@@ -161,7 +186,5 @@ fn compact_photons(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_w
     ph_out[s] = ArpaPackedPhoton(p.position, p.map, p.normal, 0u, p.flux, 0u);
     let r = kparams.radii[min(p.map, 1u)];
     let bx = arpa_padded_box(p.position, vec3<f32>(r));
-    let b = 6u * s;
-    ph_box_out[b] = bx.lower.x; ph_box_out[b + 1u] = bx.lower.y; ph_box_out[b + 2u] = bx.lower.z;
-    ph_box_out[b + 3u] = bx.upper.x; ph_box_out[b + 4u] = bx.upper.y; ph_box_out[b + 5u] = bx.upper.z;
+    store_write_box(s, bx.lower, bx.upper, true);
 }

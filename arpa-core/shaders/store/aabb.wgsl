@@ -27,3 +27,10 @@ fn arpa_padded_box(centre: vec3<f32>, half: vec3<f32>) -> ArpaBox {
     let pad = half * ARPA_AABB_RELATIVE_PAD + ARPA_AABB_POSITION_PAD * scale + ARPA_F32_MIN_POSITIVE;
     return ArpaBox(centre - (half + pad), centre + (half + pad));
 }
+
+// The point of an inactive box (an empty slot of the store's capacity) below the scene's
+// low corner lo: lo - (|lo| + 1), finite and strictly below lo (metres). Twin of
+// arpa_core::base::aabb::inactive_point.
+fn arpa_inactive_point(lo: vec3<f32>) -> vec3<f32> {
+    return lo - (abs(lo) + vec3<f32>(1.0));
+}

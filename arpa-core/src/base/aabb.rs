@@ -138,8 +138,27 @@ impl Aabb {
     }
 }
 
+/// Where a device store puts the box of an empty slot (an *inactive* box: min = max = this
+/// point, metres), given the low corner `lo` of the scene's `f32` bounds: `lo − (|lo| + 1)`
+/// per axis, finite and strictly below `lo`, so that no point of the scene, and no point
+/// query of negligible length started there, meets it. The acceleration structures are
+/// built over the store's whole capacity and these boxes fill what an iteration leaves
+/// empty; a degenerate box is used rather than a NaN one, which some builders (lavapipe)
+/// mishandle. Twin: `arpa_inactive_point` of `store/aabb.wgsl`.
+pub fn inactive_point(lo: [f32; 3]) -> [f32; 3] {
+    lo.map(|x| x - (x.abs() + 1.0))
+}
+
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn inactive_points_lie_below_the_scene() {
+        for x in [0.0f32, -0.0, 1.0, -1.0, 3.5, -7.25, 1e8, -1e8, 1e30, -1e30, f32::MIN_POSITIVE, 16_777_217.0] {
+            let p = super::inactive_point([x; 3]);
+            assert!(p.iter().all(|v| v.is_finite() && *v < x), "{x}: {p:?}");
+        }
+    }
+
     use super::*;
 
     #[test]

@@ -19,6 +19,18 @@
 //! binding holds, `B` shrinks ([`shrink`]) and the iteration is traced again from batch 0;
 //! `B` only shrinks during a render, so a render repeated on the same device takes the same
 //! batches.
+//!
+//! # Capacities and the iteration without waits
+//! The sort and the acceleration structures run over the buffers' whole capacity (empty
+//! slots sorted last, with inactive boxes: [`crate::base::aabb::inactive_point`]), so an
+//! iteration needs no count on the host before its accumulate. The acceleration structure
+//! over a capacity depends on it (the gather's `f32` sums follow its traversal order), so
+//! the capacity an iteration runs with is a function of the render, not of its history: at
+//! upload, a *calibration* traces iteration 0's photon pass (growing and splitting as
+//! above) and sets each buffer to [`calibrated_capacity`] of the most records a batch
+//! appended. An iteration whose photon pass overflows those is found at its accumulate,
+//! traced again with grown buffers, and the next iteration returns to the calibrated ones;
+//! checkpoints resumed at any iteration therefore run with the same capacities.
 
 use core::ops::Range;
 
@@ -137,6 +149,17 @@ pub fn for_each_batch<E>(photons: u32, batch_photons: &mut u32, mut trace: impl 
     }
 }
 
+/// Headroom of the calibrated capacities over the records the calibration counted
+/// ([`calibrated_capacity`]): iterations differ from iteration 0 by their random streams.
+pub const CALIBRATION_HEADROOM: f64 = 1.25;
+
+/// Records an append buffer holds after the calibration counted `appends` in it (the most
+/// of any batch): [`CALIBRATION_HEADROOM`] times that plus 256 (small iterations vary
+/// more), at least 1 and at most `max`.
+pub fn calibrated_capacity(appends: u32, max: u32) -> u32 {
+    ((appends as f64 * CALIBRATION_HEADROOM) as u32).saturating_add(256).clamp(1, max.max(1))
+}
+
 /// Records each append buffer starts with for batches of `batch` photons (`forced`: a
 /// caller's choice), at least 1 and at most `max`.
 pub fn initial_capacity(batch: u32, forced: Option<u32>, max: u32) -> u32 {
@@ -197,5 +220,9 @@ mod tests {
         assert_eq!(initial_capacity(1000, None, 5000), 2000);
         assert_eq!(initial_capacity(0, None, 5000), 1);
         assert_eq!(initial_capacity(1000, Some(64), 50), 50);
+        assert_eq!(calibrated_capacity(1000, 5000), 1506);
+        assert_eq!(calibrated_capacity(0, 5000), 256);
+        assert_eq!(calibrated_capacity(10_000, 5000), 5000);
+        assert_eq!(calibrated_capacity(u32::MAX, u32::MAX), u32::MAX);
     }
 }

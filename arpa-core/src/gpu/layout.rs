@@ -220,24 +220,27 @@ pub struct StoreParams {
     pub scene_inv: [f32; 3],
     /// Progressive photons appended by the photon pass.
     pub photon_count: u32,
-    /// Sorted length of the footprint items.
+    /// Footprint sort items the sort and the compaction run over (the raw capacity): the
+    /// appended ones, then padding.
     pub fp_sorted: u32,
-    /// Sorted length of the photon items.
+    /// Photon sort items they run over (both capacities together).
     pub ph_sorted: u32,
-    /// Footprint items appended by `store_keyed`.
-    pub fp_count: u32,
-    /// Photon items appended by `store_keyed` and `photon_keys`.
-    pub ph_count: u32,
+    /// Padding.
+    pub pad1: [u32; 2],
 }
-layout!(StoreParams, 112, { heuristics: 0, radii: 48, scene_lo: 64, raw_count: 76, scene_inv: 80, photon_count: 92, fp_sorted: 96, ph_sorted: 100, fp_count: 104, ph_count: 108 });
+layout!(StoreParams, 112, { heuristics: 0, radii: 48, scene_lo: 64, raw_count: 76, scene_inv: 80, photon_count: 92, fp_sorted: 96, ph_sorted: 100, pad1: 104 });
 layout!(PackedHeuristics, 48, {});
 
 impl StoreParams {
-    /// The parameters of the store half (`counts: None`: before the items are counted) or
-    /// of the sort and compaction half (with the [`StoreCounts`] the store half counted).
-    pub fn new(settings: &StoreSettings, counts: Option<&StoreCounts>) -> Self {
+    /// The parameters of one batch's store, sort and compaction (one submission; the
+    /// record counts `raw_count` and `photon_count` are the schedule kernel's to write on
+    /// the device) for store buffers of `raw_capacity` raw footprints and
+    /// `photon_capacity` progressive photons: the sort and the compaction run over every
+    /// slot ([`StoreParams::fp_sorted`] = `raw_capacity`, [`StoreParams::ph_sorted`] = both
+    /// together), so that no size of theirs waits for a count (`pad_items` reads the
+    /// appended counts from the store's counters and pads the rest).
+    pub fn new(settings: &StoreSettings, raw_capacity: u32, photon_capacity: u32) -> Self {
         let (lo, hi) = settings.bounds;
-        let (fp_count, ph_count) = counts.map_or((0, 0), |c| (c.total_footprints(), c.total_photons()));
         Self {
             heuristics: settings.heuristics,
             radii: settings.radii,
@@ -246,10 +249,9 @@ impl StoreParams {
             raw_count: settings.raw_count,
             scene_inv: crate::base::morton::inverse_extent(lo, hi),
             photon_count: settings.photon_count,
-            fp_sorted: crate::gpu::sort::sorted_len(fp_count),
-            ph_sorted: crate::gpu::sort::sorted_len(ph_count),
-            fp_count,
-            ph_count,
+            fp_sorted: raw_capacity,
+            ph_sorted: raw_capacity.saturating_add(photon_capacity),
+            pad1: [0; 2],
         }
     }
 }
@@ -725,12 +727,9 @@ mod tests {
     }
 
     #[test]
-    fn store_params_count_the_sorted_lengths() {
+    fn store_params_run_over_the_capacities() {
         let s = StoreSettings { heuristics: PackedHeuristics::default(), radii: [0.1, 0.2], bounds: ([0.0; 3], [2.0, 0.0, 4.0]), raw_count: 5, photon_count: 7 };
-        let p = StoreParams::new(&s, None);
-        assert_eq!((p.scene_inv, p.fp_sorted, p.ph_count), ([0.5, 0.0, 0.25], 512, 0));
-        let c = StoreCounts { footprints: [600, 10], photons: [1, 2], ..StoreCounts::default() };
-        let p = StoreParams::new(&s, Some(&c));
-        assert_eq!((p.fp_count, p.fp_sorted, p.ph_count, p.ph_sorted), (610, 1024, 3, 512));
+        let p = StoreParams::new(&s, 600, 10);
+        assert_eq!((p.scene_inv, p.fp_sorted, p.ph_sorted, p.raw_count, p.photon_count), ([0.5, 0.0, 0.25], 600, 610, 5, 7));
     }
 }

@@ -19,7 +19,8 @@ use arpa_core::render::ray_cast::RayHit;
 use arpa_core::render::tracer::QueryRecord;
 use arpa_wgpu::GpuContext;
 use arpa_wgpu::accumulate::DeviceAccumulator;
-use arpa_wgpu::maps::{PhotonMaps, Readback, Stored};
+use arpa_wgpu::maps::{BatchCounts, PhotonMaps};
+use arpa_wgpu::store::BATCH_COUNTS_BYTES;
 use arpa_wgpu::photon::PhotonOutputs;
 use arpa_wgpu::scene::GpuGeometry;
 use arpa_wgpu::sort::{RadixScratch, Sorter};
@@ -491,17 +492,16 @@ pub fn run_from_host(
     // The photon pass's counters as it would leave them: the store takes its record counts
     // from them on the device (the schedule kernel).
     let pass = PhotonCounters { footprint_appends: settings.raw_count, photon_appends: settings.photon_count, ..PhotonCounters::default() };
-    let counters_buf = upload(ctx, bytemuck::bytes_of(&pass), wgpu::BufferUsages::empty());
+    let counters_buf = upload(ctx, bytemuck::bytes_of(&pass), wgpu::BufferUsages::COPY_SRC);
     let mut maps = PhotonMaps::new(ctx).unwrap();
     maps.bind_inputs(ctx, &raw_buf, &ph_buf, &counters_buf, raw.len() as u32, photons.len() as u32).unwrap();
-    let mut readback = Readback::new(ctx, "store counts", size_of::<StoreCounts>() as u64);
+    maps.begin_iteration(ctx, 1);
     let mut encoder = device.create_command_encoder(&Default::default());
-    let at = maps.encode_store(ctx, &mut encoder, &StoreSettings { raw_count: 0, photon_count: 0, ..*settings }, &mut readback).unwrap();
+    maps.encode_batch(ctx, &mut encoder, &StoreSettings { raw_count: 0, photon_count: 0, ..*settings }, &counters_buf, 0, true).unwrap();
     ctx.queue.submit([encoder.finish()]);
-    readback.map();
-    device.poll(wgpu::PollType::wait_indefinitely()).unwrap();
-    let counts: StoreCounts = bytemuck::pod_read_unaligned(&readback.bytes().unwrap()[at..at + size_of::<StoreCounts>()]);
-    maps.sort(ctx, Stored::new(counts, *settings), true).unwrap();
+    let [batch] = read(ctx, &[(maps.batch_counts(), BATCH_COUNTS_BYTES)]).try_into().unwrap();
+    let batch = BatchCounts::parse(&batch);
+    let counts = batch[0].store;
     maps.build(ctx).unwrap();
     let sizes = ImageBufferSizes::new(pixels, bandwidth);
     let entries = bandwidth.planes() as u32 * pixels;
@@ -512,7 +512,7 @@ pub fn run_from_host(
         let mut encoder = device.create_command_encoder(&Default::default());
         maps.encode_gather(ctx, &mut encoder, 0, &rec_buf, &image, &irradiance, kernel, bandwidth, pixels).unwrap();
         for _ in 0..iterations {
-            acc.encode(device, &mut encoder, &image);
+            acc.encode(device, &mut encoder, &image, None);
         }
         ctx.queue.submit([encoder.finish()]);
     });
@@ -523,8 +523,8 @@ pub fn run_from_host(
     let acc_pixels: Vec<AccumPixel> = bytemuck::pod_collect_to_vec(&acc_pixels);
     HostRun {
         counts,
-        footprints: maps.read_footprints(ctx).unwrap(),
-        photons: maps.read_photons(ctx).unwrap(),
+        footprints: maps.read_footprints(ctx, &batch).unwrap(),
+        photons: maps.read_photons(ctx, &batch).unwrap(),
         image: img.iter().map(|p| [p[0], p[1], p[2]]).collect(),
         gathered: total.contributions().iter().sum(),
         mean: acc_pixels.iter().map(|p| p.mean(iterations)).collect(),
