@@ -18,6 +18,11 @@ use gpu_allocator::MemoryLocation;
 /// Bytes of one image pixel the accumulation reads (`vec4<f32>`, RGB used; W/(m²·sr)).
 pub const IMAGE_PIXEL_BYTES: u64 = 16;
 
+/// Bytes of an iteration's status word buffer (`schedule.wgsl`, `accumulate.wgsl`: four
+/// `u32`, the first used; non-zero when the iteration's photon pass dropped records, and
+/// the accumulation then leaves the sums alone).
+pub const STATUS_BYTES: u64 = 16;
+
 /// The running mean's compute pipeline (the core's `accumulate.wgsl`), shared by every
 /// [`DeviceAccumulator`] of a context.
 ///
@@ -25,7 +30,7 @@ pub const IMAGE_PIXEL_BYTES: u64 = 16;
 pub fn accumulate_pipeline(ctx: &VkContext) -> Result<ComputePipeline, VkError> {
     let source = arpa_core::gpu::shaders::compose(&[&arpa_core::gpu::shaders::ACCUMULATE]);
     use BindingKind::StorageBuffer as Sb;
-    ComputePipeline::from_wgsl(ctx, "arpa accumulate", &source, "accumulate", &[&[Sb, Sb]])
+    ComputePipeline::from_wgsl(ctx, "arpa accumulate", &source, "accumulate", &[&[Sb, Sb, Sb]])
 }
 
 /// The accumulation buffer of one image size (entries = planes × pixels), with the shared
@@ -35,6 +40,8 @@ pub struct DeviceAccumulator {
     /// `count` × [`AccumPixel`] (exactly: the kernel bounds itself by its length).
     pixels: Buffer,
     count: u32,
+    /// A status word that is always zero, for additions no iteration status guards.
+    clear: Buffer,
 }
 
 impl DeviceAccumulator {
@@ -55,12 +62,14 @@ impl DeviceAccumulator {
             U::STORAGE_BUFFER | U::TRANSFER_SRC | U::TRANSFER_DST,
             MemoryLocation::GpuOnly,
         )?;
+        let clear = ctx.create_buffer("arpa clear status", STATUS_BYTES, U::STORAGE_BUFFER | U::TRANSFER_DST, MemoryLocation::GpuOnly)?;
         let device = ctx.device();
         ctx.submit_and_wait(|cmd| {
             record_fill(device, cmd, &buffer, 0);
+            record_fill(device, cmd, &clear, 0);
             record_compute_barrier(device, cmd);
         })?;
-        Ok(Self { pipeline, pixels: buffer, count: pixels })
+        Ok(Self { pipeline, pixels: buffer, count: pixels, clear })
     }
 
     /// Entries of the image (planes × pixels).
@@ -74,18 +83,20 @@ impl DeviceAccumulator {
     }
 
     /// Descriptor sets for adding `image` (a storage buffer of at least
-    /// [`DeviceAccumulator::pixel_count`] `vec4<f32>`), for [`DeviceAccumulator::record`];
-    /// keep them and `image` until the submission is waited for.
+    /// [`DeviceAccumulator::pixel_count`] `vec4<f32>`) unless the iteration's `status` word
+    /// ([`STATUS_BYTES`]; `None`: always add) is non-zero when the addition runs, for
+    /// [`DeviceAccumulator::record`]; keep them, `image` and `status` until the submission is
+    /// waited for.
     ///
     /// Errors: [`VkError::InvalidInput`] for an image smaller than the accumulator.
-    pub fn bind(&self, image: &Buffer) -> Result<Bindings, VkError> {
+    pub fn bind(&self, image: &Buffer, status: Option<&Buffer>) -> Result<Bindings, VkError> {
         if image.size() < u64::from(self.count) * IMAGE_PIXEL_BYTES {
             return Err(VkError::InvalidInput {
                 what: "accumulator".into(),
                 reason: format!("image {:?} of {} bytes for {} pixels", image.label(), image.size(), self.count),
             });
         }
-        self.pipeline.bind(&[&[Resource::StorageBuffer(image), Resource::StorageBuffer(&self.pixels)]])
+        self.pipeline.bind(&[&[Resource::StorageBuffer(image), Resource::StorageBuffer(&self.pixels), Resource::StorageBuffer(status.unwrap_or(&self.clear))]])
     }
 
     /// Records the addition of the image `bindings` name (from [`DeviceAccumulator::bind`]) to
@@ -97,10 +108,11 @@ impl DeviceAccumulator {
         Ok(())
     }
 
-    /// Adds `image` to the sums in one submission and waits (a barrier before, so earlier
-    /// transfer and compute writes of the image are visible).
-    pub fn accumulate_and_wait(&self, ctx: &VkContext, image: &Buffer) -> Result<(), VkError> {
-        let bindings = self.bind(image)?;
+    /// Adds `image` to the sums (unless `status` says otherwise, [`DeviceAccumulator::bind`])
+    /// in one submission and waits (a barrier before, so earlier transfer and compute writes
+    /// of the image are visible).
+    pub fn accumulate_and_wait(&self, ctx: &VkContext, image: &Buffer, status: Option<&Buffer>) -> Result<(), VkError> {
+        let bindings = self.bind(image, status)?;
         ctx.submit_and_wait(|cmd| {
             record_compute_barrier(ctx.device(), cmd);
             self.record(ctx, cmd, &bindings)

@@ -29,7 +29,7 @@
 //! buffer with `vkCmdUpdateBuffer` before each pass's dispatches.
 
 use std::sync::Arc;
-use crate::buffer::{Buffer, KeepAlive};
+use crate::buffer::Buffer;
 use crate::compute::{ComputePipeline, ComputePipelineDesc, record_compute_barrier, record_fill};
 use crate::device::VkContext;
 use crate::error::VkError;
@@ -138,7 +138,7 @@ impl StorePipelines {
 
         let schedule_spirv = crate::shaders::compile_wgsl("arpa store schedule", &arpa_core::gpu::shaders::compose(&[&arpa_core::gpu::shaders::SCHEDULE]))?;
         Ok(Self {
-            schedule: make(&schedule_spirv, "store_schedule", &[BindingKind::StorageBuffer; 3])?,
+            schedule: make(&schedule_spirv, "store_schedule", &[BindingKind::StorageBuffer; 4])?,
             keyed: make(&store_spirv, "store_keyed", &store_set)?,
             photon_keys: make(&store_spirv, "photon_keys", &store_set)?,
             pad_items: make(&store_spirv, "pad_items", &store_set)?,
@@ -278,12 +278,16 @@ pub struct MapStore {
     photon_boxes: Buffer,
 }
 
-/// What the store half recorded into the photon pass's submission uses
-/// ([`MapStore::prepare_scheduled`]): keep it until that submission has been waited for.
-pub struct ScheduledStore {
+/// What one batch's store, recorded into the photon pass's submission
+/// ([`MapStore::prepare_batch`], [`MapStore::record_batch`]), uses: keep it (an `Arc`, in
+/// the submission's [`crate::buffer::KeepAlive`]) until that submission is done.
+pub struct BatchStore {
     bindings: Bindings,
     schedule: Bindings,
-    /// Bound in both sets.
+    fp_sort: Arc<[Bindings; 2]>,
+    ph_sort: Arc<[Bindings; 2]>,
+    /// The parameters ([`StoreParams::new`] over the capacities), bound in both sets.
+    params: StoreParams,
     _params: Buffer,
 }
 
@@ -448,7 +452,7 @@ impl MapStore {
     /// buffers; [`VkError::MissingUsage`] for inputs without `STORAGE_BUFFER`; device errors.
     pub fn store(&self, ctx: &VkContext, raw: &Buffer, photons: &Buffer, settings: &StoreSettings) -> Result<StoreCounts, VkError> {
         self.check_inputs(raw, photons, settings)?;
-        let params = Self::params(ctx, &StoreParams::new(settings, None))?;
+        let params = Self::params(ctx, &StoreParams::new(settings, self.raw_capacity, self.photon_capacity))?;
         let bindings = self.store_bindings(raw, photons, &params)?;
         let device = ctx.device();
         ctx.submit_and_wait(|cmd| {
@@ -464,34 +468,49 @@ impl MapStore {
         self.read_counts()
     }
 
-    /// The store half for the photon pass's submission: checks the inputs (`raw` and
-    /// `photons`, the pass's append buffers with these capacities; `counters`, its
-    /// [`arpa_core::gpu::layout::PhotonCounters`], a storage buffer) and makes the
-    /// parameters (`settings`' record counts unused: the schedule kernel writes them) and
-    /// bindings that [`MapStore::record_scheduled`] records with; they must live until the
-    /// submission is done.
+    /// One batch's whole store for the photon pass's submission: checks the inputs (`raw`
+    /// and `photons`, the pass's append buffers with these capacities; `counters`, its
+    /// [`arpa_core::gpu::layout::PhotonCounters`]; `status`, the iteration's status word of
+    /// [`crate::accumulate::STATUS_BYTES`]: storage buffers) and makes the parameters
+    /// (`settings`' record counts unused: the schedule kernel writes them; the sort and the
+    /// compaction run over the capacities) and the bindings [`MapStore::record_batch`]
+    /// records with.
     ///
     /// Errors: [`VkError::MissingUsage`] for inputs without `STORAGE_BUFFER`; device errors.
-    pub fn prepare_scheduled(&self, ctx: &VkContext, raw: &Buffer, photons: &Buffer, counters: &Buffer, settings: &StoreSettings) -> Result<ScheduledStore, VkError> {
+    pub fn prepare_batch(&self, ctx: &VkContext, raw: &Buffer, photons: &Buffer, counters: &Buffer, status: &Buffer, settings: &StoreSettings) -> Result<Arc<BatchStore>, VkError> {
         let capacities = StoreSettings { raw_count: self.raw_capacity, photon_count: self.photon_capacity, ..*settings };
         self.check_inputs(raw, photons, &capacities)?;
-        if !counters.usage().contains(vk::BufferUsageFlags::STORAGE_BUFFER) {
-            return Err(VkError::MissingUsage { what: counters.label().into(), usage: "STORAGE_BUFFER" });
+        for b in [counters, status] {
+            if !b.usage().contains(vk::BufferUsageFlags::STORAGE_BUFFER) {
+                return Err(VkError::MissingUsage { what: b.label().into(), usage: "STORAGE_BUFFER" });
+            }
         }
-        let params = Self::params(ctx, &StoreParams::new(settings, None))?;
+        let p = StoreParams::new(settings, self.raw_capacity, self.photon_capacity);
+        let params = Self::params(ctx, &p)?;
         let bindings = self.store_bindings(raw, photons, &params)?;
-        let schedule = self.pipelines.schedule.bind(&[&[Resource::StorageBuffer(counters), Resource::StorageBuffer(&params), Resource::StorageBuffer(&self.args)]])?;
-        Ok(ScheduledStore { bindings, schedule, _params: params })
+        let schedule = self.pipelines.schedule.bind(&[&[
+            Resource::StorageBuffer(counters),
+            Resource::StorageBuffer(&params),
+            Resource::StorageBuffer(&self.args),
+            Resource::StorageBuffer(status),
+        ]])?;
+        let fp_sort = self.pipelines.radix_bindings(&self.fp_items, &self.radix)?.bindings;
+        let ph_sort = self.pipelines.radix_bindings(&self.ph_items, &self.radix)?.bindings;
+        Ok(Arc::new(BatchStore { bindings, schedule, fp_sort, ph_sort, params: p, _params: params }))
     }
 
-    /// Records the store half into `cmd` after the photon pass's trace: a barrier (the
+    /// Records the batch's store into `cmd` after the photon pass's trace: a barrier (the
     /// pass's writes before compute reads), the schedule kernel (record counts and dispatch
-    /// sizes from the pass's counters), the store and the sort items as indirect dispatches,
-    /// and the copy of the counters to the host-visible buffer ([`MapStore::read_counts`]
-    /// after the wait).
+    /// sizes from the pass's counters, the iteration's status), the store and the sort items
+    /// as indirect dispatches, the padding of the items up to the capacities, the radix
+    /// sort of both item buffers over them and the compaction into the sorted records and
+    /// boxes (inactive boxes past the records), then a barrier that makes them visible to
+    /// later shaders, transfers, acceleration-structure builds and the host, and the copy
+    /// of the counters to the host-visible buffer ([`MapStore::read_counts`] after a wait).
+    /// Nothing in it depends on a count the host has read.
     ///
     /// Errors: as [`ComputePipeline::record_dispatch_indirect`].
-    pub fn record_scheduled(&self, device: &ash::Device, cmd: vk::CommandBuffer, prepared: &ScheduledStore) -> Result<(), VkError> {
+    pub fn record_batch(&self, device: &ash::Device, cmd: vk::CommandBuffer, prepared: &BatchStore) -> Result<(), VkError> {
         let after_trace = vk::MemoryBarrier::default()
             .src_access_mask(vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::HOST_WRITE)
             .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE);
@@ -528,74 +547,53 @@ impl MapStore {
         self.pipelines.keyed.record_dispatch_indirect(cmd, &prepared.bindings, &[], &self.args, 0)?;
         record_compute_barrier(device, cmd);
         self.pipelines.photon_keys.record_dispatch_indirect(cmd, &prepared.bindings, &[], &self.args, 12)?;
+        record_compute_barrier(device, cmd);
+        self.record_sort(device, cmd, &prepared.bindings, &prepared.fp_sort, &prepared.ph_sort, &prepared.params)
+    }
+
+    /// Records the padding, the radix sorts over the capacities and the compaction, then the
+    /// counters' copy to the host-visible buffer.
+    fn record_sort(&self, device: &ash::Device, cmd: vk::CommandBuffer, bindings: &Bindings, fp_sort: &Arc<[Bindings; 2]>, ph_sort: &Arc<[Bindings; 2]>, p: &StoreParams) -> Result<(), VkError> {
+        self.pipelines.pad_items.record_dispatch_linear(cmd, bindings, &[], p.fp_sorted.max(p.ph_sorted))?;
+        record_compute_barrier(device, cmd);
+        // Slots: footprints below raw_count, photons below photon_count + raw_count, both
+        // within the capacities; the padding's value sorts last with its keys anyway.
+        let value_bound = self.raw_capacity.saturating_add(self.photon_capacity);
+        let fp = RadixTarget { items: &self.fp_items, scratch: &self.radix, bindings: Arc::clone(fp_sort) };
+        let ph = RadixTarget { items: &self.ph_items, scratch: &self.radix, bindings: Arc::clone(ph_sort) };
+        self.pipelines.record_radix(device, cmd, &fp, p.fp_sorted, value_bound)?;
+        self.pipelines.record_radix(device, cmd, &ph, p.ph_sorted, value_bound)?;
+        self.pipelines.compact_footprints.record_dispatch_linear(cmd, bindings, &[], p.fp_sorted)?;
+        self.pipelines.compact_photons.record_dispatch_linear(cmd, bindings, &[], p.ph_sorted)?;
         self.record_counts_copy(device, cmd);
         Ok(())
     }
 
-    /// The second half, one submission waited for, with the `counts` that
-    /// [`MapStore::store`] returned for the same `raw`, `photons` and `settings`
-    /// ([`MapStore::submit_sort`], then the counters read back after the compaction, with
-    /// [`StoreCounts::overflowed`]).
+    /// The second half on its own, one submission waited for, after [`MapStore::store`] on
+    /// the same `raw`, `photons` and `settings` (whose record counts are the appended ones):
+    /// pads the items, sorts them over the capacities and compacts the records and boxes into
+    /// [`MapStore::footprints`], [`MapStore::footprint_boxes`], [`MapStore::photons`] and
+    /// [`MapStore::photon_boxes`] (inactive boxes past the records); returns the counters
+    /// after the compaction (with [`StoreCounts::overflowed`]).
     ///
-    /// Errors: as [`MapStore::submit_sort`].
-    pub fn sort(
-        &self,
-        ctx: &VkContext,
-        raw: &Buffer,
-        photons: &Buffer,
-        counts: &StoreCounts,
-        settings: &StoreSettings,
-    ) -> Result<StoreCounts, VkError> {
-        self.submit_sort(ctx, raw, photons, counts, settings)?;
-        ctx.finish()?;
+    /// Errors: [`VkError::InvalidInput`] for counts above the capacities or past the input
+    /// buffers; [`VkError::MissingUsage`] for inputs without `STORAGE_BUFFER`; device errors.
+    pub fn sort(&self, ctx: &VkContext, raw: &Buffer, photons: &Buffer, settings: &StoreSettings) -> Result<StoreCounts, VkError> {
+        self.check_inputs(raw, photons, settings)?;
+        let p = StoreParams::new(settings, self.raw_capacity, self.photon_capacity);
+        let params = Self::params(ctx, &p)?;
+        let bindings = self.store_bindings(raw, photons, &params)?;
+        let fp_sort = self.pipelines.radix_bindings(&self.fp_items, &self.radix)?.bindings;
+        let ph_sort = self.pipelines.radix_bindings(&self.ph_items, &self.radix)?.bindings;
+        let device = ctx.device();
+        ctx.submit_and_wait(|cmd| self.record_sort(device, cmd, &bindings, &fp_sort, &ph_sort, &p))??;
+        drop((bindings, params));
         self.read_counts()
     }
 
-    /// The second half without a wait ([`VkContext::submit`]; its parameters and bindings
-    /// live with the submission), with the `counts` the store half counted for the same
-    /// `raw`, `photons` and `settings` (whose record counts are the photon pass's): pads the
-    /// appended items to their sorted lengths, sorts them and compacts the records and boxes
-    /// into [`MapStore::footprints`], [`MapStore::footprint_boxes`], [`MapStore::photons`] and
-    /// [`MapStore::photon_boxes`]. The submission ends with a barrier that makes them visible
-    /// to later shaders, transfers, acceleration-structure builds and the host, and with the
-    /// copy of the counters after the compaction ([`MapStore::read_counts`] after a wait).
-    ///
-    /// Errors: [`VkError::InvalidInput`] for more photons than [`MapStore::photons_out_capacity`],
-    /// counts above the capacities or past the input buffers; [`VkError::MissingUsage`] for
-    /// inputs without `STORAGE_BUFFER`; device errors.
-    pub fn submit_sort(&self, ctx: &VkContext, raw: &Buffer, photons: &Buffer, counts: &StoreCounts, settings: &StoreSettings) -> Result<(), VkError> {
-        self.check_inputs(raw, photons, settings)?;
-        if counts.total_photons() > self.photons_out_capacity {
-            return Err(size_error(format!(
-                "{} progressive photons in one iteration; one storage binding of this device holds {}",
-                counts.total_photons(),
-                self.photons_out_capacity
-            )));
-        }
-        if counts.total_footprints() > settings.raw_count {
-            return Err(size_error(format!("{} footprints counted from {} raw footprints", counts.total_footprints(), settings.raw_count)));
-        }
-        let p = StoreParams::new(settings, Some(counts));
-        let params = Self::params(ctx, &p)?;
-        let bindings = Arc::new(self.store_bindings(raw, photons, &params)?);
-        let fp_sort = self.pipelines.radix_bindings(&self.fp_items, &self.radix)?;
-        let ph_sort = self.pipelines.radix_bindings(&self.ph_items, &self.radix)?;
-        // Slots: footprints below raw_count, photons below photon_count + raw_count.
-        let value_bound = settings.photon_count.saturating_add(settings.raw_count);
-        let device = ctx.device();
-        let keep: KeepAlive = vec![Box::new(params), Box::new(Arc::clone(&bindings)), Box::new(Arc::clone(&fp_sort.bindings)), Box::new(Arc::clone(&ph_sort.bindings))];
-        let (recorded, _) = ctx.submit(keep, |cmd| {
-            self.pipelines.pad_items.record_dispatch_linear(cmd, &bindings, &[], p.fp_sorted.max(p.ph_sorted))?;
-            record_compute_barrier(device, cmd);
-            // The appended items only (the padding after them sorts last anyway).
-            self.pipelines.record_radix(device, cmd, &fp_sort, p.fp_count, value_bound)?;
-            self.pipelines.record_radix(device, cmd, &ph_sort, p.ph_count, value_bound)?;
-            self.pipelines.compact_footprints.record_dispatch_linear(cmd, &bindings, &[], p.fp_sorted)?;
-            self.pipelines.compact_photons.record_dispatch_linear(cmd, &bindings, &[], p.ph_sorted)?;
-            self.record_counts_copy(device, cmd);
-            Ok::<(), VkError>(())
-        })?;
-        recorded
+    /// The device counters ([`StoreCounts`], `TRANSFER_SRC`), valid after the store's commands.
+    pub fn counts(&self) -> &Buffer {
+        &self.counts
     }
 
     /// The sorted footprints of `counts` (caustic first), read back.

@@ -42,8 +42,14 @@ impl PhotonOutputs {
         Ok(Self {
             footprints: ctx.create_buffer("photon pass footprints", u64::from(fc) * size_of::<KeyedFootprint>() as u64, usage, MemoryLocation::GpuOnly)?,
             photons: ctx.create_buffer("photon pass progressive photons", u64::from(pc) * size_of::<KeyedPhoton>() as u64, usage, MemoryLocation::GpuOnly)?,
-            // Zeroed and read by the host around each pass.
-            counters: ctx.create_buffer("photon pass counters", size_of::<PhotonCounters>() as u64, vk::BufferUsageFlags::STORAGE_BUFFER, MemoryLocation::GpuToCpu)?,
+            // Zeroed on the device before each pass (PhotonPass::record_batch), copied out by
+            // the tracer after its store.
+            counters: ctx.create_buffer(
+                "photon pass counters",
+                size_of::<PhotonCounters>() as u64,
+                vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST | vk::BufferUsageFlags::TRANSFER_SRC,
+                MemoryLocation::GpuToCpu,
+            )?,
             footprint_capacity: fc,
             photon_capacity: pc,
         })
@@ -119,7 +125,9 @@ impl PhotonPass {
         Ok(Self {
             bindings: None,
             pipeline,
-            params: ctx.create_buffer("photon pass parameters", size_of::<PhotonParams>() as u64, vk::BufferUsageFlags::UNIFORM_BUFFER, host)?,
+            // Written per batch inside its submission (vkCmdUpdateBuffer), so that the batches
+            // of an iteration can be in flight together.
+            params: ctx.create_buffer("photon pass parameters", size_of::<PhotonParams>() as u64, vk::BufferUsageFlags::UNIFORM_BUFFER | vk::BufferUsageFlags::TRANSFER_DST, MemoryLocation::GpuOnly)?,
             lights: ctx.create_buffer("photon pass lights", n * size_of::<PackedLight>() as u64, vk::BufferUsageFlags::STORAGE_BUFFER, host)?,
             ranges: ctx.create_buffer("photon pass emitter ranges", n * size_of::<EmitterRange>() as u64, vk::BufferUsageFlags::STORAGE_BUFFER, host)?,
             cells: {
@@ -152,24 +160,23 @@ impl PhotonPass {
     /// Traces the photons `batch` (global indices of the iteration `setup`: their random
     /// streams, emitters and record keys are those of one pass over the whole iteration)
     /// into `out` (bound with [`PhotonPass::bind`]), waits, and returns the counters
-    /// ([`PhotonPass::prepare`], [`PhotonPass::record`] in a submission of its own).
+    /// ([`PhotonPass::prepare_iteration`], [`PhotonPass::record_batch`] in a submission of
+    /// its own).
     ///
-    /// Errors: as [`PhotonPass::prepare`].
+    /// Errors: as [`PhotonPass::prepare_iteration`] and [`PhotonPass::record_batch`].
     pub fn run(&mut self, ctx: &VkContext, setup: &PhotonPassSetup, batch: std::ops::Range<u32>, out: &mut PhotonOutputs) -> Result<PhotonCounters, VkError> {
-        if let Some(extent) = self.prepare(setup, batch, out)? {
-            ctx.submit_and_wait(|cmd| self.record(ctx, cmd, extent))??;
-        }
+        self.prepare_iteration(setup)?;
+        ctx.submit_and_wait(|cmd| self.record_batch(ctx, cmd, setup, batch, out))??;
         out.read_counters()
     }
 
-    /// Checks the batch and writes its parameters, emitter tables and zeroed counters into
-    /// host-visible memory (no submission of this pass may be in flight); returns the launch
-    /// to record ([`PhotonPass::record`]), or `None` for an empty batch.
+    /// Checks the iteration `setup` and writes its emitter tables into host-visible memory,
+    /// which every batch of the iteration reads: no submission of this pass may be in
+    /// flight.
     ///
     /// Errors: [`VkError::InvalidInput`] when `setup` is for another emitter count, when the
-    /// record keys `photons · max_depth` overflow `u32`, for a batch outside the iteration,
-    /// or when nothing is bound.
-    pub fn prepare(&mut self, setup: &PhotonPassSetup, batch: std::ops::Range<u32>, out: &mut PhotonOutputs) -> Result<Option<[u32; 3]>, VkError> {
+    /// record keys `photons · max_depth` overflow `u32`, or when nothing is bound.
+    pub fn prepare_iteration(&mut self, setup: &PhotonPassSetup) -> Result<(), VkError> {
         let invalid = |reason: String| VkError::InvalidInput { what: "photon pass".into(), reason };
         if setup.lights.len() != self.emitters || setup.allocation.len() != self.emitters || setup.first_index.len() != self.emitters {
             return Err(invalid(format!("{} emitters in the setup, the pass was made for {}", setup.lights.len(), self.emitters)));
@@ -181,28 +188,46 @@ impl PhotonPass {
         if self.bindings.is_none() {
             return Err(invalid("no output buffers bound".into()));
         }
-        if batch.start > batch.end || batch.end > photons {
-            return Err(invalid(format!("photons {batch:?} of an iteration of {photons}")));
-        }
         let (lights, ranges) = emitter_tables(setup, &self.emission_records);
-        let params = PhotonParams::new(&self.settings, setup.iteration, self.emitters as u32, batch.clone());
-        let photons = batch.end - batch.start;
-        self.params.write(0, bytemuck::bytes_of(&params))?;
         self.lights.write(0, bytemuck::cast_slice(&lights))?;
         self.ranges.write(0, bytemuck::cast_slice(&ranges))?;
-        // Host-visible: zeroed by the host before the submission, read after the wait.
-        out.counters.write(0, bytemuck::bytes_of(&PhotonCounters::default()))?;
-        let x = photons.min(LAUNCH_WIDTH);
-        Ok((photons > 0).then(|| [x, photons.div_ceil(x), 1]))
+        Ok(())
     }
 
-    /// Records the trace that [`PhotonPass::prepare`] returned into `cmd`, framed by
-    /// barriers (host and earlier writes before it, its writes before transfers and the
-    /// host; [`RtPipeline::trace_and_wait`]).
+    /// Records batch `batch` (global photons of the iteration `setup`, whose tables
+    /// [`PhotonPass::prepare_iteration`] wrote) into `cmd`: its parameters
+    /// (`vkCmdUpdateBuffer`), `out`'s counters zeroed, then the trace framed by barriers
+    /// (earlier writes before it, its writes before transfers and the host). An empty batch
+    /// records the parameters and the zeroed counters only.
     ///
-    /// Errors: [`VkError::InvalidInput`] when nothing is bound or the launch is too large.
-    pub fn record(&self, ctx: &VkContext, cmd: vk::CommandBuffer, extent: [u32; 3]) -> Result<(), VkError> {
-        let bindings = self.bindings.as_ref().ok_or_else(|| VkError::InvalidInput { what: "photon pass".into(), reason: "no output buffers bound".into() })?;
-        self.pipeline.record_framed_trace(ctx, cmd, bindings, &[], extent)
+    /// Errors: [`VkError::InvalidInput`] for a batch outside the iteration, when nothing is
+    /// bound or the launch is too large.
+    pub fn record_batch(&self, ctx: &VkContext, cmd: vk::CommandBuffer, setup: &PhotonPassSetup, batch: std::ops::Range<u32>, out: &PhotonOutputs) -> Result<(), VkError> {
+        let invalid = |reason: String| VkError::InvalidInput { what: "photon pass".into(), reason };
+        let bindings = self.bindings.as_ref().ok_or_else(|| invalid("no output buffers bound".into()))?;
+        let total = setup.photon_count();
+        if batch.start > batch.end || batch.end > total {
+            return Err(invalid(format!("photons {batch:?} of an iteration of {total}")));
+        }
+        let params = PhotonParams::new(&self.settings, setup.iteration, self.emitters as u32, batch.clone());
+        let device = ctx.device();
+        // SAFETY: live buffers with TRANSFER_DST usage; the command buffer's opening barrier
+        // orders earlier submissions' reads of them before these writes.
+        unsafe { device.cmd_update_buffer(cmd, self.params.raw(), 0, bytemuck::bytes_of(&params)) };
+        crate::compute::record_fill(device, cmd, &out.counters, 0);
+        let photons = batch.end - batch.start;
+        if photons == 0 {
+            crate::compute::record_compute_barrier(device, cmd);
+            return Ok(());
+        }
+        let written = vk::MemoryBarrier::default()
+            .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+            .dst_access_mask(vk::AccessFlags::UNIFORM_READ | vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE);
+        // SAFETY: a plain barrier in a recording command buffer.
+        unsafe {
+            device.cmd_pipeline_barrier(cmd, vk::PipelineStageFlags::TRANSFER, vk::PipelineStageFlags::RAY_TRACING_SHADER_KHR, vk::DependencyFlags::empty(), &[written], &[], &[]);
+        }
+        let x = photons.min(LAUNCH_WIDTH);
+        self.pipeline.record_framed_trace(ctx, cmd, bindings, &[], [x, photons.div_ceil(x), 1])
     }
 }

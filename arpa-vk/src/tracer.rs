@@ -15,8 +15,8 @@ use crate::photons::{PhotonOutputs, PhotonPass, photon_pipeline};
 use crate::scene::VkScene;
 use arpa_core::accumulate::image::Accumulation;
 use arpa_core::store::footprint::PackedFootprint;
-use arpa_core::gpu::batch::{Overflow, RecordLimits, after_overflow, for_each_batch, initial_capacity, shrink};
-use arpa_core::{gpu::layout::{CameraParams, GatherBatch, ImageBufferSizes, StoreCounts, StoreSettings}, gpu::fill::check_record_keys};
+use arpa_core::gpu::batch::{Overflow, RecordLimits, after_overflow, batch_count, batch_range, calibrated_capacity, for_each_batch, initial_capacity, shrink};
+use arpa_core::{gpu::layout::{CameraParams, GatherBatch, ImageBufferSizes, PhotonCounters, StoreCounts, StoreSettings}, gpu::fill::check_record_keys};
 use arpa_core::render::photon_path::PhotonPassSetup;
 use arpa_core::render::prepared_scene::PreparedScene;
 use arpa_core::store::progressive_photon::PackedPhoton;
@@ -145,12 +145,33 @@ impl PassPipelines {
     }
 }
 
-/// One photon batch's maps: sorted records and boxes, their counts and structure.
+/// One photon batch's maps: sorted records and boxes and their structure.
 struct Batch {
     /// Dropped before the buffers it refers to.
     accel: Option<MapAccel>,
     store: MapStore,
-    counts: StoreCounts,
+}
+
+/// Bytes of one batch's counters in [`Loaded::batch_counts`]: the photon pass's
+/// ([`PhotonCounters`]) then the store's ([`StoreCounts`]).
+const BATCH_COUNTS_BYTES: u64 = (size_of::<PhotonCounters>() + size_of::<StoreCounts>()) as u64;
+
+/// One batch's counters read back.
+#[derive(Clone, Copy, Debug)]
+struct BatchCounts {
+    photon: PhotonCounters,
+    store: StoreCounts,
+}
+
+impl BatchCounts {
+    /// The batches' counters in `bytes` ([`BATCH_COUNTS_BYTES`] per batch).
+    fn parse(bytes: &[u8]) -> Vec<Self> {
+        let p = size_of::<PhotonCounters>();
+        bytes
+            .chunks_exact(BATCH_COUNTS_BYTES as usize)
+            .map(|c| Self { photon: bytemuck::pod_read_unaligned(&c[..p]), store: bytemuck::pod_read_unaligned(&c[p..]) })
+            .collect()
+    }
 }
 
 struct Loaded {
@@ -179,6 +200,18 @@ struct Loaded {
     ledger: Arc<StageLedger>,
     /// A gather ran and its counts are not in the stats yet (accumulate's wait reads them).
     gather_counts_pending: bool,
+    /// The calibrated capacities of the photon pass's append buffers (raw footprints,
+    /// progressive photons): every iteration starts on them ([`arpa_core::gpu::batch`]).
+    capacities: (u32, u32),
+    /// The iteration's status word ([`crate::accumulate::STATUS_BYTES`]): set on the device
+    /// when a photon pass dropped appends; the accumulation then leaves the sums alone.
+    status: Buffer,
+    /// Per batch of the iteration, its counters ([`BATCH_COUNTS_BYTES`] each; host-visible,
+    /// written by each batch's submission).
+    batch_counts: Buffer,
+    /// A photon pass ran without waiting and its counters have not been read (accumulate's
+    /// wait reads them).
+    photon_counts_pending: bool,
     clock: StageClock,
 }
 
@@ -241,6 +274,17 @@ impl VkTracer {
         uploaded(self.state.as_deref(), call)
     }
 
+    /// The counters of the batches the maps hold (a wait); an error when the last photon
+    /// pass dropped records (its accumulate traces the iteration again).
+    fn kept_counts(&self, st: &Loaded) -> Result<Vec<BatchCounts>, VkTracerError> {
+        self.ctx.finish()?;
+        let counts = read_batch_counts(st)?;
+        if dropped(&counts) {
+            return Err(self.size_error("the last photon pass dropped records for lack of buffer space; its accumulate traces the iteration again with larger buffers".into()));
+        }
+        Ok(counts)
+    }
+
     fn size_error(&self, message: String) -> VkTracerError {
         VkTracerError::Size { adapter: self.ctx.info().name.clone(), message }
     }
@@ -299,78 +343,226 @@ fn binding_bytes(ctx: &VkContext) -> u64 {
     u64::from(props.limits.max_storage_buffer_range)
 }
 
-/// Traces the photons `range` of the iteration `setup` (growing the photon buffers and
-/// tracing again on overflow), stores, sorts and compacts them into batch `k`'s maps, and
-/// adds the batch's counts to the stats. `Some(B)`: the batch needs more than one storage
-/// binding holds; the caller traces the iteration again with B photons per batch.
-fn trace_batch(ctx: &VkContext, adapter: &str, st: &mut Loaded, clock: &mut StageClock, setup: &PhotonPassSetup, range: Range<u32>, k: usize) -> Result<Option<u32>, VkTracerError> {
+/// A host-visible buffer for the counters of `batches` batches.
+fn batch_counts_buffer(ctx: &VkContext, batches: usize) -> Result<Buffer, VkError> {
+    ctx.create_buffer("batch counters", batches.max(1) as u64 * BATCH_COUNTS_BYTES, vk::BufferUsageFlags::TRANSFER_DST, MemoryLocation::GpuToCpu)
+}
+
+/// Reallocates the photon pass's append buffers for `capacities` (raw footprints,
+/// progressive photons); each batch's store follows them when it is next used.
+fn resize(ctx: &VkContext, st: &mut Loaded, capacities: (u32, u32)) -> Result<(), VkError> {
+    // Free the old buffers before allocating the new ones.
+    st.outputs = PhotonOutputs::new(ctx, 1, 1)?;
+    st.outputs = PhotonOutputs::new(ctx, capacities.0, capacities.1)?;
+    st.photon.bind(&st.scene, &st.outputs)
+}
+
+/// Starts an iteration's photon pass of `batches` batches: room for their counters, the
+/// iteration's emitter tables (nothing of the pass may be in flight).
+fn begin_iteration(ctx: &VkContext, st: &mut Loaded, setup: &PhotonPassSetup, batches: usize) -> Result<(), VkError> {
+    // The previous iteration's structures refer to the buffers the stores rewrite.
+    for b in &mut st.batches {
+        b.accel = None;
+    }
+    if st.batch_counts.size() < batches as u64 * BATCH_COUNTS_BYTES {
+        st.batch_counts = batch_counts_buffer(ctx, batches)?;
+    }
+    st.photon.prepare_iteration(setup)
+}
+
+/// Records and submits batch `k` of the iteration `setup` (its photons `range`): the photon
+/// pass, the batch's whole store ([`MapStore::record_batch`]) and the copy of both counters
+/// into [`Loaded::batch_counts`], in one submission that waits for nothing; it first clears
+/// the iteration's status word when `clear_status`.
+fn submit_batch(ctx: &VkContext, st: &mut Loaded, setup: &PhotonPassSetup, settings: &StoreSettings, range: Range<u32>, k: usize, clear_status: bool) -> Result<(), VkError> {
+    let caps = (st.outputs.footprint_capacity(), st.outputs.photon_capacity());
+    if st.batches.get(k).is_none_or(|b| b.store.capacities() != caps) {
+        // Free this batch's old buffers first.
+        st.batches.truncate(k);
+        let store = MapStore::new(ctx, &st.pipelines.store, caps.0, caps.1)?;
+        st.batches.push(Batch { accel: None, store });
+    }
+    let store = &st.batches[k].store;
+    let outputs = &st.outputs;
+    let prepared = store.prepare_batch(ctx, outputs.footprints(), outputs.photons(), outputs.counters(), &st.status, settings)?;
+    let (photon, status, counts) = (&st.photon, &st.status, &st.batch_counts);
+    let device = ctx.device();
+    let at = k as u64 * BATCH_COUNTS_BYTES;
+    let (recorded, _) = ctx.submit(vec![Box::new(Arc::clone(&prepared))], |cmd| {
+        if clear_status {
+            crate::compute::record_fill(device, cmd, status, 0);
+        }
+        photon.record_batch(ctx, cmd, setup, range, outputs)?;
+        store.record_batch(device, cmd, &prepared)?;
+        let photon_bytes = size_of::<PhotonCounters>() as u64;
+        // SAFETY: live buffers with the transfer usages and room for the regions; the store
+        // ended with a barrier to transfers, and the copies are followed by one to the host.
+        unsafe {
+            device.cmd_copy_buffer(cmd, outputs.counters().raw(), counts.raw(), &[vk::BufferCopy { src_offset: 0, dst_offset: at, size: photon_bytes }]);
+            device.cmd_copy_buffer(cmd, store.counts().raw(), counts.raw(), &[vk::BufferCopy { src_offset: 0, dst_offset: at + photon_bytes, size: size_of::<StoreCounts>() as u64 }]);
+        }
+        crate::compute::record_compute_barrier(device, cmd);
+        Ok::<(), VkError>(())
+    })?;
+    recorded
+}
+
+/// Whether the pipelined photon pass can run with the current buffers: every sorted
+/// progressive photon a batch can make (both capacities) fits one binding, so that only
+/// the photon pass's appends can overflow (the status word catches those).
+fn pipelines_fit(st: &Loaded) -> bool {
+    u64::from(st.capacities.0) + u64::from(st.capacities.1) <= st.limits.sorted_photons
+}
+
+/// The photon pass without a wait: every batch of the iteration `setup` is traced and
+/// stored over the calibrated capacities; the counters are read at the accumulate's wait (or
+/// by a read of the stats or the records).
+fn trace_pipelined(ctx: &VkContext, st: &mut Loaded, setup: &PhotonPassSetup) -> Result<(), VkError> {
+    let n = setup.photon_count();
+    let b = st.batch_photons;
+    let batches = batch_count(n, b) as usize;
+    begin_iteration(ctx, st, setup, batches)?;
+    let settings = StoreSettings::for_iteration(setup, &st.prepared);
+    for k in 0..batches {
+        submit_batch(ctx, st, setup, &settings, batch_range(n, b, k as u32), k, k == 0)?;
+    }
+    st.batch_count = batches;
+    st.photon_counts_pending = true;
+    Ok(())
+}
+
+/// The photon pass with one wait per batch (the calibration, an iteration traced again after
+/// an overflow, or capacities too large for the pipelined pass): every batch of the
+/// iteration `setup`, each checked as soon as it ran ([`trace_batch`]); a batch too large
+/// for one binding shrinks B and starts the iteration again. Returns the largest appends of
+/// a batch (raw footprints, progressive photons).
+fn trace_waiting(ctx: &VkContext, adapter: &str, st: &mut Loaded, stats: &mut IterationStats, setup: &PhotonPassSetup) -> Result<(u32, u32), VkTracerError> {
+    let n = setup.photon_count();
+    stats.overflowed = 0;
+    let mut most = (0, 0);
+    let mut batch_photons = st.batch_photons;
+    let batches = for_each_batch(n, &mut batch_photons, |range, k, batches| {
+        if k == 0 {
+            stats.reset_photon_counts();
+            begin_iteration(ctx, st, setup, batches as usize)?;
+            most = (0, 0);
+        }
+        Ok::<_, VkTracerError>(match trace_batch(ctx, adapter, st, stats, setup, range, k as usize)? {
+            Ok(c) => {
+                most = (most.0.max(c.footprint_appends), most.1.max(c.photon_appends));
+                None
+            }
+            Err(b) => Some(b),
+        })
+    })?;
+    st.batch_photons = batch_photons;
+    st.batch_count = batches as usize;
+    st.photon_counts_pending = false;
+    Ok(most)
+}
+
+/// Traces batch `k` (the photons `range` of the iteration `setup`) and stores it, then waits
+/// for its counters: on overflow the batch's records are dropped, the buffers grow and the
+/// same photons are traced again. `Ok(Ok(counters))`: the batch is kept and its counts are
+/// in `stats`; `Ok(Err(B))`: it needs more than one storage binding holds, and the caller
+/// traces the iteration again with B photons per batch.
+fn trace_batch(ctx: &VkContext, adapter: &str, st: &mut Loaded, stats: &mut IterationStats, setup: &PhotonPassSetup, range: Range<u32>, k: usize) -> Result<Result<PhotonCounters, u32>, VkTracerError> {
     let photons = range.end - range.start;
     let limits = st.limits;
     let size = |message: String| VkTracerError::Size { adapter: adapter.to_string(), message };
-    // The store's parameters; its record counts come from the pass's counters on the device.
-    let mut settings = StoreSettings::for_iteration(setup, &st.prepared);
-    // Trace and store in one submission, then one wait for both counters; on overflow
-    // discard the batch's records, grow the buffers and trace the same photons again.
-    let (counters, counts) = loop {
-        let caps = (st.outputs.footprint_capacity(), st.outputs.photon_capacity());
-        if st.batches.get(k).is_none_or(|b| b.store.capacities() != caps) {
-            // Free this batch's old buffers first.
-            st.batches.truncate(k);
-            let store = MapStore::new(ctx, &st.pipelines.store, caps.0, caps.1)?;
-            st.batches.push(Batch { accel: None, store, counts: StoreCounts::default() });
-        }
-        let extent = st.photon.prepare(setup, range.clone(), &mut st.outputs)?;
-        let store = &st.batches[k].store;
-        let outputs = &st.outputs;
-        let scheduled = store.prepare_scheduled(ctx, outputs.footprints(), outputs.photons(), outputs.counters(), &settings)?;
-        let photon = &st.photon;
-        ctx.submit_and_wait(|cmd| {
-            if let Some(extent) = extent {
-                photon.record(ctx, cmd, extent)?;
-            }
-            store.record_scheduled(ctx.device(), cmd, &scheduled)
-        })??;
-        drop(scheduled);
-        let c = outputs.read_counters()?;
+    let settings = StoreSettings::for_iteration(setup, &st.prepared);
+    loop {
+        // Every earlier batch fitted: the status word only tells of this one.
+        submit_batch(ctx, st, setup, &settings, range.clone(), k, true)?;
+        ctx.finish()?;
+        let BatchCounts { photon: c, store: counts } = BatchCounts::parse(&st.batch_counts.read(k as u64 * BATCH_COUNTS_BYTES, BATCH_COUNTS_BYTES)?)[0];
         if c.overflowed() == 0 {
-            break (c, store.read_counts()?);
+            // The sorted progressive photons (the pass's plus the footprints' fallbacks)
+            // must fit one binding too.
+            let out = st.batches[k].store.photons_out_capacity();
+            if counts.overflowed > 0 || counts.photon_items > out {
+                stats.overflowed += u64::from(counts.overflowed.max(1));
+                if photons <= 1 {
+                    return Err(size(format!("one photon stores {} progressive photons; one binding holds {out}", counts.photon_items)));
+                }
+                return Ok(Err(shrink(photons, f64::from(out) / f64::from(counts.photon_items.max(1)))));
+            }
+            stats.add_photon_batch(&c, &counts);
+            return Ok(Ok(c));
         }
-        clock.stats_mut().overflowed += c.overflowed();
-        let (fp_cap, ph_cap) = match after_overflow(&limits, photons, c.footprint_appends, c.photon_appends, caps) {
-            Overflow::Grow(f, p) => (f, p),
-            Overflow::Shrink(b) => return Ok(Some(b)),
+        stats.overflowed += c.overflowed();
+        let caps = (st.outputs.footprint_capacity(), st.outputs.photon_capacity());
+        match after_overflow(&limits, photons, c.footprint_appends, c.photon_appends, caps) {
+            Overflow::Grow(f, p) => resize(ctx, st, (f, p))?,
+            Overflow::Shrink(b) => return Ok(Err(b)),
             Overflow::TooLarge => {
                 return Err(size(format!(
                     "one photon stores {} raw footprints and {} progressive photons; one binding holds {} and {}",
                     c.footprint_appends, c.photon_appends, limits.raw_footprints, limits.photons
                 )));
             }
-        };
-        // Free the old buffers before allocating the larger ones.
-        st.outputs = PhotonOutputs::new(ctx, 1, 1)?;
-        st.outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
-        st.photon.bind(&st.scene, &st.outputs)?;
-    };
-    // The counts the schedule kernel gave the store.
-    settings.raw_count = counters.footprints_written();
-    settings.photon_count = counters.photons_written();
-    let outputs = &st.outputs;
-    let batch = &mut st.batches[k];
-    // The sorted progressive photons (the pass's plus the footprints' fallbacks) must fit one
-    // binding too.
-    if u64::from(counts.photon_items) > u64::from(batch.store.photons_out_capacity()) {
-        clock.stats_mut().overflowed += u64::from(counts.photon_items) - u64::from(batch.store.photons_out_capacity());
-        if photons <= 1 {
-            return Err(size(format!("one photon stores {} progressive photons; one binding holds {}", counts.photon_items, batch.store.photons_out_capacity())));
         }
-        return Ok(Some(shrink(photons, f64::from(batch.store.photons_out_capacity()) / f64::from(counts.photon_items))));
     }
-    // Not waited for: nothing after it in the photon pass reads what it writes (the
-    // compaction cannot overflow, the check above ensures it).
-    batch.store.submit_sort(ctx, outputs.footprints(), outputs.photons(), &counts, &settings)?;
-    batch.counts = counts;
-    clock.stats_mut().add_photon_batch(&counters, &counts);
-    Ok(None)
+}
+
+/// The counters of the iteration's batches (after a wait).
+fn read_batch_counts(st: &Loaded) -> Result<Vec<BatchCounts>, VkError> {
+    Ok(BatchCounts::parse(&st.batch_counts.read(0, st.batch_count as u64 * BATCH_COUNTS_BYTES)?))
+}
+
+/// Whether the batches' counters show a dropped record (the iteration must be traced again).
+fn dropped(counts: &[BatchCounts]) -> bool {
+    counts.iter().any(|c| c.photon.overflowed() > 0 || c.store.overflowed > 0)
+}
+
+/// Records dropped in `counts`.
+fn lost(counts: &[BatchCounts]) -> u64 {
+    counts.iter().map(|c| c.photon.overflowed() + u64::from(c.store.overflowed)).sum()
+}
+
+/// Adds the batches' counts to `stats` (whose photon counts the photon pass reset).
+fn add_batches(stats: &mut IterationStats, counts: &[BatchCounts]) {
+    for c in counts {
+        stats.add_photon_batch(&c.photon, &c.store);
+    }
+}
+
+/// Builds every batch's structure over its store's capacities (not waited for).
+fn build_batches(ctx: &VkContext, st: &mut Loaded) -> Result<(), VkError> {
+    for b in &mut st.batches[..st.batch_count] {
+        b.accel = None;
+        let (fp, ph) = (b.store.capacities().0, b.store.photons_out_capacity());
+        b.accel = Some(MapAccel::build(ctx, b.store.footprint_boxes(), fp, b.store.photon_boxes(), ph)?);
+    }
+    Ok(())
+}
+
+/// Gathers every batch (not waited for; its counts come back in the accumulate's wait).
+fn gather_batches(ctx: &VkContext, st: &mut Loaded) -> Result<(), VkTracerError> {
+    let batches = st.batch_count;
+    for (k, b) in st.batches[..batches].iter().enumerate() {
+        let accel = b.accel.as_ref().ok_or_else(|| StageError::order(Stage::Gather, Stage::BuildAccelerationStructure))?;
+        let inputs = GatherInputs { footprints: b.store.footprints(), photons: b.store.photons(), tlas: accel.tlas(), radii: st.radii };
+        let batch = GatherBatch { first: k == 0, last: k + 1 == batches };
+        st.gather.run(ctx, &st.queries, &st.image, &inputs, batch)?;
+    }
+    st.gather_counts_pending = true;
+    Ok(())
+}
+
+/// Accumulates the iteration image (left out on the device when the status word says the
+/// photon pass dropped records) and waits for the iteration; reads the gather's counts and
+/// returns the batches' counters when a pipelined photon pass left them unread.
+fn accumulate_and_wait(ctx: &VkContext, st: &mut Loaded, stats: &mut IterationStats) -> Result<Option<Vec<BatchCounts>>, VkError> {
+    st.accumulator.accumulate_and_wait(ctx, &st.image, Some(&st.status))?;
+    if st.gather_counts_pending {
+        set_gather_counts(stats, &st.gather.read_counts()?);
+        st.gather_counts_pending = false;
+    }
+    if !std::mem::take(&mut st.photon_counts_pending) {
+        return Ok(None);
+    }
+    read_batch_counts(st).map(Some)
 }
 
 impl Tracer for VkTracer {
@@ -415,7 +607,8 @@ impl Tracer for VkTracer {
         photon.bind(&vk_scene, &outputs)?;
         let gather = GatherPass::new(ctx, &pipelines.gather, settings.kernel, settings.bandwidth, pixels)?;
         let accumulator = DeviceAccumulator::new(ctx, &pipelines.accumulate, entries)?;
-        self.state = Some(Box::new(Loaded {
+        let status = ctx.create_buffer("iteration status", crate::accumulate::STATUS_BYTES, vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST, MemoryLocation::GpuOnly)?;
+        let mut st = Box::new(Loaded {
             batches: Vec::new(),
             batch_count: 0,
             batch_photons,
@@ -437,8 +630,23 @@ impl Tracer for VkTracer {
             limits,
             ledger: Arc::default(),
             gather_counts_pending: false,
+            capacities: (fp_cap, ph_cap),
+            status,
+            batch_counts: batch_counts_buffer(ctx, 1)?,
+            photon_counts_pending: false,
             clock: StageClock::new(),
-        }));
+        });
+        if self.initial_capacity.is_none() {
+            // The calibration: iteration 0's photon pass, waited for batch by batch, sets
+            // the capacities every iteration of the render starts on (and B).
+            let setup = PhotonPassSetup::new(&st.prepared, &st.settings, 0);
+            let mut stats = IterationStats::default();
+            let adapter = ctx.info().name.clone();
+            let (fp, ph) = trace_waiting(ctx, &adapter, &mut st, &mut stats, &setup)?;
+            st.capacities = (calibrated_capacity(fp, limits.raw_footprints), calibrated_capacity(ph, limits.photons));
+            st.batch_count = 0;
+        }
+        self.state = Some(st);
         Ok(())
     }
 
@@ -455,26 +663,23 @@ impl Tracer for VkTracer {
         let mut clock = std::mem::take(&mut st.clock);
         let ledger = Arc::clone(&st.ledger);
         let result = timed(&ledger, &mut clock, Stage::PhotonPass, |clock| {
-            // The previous iteration's structures refer to the buffers the store rewrites.
-            for b in &mut st.batches {
-                b.accel = None;
-            }
             let setup = PhotonPassSetup::new(&st.prepared, &st.settings, clock.completed());
-            let n = setup.photon_count();
-            clock.stats_mut().overflowed = 0;
-            // Every batch; a batch too large for one binding shrinks B and starts the
-            // iteration again.
-            let mut batch_photons = st.batch_photons;
-            st.batch_count = for_each_batch(n, &mut batch_photons, |range, k, _| {
-                if k == 0 {
-                    clock.stats_mut().reset_photon_counts();
-                }
-                trace_batch(ctx, &adapter, st, clock, &setup, range, k as usize)
-            })? as usize;
-            st.batch_photons = batch_photons;
+            let stats = clock.stats_mut();
+            stats.overflowed = 0;
+            stats.reset_photon_counts();
+            if (st.outputs.footprint_capacity(), st.outputs.photon_capacity()) != st.capacities {
+                // An iteration traced again grew them: every iteration starts on the
+                // calibrated ones.
+                resize(ctx, st, st.capacities)?;
+            }
+            if pipelines_fit(st) {
+                trace_pipelined(ctx, st, &setup)?;
+            } else {
+                trace_waiting(ctx, &adapter, st, stats, &setup)?;
+            }
             st.radii = setup.radii.map(|r| r as f32);
-            clock.stats_mut().radii = setup.radii;
-            setup.record_plan(clock.stats_mut());
+            stats.radii = setup.radii;
+            setup.record_plan(stats);
             Ok(())
         });
         st.clock = clock;
@@ -483,40 +688,58 @@ impl Tracer for VkTracer {
 
     fn build_acceleration_structure(&mut self) -> Result<(), VkTracerError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::BuildAccelerationStructure)?;
-        timed(&st.ledger, &mut st.clock, Stage::BuildAccelerationStructure, |_| {
-            for b in &mut st.batches[..st.batch_count] {
-                b.accel = None;
-                b.accel = Some(MapAccel::build(&self.ctx, b.store.footprint_boxes(), b.store.photon_boxes(), &b.counts)?);
-            }
-            Ok(())
-        })
+        let ctx = &self.ctx;
+        let mut clock = std::mem::take(&mut st.clock);
+        let ledger = Arc::clone(&st.ledger);
+        let result = timed(&ledger, &mut clock, Stage::BuildAccelerationStructure, |_| Ok::<(), VkTracerError>(build_batches(ctx, st)?));
+        st.clock = clock;
+        result
     }
 
     fn gather(&mut self) -> Result<(), VkTracerError> {
         let st = uploaded(self.state.as_deref_mut(), Stage::Gather)?;
-        timed(&st.ledger, &mut st.clock, Stage::Gather, |_| {
-            let batches = st.batch_count;
-            for (k, b) in st.batches[..batches].iter().enumerate() {
-                let accel = b.accel.as_ref().ok_or_else(|| StageError::order(Stage::Gather, Stage::BuildAccelerationStructure))?;
-                let inputs = GatherInputs { footprints: b.store.footprints(), photons: b.store.photons(), tlas: accel.tlas(), radii: st.radii };
-                let batch = GatherBatch { first: k == 0, last: k + 1 == batches };
-                st.gather.run(&self.ctx, &st.queries, &st.image, &inputs, batch)?;
-            }
-            // Its counts come back in accumulate's wait (or read_stats's).
-            st.gather_counts_pending = true;
-            Ok(())
-        })
+        let ctx = &self.ctx;
+        let mut clock = std::mem::take(&mut st.clock);
+        let ledger = Arc::clone(&st.ledger);
+        let result = timed(&ledger, &mut clock, Stage::Gather, |_| gather_batches(ctx, st));
+        st.clock = clock;
+        result
     }
 
+    /// The iteration's one wait ([`VkTracer`]'s table). When it finds that the photon pass
+    /// dropped records (the accumulation was then left out on the device), the iteration is
+    /// traced again here with grown buffers and one wait per batch, built, gathered and
+    /// accumulated; those stages' device times are the second trace's.
     fn accumulate(&mut self) -> Result<(), VkTracerError> {
+        let adapter = self.ctx.info().name.clone();
+        let ctx = &self.ctx;
         let st = uploaded(self.state.as_deref_mut(), Stage::Accumulate)?;
-        timed(&st.ledger, &mut st.clock, Stage::Accumulate, |clock| {
-            // The iteration's one wait outside the photon pass: it retires every submission
-            // of the iteration (their device times arrive in the ledger).
-            st.accumulator.accumulate_and_wait(&self.ctx, &st.image)?;
-            if st.gather_counts_pending {
-                set_gather_counts(clock.stats_mut(), &st.gather.read_counts()?);
-                st.gather_counts_pending = false;
+        let mut clock = std::mem::take(&mut st.clock);
+        let ledger = Arc::clone(&st.ledger);
+        let result = timed(&ledger, &mut clock, Stage::Accumulate, |clock| {
+            let iteration = clock.completed();
+            let stats = clock.stats_mut();
+            if let Some(counts) = accumulate_and_wait(ctx, st, stats)? {
+                if dropped(&counts) {
+                    let setup = PhotonPassSetup::new(&st.prepared, &st.settings, iteration);
+                    {
+                        let _scope = StageScope::enter(&ledger, Stage::PhotonPass, iteration);
+                        trace_waiting(ctx, &adapter, st, stats, &setup)?;
+                    }
+                    stats.overflowed += lost(&counts);
+                    setup.record_plan(stats);
+                    {
+                        let _scope = StageScope::enter(&ledger, Stage::BuildAccelerationStructure, iteration);
+                        build_batches(ctx, st)?;
+                    }
+                    {
+                        let _scope = StageScope::enter(&ledger, Stage::Gather, iteration);
+                        gather_batches(ctx, st)?;
+                    }
+                    accumulate_and_wait(ctx, st, stats)?;
+                } else {
+                    add_batches(stats, &counts);
+                }
             }
             // The structures are not read again this iteration; dropped now, while nothing is
             // in flight, they cost the next iteration no wait.
@@ -524,7 +747,9 @@ impl Tracer for VkTracer {
                 b.accel = None;
             }
             Ok::<(), VkTracerError>(())
-        })?;
+        });
+        st.clock = clock;
+        result?;
         // The accumulation's own submission has retired too.
         st.clock.stats_mut().device_times = st.ledger.times();
         Ok(())
@@ -571,8 +796,8 @@ impl Tracer for VkTracer {
         let st = self.loaded(Call::ReadFootprints)?;
         st.clock.require_output(Call::ReadFootprints, Stage::PhotonPass)?;
         let mut all = Vec::new();
-        for b in &st.batches[..st.batch_count] {
-            all.extend(b.store.read_footprints(&self.ctx, &b.counts)?);
+        for (b, c) in st.batches[..st.batch_count].iter().zip(self.kept_counts(st)?) {
+            all.extend(b.store.read_footprints(&self.ctx, &c.store)?);
         }
         Ok(all)
     }
@@ -583,8 +808,8 @@ impl Tracer for VkTracer {
         let st = self.loaded(Call::ReadPhotons)?;
         st.clock.require_output(Call::ReadPhotons, Stage::PhotonPass)?;
         let mut all = Vec::new();
-        for b in &st.batches[..st.batch_count] {
-            all.extend(b.store.read_photons(&self.ctx, &b.counts)?);
+        for (b, c) in st.batches[..st.batch_count].iter().zip(self.kept_counts(st)?) {
+            all.extend(b.store.read_photons(&self.ctx, &c.store)?);
         }
         Ok(all)
     }
@@ -594,6 +819,12 @@ impl Tracer for VkTracer {
     fn read_stats(&self) -> Result<IterationStats, VkTracerError> {
         let st = self.loaded(Call::ReadStats)?;
         let mut stats = *st.clock.stats();
+        if st.photon_counts_pending {
+            self.ctx.finish()?;
+            let counts = read_batch_counts(st)?;
+            add_batches(&mut stats, &counts);
+            stats.overflowed += lost(&counts);
+        }
         if st.gather_counts_pending {
             self.ctx.finish()?;
             set_gather_counts(&mut stats, &st.gather.read_counts()?);
