@@ -18,8 +18,8 @@
 //
 // Records: instance custom index = ARPA_INSTANCE_PHOTON_BIT for progressive photons, plus
 // the index of the instance's first record (ARPA_INSTANCE_INDEX_MASK); primitive i of the
-// instance is record first + i (arpa_core::gpu::codes::INSTANCE_*, as gather.wgsl). The
-// instance mask is 1 << map.
+// instance is record first + i (arpa_core::gpu::codes::INSTANCE_*, as gather.wgsl); the
+// map is the record's.
 
 
 const uint ARPA_INSTANCE_PHOTON_BIT = 0x800000u;

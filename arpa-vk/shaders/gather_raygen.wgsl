@@ -1,6 +1,6 @@
 // arpa-vk's box traversal and entry point for arpa-core's path/gather.wgsl on a ray-tracing
-// pipeline: binding 7 of group 0 is the top level over the record boxes (one AABB instance
-// per non-empty (kind, map), see gather.wgsl), and arpa_gather_at is the function
+// pipeline: binding 7 of group 0 is the top level over the record boxes (AABB instances as
+// gather.wgsl describes them), and arpa_gather_at is the function
 // gather.wgsl names: a point query, one ray of negligible length started at the query
 // point, through the AABB hit group of gather.rint (the exact test) and gather.rahit (the
 // contribution, added to this payload; then ignoreIntersection, so every box containing

@@ -17,7 +17,8 @@
 //! - [`maps`]: storing footprints — the core's keyed store (heuristics, progressive fallbacks),
 //!   bitonic sort and compaction into sorted records and boxes ([`MapStore`]);
 //! - [`map_accel`]: building the structure over the sorted boxes ([`MapAccel`]: AABB bottom
-//!   levels per (kind, map), not opaque, no duplicate any-hit; one top level);
+//!   levels per record kind over the store's capacities, not opaque, no duplicate any-hit;
+//!   one top level);
 //! - [`gather`]: ray generation over the core's `gather.wgsl`, the GLSL hit group
 //!   ([`shaders::GATHER_INTERSECTION`], [`shaders::GATHER_ANY_HIT`]);
 //! - [`accumulate`]: the running mean ([`DeviceAccumulator`]).

@@ -15,18 +15,19 @@
 //! is total, so the result does not depend on the order the photon pass appended in, and it
 //! is spatial, which the acceleration-structure build needs ([`crate::map_accel`]).
 //!
-//! Two halves with one documented host readback between them: the store half reads back
-//! the 48-byte [`StoreCounts`]; the sort's passes (their item counts and tiles) and the
-//! acceleration-structure build (sized on the host) depend on them. The tracer records the
-//! store half into the photon pass's submission ([`MapStore::prepare_scheduled`],
-//! [`MapStore::record_scheduled`]): the schedule kernel (`path/schedule.wgsl`) takes the
-//! record counts and dispatch sizes from the pass's counters on the device, and the host
-//! waits once for both counters. [`MapStore::store`] is the same half on counts the host
-//! gives, in a submission of its own. [`MapStore::submit_sort`] pads, sorts and compacts
-//! without waiting ([`MapStore::sort`] waits and reads the counts again). The store's parameters ([`StoreParams`], a storage buffer in
-//! `store.wgsl`) go through a small host-visible buffer per submission; the sort's pass (a
-//! uniform in `radix.wgsl`, read at dynamic offsets on wgpu) is written into one uniform
-//! buffer with `vkCmdUpdateBuffer` before each pass's dispatches.
+//! Nothing of it waits for a count on the host: the tracer records a batch's whole store
+//! into the photon pass's submission ([`MapStore::prepare_batch`],
+//! [`MapStore::record_batch`]): the schedule kernel (`path/schedule.wgsl`) takes the record
+//! counts and dispatch sizes from the pass's counters on the device (and sets the
+//! iteration's status word when the pass dropped appends), the padding reads the appended
+//! counts from the store's counters, and the sort and the compaction run over the
+//! capacities, writing inactive boxes past the records, so that the acceleration structures
+//! are built over the capacities too ([`crate::map_accel`]). [`MapStore::store`] and
+//! [`MapStore::sort`] are the two halves on counts the host gives, each in a submission of
+//! its own and waited for (tests). The store's parameters ([`StoreParams`], a storage
+//! buffer in `store.wgsl`) go through a small host-visible buffer per submission; the
+//! sort's pass (a uniform in `radix.wgsl`, read at dynamic offsets on wgpu) is written into
+//! one uniform buffer with `vkCmdUpdateBuffer` before each pass's dispatches.
 
 use std::sync::Arc;
 use crate::buffer::Buffer;
@@ -436,7 +437,7 @@ impl MapStore {
         record_compute_barrier(device, cmd);
     }
 
-    /// The counters copied out by the last submission of [`MapStore::record_scheduled`] or
+    /// The counters copied out by the last submission of [`MapStore::record_batch`], [`MapStore::sort`] or
     /// [`MapStore::store`], once it has been waited for.
     pub fn read_counts(&self) -> Result<StoreCounts, VkError> {
         Ok(bytemuck::pod_read_unaligned(&self.counts_host.read(0, COUNTS_BYTES)?))

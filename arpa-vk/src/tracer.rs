@@ -16,7 +16,7 @@ use crate::scene::VkScene;
 use arpa_core::accumulate::image::Accumulation;
 use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::gpu::batch::{Overflow, RecordLimits, after_overflow, batch_count, batch_range, calibrated_capacity, for_each_batch, initial_capacity, shrink};
-use arpa_core::{gpu::layout::{CameraParams, GatherBatch, ImageBufferSizes, PhotonCounters, StoreCounts, StoreSettings}, gpu::fill::check_record_keys};
+use arpa_core::{gpu::layout::{BatchCounts, CameraParams, GatherBatch, ImageBufferSizes, PhotonCounters, StoreCounts, StoreSettings}, gpu::fill::check_record_keys};
 use arpa_core::render::photon_path::PhotonPassSetup;
 use arpa_core::render::prepared_scene::PreparedScene;
 use arpa_core::store::progressive_photon::PackedPhoton;
@@ -59,42 +59,47 @@ pub enum VkTracerError {
 ///
 /// | stage | on the device | host waits for / reads back |
 /// |---|---|---|
-/// | [`upload_scene`](Tracer::upload_scene) | validates scene and settings, builds the triangle structures, uploads the scene tables, compiles the pipelines | the uploads |
+/// | [`upload_scene`](Tracer::upload_scene) | validates scene and settings, builds the triangle structures, uploads the scene tables, compiles the pipelines; the *calibration*: iteration 0's photon pass, one wait per batch, sets the buffers' capacities and B ([`arpa_core::gpu::batch`]) | the uploads, the calibration's counters |
 /// | [`camera_pass`](Tracer::camera_pass) | ray generation per pixel, closest-hit and miss over the triangles ([`CameraPass`]) | nothing |
-/// | [`photon_pass`](Tracer::photon_pass) | per photon batch, in one submission: ray generation per photon appending keyed footprints and photons ([`PhotonPass`]), then the keyed store with its record counts and dispatch sizes from the pass's counters on the device (`schedule.wgsl`); then, in a second submission, sort and compaction into the batch's sorted maps and boxes ([`MapStore`]) | per batch, one wait for the first submission: the photon counters (48 bytes: overflow) and the store counts (48 bytes: the sort's schedule and the build's sizes) |
-/// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | per batch, AABB bottom levels per (kind, map) over the sorted boxes and one top level ([`MapAccel`]) | nothing |
+/// | [`photon_pass`](Tracer::photon_pass) | per photon batch, one submission: its parameters (`vkCmdUpdateBuffer`), ray generation per photon appending keyed footprints and photons ([`PhotonPass`]), the keyed store with its record counts and dispatch sizes from the pass's counters on the device (`schedule.wgsl`), the sort and compaction over the capacities into the batch's maps and boxes ([`MapStore`]), the copy of both counters | nothing |
+/// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | per batch, an AABB bottom level per record kind over the capacity and one top level ([`MapAccel`]) | nothing |
 /// | [`gather`](Tracer::gather) | per batch, ray generation per query record, one point query through the AABB hit group (GLSL intersection: exact test; any-hit: contribution, ignore) ([`GatherPass`]) | nothing |
-/// | [`accumulate`](Tracer::accumulate) | compensated running sum of every plane ([`DeviceAccumulator`]) | one wait for the iteration's work: the gather's counts (16 bytes) and every submission's two timestamps |
+/// | [`accumulate`](Tracer::accumulate) | compensated running sum of every plane ([`DeviceAccumulator`]), left out when the iteration's status word says its photon pass dropped records | the iteration's one wait: the batches' counters (96 bytes each), the gather's counts (16 bytes) and every submission's two timestamps |
 ///
-/// A stage that reads nothing back submits and returns ([`VkContext::submit`]); queue
-/// order runs its work before the next stage's, and what its submissions use lives with
-/// them until a wait retires them. [`Tracer::read_stats`] reads the gather's counts itself
-/// (a wait) between a gather and its accumulate. The stage times of
+/// A stage submits and returns ([`VkContext::submit`]); queue order runs its work before
+/// the next stage's, and what its submissions use lives with them until a wait retires
+/// them. [`Tracer::read_stats`], [`Tracer::read_footprints`] and [`Tracer::read_photons`]
+/// read the counts they need themselves (a wait) before the accumulate. The stage times of
 /// [`IterationStats::times`] are therefore the host's encoding and submission time plus
-/// the waits above (a wait also covers the device work submitted before it), and
+/// the waits above (the accumulate's covers the device work of every stage), and
 /// [`IterationStats::device_times`] the device's own, from a timestamp before and after
 /// every submission, summed per stage once the accumulate's wait has retired them all
 /// ([`crate::timing`]; where the queue family has no timestamps, they are
-/// [`arpa_core::render::tracer::DeviceTimes::Unavailable`]). The photon pass's wait
-/// stays because the sort's passes are sized from the counts on the host and because
-/// Vulkan's indirect build takes primitive counts from device memory but not the sizes of
-/// the structures, which must be allocated before the build; the adapter's
-/// `accelerationStructureIndirectBuild` is reported in
-/// [`crate::DeviceInfo::acceleration_structure_indirect_build`] (lavapipe: off).
+/// [`arpa_core::render::tracer::DeviceTimes::Unavailable`]). The photon pass waits once per
+/// batch instead when the capacities exceed what one binding of sorted progressive photons
+/// holds (only near the adapter's `maxStorageBufferRange`).
 ///
-/// # Photon records and batches
-/// The photon pass's buffers start at [`arpa_core::gpu::batch::INITIAL_RECORDS_PER_PHOTON`]
-/// records per photon and grow when a pass overflows them (the photons are then traced again
-/// with the same random streams, so the iteration is unbiased; the dropped appends are
-/// counted in [`IterationStats::overflowed`]). An iteration whose records exceed one storage
-/// binding of the adapter (`maxStorageBufferRange`; lavapipe: 128 MiB, ~1.4 M raw
-/// footprints) is traced in photon batches, with the core's policy
+/// # Photon records, capacities and batches
+/// The store, the sort and the structures run over the append buffers' capacities, so that
+/// nothing waits for a count: the slots past the records are padding and inactive boxes
+/// ([`crate::map_accel`]). The capacities are calibrated at upload from iteration 0
+/// ([`arpa_core::gpu::batch::calibrated_capacity`]) and every iteration starts on them.
+/// When an iteration's photon pass drops appends (the schedule kernel sets the status
+/// word), its accumulate leaves the sums alone, finds the overflow at its wait and traces
+/// the iteration again with one wait per batch: the buffers grow and the photons are traced
+/// again with the same random streams, so the iteration is unbiased; it is then built,
+/// gathered and accumulated (those stages' device times are the second trace's; the dropped
+/// appends are counted in [`IterationStats::overflowed`]). An iteration whose records
+/// exceed one storage binding of the adapter (`maxStorageBufferRange`; lavapipe: 128 MiB,
+/// ~1.4 M raw footprints) is traced in photon batches, with the core's policy
 /// ([`arpa_core::gpu::batch`]) as the wgpu backend: batch `k` is the global photons
 /// `[k·B, (k+1)·B)`, stored and sorted into maps of its own ([`MapStore`]) with a structure
 /// of its own; the gather adds each batch's irradiance per pixel in batch order. When a batch
 /// does not fit, B shrinks and the photon pass starts the iteration again; B then stays for
-/// the render. B is part of the determinism key (another B sums the same contributions in
-/// another `f32` order).
+/// the render. B and the capacities are part of the determinism key (another B sums the
+/// same contributions in another `f32` order, other capacities give the structures, whose
+/// traversal orders the gather's sums, another shape); both are functions of the render,
+/// so a checkpoint resumed at any iteration gives the same image.
 ///
 /// # Bandwidth
 /// The iteration image has [`arpa_core::gather::scales::Bandwidth::planes`] planes per pixel
@@ -152,27 +157,8 @@ struct Batch {
     store: MapStore,
 }
 
-/// Bytes of one batch's counters in [`Loaded::batch_counts`]: the photon pass's
-/// ([`PhotonCounters`]) then the store's ([`StoreCounts`]).
-const BATCH_COUNTS_BYTES: u64 = (size_of::<PhotonCounters>() + size_of::<StoreCounts>()) as u64;
-
-/// One batch's counters read back.
-#[derive(Clone, Copy, Debug)]
-struct BatchCounts {
-    photon: PhotonCounters,
-    store: StoreCounts,
-}
-
-impl BatchCounts {
-    /// The batches' counters in `bytes` ([`BATCH_COUNTS_BYTES`] per batch).
-    fn parse(bytes: &[u8]) -> Vec<Self> {
-        let p = size_of::<PhotonCounters>();
-        bytes
-            .chunks_exact(BATCH_COUNTS_BYTES as usize)
-            .map(|c| Self { photon: bytemuck::pod_read_unaligned(&c[..p]), store: bytemuck::pod_read_unaligned(&c[p..]) })
-            .collect()
-    }
-}
+/// Bytes of one batch's counters in [`Loaded::batch_counts`] ([`BatchCounts`]).
+const BATCH_COUNTS_BYTES: u64 = size_of::<BatchCounts>() as u64;
 
 struct Loaded {
     /// The iteration's photon batches (the first `batch_count` are current).
@@ -475,7 +461,7 @@ fn trace_batch(ctx: &VkContext, adapter: &str, st: &mut Loaded, stats: &mut Iter
         // Every earlier batch fitted: the status word only tells of this one.
         submit_batch(ctx, st, setup, &settings, range.clone(), k, true)?;
         ctx.finish()?;
-        let BatchCounts { photon: c, store: counts } = BatchCounts::parse(&st.batch_counts.read(k as u64 * BATCH_COUNTS_BYTES, BATCH_COUNTS_BYTES)?)[0];
+        let BatchCounts { photon: c, store: counts } = bytemuck::pod_read_unaligned(&st.batch_counts.read(k as u64 * BATCH_COUNTS_BYTES, BATCH_COUNTS_BYTES)?);
         if c.overflowed() == 0 {
             // The sorted progressive photons (the pass's plus the footprints' fallbacks)
             // must fit one binding too.
@@ -507,24 +493,17 @@ fn trace_batch(ctx: &VkContext, adapter: &str, st: &mut Loaded, stats: &mut Iter
 
 /// The counters of the iteration's batches (after a wait).
 fn read_batch_counts(st: &Loaded) -> Result<Vec<BatchCounts>, VkError> {
-    Ok(BatchCounts::parse(&st.batch_counts.read(0, st.batch_count as u64 * BATCH_COUNTS_BYTES)?))
+    Ok(bytemuck::pod_collect_to_vec(&st.batch_counts.read(0, st.batch_count as u64 * BATCH_COUNTS_BYTES)?))
 }
 
 /// Whether the batches' counters show a dropped record (the iteration must be traced again).
 fn dropped(counts: &[BatchCounts]) -> bool {
-    counts.iter().any(|c| c.photon.overflowed() > 0 || c.store.overflowed > 0)
+    counts.iter().any(|c| c.dropped() > 0)
 }
 
 /// Records dropped in `counts`.
 fn lost(counts: &[BatchCounts]) -> u64 {
-    counts.iter().map(|c| c.photon.overflowed() + u64::from(c.store.overflowed)).sum()
-}
-
-/// Adds the batches' counts to `stats` (whose photon counts the photon pass reset).
-fn add_batches(stats: &mut IterationStats, counts: &[BatchCounts]) {
-    for c in counts {
-        stats.add_photon_batch(&c.photon, &c.store);
-    }
+    counts.iter().map(BatchCounts::dropped).sum()
 }
 
 /// Builds every batch's structure over its store's capacities (not waited for).
@@ -738,7 +717,7 @@ impl Tracer for VkTracer {
                     }
                     accumulate_and_wait(ctx, st, stats)?;
                 } else {
-                    add_batches(stats, &counts);
+                    stats.add_photon_batches(&counts);
                 }
             }
             // The structures are not read again this iteration; dropped now, while nothing is
@@ -822,7 +801,7 @@ impl Tracer for VkTracer {
         if st.photon_counts_pending {
             self.ctx.finish()?;
             let counts = read_batch_counts(st)?;
-            add_batches(&mut stats, &counts);
+            stats.add_photon_batches(&counts);
             stats.overflowed += lost(&counts);
         }
         if st.gather_counts_pending {

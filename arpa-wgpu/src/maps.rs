@@ -16,7 +16,7 @@ use crate::store::{BATCH_COUNTS_BYTES, FOOTPRINT_BYTES, MapStore, PHOTON_BYTES, 
 use crate::error::WgpuError;
 use arpa_core::gather::scales::Bandwidth;
 use arpa_core::store::footprint::PackedFootprint;
-use arpa_core::gpu::layout::{GatherBatch, PhotonCounters, StoreCounts, StoreSettings};
+use arpa_core::gpu::layout::{BatchCounts, GatherBatch, PhotonCounters, StoreCounts, StoreSettings};
 use arpa_core::gather::kernel::Kernel;
 use arpa_core::store::progressive_photon::PackedPhoton;
 use arpa_core::render::tracer::{Call, Stage, StageError};
@@ -152,26 +152,6 @@ pub struct PhotonMaps {
     batch_counts: wgpu::Buffer,
 }
 
-/// One batch's counters read back ([`PhotonMaps::batch_counts`]).
-#[derive(Clone, Copy, Debug)]
-pub struct BatchCounts {
-    /// The photon pass's.
-    pub photon: PhotonCounters,
-    /// The store's.
-    pub store: StoreCounts,
-}
-
-impl BatchCounts {
-    /// The batches' counters in `bytes` ([`BATCH_COUNTS_BYTES`] per batch).
-    pub fn parse(bytes: &[u8]) -> Vec<Self> {
-        let p = size_of::<PhotonCounters>();
-        bytes
-            .chunks_exact(BATCH_COUNTS_BYTES as usize)
-            .map(|c| Self { photon: bytemuck::pod_read_unaligned(&c[..p]), store: bytemuck::pod_read_unaligned(&c[p..]) })
-            .collect()
-    }
-}
-
 impl PhotonMaps {
     /// Compiles the pipelines.
     pub fn new(ctx: &GpuContext) -> Result<Self, WgpuError> {
@@ -218,7 +198,7 @@ impl PhotonMaps {
     }
 
     /// The buffer of the batches' counters: batch `k`'s [`PhotonCounters`] and
-    /// [`StoreCounts`] at `k ·` [`BATCH_COUNTS_BYTES`] (`COPY_SRC`), [`BatchCounts::parse`].
+    /// [`StoreCounts`] at `k ·` [`BATCH_COUNTS_BYTES`] (`COPY_SRC`), [`BatchCounts`].
     pub fn batch_counts(&self) -> &wgpu::Buffer {
         &self.batch_counts
     }

@@ -19,7 +19,6 @@
 use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::{gpu::layout::{KeyedPhoton, StoreCounts, StoreParams, StoreSettings}, gpu::sort::SortItem};
 use arpa_core::gpu::sort::{MAX_SORT_ITEMS, sorted_len};
-use arpa_core::gpu::layout::PhotonCounters;
 use crate::sort::RadixScratch;
 use arpa_core::store::progressive_photon::PackedPhoton;
 
@@ -121,7 +120,7 @@ pub struct MapStore {
 impl MapStore {
     /// Buffers for up to `raw_capacity` raw footprints in `raw` ([`arpa_core::gpu::layout::KeyedFootprint`]) and
     /// `photon_capacity` progressive photons in `photons` ([`KeyedPhoton`]), appended by the
-    /// photon pass whose counters ([`PhotonCounters`]) are `counters`; the schedule kernel
+    /// photon pass whose counters ([`arpa_core::gpu::layout::PhotonCounters`]) are `counters`; the schedule kernel
     /// sets the iteration's `status` word when the pass dropped appends.
     #[allow(clippy::too_many_arguments)]
     pub fn new(
@@ -250,6 +249,6 @@ impl MapStore {
     }
 }
 
-/// Bytes of one batch's counters as the tracer keeps them: the photon pass's
-/// ([`PhotonCounters`]) then the store's ([`StoreCounts`]).
-pub const BATCH_COUNTS_BYTES: u64 = (size_of::<PhotonCounters>() + size_of::<StoreCounts>()) as u64;
+/// Bytes of one batch's counters as the tracer keeps them
+/// ([`arpa_core::gpu::layout::BatchCounts`]).
+pub const BATCH_COUNTS_BYTES: u64 = size_of::<arpa_core::gpu::layout::BatchCounts>() as u64;

@@ -4,14 +4,14 @@ use crate::accumulate::{AccumPixel, DeviceAccumulator};
 use crate::camera::CameraPass;
 use crate::device::{AdapterChoice, GpuContext};
 use crate::error::WgpuError;
-use crate::maps::{BatchCounts, PhotonMaps, Readback, read_buffer, scoped};
+use crate::maps::{PhotonMaps, Readback, read_buffer, scoped};
 use crate::store::BATCH_COUNTS_BYTES;
 use crate::photon::{PhotonOutputs, PhotonPass};
 use crate::scene::GpuScene;
 use arpa_core::accumulate::image::Accumulation;
 use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::gpu::batch::{Overflow, RecordLimits, after_overflow, batch_count, batch_range, calibrated_capacity, for_each_batch, initial_capacity, shrink};
-use arpa_core::{gpu::layout::{GatherCounts, ImageBufferSizes, PhotonCounters, StoreSettings}, gpu::fill::check_record_keys};
+use arpa_core::{gpu::layout::{BatchCounts, GatherCounts, ImageBufferSizes, PhotonCounters, StoreSettings}, gpu::fill::check_record_keys};
 use arpa_core::gpu::sort::{MAX_SORT_ITEMS, sorted_len};
 use arpa_core::render::photon_path::PhotonPassSetup;
 use arpa_core::render::prepared_scene::PreparedScene;
@@ -34,22 +34,23 @@ const QUERY_BYTES: u64 = std::mem::size_of::<QueryRecord>() as u64;
 ///
 /// | stage | on the device | the host waits for and reads back |
 /// |---|---|---|
-/// | [`upload_scene`](Tracer::upload_scene) | validates scene and settings ([`prepare_upload`]), uploads the scene, zeroes the accumulation | — |
+/// | [`upload_scene`](Tracer::upload_scene) | validates scene and settings ([`prepare_upload`]), uploads the scene, zeroes the accumulation; the *calibration*: iteration 0's photon pass, one wait per batch, sets the buffers' capacities and B ([`arpa_core::gpu::batch`]) | the calibration's counters |
 /// | [`camera_pass`](Tracer::camera_pass) | one query record per pixel ([`CameraPass`]) | nothing |
-/// | [`photon_pass`](Tracer::photon_pass) | every photon batch of the iteration: photons traced into append buffers ([`PhotonPass`]) and, in the same submission, the keyed store with its sizes from the pass's counters on the device; then sort and compaction into the batch's maps ([`crate::store::MapStore`], [`crate::maps::BatchMaps`]) | per batch, one wait for the pass's and the store's counters together (96 bytes: overflow check, sizes for the sort and the build) |
-/// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | per batch, AABB BLAS per (kind, map) and one TLAS ([`crate::accel`]) | nothing |
+/// | [`photon_pass`](Tracer::photon_pass) | per photon batch, one submission: photons traced into append buffers ([`PhotonPass`]), the keyed store with its sizes from the pass's counters on the device, the sort and compaction over the capacities into the batch's maps, the copy of both counters ([`crate::maps::PhotonMaps::encode_batch`]) | nothing |
+/// | [`build_acceleration_structure`](Tracer::build_acceleration_structure) | per batch, an AABB BLAS per record kind over the capacity and one TLAS ([`crate::accel`]) | nothing |
 /// | [`gather`](Tracer::gather) | per pixel and scale `radiance + weight · E_k`, `E_k` summed over the batches in batch order, and the moment planes ([`crate::gather::ImageGather`]) | nothing |
-/// | [`accumulate`](Tracer::accumulate) | compensated running sum of every plane | one wait: the gather's contribution and query-point counts (16 bytes) and the iteration's stage timestamps (8 bytes per timed submission) |
+/// | [`accumulate`](Tracer::accumulate) | compensated running sum of every plane, left out when the iteration's status word says its photon pass dropped records | the iteration's one wait: the batches' counters (96 bytes each), the gather's counts (16 bytes) and the stage timestamps (8 bytes per timed submission) |
 ///
-/// A stage that reads nothing back submits its work and returns; queue order runs it
-/// before the next stage's. [`Tracer::read_stats`] reads the gather's counts itself (a
-/// wait) when it is called between a gather and its accumulate.
+/// A stage submits its work and returns; queue order runs it before the next stage's.
+/// [`Tracer::read_stats`], [`Tracer::read_footprints`] and [`Tracer::read_photons`] read
+/// the counts they need themselves (a wait) when they are called before the accumulate.
+/// The photon pass waits once per batch instead when the capacities exceed what one
+/// binding of sorted progressive photons holds (only near the adapter's binding limit).
 ///
 /// # Stage times
 /// [`IterationStats::times`] are the host's wall-clock time of each stage call: the
-/// encoding and submission of its work, plus the waits above (a wait also covers the
-/// device work of the stages submitted before it that nobody waited for, e.g. the photon
-/// pass's first wait covers the camera pass). Where the adapter has timestamp queries inside encoders,
+/// encoding and submission of its work, plus the waits above (the accumulate's wait covers
+/// the device work of every stage before it). Where the adapter has timestamp queries inside encoders,
 /// every submission of a stage is framed by two timestamps ([`crate::timing`]) and
 /// [`IterationStats::device_times`] holds the device's own time per stage once the
 /// iteration's accumulate has run; elsewhere it is [`DeviceTimes::Unavailable`].
@@ -92,20 +93,29 @@ const QUERY_BYTES: u64 = std::mem::size_of::<QueryRecord>() as u64;
 /// the store's output, so an iteration of several batches holds all its sorted records on
 /// the device at once (a binding's worth per batch).
 ///
-/// # Overflow
-/// When the photon pass drops appends because a buffer is full (but the batch fits one
-/// binding), the batch's photons are discarded, the buffers grow
-/// ([`arpa_core::gpu::batch::grow`]) and the batch is traced again with the same random
-/// streams, so the iteration is the one a large enough buffer gives (no bias); the dropped
-/// appends are counted in [`IterationStats::overflowed`] (also those of a batch that was
-/// split).
+/// # Capacities and overflow
+/// The store, the sort and the acceleration structures run over the append buffers'
+/// capacities, so that nothing waits for a count: the slots past the records are padding
+/// and inactive boxes. The capacities are calibrated at upload from iteration 0
+/// ([`arpa_core::gpu::batch::calibrated_capacity`]) and every iteration starts on them.
+/// When an iteration's photon pass drops appends because a buffer is full (the schedule
+/// kernel sets the iteration's status word), its accumulate leaves the sums alone, finds
+/// the overflow at its wait and traces the iteration again with one wait per batch: the
+/// buffers grow ([`arpa_core::gpu::batch::grow`]) and the batch is traced again with the
+/// same random streams, so the iteration is the one a large enough buffer gives (no bias);
+/// it is then built, gathered and accumulated. The dropped appends are counted in
+/// [`IterationStats::overflowed`], and the device times of the stages traced again are the
+/// second trace's.
 ///
 /// # Determinism
 /// Each photon's and pixel's random stream depends only on `(seed, iteration, index)`;
 /// the stored records are sorted by `(map, Morton code, photon key)`, so the maps, their
 /// acceleration structures and the gather's traversal order do not depend on the order of
 /// the atomic appends. Images are bit-identical for the same scene, settings and seed on
-/// the same adapter and driver. The batch size is part of that key: a different B sums the
+/// the same adapter and driver. The capacities are part of that key (the structures are
+/// built over them, and their traversal orders the gather's `f32` sums): they are a
+/// function of the render (the calibration), so a checkpoint resumed at any iteration gives
+/// the same image. The batch size is part of that key too: a different B sums the
 /// same contributions in another `f32` order (relative differences of a few `f32` ulps
 /// per pixel), and the automatic B is a function of the scene, settings, seed and the
 /// adapter's binding limit (through the record counts of the render's iterations), so a
@@ -381,7 +391,7 @@ fn trace_batch(
         // Every earlier batch fitted: the status word only tells of this one.
         submit_batch(ctx, maps, st, setup, &settings, range.clone(), k, last, true)?;
         let bytes = read_buffer(ctx, "photon_pass", maps.batch_counts(), (u64::from(k) + 1) * BATCH_COUNTS_BYTES)?;
-        let BatchCounts { photon: c, store: counts } = BatchCounts::parse(&bytes)[k as usize];
+        let BatchCounts { photon: c, store: counts } = bytemuck::pod_read_unaligned(&bytes[(k as usize) * BATCH_COUNTS_BYTES as usize..]);
         if c.overflowed() == 0 {
             // The sorted progressive photons (the pass's plus the footprints' fallbacks)
             // must fit one binding too.
@@ -412,19 +422,12 @@ fn trace_batch(
 
 /// The counters of the iteration's batches, read back (a wait).
 fn read_batch_counts(ctx: &GpuContext, maps: &PhotonMaps, st: &Loaded) -> Result<Vec<BatchCounts>, WgpuError> {
-    Ok(BatchCounts::parse(&read_buffer(ctx, "photon counters", maps.batch_counts(), u64::from(st.batches) * BATCH_COUNTS_BYTES)?))
+    Ok(bytemuck::pod_collect_to_vec(&read_buffer(ctx, "photon counters", maps.batch_counts(), u64::from(st.batches) * BATCH_COUNTS_BYTES)?))
 }
 
 /// Whether the batches' counters show a dropped record (the iteration must be traced again).
 fn dropped(counts: &[BatchCounts]) -> bool {
-    counts.iter().any(|c| c.photon.overflowed() > 0 || c.store.overflowed > 0)
-}
-
-/// Adds the batches' counts to `stats` (whose photon counts the photon pass reset).
-fn add_batches(stats: &mut IterationStats, counts: &[BatchCounts]) {
-    for c in counts {
-        stats.add_photon_batch(&c.photon, &c.store);
-    }
+    counts.iter().any(|c| c.dropped() > 0)
 }
 
 /// Records and submits the accumulation of the iteration image (left out on the device when
@@ -464,7 +467,7 @@ fn accumulate_and_wait(ctx: &GpuContext, maps: &PhotonMaps, st: &mut Loaded, sta
         None => DeviceTimes::Unavailable,
     };
     st.photon_counts_pending = false;
-    batches.map(|r| r.bytes().map(|b| BatchCounts::parse(&b))).transpose()
+    batches.map(|r| r.bytes().map(|b| bytemuck::pod_collect_to_vec(&b))).transpose()
 }
 
 /// Records and submits the gather of every batch, one submission each (each writes its
@@ -648,12 +651,12 @@ impl Tracer for WgpuTracer {
                 return Ok(());
             };
             if !dropped(&counts) {
-                add_batches(clock.stats_mut(), &counts);
+                clock.stats_mut().add_photon_batches(&counts);
                 return Ok(());
             }
             let iteration = clock.completed();
             let stats = clock.stats_mut();
-            let lost: u64 = counts.iter().map(|c| c.photon.overflowed() + u64::from(c.store.overflowed)).sum();
+            let lost: u64 = counts.iter().map(BatchCounts::dropped).sum();
             let setup = PhotonPassSetup::new(&st.prepared, &st.settings, iteration);
             timed_as(ctx, Stage::PhotonPass, Stage::Accumulate, iteration, || trace_waiting(ctx, maps, st, stats, &setup))?;
             stats.overflowed += lost;
@@ -725,8 +728,8 @@ impl Tracer for WgpuTracer {
         let mut stats = *st.clock.stats();
         if st.photon_counts_pending {
             let counts = read_batch_counts(&self.ctx, &self.maps, st)?;
-            add_batches(&mut stats, &counts);
-            stats.overflowed += counts.iter().map(|c| c.photon.overflowed() + u64::from(c.store.overflowed)).sum::<u64>();
+            stats.add_photon_batches(&counts);
+            stats.overflowed += counts.iter().map(BatchCounts::dropped).sum::<u64>();
         }
         if st.gather_counts_pending {
             set_gather_counts(&mut stats, &read_buffer(&self.ctx, "gather counts", self.maps.gathered_buffer(), GATHER_COUNTS_BYTES)?);

@@ -8,10 +8,13 @@
 // for bit); the stored scale is summed per map, the smaller scales with both maps together.
 //
 // Records: footprints (ArpaPackedFootprint) and photons (ArpaPackedPhoton), each sorted by
-// map (store.wgsl). The acceleration structure holds one box instance per non-empty
-// (kind, map) whose custom index is kind bit | index of its first record
-// (arpa_core::gpu::codes::INSTANCE_PHOTON_BIT, INSTANCE_INDEX_MASK: primitive i of that
-// instance is record (custom & mask) + i) and whose mask is 1 << map.
+// map (store.wgsl). The acceleration structure holds box instances whose custom index is
+// kind bit | index of their first record (arpa_core::gpu::codes::INSTANCE_PHOTON_BIT,
+// INSTANCE_INDEX_MASK: primitive i of that instance is record (custom & mask) + i); the map
+// is read from the record. The tracers build one instance per record kind over the store's
+// whole capacity (first record 0, both maps, mask 0b11), whose slots past the records hold
+// inactive boxes outside the scene that no query meets; tests also build one per
+// (kind, map) with mask 1 << map.
 //
 // Box traversal is the backend's: its glue declares binding 7 of group 0 (its acceleration
 // structure over the record boxes) and defines

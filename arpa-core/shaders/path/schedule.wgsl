@@ -1,7 +1,7 @@
 // The keyed store's schedule on the device (arpa_core::gpu::shaders::SCHEDULE): sizes that
 // the host used to read back and write again are written here from the device's own counts,
-// so the store runs in the same submission as the photon pass and the host waits once per
-// photon batch (for the photon pass's and the store's counters together) instead of twice.
+// so the store (and, over the capacities, the sort and the compaction) runs in the same
+// submission as the photon pass and the host waits for no count before the accumulate.
 //
 // store_schedule (one invocation) reads the photon pass's counters (PhotonCounters of
 // arpa_core::gpu::layout) and writes

@@ -127,6 +127,14 @@ impl CameraParams {
 /// The statistics of the GPU backends' photon passes (defined here, beside the records
 /// they read, so the renderer layer does not depend on the device layouts).
 impl IterationStats {
+    /// Adds the GPU photon batches `batches` ([`add_photon_batch`](Self::add_photon_batch)
+    /// each).
+    pub fn add_photon_batches(&mut self, batches: &[crate::gpu::layout::BatchCounts]) {
+        for b in batches {
+            self.add_photon_batch(&b.photon, &b.store);
+        }
+    }
+
     /// Adds one GPU photon batch: what its photon pass counted and what its store kept.
     pub fn add_photon_batch(&mut self, counters: &PhotonCounters, counts: &StoreCounts) {
         self.photons_emitted += u64::from(counters.emitted);

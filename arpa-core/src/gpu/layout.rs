@@ -295,6 +295,27 @@ impl StoreCounts {
     }
 }
 
+/// One photon batch's counters as the GPU backends copy them out of the batch's submission
+/// for the iteration's one wait: the photon pass's, then the store's (96 bytes).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct BatchCounts {
+    /// What the photon pass counted.
+    pub photon: PhotonCounters,
+    /// What the store counted.
+    pub store: StoreCounts,
+}
+layout!(BatchCounts, 96, { photon: 0, store: 48 });
+
+impl BatchCounts {
+    /// Records the batch dropped for lack of room: appends past the photon pass's buffers
+    /// and sorted progressive photons past the store's output. An iteration with any is
+    /// traced again.
+    pub fn dropped(&self) -> u64 {
+        self.photon.overflowed() + u64::from(self.store.overflowed)
+    }
+}
+
 /// Irradiance gathered at one query point (`ArpaGatherResult` of `gather.wgsl`, 112 bytes;
 /// W/m², RGB, summed in `f32` on the device): per map at the stored scale, and both maps
 /// together at the smaller scales of the bandwidth ladder ([`crate::gather::scales`]).

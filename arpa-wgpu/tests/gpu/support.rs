@@ -19,7 +19,7 @@ use arpa_core::render::ray_cast::RayHit;
 use arpa_core::render::tracer::QueryRecord;
 use arpa_wgpu::GpuContext;
 use arpa_wgpu::accumulate::DeviceAccumulator;
-use arpa_wgpu::maps::{BatchCounts, PhotonMaps};
+use arpa_wgpu::maps::PhotonMaps;
 use arpa_wgpu::store::BATCH_COUNTS_BYTES;
 use arpa_wgpu::photon::PhotonOutputs;
 use arpa_wgpu::scene::GpuGeometry;
@@ -500,7 +500,7 @@ pub fn run_from_host(
     maps.encode_batch(ctx, &mut encoder, &StoreSettings { raw_count: 0, photon_count: 0, ..*settings }, &counters_buf, 0, true).unwrap();
     ctx.queue.submit([encoder.finish()]);
     let [batch] = read(ctx, &[(maps.batch_counts(), BATCH_COUNTS_BYTES)]).try_into().unwrap();
-    let batch = BatchCounts::parse(&batch);
+    let batch: Vec<arpa_core::gpu::layout::BatchCounts> = bytemuck::pod_collect_to_vec(&batch);
     let counts = batch[0].store;
     maps.build(ctx).unwrap();
     let sizes = ImageBufferSizes::new(pixels, bandwidth);
