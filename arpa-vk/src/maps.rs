@@ -38,6 +38,7 @@ use crate::pipeline::{BindingKind, Bindings, Resource};
 use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::{gpu::layout::{KeyedFootprint, KeyedPhoton, StoreCounts, StoreParams, StoreSettings}, gpu::sort::SortItem};
 use arpa_core::gpu::sort::{MAX_SORT_ITEMS, SORT_BLOCK, radix_count_len, radix_passes, sort_steps, sorted_len};
+use arpa_core::gpu::batch::Capacities;
 use arpa_core::store::progressive_photon::PackedPhoton;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
@@ -68,6 +69,7 @@ pub const BOX_USAGE: vk::BufferUsageFlags = vk::BufferUsageFlags::from_raw(
 /// seconds).
 pub struct StorePipelines {
     schedule: ComputePipeline,
+    store_check: ComputePipeline,
     keyed: ComputePipeline,
     photon_keys: ComputePipeline,
     pad_items: ComputePipeline,
@@ -139,7 +141,8 @@ impl StorePipelines {
 
         let schedule_spirv = crate::shaders::compile_wgsl("arpa store schedule", &arpa_core::gpu::shaders::compose(&[&arpa_core::gpu::shaders::SCHEDULE]))?;
         Ok(Self {
-            schedule: make(&schedule_spirv, "store_schedule", &[BindingKind::StorageBuffer; 4])?,
+            schedule: make(&schedule_spirv, "store_schedule", &[BindingKind::StorageBuffer; 5])?,
+            store_check: make(&schedule_spirv, "store_check", &[BindingKind::StorageBuffer; 5])?,
             keyed: make(&store_spirv, "store_keyed", &store_set)?,
             photon_keys: make(&store_spirv, "photon_keys", &store_set)?,
             pad_items: make(&store_spirv, "pad_items", &store_set)?,
@@ -257,6 +260,8 @@ impl StorePipelines {
 pub struct MapStore {
     raw_capacity: u32,
     photon_capacity: u32,
+    /// Photon sort items (the sorted-photon capacity).
+    sorted_photons: u32,
     photons_out_capacity: u32,
     pipelines: Arc<StorePipelines>,
     /// `StoreCounts` as the kernels count them (device-local).
@@ -297,32 +302,34 @@ fn size_error(reason: String) -> VkError {
 }
 
 impl MapStore {
-    /// Allocates buffers for up to `raw_capacity` raw
-    /// footprints ([`KeyedFootprint`]) and `photon_capacity` progressive photons
-    /// ([`KeyedPhoton`]) per iteration.
+    /// Allocates buffers for `capacities`: raw footprints ([`KeyedFootprint`]) and
+    /// progressive photons ([`KeyedPhoton`]) per batch, photon sort items and sorted
+    /// photons.
     ///
     /// Errors: [`VkError::InvalidInput`] when the capacities exceed the sort's
     /// [`MAX_SORT_ITEMS`] or a buffer exceeds the device's `maxStorageBufferRange` (the sorted
-    /// photons are capped at what one binding holds; the compaction counts any beyond in
-    /// [`StoreCounts::overflowed`]); [`VkError::Shader`] if naga rejects the core's WGSL;
-    /// device errors as [`VkContext::create_buffer`].
-    pub fn new(ctx: &VkContext, pipelines: &Arc<StorePipelines>, raw_capacity: u32, photon_capacity: u32) -> Result<Self, VkError> {
-        let total = raw_capacity.checked_add(photon_capacity).filter(|&t| sorted_len(t) <= MAX_SORT_ITEMS).ok_or_else(|| {
-            size_error(format!("{raw_capacity} raw footprints + {photon_capacity} photons exceed the sort's {MAX_SORT_ITEMS} items"))
-        })?;
+    /// photons are capped at what one binding holds; the store and the compaction count any
+    /// beyond in [`StoreCounts::overflowed`]); [`VkError::Shader`] if naga rejects the core's
+    /// WGSL; device errors as [`VkContext::create_buffer`].
+    pub fn new(ctx: &VkContext, pipelines: &Arc<StorePipelines>, capacities: Capacities) -> Result<Self, VkError> {
+        let Capacities { raw_footprints: raw_capacity, photons: photon_capacity, sorted_photons } = capacities;
+        let sorted_items = raw_capacity.max(sorted_photons);
+        if sorted_len(sorted_items) > MAX_SORT_ITEMS {
+            return Err(size_error(format!("{raw_capacity} raw footprints or {sorted_photons} sorted photons exceed the sort's {MAX_SORT_ITEMS} items")));
+        }
         // SAFETY: a physical device of this instance.
         let limits = unsafe { ctx.instance().get_physical_device_properties(ctx.physical_device()) }.limits;
         let max_range = u64::from(limits.max_storage_buffer_range);
         for (what, bytes) in [
             ("footprint slots", u64::from(raw_capacity) * FOOTPRINT_BYTES),
             ("raw-footprint photon slots", u64::from(raw_capacity) * size_of::<KeyedPhoton>() as u64),
-            ("photon sort items", u64::from(sorted_len(total)) * ITEM_BYTES),
+            ("photon sort items", u64::from(sorted_photons) * ITEM_BYTES),
         ] {
             if bytes > max_range {
                 return Err(size_error(format!("{what}: {bytes} bytes exceed the device's maxStorageBufferRange {max_range}")));
             }
         }
-        let photons_out_capacity = total.min(u32::try_from(max_range / PHOTON_BYTES).unwrap_or(u32::MAX));
+        let photons_out_capacity = sorted_photons.min(u32::try_from(max_range / PHOTON_BYTES).unwrap_or(u32::MAX));
 
         use vk::BufferUsageFlags as U;
         let gpu = |label: &str, records: u32, bytes: u64, usage: U| {
@@ -332,6 +339,7 @@ impl MapStore {
         Ok(Self {
             raw_capacity,
             photon_capacity,
+            sorted_photons,
             photons_out_capacity,
             pipelines: Arc::clone(pipelines),
             counts: gpu("counts", 1, COUNTS_BYTES, storage | U::TRANSFER_SRC | U::TRANSFER_DST)?,
@@ -340,9 +348,9 @@ impl MapStore {
             fp_slots: gpu("footprint slots", raw_capacity, FOOTPRINT_BYTES, storage)?,
             fp_box_slots: gpu("footprint box slots", raw_capacity, BOX_BYTES, storage)?,
             ph_extra: gpu("fallback photons", raw_capacity, size_of::<KeyedPhoton>() as u64, storage)?,
-            fp_items: gpu("footprint items", sorted_len(raw_capacity), ITEM_BYTES, storage | U::TRANSFER_DST)?,
-            ph_items: gpu("photon items", sorted_len(total), ITEM_BYTES, storage | U::TRANSFER_DST)?,
-            radix: RadixScratch::new(ctx, total)?,
+            fp_items: gpu("footprint items", raw_capacity, ITEM_BYTES, storage | U::TRANSFER_DST)?,
+            ph_items: gpu("photon items", sorted_photons, ITEM_BYTES, storage | U::TRANSFER_DST)?,
+            radix: RadixScratch::new(ctx, sorted_items)?,
             footprints: gpu("sorted footprints", raw_capacity, FOOTPRINT_BYTES, storage | U::TRANSFER_SRC)?,
             footprint_boxes: gpu("sorted footprint boxes", raw_capacity, BOX_BYTES, BOX_USAGE)?,
             photons: gpu("sorted photons", photons_out_capacity, PHOTON_BYTES, storage | U::TRANSFER_SRC)?,
@@ -351,11 +359,11 @@ impl MapStore {
     }
 
     /// Raw-footprint and photon capacities this store was made for.
-    pub fn capacities(&self) -> (u32, u32) {
-        (self.raw_capacity, self.photon_capacity)
+    pub fn capacities(&self) -> Capacities {
+        Capacities { raw_footprints: self.raw_capacity, photons: self.photon_capacity, sorted_photons: self.sorted_photons }
     }
 
-    /// Sorted progressive photons one iteration can hold (both capacities together, capped at
+    /// Sorted progressive photons one batch can hold (the sorted-photon capacity, capped at
     /// one storage binding).
     pub fn photons_out_capacity(&self) -> u32 {
         self.photons_out_capacity
@@ -453,7 +461,7 @@ impl MapStore {
     /// buffers; [`VkError::MissingUsage`] for inputs without `STORAGE_BUFFER`; device errors.
     pub fn store(&self, ctx: &VkContext, raw: &Buffer, photons: &Buffer, settings: &StoreSettings) -> Result<StoreCounts, VkError> {
         self.check_inputs(raw, photons, settings)?;
-        let params = Self::params(ctx, &StoreParams::new(settings, self.raw_capacity, self.photon_capacity))?;
+        let params = Self::params(ctx, &StoreParams::new(settings, self.raw_capacity, self.sorted_photons))?;
         let bindings = self.store_bindings(raw, photons, &params)?;
         let device = ctx.device();
         ctx.submit_and_wait(|cmd| {
@@ -486,7 +494,7 @@ impl MapStore {
                 return Err(VkError::MissingUsage { what: b.label().into(), usage: "STORAGE_BUFFER" });
             }
         }
-        let p = StoreParams::new(settings, self.raw_capacity, self.photon_capacity);
+        let p = StoreParams::new(settings, self.raw_capacity, self.sorted_photons);
         let params = Self::params(ctx, &p)?;
         let bindings = self.store_bindings(raw, photons, &params)?;
         let schedule = self.pipelines.schedule.bind(&[&[
@@ -494,6 +502,7 @@ impl MapStore {
             Resource::StorageBuffer(&params),
             Resource::StorageBuffer(&self.args),
             Resource::StorageBuffer(status),
+            Resource::StorageBuffer(&self.counts),
         ]])?;
         let fp_sort = self.pipelines.radix_bindings(&self.fp_items, &self.radix)?.bindings;
         let ph_sort = self.pipelines.radix_bindings(&self.ph_items, &self.radix)?.bindings;
@@ -507,8 +516,9 @@ impl MapStore {
     /// sort of both item buffers over them and the compaction into the sorted records and
     /// boxes (inactive boxes past the records), then a barrier that makes them visible to
     /// later shaders, transfers, acceleration-structure builds and the host, and the copy
-    /// of the counters to the host-visible buffer ([`MapStore::read_counts`] after a wait).
-    /// Nothing in it depends on a count the host has read.
+    /// of the counters to the host-visible buffer ([`MapStore::read_counts`] after a wait);
+    /// last the store check (the status word, when photon items were dropped). Nothing in
+    /// it depends on a count the host has read.
     ///
     /// Errors: as [`ComputePipeline::record_dispatch_indirect`].
     pub fn record_batch(&self, device: &ash::Device, cmd: vk::CommandBuffer, prepared: &BatchStore) -> Result<(), VkError> {
@@ -549,7 +559,11 @@ impl MapStore {
         record_compute_barrier(device, cmd);
         self.pipelines.photon_keys.record_dispatch_indirect(cmd, &prepared.bindings, &[], &self.args, 12)?;
         record_compute_barrier(device, cmd);
-        self.record_sort(device, cmd, &prepared.bindings, &prepared.fp_sort, &prepared.ph_sort, &prepared.params)
+        self.record_sort(device, cmd, &prepared.bindings, &prepared.fp_sort, &prepared.ph_sort, &prepared.params)?;
+        // The store check: the status word, when photon items were dropped.
+        self.pipelines.store_check.record_dispatch(cmd, &prepared.schedule, &[], [1, 1, 1])?;
+        record_compute_barrier(device, cmd);
+        Ok(())
     }
 
     /// Records the padding, the radix sorts over the capacities and the compaction, then the
@@ -581,7 +595,7 @@ impl MapStore {
     /// buffers; [`VkError::MissingUsage`] for inputs without `STORAGE_BUFFER`; device errors.
     pub fn sort(&self, ctx: &VkContext, raw: &Buffer, photons: &Buffer, settings: &StoreSettings) -> Result<StoreCounts, VkError> {
         self.check_inputs(raw, photons, settings)?;
-        let p = StoreParams::new(settings, self.raw_capacity, self.photon_capacity);
+        let p = StoreParams::new(settings, self.raw_capacity, self.sorted_photons);
         let params = Self::params(ctx, &p)?;
         let bindings = self.store_bindings(raw, photons, &params)?;
         let fp_sort = self.pipelines.radix_bindings(&self.fp_items, &self.radix)?.bindings;

@@ -15,7 +15,7 @@ use crate::photons::{PhotonOutputs, PhotonPass, photon_pipeline};
 use crate::scene::VkScene;
 use arpa_core::accumulate::image::Accumulation;
 use arpa_core::store::footprint::PackedFootprint;
-use arpa_core::gpu::batch::{Overflow, RecordLimits, after_overflow, batch_count, batch_range, calibrated_capacity, for_each_batch, initial_capacity, shrink};
+use arpa_core::gpu::batch::{Capacities, Overflow, RecordLimits, after_overflow, batch_count, batch_range, for_each_batch, shrink};
 use arpa_core::{gpu::layout::{BatchCounts, CameraParams, GatherBatch, ImageBufferSizes, PhotonCounters, StoreCounts, StoreSettings}, gpu::fill::check_record_keys};
 use arpa_core::render::photon_path::PhotonPassSetup;
 use arpa_core::render::prepared_scene::PreparedScene;
@@ -75,9 +75,7 @@ pub enum VkTracerError {
 /// [`IterationStats::device_times`] the device's own, from a timestamp before and after
 /// every submission, summed per stage once the accumulate's wait has retired them all
 /// ([`crate::timing`]; where the queue family has no timestamps, they are
-/// [`arpa_core::render::tracer::DeviceTimes::Unavailable`]). The photon pass waits once per
-/// batch instead when the capacities exceed what one binding of sorted progressive photons
-/// holds (only near the adapter's `maxStorageBufferRange`).
+/// [`arpa_core::render::tracer::DeviceTimes::Unavailable`]).
 ///
 /// # Photon records, capacities and batches
 /// The store, the sort and the structures run over the append buffers' capacities, so that
@@ -186,9 +184,10 @@ struct Loaded {
     ledger: Arc<StageLedger>,
     /// A gather ran and its counts are not in the stats yet (accumulate's wait reads them).
     gather_counts_pending: bool,
-    /// The calibrated capacities of the photon pass's append buffers (raw footprints,
-    /// progressive photons): every iteration starts on them ([`arpa_core::gpu::batch`]).
-    capacities: (u32, u32),
+    /// The calibrated capacities: every iteration starts on them ([`arpa_core::gpu::batch`]).
+    capacities: Capacities,
+    /// The capacities of the append buffers allocated now (each batch's store follows them).
+    allocated: Capacities,
     /// The iteration's status word ([`crate::accumulate::STATUS_BYTES`]): set on the device
     /// when a photon pass dropped appends; the accumulation then leaves the sums alone.
     status: Buffer,
@@ -334,13 +333,15 @@ fn batch_counts_buffer(ctx: &VkContext, batches: usize) -> Result<Buffer, VkErro
     ctx.create_buffer("batch counters", batches.max(1) as u64 * BATCH_COUNTS_BYTES, vk::BufferUsageFlags::TRANSFER_DST, MemoryLocation::GpuToCpu)
 }
 
-/// Reallocates the photon pass's append buffers for `capacities` (raw footprints,
-/// progressive photons); each batch's store follows them when it is next used.
-fn resize(ctx: &VkContext, st: &mut Loaded, capacities: (u32, u32)) -> Result<(), VkError> {
+/// Reallocates the photon pass's append buffers for `capacities`; each batch's store
+/// follows them when it is next used.
+fn resize(ctx: &VkContext, st: &mut Loaded, capacities: Capacities) -> Result<(), VkError> {
     // Free the old buffers before allocating the new ones.
     st.outputs = PhotonOutputs::new(ctx, 1, 1)?;
-    st.outputs = PhotonOutputs::new(ctx, capacities.0, capacities.1)?;
-    st.photon.bind(&st.scene, &st.outputs)
+    st.outputs = PhotonOutputs::new(ctx, capacities.raw_footprints, capacities.photons)?;
+    st.photon.bind(&st.scene, &st.outputs)?;
+    st.allocated = capacities;
+    Ok(())
 }
 
 /// Starts an iteration's photon pass of `batches` batches: room for their counters, the
@@ -361,11 +362,11 @@ fn begin_iteration(ctx: &VkContext, st: &mut Loaded, setup: &PhotonPassSetup, ba
 /// into [`Loaded::batch_counts`], in one submission that waits for nothing; it first clears
 /// the iteration's status word when `clear_status`.
 fn submit_batch(ctx: &VkContext, st: &mut Loaded, setup: &PhotonPassSetup, settings: &StoreSettings, range: Range<u32>, k: usize, clear_status: bool) -> Result<(), VkError> {
-    let caps = (st.outputs.footprint_capacity(), st.outputs.photon_capacity());
+    let caps = st.allocated;
     if st.batches.get(k).is_none_or(|b| b.store.capacities() != caps) {
         // Free this batch's old buffers first.
         st.batches.truncate(k);
-        let store = MapStore::new(ctx, &st.pipelines.store, caps.0, caps.1)?;
+        let store = MapStore::new(ctx, &st.pipelines.store, caps)?;
         st.batches.push(Batch { accel: None, store });
     }
     let store = &st.batches[k].store;
@@ -393,13 +394,6 @@ fn submit_batch(ctx: &VkContext, st: &mut Loaded, setup: &PhotonPassSetup, setti
     recorded
 }
 
-/// Whether the pipelined photon pass can run with the current buffers: every sorted
-/// progressive photon a batch can make (both capacities) fits one binding, so that only
-/// the photon pass's appends can overflow (the status word catches those).
-fn pipelines_fit(st: &Loaded) -> bool {
-    u64::from(st.capacities.0) + u64::from(st.capacities.1) <= st.limits.sorted_photons
-}
-
 /// The photon pass without a wait: every batch of the iteration `setup` is traced and
 /// stored over the calibrated capacities; the counters are read at the accumulate's wait (or
 /// by a read of the stats or the records).
@@ -417,25 +411,25 @@ fn trace_pipelined(ctx: &VkContext, st: &mut Loaded, setup: &PhotonPassSetup) ->
     Ok(())
 }
 
-/// The photon pass with one wait per batch (the calibration, an iteration traced again after
-/// an overflow, or capacities too large for the pipelined pass): every batch of the
-/// iteration `setup`, each checked as soon as it ran ([`trace_batch`]); a batch too large
-/// for one binding shrinks B and starts the iteration again. Returns the largest appends of
-/// a batch (raw footprints, progressive photons).
-fn trace_waiting(ctx: &VkContext, adapter: &str, st: &mut Loaded, stats: &mut IterationStats, setup: &PhotonPassSetup) -> Result<(u32, u32), VkTracerError> {
+/// The photon pass with one wait per batch (the calibration, or an iteration traced again
+/// after an overflow): every batch of the iteration `setup`, each checked as soon as it ran
+/// ([`trace_batch`]); a batch too large for one binding shrinks B and starts the iteration
+/// again. Returns the most raw footprints, progressive photons and photon sort items a batch
+/// appended.
+fn trace_waiting(ctx: &VkContext, adapter: &str, st: &mut Loaded, stats: &mut IterationStats, setup: &PhotonPassSetup) -> Result<(u32, u32, u32), VkTracerError> {
     let n = setup.photon_count();
     stats.overflowed = 0;
-    let mut most = (0, 0);
+    let mut most = (0, 0, 0);
     let mut batch_photons = st.batch_photons;
     let batches = for_each_batch(n, &mut batch_photons, |range, k, batches| {
         if k == 0 {
             stats.reset_photon_counts();
             begin_iteration(ctx, st, setup, batches as usize)?;
-            most = (0, 0);
+            most = (0, 0, 0);
         }
         Ok::<_, VkTracerError>(match trace_batch(ctx, adapter, st, stats, setup, range, k as usize)? {
             Ok(c) => {
-                most = (most.0.max(c.footprint_appends), most.1.max(c.photon_appends));
+                most = (most.0.max(c.photon.footprint_appends), most.1.max(c.photon.photon_appends), most.2.max(c.store.photon_items));
                 None
             }
             Err(b) => Some(b),
@@ -452,7 +446,7 @@ fn trace_waiting(ctx: &VkContext, adapter: &str, st: &mut Loaded, stats: &mut It
 /// same photons are traced again. `Ok(Ok(counters))`: the batch is kept and its counts are
 /// in `stats`; `Ok(Err(B))`: it needs more than one storage binding holds, and the caller
 /// traces the iteration again with B photons per batch.
-fn trace_batch(ctx: &VkContext, adapter: &str, st: &mut Loaded, stats: &mut IterationStats, setup: &PhotonPassSetup, range: Range<u32>, k: usize) -> Result<Result<PhotonCounters, u32>, VkTracerError> {
+fn trace_batch(ctx: &VkContext, adapter: &str, st: &mut Loaded, stats: &mut IterationStats, setup: &PhotonPassSetup, range: Range<u32>, k: usize) -> Result<Result<BatchCounts, u32>, VkTracerError> {
     let photons = range.end - range.start;
     let limits = st.limits;
     let size = |message: String| VkTracerError::Size { adapter: adapter.to_string(), message };
@@ -461,25 +455,33 @@ fn trace_batch(ctx: &VkContext, adapter: &str, st: &mut Loaded, stats: &mut Iter
         // Every earlier batch fitted: the status word only tells of this one.
         submit_batch(ctx, st, setup, &settings, range.clone(), k, true)?;
         ctx.finish()?;
-        let BatchCounts { photon: c, store: counts } = bytemuck::pod_read_unaligned(&st.batch_counts.read(k as u64 * BATCH_COUNTS_BYTES, BATCH_COUNTS_BYTES)?);
+        let batch: BatchCounts = bytemuck::pod_read_unaligned(&st.batch_counts.read(k as u64 * BATCH_COUNTS_BYTES, BATCH_COUNTS_BYTES)?);
+        let BatchCounts { photon: c, store: counts } = batch;
         if c.overflowed() == 0 {
-            // The sorted progressive photons (the pass's plus the footprints' fallbacks)
-            // must fit one binding too.
-            let out = st.batches[k].store.photons_out_capacity();
-            if counts.overflowed > 0 || counts.photon_items > out {
-                stats.overflowed += u64::from(counts.overflowed.max(1));
-                if photons <= 1 {
-                    return Err(size(format!("one photon stores {} progressive photons; one binding holds {out}", counts.photon_items)));
-                }
-                return Ok(Err(shrink(photons, f64::from(out) / f64::from(counts.photon_items.max(1)))));
+            if counts.overflowed == 0 {
+                stats.add_photon_batch(&c, &counts);
+                return Ok(Ok(batch));
             }
-            stats.add_photon_batch(&c, &counts);
-            return Ok(Ok(c));
+            // The photon sort items (the pass's photons plus the footprints' fallbacks)
+            // overflowed: more room, within one binding of sorted photons.
+            stats.overflowed += u64::from(counts.overflowed);
+            if u64::from(counts.photon_items) > limits.sorted_photons {
+                if photons <= 1 {
+                    return Err(size(format!("one photon stores {} progressive photons; one binding holds {}", counts.photon_items, limits.sorted_photons)));
+                }
+                return Ok(Err(shrink(photons, limits.sorted_photons as f64 / f64::from(counts.photon_items.max(1)))));
+            }
+            resize(ctx, st, st.allocated.with_sorted_photons_for(counts.photon_items, &limits))?;
+            continue;
         }
         stats.overflowed += c.overflowed();
-        let caps = (st.outputs.footprint_capacity(), st.outputs.photon_capacity());
+        let caps = (st.allocated.raw_footprints, st.allocated.photons);
         match after_overflow(&limits, photons, c.footprint_appends, c.photon_appends, caps) {
-            Overflow::Grow(f, p) => resize(ctx, st, (f, p))?,
+            Overflow::Grow(f, p) => {
+                // Room for every record of the grown buffers as a sorted photon.
+                let sorted = st.allocated.sorted_photons.max(f.saturating_add(p).min(u32::try_from(limits.sorted_photons).unwrap_or(u32::MAX)));
+                resize(ctx, st, Capacities { raw_footprints: f, photons: p, sorted_photons: sorted })?
+            }
             Overflow::Shrink(b) => return Ok(Err(b)),
             Overflow::TooLarge => {
                 return Err(size(format!(
@@ -493,7 +495,7 @@ fn trace_batch(ctx: &VkContext, adapter: &str, st: &mut Loaded, stats: &mut Iter
 
 /// The counters of the iteration's batches (after a wait).
 fn read_batch_counts(st: &Loaded) -> Result<Vec<BatchCounts>, VkError> {
-    Ok(bytemuck::pod_collect_to_vec(&st.batch_counts.read(0, st.batch_count as u64 * BATCH_COUNTS_BYTES)?))
+    Ok(crate::buffer::pod_vec(&st.batch_counts.read(0, st.batch_count as u64 * BATCH_COUNTS_BYTES)?))
 }
 
 /// Whether the batches' counters show a dropped record (the iteration must be traced again).
@@ -510,7 +512,7 @@ fn lost(counts: &[BatchCounts]) -> u64 {
 fn build_batches(ctx: &VkContext, st: &mut Loaded) -> Result<(), VkError> {
     for b in &mut st.batches[..st.batch_count] {
         b.accel = None;
-        let (fp, ph) = (b.store.capacities().0, b.store.photons_out_capacity());
+        let (fp, ph) = (b.store.capacities().raw_footprints, b.store.photons_out_capacity());
         b.accel = Some(MapAccel::build(ctx, b.store.footprint_boxes(), fp, b.store.photon_boxes(), ph)?);
     }
     Ok(())
@@ -580,9 +582,8 @@ impl Tracer for VkTracer {
         let camera = CameraPass::new(ctx, &pipelines.camera, &vk_scene, CameraParams::new(&scene.camera, settings, width)?, &queries)?;
         let mut photon = PhotonPass::new(ctx, &pipelines.photon, &prepared, settings)?;
         let batch_photons = self.batch_photons.unwrap_or(settings.photons_per_iteration).min(settings.photons_per_iteration);
-        let fp_cap = initial_capacity(batch_photons, self.initial_capacity, limits.raw_footprints);
-        let ph_cap = initial_capacity(batch_photons, self.initial_capacity, limits.photons);
-        let outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
+        let initial = Capacities::initial(batch_photons, self.initial_capacity, &limits);
+        let outputs = PhotonOutputs::new(ctx, initial.raw_footprints, initial.photons)?;
         photon.bind(&vk_scene, &outputs)?;
         let gather = GatherPass::new(ctx, &pipelines.gather, settings.kernel, settings.bandwidth, pixels)?;
         let accumulator = DeviceAccumulator::new(ctx, &pipelines.accumulate, entries)?;
@@ -609,7 +610,8 @@ impl Tracer for VkTracer {
             limits,
             ledger: Arc::default(),
             gather_counts_pending: false,
-            capacities: (fp_cap, ph_cap),
+            capacities: initial,
+            allocated: initial,
             status,
             batch_counts: batch_counts_buffer(ctx, 1)?,
             photon_counts_pending: false,
@@ -621,8 +623,8 @@ impl Tracer for VkTracer {
             let setup = PhotonPassSetup::new(&st.prepared, &st.settings, 0);
             let mut stats = IterationStats::default();
             let adapter = ctx.info().name.clone();
-            let (fp, ph) = trace_waiting(ctx, &adapter, &mut st, &mut stats, &setup)?;
-            st.capacities = (calibrated_capacity(fp, limits.raw_footprints), calibrated_capacity(ph, limits.photons));
+            let (fp, ph, items) = trace_waiting(ctx, &adapter, &mut st, &mut stats, &setup)?;
+            st.capacities = Capacities::calibrated(fp, ph, items, &limits);
             st.batch_count = 0;
         }
         self.state = Some(st);
@@ -635,7 +637,6 @@ impl Tracer for VkTracer {
     }
 
     fn photon_pass(&mut self) -> Result<(), VkTracerError> {
-        let adapter = self.ctx.info().name.clone();
         let ctx = &self.ctx;
         let st = uploaded(self.state.as_deref_mut(), Stage::PhotonPass)?;
         // The batches read and write the whole state; the clock steps out of it meanwhile.
@@ -646,16 +647,12 @@ impl Tracer for VkTracer {
             let stats = clock.stats_mut();
             stats.overflowed = 0;
             stats.reset_photon_counts();
-            if (st.outputs.footprint_capacity(), st.outputs.photon_capacity()) != st.capacities {
-                // An iteration traced again grew them: every iteration starts on the
-                // calibrated ones.
+            if st.allocated != st.capacities {
+                // The calibration or an iteration traced again left other buffers: every
+                // iteration starts on the calibrated ones.
                 resize(ctx, st, st.capacities)?;
             }
-            if pipelines_fit(st) {
-                trace_pipelined(ctx, st, &setup)?;
-            } else {
-                trace_waiting(ctx, &adapter, st, stats, &setup)?;
-            }
+            trace_pipelined(ctx, st, &setup)?;
             st.radii = setup.radii.map(|r| r as f32);
             stats.radii = setup.radii;
             setup.record_plan(stats);

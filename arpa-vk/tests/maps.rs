@@ -22,6 +22,7 @@ use arpa_core::base::aabb::Aabb;
 use arpa_core::gather::estimate::{QueryPoint, gather_brute_force};
 use arpa_core::store::footprint::{Footprint, PackedFootprint, PhotonMap};
 use arpa_core::gpu::codes::kernel_code;
+use arpa_core::gpu::batch::Capacities;
 use arpa_core::gpu::layout::{KeyedFootprint, KeyedPhoton, RawFootprint, StoreCounts, StoreSettings};
 use arpa_core::base::morton::{inverse_extent, morton_code};
 use arpa_core::store::heuristics::{HeuristicContext, Heuristics};
@@ -390,7 +391,7 @@ fn store_sort_and_compaction_match_the_reference_in_any_append_order() {
     let Some(ctx) = context("maps") else { return };
     let input = input(11);
     let t0 = std::time::Instant::now();
-    let store = MapStore::new(&ctx, &Arc::new(StorePipelines::new(&ctx).expect("store pipelines")), 4000, 2000).expect("map store");
+    let store = MapStore::new(&ctx, &Arc::new(StorePipelines::new(&ctx).expect("store pipelines")), Capacities { raw_footprints: 4000, photons: 2000, sorted_photons: 6000 }).expect("map store");
     eprintln!("arpa-vk StorePipelines + MapStore::new (8 compute pipelines): {:.2} s", t0.elapsed().as_secs_f64());
     let t0 = std::time::Instant::now();
     let out = store_and_sort(&ctx, &store, &input);
@@ -508,11 +509,11 @@ fn trace_counts(
 fn map_accel_from_device_boxes_finds_the_brute_force_records() {
     let Some(ctx) = context("maps") else { return };
     let input = input(23);
-    let store = MapStore::new(&ctx, &Arc::new(StorePipelines::new(&ctx).expect("store pipelines")), 3000, 1500).expect("map store");
+    let store = MapStore::new(&ctx, &Arc::new(StorePipelines::new(&ctx).expect("store pipelines")), Capacities { raw_footprints: 3000, photons: 1500, sorted_photons: 4500 }).expect("map store");
     let out = store_and_sort(&ctx, &store, &input);
     // Over the capacities: the slots past the records hold the compaction's inactive boxes,
     // which must hide no real box and be met by no query.
-    let (fp_cap, ph_cap) = (store.capacities().0, store.photons_out_capacity());
+    let (fp_cap, ph_cap) = (store.capacities().raw_footprints, store.photons_out_capacity());
     assert!(out.counts.total_footprints() < fp_cap && out.counts.total_photons() < ph_cap, "no inactive slot to test: {:?}", out.counts);
     let accel = MapAccel::build(&ctx, store.footprint_boxes(), fp_cap, store.photon_boxes(), ph_cap).expect("map accel");
     assert_eq!(accel.instances().len(), 2, "both kinds: {:?}", accel.instances());

@@ -14,6 +14,7 @@ use crate::device::GpuContext;
 use crate::gather::ImageGather;
 use crate::store::{BATCH_COUNTS_BYTES, FOOTPRINT_BYTES, MapStore, PHOTON_BYTES, StorePipelines};
 use crate::error::WgpuError;
+use arpa_core::gpu::batch::Capacities;
 use arpa_core::gather::scales::Bandwidth;
 use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::gpu::layout::{BatchCounts, GatherBatch, PhotonCounters, StoreCounts, StoreSettings};
@@ -169,10 +170,10 @@ impl PhotonMaps {
     /// Binds the photon pass's output buffers (`raw`: keyed footprints, `photons`: keyed
     /// photons, `counters`: its [`arpa_core::gpu::layout::PhotonCounters`]) with their
     /// capacities; call again whenever they are reallocated. The batches kept so far stay.
-    pub fn bind_inputs(&mut self, ctx: &GpuContext, raw: &wgpu::Buffer, photons: &wgpu::Buffer, counters: &wgpu::Buffer, raw_capacity: u32, photon_capacity: u32) -> Result<(), WgpuError> {
+    pub fn bind_inputs(&mut self, ctx: &GpuContext, raw: &wgpu::Buffer, photons: &wgpu::Buffer, counters: &wgpu::Buffer, capacities: Capacities) -> Result<(), WgpuError> {
         self.store = None;
         let store = scoped(ctx, "allocating the store buffers", || {
-            MapStore::new(&ctx.device, &self.pipelines, raw, photons, counters, &self.status, raw_capacity, photon_capacity).map_err(|e| WgpuError::Size(e.to_string()))
+            MapStore::new(&ctx.device, &self.pipelines, raw, photons, counters, &self.status, capacities).map_err(|e| WgpuError::Size(e.to_string()))
         })?;
         self.store = Some(store);
         Ok(())
@@ -217,7 +218,7 @@ impl PhotonMaps {
         let photon_bytes = size_of::<PhotonCounters>() as u64;
         encoder.copy_buffer_to_buffer(counters, 0, &self.batch_counts, at, photon_bytes);
         encoder.copy_buffer_to_buffer(store.counts_buffer(), 0, &self.batch_counts, at + photon_bytes, size_of::<StoreCounts>() as u64);
-        let capacities = (store.capacities().0, store.photons_out_capacity());
+        let capacities = (store.capacities().raw_footprints, store.photons_out_capacity());
         let batch = if last {
             BatchMaps {
                 footprints: store.footprints.clone(),

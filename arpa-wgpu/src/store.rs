@@ -19,6 +19,7 @@
 use arpa_core::store::footprint::PackedFootprint;
 use arpa_core::{gpu::layout::{KeyedPhoton, StoreCounts, StoreParams, StoreSettings}, gpu::sort::SortItem};
 use arpa_core::gpu::sort::{MAX_SORT_ITEMS, sorted_len};
+use arpa_core::gpu::batch::Capacities;
 use crate::sort::RadixScratch;
 use arpa_core::store::progressive_photon::PackedPhoton;
 
@@ -40,6 +41,7 @@ pub struct StorePipelines {
     pad_items: wgpu::ComputePipeline,
     schedule_layout: wgpu::BindGroupLayout,
     schedule: wgpu::ComputePipeline,
+    store_check: wgpu::ComputePipeline,
     sorter: crate::sort::Sorter,
 }
 
@@ -52,14 +54,16 @@ impl StorePipelines {
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label, source: wgpu::ShaderSource::Wgsl(crate::shaders::store().into()) });
         let pipeline = |entry: &str| crate::harness::pipeline(device, "arpa keyed store", &module, &[Some(&layout)], entry);
         let schedule_label = Some("arpa store schedule");
-        let entries = [crate::harness::storage_entry(0, true), crate::harness::storage_entry(1, false), crate::harness::storage_entry(2, false), crate::harness::storage_entry(3, false)];
+        let entries = [crate::harness::storage_entry(0, true), crate::harness::storage_entry(1, false), crate::harness::storage_entry(2, false), crate::harness::storage_entry(3, false), crate::harness::storage_entry(4, true)];
         let schedule_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: schedule_label, entries: &entries });
         let schedule_module =
             device.create_shader_module(wgpu::ShaderModuleDescriptor { label: schedule_label, source: wgpu::ShaderSource::Wgsl(crate::shaders::schedule().into()) });
         let schedule = crate::harness::pipeline(device, "arpa store schedule", &schedule_module, &[Some(&schedule_layout)], "store_schedule");
+        let store_check = crate::harness::pipeline(device, "arpa store check", &schedule_module, &[Some(&schedule_layout)], "store_check");
         Self {
             schedule_layout,
             schedule,
+            store_check,
             keyed: pipeline("store_keyed"),
             photon_keys: pipeline("photon_keys"),
             compact_footprints: pipeline("compact_footprints"),
@@ -90,8 +94,7 @@ pub struct StoreSizeError(pub String);
 /// The keyed store's device buffers for given input buffers and capacities: slots, sort
 /// items, counters and the sorted outputs (see the module docs).
 pub struct MapStore {
-    raw_capacity: u32,
-    photon_capacity: u32,
+    capacities: Capacities,
     params: wgpu::Buffer,
     counts: wgpu::Buffer,
     fp_items: wgpu::Buffer,
@@ -118,10 +121,12 @@ pub struct MapStore {
 }
 
 impl MapStore {
-    /// Buffers for up to `raw_capacity` raw footprints in `raw` ([`arpa_core::gpu::layout::KeyedFootprint`]) and
-    /// `photon_capacity` progressive photons in `photons` ([`KeyedPhoton`]), appended by the
-    /// photon pass whose counters ([`arpa_core::gpu::layout::PhotonCounters`]) are `counters`; the schedule kernel
-    /// sets the iteration's `status` word when the pass dropped appends.
+    /// Buffers for `capacities`: raw footprints in `raw` ([`arpa_core::gpu::layout::KeyedFootprint`]) and
+    /// progressive photons in `photons` ([`KeyedPhoton`]), appended by the photon pass
+    /// whose counters ([`arpa_core::gpu::layout::PhotonCounters`]) are `counters`, and the
+    /// photon sort items and sorted photons; the schedule kernel sets the iteration's
+    /// `status` word when the pass dropped appends, the store check when the store dropped
+    /// photon items.
     #[allow(clippy::too_many_arguments)]
     pub fn new(
         device: &wgpu::Device,
@@ -130,36 +135,31 @@ impl MapStore {
         photons: &wgpu::Buffer,
         counters: &wgpu::Buffer,
         status: &wgpu::Buffer,
-        raw_capacity: u32,
-        photon_capacity: u32,
+        capacities: Capacities,
     ) -> Result<Self, StoreSizeError> {
-        let total_photons = raw_capacity.checked_add(photon_capacity).filter(|&t| sorted_len(t) <= MAX_SORT_ITEMS);
-        let Some(total_photons) = total_photons else {
-            return Err(StoreSizeError(format!(
-                "{raw_capacity} raw footprints + {photon_capacity} photons exceed the sort's {} items",
-                MAX_SORT_ITEMS
-            )));
-        };
+        let Capacities { raw_footprints: raw_capacity, sorted_photons, .. } = capacities;
+        let sorted_items = raw_capacity.max(sorted_photons);
+        if sorted_len(sorted_items) > MAX_SORT_ITEMS {
+            return Err(StoreSizeError(format!("{raw_capacity} raw footprints or {sorted_photons} sorted photons exceed the sort's {MAX_SORT_ITEMS} items")));
+        }
         let limits = device.limits();
         let max_bytes = limits.max_storage_buffer_binding_size.min(limits.max_buffer_size);
         if raw_capacity as u64 * FOOTPRINT_BYTES > max_bytes {
             return Err(StoreSizeError(format!("{raw_capacity} footprint slots of {FOOTPRINT_BYTES} bytes exceed the device's {max_bytes}-byte storage binding")));
         }
-        // The sorted photons: as many as one binding holds (the compaction counts any
-        // beyond in `StoreCounts::overflowed`).
-        let photons_out_capacity = total_photons.min(u32::try_from(max_bytes / PHOTON_BYTES).unwrap_or(u32::MAX));
+        // The sorted photons: as many as one binding holds (the store and the compaction
+        // count any beyond in `StoreCounts::overflowed`).
+        let photons_out_capacity = sorted_photons.min(u32::try_from(max_bytes / PHOTON_BYTES).unwrap_or(u32::MAX));
         let label = Some("arpa keyed store");
         use wgpu::BufferUsages as U;
         let buffer = |items: u32, size: u64, usage| {
             device.create_buffer(&wgpu::BufferDescriptor { label, size: (items.max(1) as u64) * size, usage: U::STORAGE | usage, mapped_at_creation: false })
         };
-        let fp_sorted = sorted_len(raw_capacity);
-        let ph_sorted = sorted_len(total_photons);
         let fp_slots = buffer(raw_capacity, FOOTPRINT_BYTES, U::empty());
         let fp_box_slots = buffer(raw_capacity, BOX_BYTES, U::empty());
         let ph_extra = buffer(raw_capacity, size_of::<KeyedPhoton>() as u64, U::empty());
-        let fp_items = buffer(fp_sorted, ITEM_BYTES, U::COPY_DST);
-        let ph_items = buffer(ph_sorted, ITEM_BYTES, U::COPY_DST);
+        let fp_items = buffer(raw_capacity, ITEM_BYTES, U::COPY_DST);
+        let ph_items = buffer(sorted_photons, ITEM_BYTES, U::COPY_DST);
         let counts = buffer(1, size_of::<StoreCounts>() as u64, U::COPY_SRC | U::COPY_DST);
         let params = buffer(1, size_of::<StoreParams>() as u64, U::COPY_DST);
         let footprints = buffer(raw_capacity, FOOTPRINT_BYTES, U::COPY_SRC);
@@ -173,18 +173,17 @@ impl MapStore {
         let entries: Vec<_> = resources.iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() }).collect();
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor { label, layout: &pipelines.layout, entries: &entries });
         let args = device.create_buffer(&wgpu::BufferDescriptor { label: Some("arpa store dispatch"), size: 24, usage: U::STORAGE | U::INDIRECT, mapped_at_creation: false });
-        let entries: Vec<_> = [counters, &params, &args, status].iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() }).collect();
+        let entries: Vec<_> = [counters, &params, &args, status, &counts].iter().enumerate().map(|(i, b)| wgpu::BindGroupEntry { binding: i as u32, resource: b.as_entire_binding() }).collect();
         let schedule_group = device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some("arpa store schedule"), layout: &pipelines.schedule_layout, entries: &entries });
         Ok(Self {
             args,
             schedule_group,
-            raw_capacity,
-            photon_capacity,
+            capacities,
             params,
             counts,
             fp_items,
             ph_items,
-            radix: RadixScratch::new(device, total_photons),
+            radix: RadixScratch::new(device, sorted_items),
             photons_out_capacity,
             footprints,
             footprint_boxes,
@@ -194,12 +193,12 @@ impl MapStore {
         })
     }
 
-    /// Raw-footprint and photon capacities this store was made for.
-    pub fn capacities(&self) -> (u32, u32) {
-        (self.raw_capacity, self.photon_capacity)
+    /// The capacities this store was made for.
+    pub fn capacities(&self) -> Capacities {
+        self.capacities
     }
 
-    /// Sorted progressive photons one batch can hold (both capacities together, capped at
+    /// Sorted progressive photons one batch can hold (the sorted-photon capacity, capped at
     /// one storage binding; more are counted in [`StoreCounts::overflowed`]).
     pub fn photons_out_capacity(&self) -> u32 {
         self.photons_out_capacity
@@ -216,10 +215,12 @@ impl MapStore {
     /// record counts are not used), then the schedule kernel (record counts and dispatch
     /// sizes from the photon pass's counters, the iteration's status), the store and the
     /// sort items (indirect dispatches), the padding of the items up to the capacities, the
-    /// radix sort of both item buffers over their capacities and the compaction into the
-    /// sorted records and boxes (inactive boxes past the records). Nothing is read back.
+    /// radix sort of both item buffers over their capacities, the compaction into the
+    /// sorted records and boxes (inactive boxes past the records) and the store check
+    /// (the status word, when photon items were dropped). Nothing is read back.
     pub fn encode(&self, device: &wgpu::Device, queue: &wgpu::Queue, pipelines: &StorePipelines, encoder: &mut wgpu::CommandEncoder, settings: &StoreSettings) {
-        let params = StoreParams::new(settings, self.raw_capacity, self.photon_capacity);
+        let c = self.capacities;
+        let params = StoreParams::new(settings, c.raw_footprints, c.sorted_photons);
         queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         encoder.clear_buffer(&self.counts, 0, None);
         {
@@ -237,7 +238,7 @@ impl MapStore {
         }
         // Slots: footprints below raw_count, photons below photon_count + raw_count, both
         // within the capacities; the padding's value sorts last with its keys anyway.
-        let value_bound = self.raw_capacity.saturating_add(self.photon_capacity);
+        let value_bound = c.raw_footprints.saturating_add(c.photons);
         pipelines.sorter.encode_radix(device, encoder, &self.fp_items, &self.radix, params.fp_sorted, value_bound);
         pipelines.sorter.encode_radix(device, encoder, &self.ph_items, &self.radix, params.ph_sorted, value_bound);
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("arpa compaction"), timestamp_writes: None });
@@ -246,6 +247,9 @@ impl MapStore {
         dispatch_linear(&mut pass, params.fp_sorted);
         pass.set_pipeline(&pipelines.compact_photons);
         dispatch_linear(&mut pass, params.ph_sorted);
+        pass.set_bind_group(0, &self.schedule_group, &[]);
+        pass.set_pipeline(&pipelines.store_check);
+        pass.dispatch_workgroups(1, 1, 1);
     }
 }
 

@@ -10,8 +10,8 @@ use crate::photon::{PhotonOutputs, PhotonPass};
 use crate::scene::GpuScene;
 use arpa_core::accumulate::image::Accumulation;
 use arpa_core::store::footprint::PackedFootprint;
-use arpa_core::gpu::batch::{Overflow, RecordLimits, after_overflow, batch_count, batch_range, calibrated_capacity, for_each_batch, initial_capacity, shrink};
-use arpa_core::{gpu::layout::{BatchCounts, GatherCounts, ImageBufferSizes, PhotonCounters, StoreSettings}, gpu::fill::check_record_keys};
+use arpa_core::gpu::batch::{Capacities, Overflow, RecordLimits, after_overflow, batch_count, batch_range, for_each_batch, shrink};
+use arpa_core::{gpu::layout::{BatchCounts, GatherCounts, ImageBufferSizes, StoreSettings}, gpu::fill::check_record_keys};
 use arpa_core::gpu::sort::{MAX_SORT_ITEMS, sorted_len};
 use arpa_core::render::photon_path::PhotonPassSetup;
 use arpa_core::render::prepared_scene::PreparedScene;
@@ -44,8 +44,6 @@ const QUERY_BYTES: u64 = std::mem::size_of::<QueryRecord>() as u64;
 /// A stage submits its work and returns; queue order runs it before the next stage's.
 /// [`Tracer::read_stats`], [`Tracer::read_footprints`] and [`Tracer::read_photons`] read
 /// the counts they need themselves (a wait) when they are called before the accumulate.
-/// The photon pass waits once per batch instead when the capacities exceed what one
-/// binding of sorted progressive photons holds (only near the adapter's binding limit).
 ///
 /// # Stage times
 /// [`IterationStats::times`] are the host's wall-clock time of each stage call: the
@@ -156,9 +154,10 @@ struct Loaded {
     limits: RecordLimits,
     /// A gather ran and its counts are not in the stats yet (accumulate's wait reads them).
     gather_counts_pending: bool,
-    /// The calibrated capacities of the photon pass's append buffers (raw footprints,
-    /// progressive photons): every iteration starts on them ([`arpa_core::gpu::batch`]).
-    capacities: (u32, u32),
+    /// The calibrated capacities: every iteration starts on them ([`arpa_core::gpu::batch`]).
+    capacities: Capacities,
+    /// The capacities of the buffers allocated now.
+    allocated: Capacities,
     /// Batches of the current iteration's photon pass.
     batches: u32,
     /// A photon pass ran without waiting and its counters are still on the device only
@@ -283,17 +282,19 @@ fn binding_bytes(ctx: &GpuContext, binding_limit: Option<u64>) -> u64 {
     limits.max_storage_buffer_binding_size.min(limits.max_buffer_size).min(binding_limit.unwrap_or(u64::MAX))
 }
 
-/// Reallocates the photon pass's append buffers (and the store's buffers bound to them) for
-/// `capacities` (raw footprints, progressive photons).
-fn resize(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, capacities: (u32, u32)) -> Result<(), WgpuError> {
-    let (fp_cap, ph_cap) = capacities;
-    if fp_cap.checked_add(ph_cap).is_none_or(|t| sorted_len(t) > MAX_SORT_ITEMS) {
-        return Err(WgpuError::Size(format!("{fp_cap} footprints and {ph_cap} photons in one batch exceed the device sort's {MAX_SORT_ITEMS} records")));
+/// Reallocates the photon pass's append buffers and the store's buffers bound to them for
+/// `capacities`.
+fn resize(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, capacities: Capacities) -> Result<(), WgpuError> {
+    let Capacities { raw_footprints, photons, sorted_photons } = capacities;
+    if sorted_len(raw_footprints.max(photons).max(sorted_photons)) > MAX_SORT_ITEMS {
+        return Err(WgpuError::Size(format!("{raw_footprints} footprints, {photons} photons or {sorted_photons} sorted photons in one batch exceed the device sort's {MAX_SORT_ITEMS} records")));
     }
     // Free the old buffers before allocating the new ones.
     st.outputs = PhotonOutputs::new(ctx, 1, 1)?;
-    st.outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
-    maps.bind_inputs(ctx, st.outputs.footprints(), st.outputs.photons(), st.outputs.counters(), fp_cap, ph_cap)
+    st.outputs = PhotonOutputs::new(ctx, raw_footprints, photons)?;
+    maps.bind_inputs(ctx, st.outputs.footprints(), st.outputs.photons(), st.outputs.counters(), capacities)?;
+    st.allocated = capacities;
+    Ok(())
 }
 
 /// Records and submits batch `k` of the iteration `setup` (its photons `range`): the
@@ -313,13 +314,6 @@ fn submit_batch(ctx: &GpuContext, maps: &mut PhotonMaps, st: &Loaded, setup: &Ph
     })
 }
 
-/// Whether the pipelined photon pass can run with the current buffers: every sorted
-/// progressive photon a batch can make (both capacities) fits one binding, so that only
-/// the photon pass's appends can overflow (the status word catches those).
-fn pipelines_fit(st: &Loaded) -> bool {
-    u64::from(st.capacities.0) + u64::from(st.capacities.1) <= st.limits.sorted_photons
-}
-
 /// The photon pass without a wait: every batch of the iteration `setup` is traced and
 /// stored over the calibrated capacities; the counters stay on the device until the
 /// accumulate's wait (or a read of the stats or the records) reads them.
@@ -337,26 +331,26 @@ fn trace_pipelined(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, set
     Ok(())
 }
 
-/// The photon pass with one wait per batch (the calibration, an iteration traced again
-/// after an overflow, or capacities too large for the pipelined pass): every batch of the
-/// iteration `setup`, each checked as soon as it ran ([`trace_batch`]); a batch too large
-/// for one binding shrinks B and starts the iteration again. Returns the largest appends
-/// of a batch (raw footprints, progressive photons).
-fn trace_waiting(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, stats: &mut IterationStats, setup: &PhotonPassSetup) -> Result<(u32, u32), WgpuError> {
+/// The photon pass with one wait per batch (the calibration, or an iteration traced again
+/// after an overflow): every batch of the iteration `setup`, each checked as soon as it ran
+/// ([`trace_batch`]); a batch too large for one binding shrinks B and starts the iteration
+/// again. Returns the most raw footprints, progressive photons and photon sort items a
+/// batch appended.
+fn trace_waiting(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, stats: &mut IterationStats, setup: &PhotonPassSetup) -> Result<(u32, u32, u32), WgpuError> {
     let n = setup.photon_count();
     stats.overflowed = 0;
-    let mut most = (0, 0);
+    let mut most = (0, 0, 0);
     let mut batch_photons = st.batch_photons;
     let batches = for_each_batch(n, &mut batch_photons, |range, k, batches| {
         if k == 0 {
             stats.reset_photon_counts();
             maps.begin_iteration(ctx, batches);
-            most = (0, 0);
+            most = (0, 0, 0);
         }
         let c = trace_batch(ctx, maps, st, stats, setup, range, k, k + 1 == batches)?;
         Ok::<_, WgpuError>(match c {
             Ok(c) => {
-                most = (most.0.max(c.footprint_appends), most.1.max(c.photon_appends));
+                most = (most.0.max(c.photon.footprint_appends), most.1.max(c.photon.photon_appends), most.2.max(c.store.photon_items));
                 None
             }
             Err(b) => Some(b),
@@ -383,7 +377,7 @@ fn trace_batch(
     range: std::ops::Range<u32>,
     k: u32,
     last: bool,
-) -> Result<Result<PhotonCounters, u32>, WgpuError> {
+) -> Result<Result<BatchCounts, u32>, WgpuError> {
     let photons = range.end - range.start;
     let limits = st.limits;
     let settings = StoreSettings::for_iteration(setup, &st.prepared);
@@ -391,24 +385,33 @@ fn trace_batch(
         // Every earlier batch fitted: the status word only tells of this one.
         submit_batch(ctx, maps, st, setup, &settings, range.clone(), k, last, true)?;
         let bytes = read_buffer(ctx, "photon_pass", maps.batch_counts(), (u64::from(k) + 1) * BATCH_COUNTS_BYTES)?;
-        let BatchCounts { photon: c, store: counts } = bytemuck::pod_read_unaligned(&bytes[(k as usize) * BATCH_COUNTS_BYTES as usize..]);
+        let batch: BatchCounts = bytemuck::pod_read_unaligned(&bytes[(k as usize) * BATCH_COUNTS_BYTES as usize..]);
+        let BatchCounts { photon: c, store: counts } = batch;
         if c.overflowed() == 0 {
-            // The sorted progressive photons (the pass's plus the footprints' fallbacks)
-            // must fit one binding too.
-            if counts.overflowed > 0 || u64::from(counts.photon_items) > limits.sorted_photons {
-                stats.overflowed += u64::from(counts.overflowed.max(1));
+            if counts.overflowed == 0 {
+                stats.add_photon_batch(&c, &counts);
+                return Ok(Ok(batch));
+            }
+            // The photon sort items (the pass's photons plus the footprints' fallbacks)
+            // overflowed: more room, within one binding of sorted photons.
+            stats.overflowed += u64::from(counts.overflowed);
+            if u64::from(counts.photon_items) > limits.sorted_photons {
                 if photons <= 1 {
                     return Err(WgpuError::Size(format!("one photon stores {} progressive photons; adapter {:?} binds at most {}", counts.photon_items, ctx.info.name, limits.sorted_photons)));
                 }
                 return Ok(Err(shrink(photons, limits.sorted_photons as f64 / f64::from(counts.photon_items.max(1)))));
             }
-            stats.add_photon_batch(&c, &counts);
-            return Ok(Ok(c));
+            resize(ctx, maps, st, st.allocated.with_sorted_photons_for(counts.photon_items, &limits))?;
+            continue;
         }
         stats.overflowed += c.overflowed();
-        let caps = (st.outputs.footprint_capacity(), st.outputs.photon_capacity());
+        let caps = (st.allocated.raw_footprints, st.allocated.photons);
         match after_overflow(&limits, photons, c.footprint_appends, c.photon_appends, caps) {
-            Overflow::Grow(f, p) => resize(ctx, maps, st, (f, p))?,
+            Overflow::Grow(f, p) => {
+                // Room for every record of the grown buffers as a sorted photon.
+                let sorted = st.allocated.sorted_photons.max(f.saturating_add(p).min(u32::try_from(limits.sorted_photons).unwrap_or(u32::MAX)));
+                resize(ctx, maps, st, Capacities { raw_footprints: f, photons: p, sorted_photons: sorted })?
+            }
             Overflow::Shrink(b) => return Ok(Err(b)),
             Overflow::TooLarge => {
                 return Err(WgpuError::Size(format!(
@@ -529,11 +532,10 @@ impl Tracer for WgpuTracer {
         let photon = PhotonPass::new(ctx, &gpu_scene, &prepared, settings)?;
         let limits = RecordLimits::new(binding_bytes(ctx, self.binding_limit));
         let batch_photons = self.batch_photons.unwrap_or(settings.photons_per_iteration).min(settings.photons_per_iteration);
-        let fp_cap = initial_capacity(batch_photons, self.initial_capacity, limits.raw_footprints);
-        let ph_cap = initial_capacity(batch_photons, self.initial_capacity, limits.photons);
-        let outputs = PhotonOutputs::new(ctx, fp_cap, ph_cap)?;
+        let initial = Capacities::initial(batch_photons, self.initial_capacity, &limits);
+        let outputs = PhotonOutputs::new(ctx, initial.raw_footprints, initial.photons)?;
         self.maps.begin_iteration(ctx, 1);
-        self.maps.bind_inputs(ctx, outputs.footprints(), outputs.photons(), outputs.counters(), fp_cap, ph_cap)?;
+        self.maps.bind_inputs(ctx, outputs.footprints(), outputs.photons(), outputs.counters(), initial)?;
         let (queries, image, irradiance, accumulator) = scoped(ctx, "allocating the image buffers", || {
             let buffer = |size: u64| {
                 ctx.device.create_buffer(&wgpu::BufferDescriptor {
@@ -562,7 +564,8 @@ impl Tracer for WgpuTracer {
             batch_photons,
             limits,
             gather_counts_pending: false,
-            capacities: (fp_cap, ph_cap),
+            capacities: initial,
+            allocated: initial,
             batches: 1,
             photon_counts_pending: false,
             clock: StageClock::new(),
@@ -572,8 +575,8 @@ impl Tracer for WgpuTracer {
             // the capacities every iteration of the render starts on (and B).
             let setup = PhotonPassSetup::new(&st.prepared, &st.settings, 0);
             let mut stats = IterationStats::default();
-            let (fp, ph) = trace_waiting(ctx, &mut self.maps, &mut st, &mut stats, &setup)?;
-            st.capacities = (calibrated_capacity(fp, limits.raw_footprints), calibrated_capacity(ph, limits.photons));
+            let (fp, ph, items) = trace_waiting(ctx, &mut self.maps, &mut st, &mut stats, &setup)?;
+            st.capacities = Capacities::calibrated(fp, ph, items, &limits);
             self.maps.begin_iteration(ctx, 1);
         }
         self.state = Some(st);
@@ -603,16 +606,12 @@ impl Tracer for WgpuTracer {
             let stats = clock.stats_mut();
             stats.overflowed = 0;
             stats.reset_photon_counts();
-            if (st.outputs.footprint_capacity(), st.outputs.photon_capacity()) != st.capacities {
-                // An iteration traced again grew them: every iteration starts on the
-                // calibrated ones.
+            if st.allocated != st.capacities {
+                // The calibration or an iteration traced again left other buffers: every
+                // iteration starts on the calibrated ones.
                 resize(ctx, maps, st, st.capacities)?;
             }
-            if pipelines_fit(st) {
-                trace_pipelined(ctx, maps, st, &setup)?;
-            } else {
-                trace_waiting(ctx, maps, st, stats, &setup)?;
-            }
+            trace_pipelined(ctx, maps, st, &setup)?;
             stats.radii = setup.radii;
             setup.record_plan(stats);
             Ok(())

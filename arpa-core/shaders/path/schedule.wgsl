@@ -19,8 +19,11 @@
 //   pass; the accumulation leaves the sums alone while it is set (accumulate.wgsl), and the
 //   host, which reads it with the iteration's counters at the accumulate's wait, traces the
 //   iteration again with larger buffers.
+//
+// store_check (one invocation, after the store's compaction) sets the status word too when
+// the store dropped photon items for lack of room (StoreCounts::overflowed).
 // Group 0: binding 0 the counters (read), 1 the store parameters, 2 the arguments, 3 the
-// status word.
+// status word, 4 the store's counters (StoreCounts, read).
 
 struct ArpaScheduleCounters {
     emitted: u32,
@@ -56,6 +59,7 @@ struct ArpaScheduleStoreParams {
 @group(0) @binding(1) var<storage, read_write> schedule_params: ArpaScheduleStoreParams;
 @group(0) @binding(2) var<storage, read_write> schedule_args: array<u32, 6>;
 @group(0) @binding(3) var<storage, read_write> schedule_status: array<u32, 4>;
+@group(0) @binding(4) var<storage, read> schedule_store_counts: array<u32, 12>;
 
 // Workgroups (x, y, 1) of a linear dispatch of `invocations` invocations of a 64-wide kernel.
 fn arpa_linear_groups(invocations: u32) -> vec3<u32> {
@@ -81,6 +85,14 @@ fn store_schedule() {
     schedule_args[4] = keys.y;
     schedule_args[5] = keys.z;
     if schedule_counters.footprint_overflowed + schedule_counters.photon_overflowed > 0u {
+        schedule_status[0] = 1u;
+    }
+}
+
+@compute @workgroup_size(1)
+fn store_check() {
+    // StoreCounts::overflowed (word 7).
+    if schedule_store_counts[7] > 0u {
         schedule_status[0] = 1u;
     }
 }

@@ -26,7 +26,7 @@ struct StoreParams {
     scene_inv: vec3<f32>,  // 1 / scene extent per axis (1/m; 0 on a flat axis)
     photon_count: u32,     // progressive photons appended by the photon pass
     fp_sorted: u32,        // footprint items sorted and compacted (the raw capacity)
-    ph_sorted: u32,        // photon items sorted and compacted (both capacities)
+    ph_sorted: u32,        // photon items sorted and compacted (the sorted-photon capacity)
     pad3: vec2<u32>,
 }
 
@@ -34,7 +34,7 @@ struct StoreParams {
 const STORE_COUNT_FOOTPRINTS: u32 = 0u;   // + map
 const STORE_COUNT_PHOTONS: u32 = 2u;      // + map
 const STORE_COUNT_REASON: u32 = 3u;       // + ARPA_STORE_* status (1 degenerate, 2 culled, 3 unrepresentable)
-const STORE_COUNT_OVERFLOWED: u32 = 7u;   // sorted photons beyond ph_out's capacity
+const STORE_COUNT_OVERFLOWED: u32 = 7u;   // photon items beyond ph_sorted or ph_out's capacity
 const STORE_COUNT_FP_ITEMS: u32 = 8u;     // footprint sort items appended
 const STORE_COUNT_PH_ITEMS: u32 = 9u;     // photon sort items appended
 const STORE_INVALID: u32 = 0xffffffffu;
@@ -89,7 +89,11 @@ fn store_keyed(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workg
         ph_extra[i] = ArpaKeyedPhoton(f.center, map, f.normal, 0u, f.flux, 0u, f.key, 0u, 0u, 0u);
         let slot = kparams.photon_count + i;
         let at = atomicAdd(&store_counts[STORE_COUNT_PH_ITEMS], 1u);
-        ph_items[at] = store_item(map, f.center, f.key, slot);
+        if at < kparams.ph_sorted {
+            ph_items[at] = store_item(map, f.center, f.key, slot);
+        } else {
+            atomicAdd(&store_counts[STORE_COUNT_OVERFLOWED], 1u);
+        }
         atomicAdd(&store_counts[STORE_COUNT_PHOTONS + map], 1u);
         atomicAdd(&store_counts[STORE_COUNT_REASON + min(st.status, 3u)], 1u);
     }
@@ -105,7 +109,11 @@ fn photon_keys(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workg
     let p = photons_in[j];
     let map = min(p.map, 1u);
     let at = atomicAdd(&store_counts[STORE_COUNT_PH_ITEMS], 1u);
-    ph_items[at] = store_item(map, p.position, p.key, j);
+    if at < kparams.ph_sorted {
+        ph_items[at] = store_item(map, p.position, p.key, j);
+    } else {
+        atomicAdd(&store_counts[STORE_COUNT_OVERFLOWED], 1u);
+    }
     atomicAdd(&store_counts[STORE_COUNT_PHOTONS + map], 1u);
 }
 

@@ -27,8 +27,8 @@
 //! over a capacity depends on it (the gather's `f32` sums follow its traversal order), so
 //! the capacity an iteration runs with is a function of the render, not of its history: at
 //! upload, a *calibration* traces iteration 0's photon pass (growing and splitting as
-//! above) and sets each buffer to [`calibrated_capacity`] of the most records a batch
-//! appended. An iteration whose photon pass overflows those is found at its accumulate,
+//! above) and sets each append buffer to [`calibrated_capacity`] of the most records a
+//! batch appended, and the sorted progressive photons to [`calibrated_sorted_photons`]. An iteration whose photon pass overflows those is found at its accumulate,
 //! traced again with grown buffers, and the next iteration returns to the calibrated ones;
 //! checkpoints resumed at any iteration therefore run with the same capacities.
 
@@ -160,6 +160,65 @@ pub fn calibrated_capacity(appends: u32, max: u32) -> u32 {
     ((appends as f64 * CALIBRATION_HEADROOM) as u32).saturating_add(256).clamp(1, max.max(1))
 }
 
+/// Headroom of the calibrated sorted-photon capacity over the photon sort items the
+/// calibration counted ([`calibrated_sorted_photons`]): larger than
+/// [`CALIBRATION_HEADROOM`], since the footprints that fall back to progressive photons
+/// depend on the progressive radius, which shrinks from iteration to iteration.
+pub const SORTED_PHOTON_HEADROOM: f64 = 1.5;
+
+/// Photon sort items a batch's store holds after the calibration counted `items` (the
+/// most of any batch): [`SORTED_PHOTON_HEADROOM`] times that plus 256, at least 1 and at
+/// most `total` (the two append buffers' capacities together: every photon item is an
+/// appended photon or footprint) and `max` (one binding of sorted photons).
+pub fn calibrated_sorted_photons(items: u32, total: u32, max: u32) -> u32 {
+    ((items as f64 * SORTED_PHOTON_HEADROOM) as u32).saturating_add(256).min(total).clamp(1, max.max(1))
+}
+
+/// The record capacities of a photon batch's buffers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Capacities {
+    /// Raw footprints of the photon pass's footprint buffer (and the store's footprint
+    /// slots, sort items and sorted footprints).
+    pub raw_footprints: u32,
+    /// Progressive photons of the photon pass's photon buffer.
+    pub photons: u32,
+    /// Photon sort items and sorted progressive photons of the store (the pass's photons
+    /// and the footprints' fallbacks).
+    pub sorted_photons: u32,
+}
+
+impl Capacities {
+    /// The capacities a render starts with for batches of `batch` photons
+    /// ([`initial_capacity`] for both append buffers, room for every appended record as a
+    /// sorted photon), within `limits`.
+    pub fn initial(batch: u32, forced: Option<u32>, limits: &RecordLimits) -> Self {
+        let raw_footprints = initial_capacity(batch, forced, limits.raw_footprints);
+        let photons = initial_capacity(batch, forced, limits.photons);
+        Self { raw_footprints, photons, sorted_photons: Self::sorted_within(raw_footprints.saturating_add(photons), limits) }
+    }
+
+    /// The calibrated capacities ([`calibrated_capacity`], [`calibrated_sorted_photons`])
+    /// for the most raw footprints, progressive photons and photon sort items a batch of the
+    /// calibration appended, within `limits`.
+    pub fn calibrated(raw_footprints: u32, photons: u32, photon_items: u32, limits: &RecordLimits) -> Self {
+        let raw = calibrated_capacity(raw_footprints, limits.raw_footprints);
+        let ph = calibrated_capacity(photons, limits.photons);
+        let sorted = calibrated_sorted_photons(photon_items, raw.saturating_add(ph), Self::sorted_within(u32::MAX, limits));
+        Self { raw_footprints: raw, photons: ph, sorted_photons: sorted }
+    }
+
+    /// `n` sorted photons, at least 1 and at most what one binding holds.
+    fn sorted_within(n: u32, limits: &RecordLimits) -> u32 {
+        n.clamp(1, u32::try_from(limits.sorted_photons).unwrap_or(u32::MAX).max(1))
+    }
+
+    /// The capacities with the sorted photons grown ([`grow`]) for `items` photon sort
+    /// items, within `limits`.
+    pub fn with_sorted_photons_for(self, items: u32, limits: &RecordLimits) -> Self {
+        Self { sorted_photons: grow(items, self.sorted_photons, Self::sorted_within(u32::MAX, limits)), ..self }
+    }
+}
+
 /// Records each append buffer starts with for batches of `batch` photons (`forced`: a
 /// caller's choice), at least 1 and at most `max`.
 pub fn initial_capacity(batch: u32, forced: Option<u32>, max: u32) -> u32 {
@@ -224,5 +283,14 @@ mod tests {
         assert_eq!(calibrated_capacity(0, 5000), 256);
         assert_eq!(calibrated_capacity(10_000, 5000), 5000);
         assert_eq!(calibrated_capacity(u32::MAX, u32::MAX), u32::MAX);
+        assert_eq!(calibrated_sorted_photons(1000, 5000, 4000), 1756);
+        assert_eq!(calibrated_sorted_photons(1000, 1200, 4000), 1200);
+        assert_eq!(calibrated_sorted_photons(1000, 5000, 1000), 1000);
+        let c = Capacities::initial(1000, None, &l);
+        assert_eq!((c.raw_footprints, c.photons, c.sorted_photons), (2000, 2000, 4000));
+        let c = Capacities::calibrated(1000, 10, 300, &l);
+        assert_eq!((c.raw_footprints, c.photons, c.sorted_photons), (1506, 268, 706));
+        assert_eq!(c.with_sorted_photons_for(800, &l).sorted_photons, 1412);
+        assert_eq!(c.with_sorted_photons_for(700, &l), c);
     }
 }

@@ -223,7 +223,7 @@ pub struct StoreParams {
     /// Footprint sort items the sort and the compaction run over (the raw capacity): the
     /// appended ones, then padding.
     pub fp_sorted: u32,
-    /// Photon sort items they run over (both capacities together).
+    /// Photon sort items they run over (the sorted-photon capacity).
     pub ph_sorted: u32,
     /// Padding.
     pub pad1: [u32; 2],
@@ -235,11 +235,13 @@ impl StoreParams {
     /// The parameters of one batch's store, sort and compaction (one submission; the
     /// record counts `raw_count` and `photon_count` are the schedule kernel's to write on
     /// the device) for store buffers of `raw_capacity` raw footprints and
-    /// `photon_capacity` progressive photons: the sort and the compaction run over every
-    /// slot ([`StoreParams::fp_sorted`] = `raw_capacity`, [`StoreParams::ph_sorted`] = both
-    /// together), so that no size of theirs waits for a count (`pad_items` reads the
-    /// appended counts from the store's counters and pads the rest).
-    pub fn new(settings: &StoreSettings, raw_capacity: u32, photon_capacity: u32) -> Self {
+    /// `sorted_photons` photon sort items (the photon pass's photons and the footprints'
+    /// fallbacks): the sort and the compaction run over every slot
+    /// ([`StoreParams::fp_sorted`] = `raw_capacity`, [`StoreParams::ph_sorted`] =
+    /// `sorted_photons`), so that no size of theirs waits for a count (`pad_items` reads the
+    /// appended counts from the store's counters and pads the rest; photon items past
+    /// `sorted_photons` are dropped and counted in [`StoreCounts::overflowed`]).
+    pub fn new(settings: &StoreSettings, raw_capacity: u32, sorted_photons: u32) -> Self {
         let (lo, hi) = settings.bounds;
         Self {
             heuristics: settings.heuristics,
@@ -250,7 +252,7 @@ impl StoreParams {
             scene_inv: crate::base::morton::inverse_extent(lo, hi),
             photon_count: settings.photon_count,
             fp_sorted: raw_capacity,
-            ph_sorted: raw_capacity.saturating_add(photon_capacity),
+            ph_sorted: sorted_photons,
             pad1: [0; 2],
         }
     }
@@ -271,8 +273,9 @@ pub struct StoreCounts {
     pub culled: u32,
     /// See [`StoreCounts::degenerate`].
     pub unrepresentable: u32,
-    /// Progressive photons beyond the sorted output's capacity (0 unless the device's
-    /// binding limit was hit; guarded, never written out of bounds).
+    /// Progressive photons beyond the sorted photons' capacity (their sort items or the
+    /// sorted output; guarded, never written out of bounds): the batch is traced again with
+    /// more room.
     pub overflowed: u32,
     /// Footprint sort items appended (= both maps' footprints).
     pub footprint_items: u32,
@@ -751,6 +754,6 @@ mod tests {
     fn store_params_run_over_the_capacities() {
         let s = StoreSettings { heuristics: PackedHeuristics::default(), radii: [0.1, 0.2], bounds: ([0.0; 3], [2.0, 0.0, 4.0]), raw_count: 5, photon_count: 7 };
         let p = StoreParams::new(&s, 600, 10);
-        assert_eq!((p.scene_inv, p.fp_sorted, p.ph_sorted, p.raw_count, p.photon_count), ([0.5, 0.0, 0.25], 600, 610, 5, 7));
+        assert_eq!((p.scene_inv, p.fp_sorted, p.ph_sorted, p.raw_count, p.photon_count), ([0.5, 0.0, 0.25], 600, 10, 5, 7));
     }
 }

@@ -494,7 +494,9 @@ pub fn run_from_host(
     let pass = PhotonCounters { footprint_appends: settings.raw_count, photon_appends: settings.photon_count, ..PhotonCounters::default() };
     let counters_buf = upload(ctx, bytemuck::bytes_of(&pass), wgpu::BufferUsages::COPY_SRC);
     let mut maps = PhotonMaps::new(ctx).unwrap();
-    maps.bind_inputs(ctx, &raw_buf, &ph_buf, &counters_buf, raw.len() as u32, photons.len() as u32).unwrap();
+    let (nr, np) = (raw.len() as u32, photons.len() as u32);
+    let capacities = arpa_core::gpu::batch::Capacities { raw_footprints: nr, photons: np, sorted_photons: (nr + np).max(1) };
+    maps.bind_inputs(ctx, &raw_buf, &ph_buf, &counters_buf, capacities).unwrap();
     maps.begin_iteration(ctx, 1);
     let mut encoder = device.create_command_encoder(&Default::default());
     maps.encode_batch(ctx, &mut encoder, &StoreSettings { raw_count: 0, photon_count: 0, ..*settings }, &counters_buf, 0, true).unwrap();
