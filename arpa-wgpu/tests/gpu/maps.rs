@@ -32,7 +32,7 @@ use arpa_core::store::progressive_photon::PackedPhoton;
 use arpa_core::base::rng::{Rng, StreamDomain};
 use arpa_core::store::decision::{StoredPhoton, store_footprint};
 use arpa_core::render::tracer::QueryRecord;
-use crate::support::{HostRun, run_from_host};
+use crate::support::{HostRun, run_from_host, store_status};
 use arpa_core::gpu::layout::{KeyedFootprint, KeyedPhoton, RawFootprint, StoreSettings};
 use arpa_core::base::morton::morton_code;
 use glam::{DVec3, Vec3};
@@ -282,4 +282,20 @@ fn empty_maps_give_the_known_radiance() {
         assert_eq!(out.image[(PLANES - 1) * px + i], [0.0; 3]);
     }
     let _ = PhotonMap::Caustic;
+}
+
+/// The store over too few photon sort items: the items past the capacity are dropped and
+/// counted (`StoreCounts::overflowed`), the store check sets the iteration's status word, and
+/// the accumulation guarded by it leaves the sums alone; with room for every item, neither.
+#[test]
+fn dropped_photon_items_stop_the_accumulation() {
+    let Some(ctx) = gpu() else { return };
+    let input = input(14);
+    let s = settings(&input);
+    let (counts, status, sum) = store_status(ctx, &input.raw, &input.photons, &s, 8);
+    assert!(counts.photon_items > 8, "too few photon items to overflow 8: {counts:?}");
+    assert_eq!((counts.overflowed, status, sum), (counts.photon_items - 8, 1, 0.0), "{counts:?}");
+    let room = (input.raw.len() + input.photons.len()) as u32;
+    let (counts, status, sum) = store_status(ctx, &input.raw, &input.photons, &s, room);
+    assert_eq!((counts.overflowed, status, sum), (0, 0, 1.0), "{counts:?}");
 }

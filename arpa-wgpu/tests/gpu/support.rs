@@ -585,3 +585,34 @@ pub fn run_scene_kernel(ctx: &GpuContext, scene: &arpa_wgpu::scene::GpuScene, la
     let [words] = read(ctx, &[(&out, output_words as u64 * 4)]).try_into().unwrap();
     bytemuck::pod_collect_to_vec(&words)
 }
+
+/// Runs one batch's store ([`PhotonMaps::encode_batch`]) on `raw` and `photons` as a photon
+/// pass would leave them, with room for `sorted_photons` photon sort items, then the
+/// accumulation of an image of ones guarded by the iteration's status word. Returns the
+/// store's counts, the status word and the first accumulated sum (0 where the accumulation
+/// was left out, 1 where it ran).
+pub fn store_status(ctx: &GpuContext, raw: &[KeyedFootprint], photons: &[KeyedPhoton], settings: &StoreSettings, sorted_photons: u32) -> (StoreCounts, u32, f32) {
+    let device = &ctx.device;
+    let raw_buf = upload(ctx, bytemuck::cast_slice(raw), wgpu::BufferUsages::empty());
+    let ph_buf = upload(ctx, bytemuck::cast_slice(photons), wgpu::BufferUsages::empty());
+    let pass = PhotonCounters { footprint_appends: settings.raw_count, photon_appends: settings.photon_count, ..PhotonCounters::default() };
+    let counters_buf = upload(ctx, bytemuck::bytes_of(&pass), wgpu::BufferUsages::COPY_SRC);
+    let mut maps = PhotonMaps::new(ctx).unwrap();
+    let capacities = arpa_core::gpu::batch::Capacities { raw_footprints: raw.len() as u32, photons: photons.len() as u32, sorted_photons };
+    maps.bind_inputs(ctx, &raw_buf, &ph_buf, &counters_buf, capacities).unwrap();
+    maps.begin_iteration(ctx, 1);
+    let image = upload(ctx, bytemuck::cast_slice(&[[1.0f32; 4]; 4]), wgpu::BufferUsages::empty());
+    let acc = checked(ctx, "accumulator", || DeviceAccumulator::new(device, 4));
+    checked(ctx, "store and accumulate", || {
+        let mut encoder = device.create_command_encoder(&Default::default());
+        encoder.clear_buffer(maps.status(), 0, None);
+        maps.encode_batch(ctx, &mut encoder, &StoreSettings { raw_count: 0, photon_count: 0, ..*settings }, &counters_buf, 0, true).unwrap();
+        acc.encode(device, &mut encoder, &image, Some(maps.status()));
+        ctx.queue.submit([encoder.finish()]);
+    });
+    let [batch, status, sums] = read(ctx, &[(maps.batch_counts(), BATCH_COUNTS_BYTES), (maps.status(), 16), (&acc.pixels, 32)]).try_into().unwrap();
+    let batch: arpa_core::gpu::layout::BatchCounts = bytemuck::pod_read_unaligned(&batch);
+    let status: [u32; 4] = bytemuck::pod_read_unaligned(&status);
+    let sum: AccumPixel = bytemuck::pod_read_unaligned(&sums);
+    (batch.store, status[0], sum.sum[0])
+}
