@@ -626,6 +626,9 @@ impl Tracer for VkTracer {
             let (fp, ph, items) = trace_waiting(ctx, &adapter, &mut st, &mut stats, &setup)?;
             st.capacities = Capacities::calibrated(fp, ph, items, &limits);
             st.batch_count = 0;
+            // The first iteration finds its append buffers allocated.
+            let calibrated = st.capacities;
+            resize(ctx, &mut st, calibrated)?;
         }
         self.state = Some(st);
         Ok(())

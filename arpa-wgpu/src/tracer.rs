@@ -578,6 +578,9 @@ impl Tracer for WgpuTracer {
             let (fp, ph, items) = trace_waiting(ctx, &mut self.maps, &mut st, &mut stats, &setup)?;
             st.capacities = Capacities::calibrated(fp, ph, items, &limits);
             self.maps.begin_iteration(ctx, 1);
+            // The first iteration finds its buffers allocated.
+            let calibrated = st.capacities;
+            resize(ctx, &mut self.maps, &mut st, calibrated)?;
         }
         self.state = Some(st);
         Ok(())
