@@ -15,7 +15,7 @@ use crate::photons::{PhotonOutputs, PhotonPass, photon_pipeline};
 use crate::scene::VkScene;
 use arpa_core::accumulate::image::Accumulation;
 use arpa_core::store::footprint::PackedFootprint;
-use arpa_core::gpu::batch::{Capacities, Overflow, RecordLimits, after_overflow, batch_count, batch_range, for_each_batch, shrink};
+use arpa_core::gpu::batch::{self, Capacities, RecordLimits, WaitingBatches, batch_count, batch_range};
 use arpa_core::{gpu::layout::{BatchCounts, CameraParams, GatherBatch, ImageBufferSizes, PhotonCounters, StoreCounts, StoreSettings}, gpu::fill::check_record_keys};
 use arpa_core::render::photon_path::PhotonPassSetup;
 use arpa_core::render::prepared_scene::PreparedScene;
@@ -412,83 +412,59 @@ fn trace_pipelined(ctx: &VkContext, st: &mut Loaded, setup: &PhotonPassSetup) ->
 }
 
 /// The photon pass with one wait per batch (the calibration, or an iteration traced again
-/// after an overflow): every batch of the iteration `setup`, each checked as soon as it ran
-/// ([`trace_batch`]); a batch too large for one binding shrinks B and starts the iteration
-/// again. Returns the most raw footprints, progressive photons and photon sort items a batch
+/// after an overflow), with the core's policy ([`arpa_core::gpu::batch::trace_waiting`]).
+/// Returns the most raw footprints, progressive photons and photon sort items a batch
 /// appended.
-fn trace_waiting(ctx: &VkContext, adapter: &str, st: &mut Loaded, stats: &mut IterationStats, setup: &PhotonPassSetup) -> Result<(u32, u32, u32), VkTracerError> {
-    let n = setup.photon_count();
-    stats.overflowed = 0;
-    let mut most = (0, 0, 0);
-    let mut batch_photons = st.batch_photons;
-    let batches = for_each_batch(n, &mut batch_photons, |range, k, batches| {
-        if k == 0 {
-            stats.reset_photon_counts();
-            begin_iteration(ctx, st, setup, batches as usize)?;
-            most = (0, 0, 0);
-        }
-        Ok::<_, VkTracerError>(match trace_batch(ctx, adapter, st, stats, setup, range, k as usize)? {
-            Ok(c) => {
-                most = (most.0.max(c.photon.footprint_appends), most.1.max(c.photon.photon_appends), most.2.max(c.store.photon_items));
-                None
-            }
-            Err(b) => Some(b),
-        })
-    })?;
+fn trace_waiting(ctx: &VkContext, adapter: &str, st: &mut Loaded, stats: &mut IterationStats, setup: &PhotonPassSetup) -> Result<[u32; 3], VkTracerError> {
+    let (limits, mut batch_photons) = (st.limits, st.batch_photons);
+    let settings = StoreSettings::for_iteration(setup, &st.prepared);
+    let mut w = Waiting { ctx, adapter, st, setup, settings };
+    let (batches, most) = batch::trace_waiting(&mut w, setup.photon_count(), &mut batch_photons, &limits, stats)?;
     st.batch_photons = batch_photons;
     st.batch_count = batches as usize;
     st.photon_counts_pending = false;
     Ok(most)
 }
 
-/// Traces batch `k` (the photons `range` of the iteration `setup`) and stores it, then waits
-/// for its counters: on overflow the batch's records are dropped, the buffers grow and the
-/// same photons are traced again. `Ok(Ok(counters))`: the batch is kept and its counts are
-/// in `stats`; `Ok(Err(B))`: it needs more than one storage binding holds, and the caller
-/// traces the iteration again with B photons per batch.
-fn trace_batch(ctx: &VkContext, adapter: &str, st: &mut Loaded, stats: &mut IterationStats, setup: &PhotonPassSetup, range: Range<u32>, k: usize) -> Result<Result<BatchCounts, u32>, VkTracerError> {
-    let photons = range.end - range.start;
-    let limits = st.limits;
-    let size = |message: String| VkTracerError::Size { adapter: adapter.to_string(), message };
-    let settings = StoreSettings::for_iteration(setup, &st.prepared);
-    loop {
+/// The tracer's batches traced with one wait each ([`trace_waiting`]).
+struct Waiting<'a> {
+    ctx: &'a VkContext,
+    adapter: &'a str,
+    st: &'a mut Loaded,
+    setup: &'a PhotonPassSetup,
+    settings: StoreSettings,
+}
+
+impl WaitingBatches for Waiting<'_> {
+    type Error = VkTracerError;
+
+    fn begin(&mut self, batches: u32) -> Result<(), VkTracerError> {
+        Ok(begin_iteration(self.ctx, self.st, self.setup, batches as usize)?)
+    }
+
+    fn trace(&mut self, range: Range<u32>, k: u32, _last: bool) -> Result<BatchCounts, VkTracerError> {
         // Every earlier batch fitted: the status word only tells of this one.
-        submit_batch(ctx, st, setup, &settings, range.clone(), k, true)?;
-        ctx.finish()?;
-        let batch: BatchCounts = bytemuck::pod_read_unaligned(&st.batch_counts.read(k as u64 * BATCH_COUNTS_BYTES, BATCH_COUNTS_BYTES)?);
-        let BatchCounts { photon: c, store: counts } = batch;
-        if c.overflowed() == 0 {
-            if counts.overflowed == 0 {
-                stats.add_photon_batch(&c, &counts);
-                return Ok(Ok(batch));
-            }
-            // The photon sort items (the pass's photons plus the footprints' fallbacks)
-            // overflowed: more room, within one binding of sorted photons.
-            stats.overflowed += u64::from(counts.overflowed);
-            if u64::from(counts.photon_items) > limits.sorted_photons {
-                if photons <= 1 {
-                    return Err(size(format!("one photon stores {} progressive photons; one binding holds {}", counts.photon_items, limits.sorted_photons)));
-                }
-                return Ok(Err(shrink(photons, limits.sorted_photons as f64 / f64::from(counts.photon_items.max(1)))));
-            }
-            resize(ctx, st, st.allocated.with_sorted_photons_for(counts.photon_items, &limits))?;
-            continue;
-        }
-        stats.overflowed += c.overflowed();
-        let caps = (st.allocated.raw_footprints, st.allocated.photons);
-        match after_overflow(&limits, photons, c.footprint_appends, c.photon_appends, caps) {
-            Overflow::Grow(f, p) => {
-                // Room for every record of the grown buffers as a sorted photon.
-                let sorted = st.allocated.sorted_photons.max(f.saturating_add(p).min(u32::try_from(limits.sorted_photons).unwrap_or(u32::MAX)));
-                resize(ctx, st, Capacities { raw_footprints: f, photons: p, sorted_photons: sorted })?
-            }
-            Overflow::Shrink(b) => return Ok(Err(b)),
-            Overflow::TooLarge => {
-                return Err(size(format!(
-                    "one photon stores {} raw footprints and {} progressive photons; one binding holds {} and {}",
-                    c.footprint_appends, c.photon_appends, limits.raw_footprints, limits.photons
-                )));
-            }
+        submit_batch(self.ctx, self.st, self.setup, &self.settings, range, k as usize, true)?;
+        self.ctx.finish()?;
+        Ok(bytemuck::pod_read_unaligned(&self.st.batch_counts.read(u64::from(k) * BATCH_COUNTS_BYTES, BATCH_COUNTS_BYTES)?))
+    }
+
+    fn resize(&mut self, capacities: Capacities) -> Result<(), VkTracerError> {
+        Ok(resize(self.ctx, self.st, capacities)?)
+    }
+
+    fn allocated(&self) -> Capacities {
+        self.st.allocated
+    }
+
+    fn too_large(&self, batch: &BatchCounts, limits: &RecordLimits) -> VkTracerError {
+        let (c, s) = (&batch.photon, &batch.store);
+        VkTracerError::Size {
+            adapter: self.adapter.to_string(),
+            message: format!(
+                "one photon stores {} raw footprints, {} progressive photons and {} sorted progressive photons; one binding holds {}, {} and {}",
+                c.footprint_appends, c.photon_appends, s.photon_items, limits.raw_footprints, limits.photons, limits.sorted_photons
+            ),
         }
     }
 }
@@ -623,7 +599,7 @@ impl Tracer for VkTracer {
             let setup = PhotonPassSetup::new(&st.prepared, &st.settings, 0);
             let mut stats = IterationStats::default();
             let adapter = ctx.info().name.clone();
-            let (fp, ph, items) = trace_waiting(ctx, &adapter, &mut st, &mut stats, &setup)?;
+            let [fp, ph, items] = trace_waiting(ctx, &adapter, &mut st, &mut stats, &setup)?;
             st.capacities = Capacities::calibrated(fp, ph, items, &limits);
             st.batch_count = 0;
             // The first iteration finds its append buffers allocated.

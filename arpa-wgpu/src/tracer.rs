@@ -10,7 +10,7 @@ use crate::photon::{PhotonOutputs, PhotonPass};
 use crate::scene::GpuScene;
 use arpa_core::accumulate::image::Accumulation;
 use arpa_core::store::footprint::PackedFootprint;
-use arpa_core::gpu::batch::{Capacities, Overflow, RecordLimits, after_overflow, batch_count, batch_range, for_each_batch, shrink};
+use arpa_core::gpu::batch::{self, Capacities, RecordLimits, WaitingBatches, batch_count, batch_range};
 use arpa_core::{gpu::layout::{BatchCounts, GatherCounts, ImageBufferSizes, StoreSettings}, gpu::fill::check_record_keys};
 use arpa_core::gpu::sort::{MAX_SORT_ITEMS, sorted_len};
 use arpa_core::render::photon_path::PhotonPassSetup;
@@ -332,94 +332,58 @@ fn trace_pipelined(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, set
 }
 
 /// The photon pass with one wait per batch (the calibration, or an iteration traced again
-/// after an overflow): every batch of the iteration `setup`, each checked as soon as it ran
-/// ([`trace_batch`]); a batch too large for one binding shrinks B and starts the iteration
-/// again. Returns the most raw footprints, progressive photons and photon sort items a
-/// batch appended.
-fn trace_waiting(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, stats: &mut IterationStats, setup: &PhotonPassSetup) -> Result<(u32, u32, u32), WgpuError> {
-    let n = setup.photon_count();
-    stats.overflowed = 0;
-    let mut most = (0, 0, 0);
-    let mut batch_photons = st.batch_photons;
-    let batches = for_each_batch(n, &mut batch_photons, |range, k, batches| {
-        if k == 0 {
-            stats.reset_photon_counts();
-            maps.begin_iteration(ctx, batches);
-            most = (0, 0, 0);
-        }
-        let c = trace_batch(ctx, maps, st, stats, setup, range, k, k + 1 == batches)?;
-        Ok::<_, WgpuError>(match c {
-            Ok(c) => {
-                most = (most.0.max(c.photon.footprint_appends), most.1.max(c.photon.photon_appends), most.2.max(c.store.photon_items));
-                None
-            }
-            Err(b) => Some(b),
-        })
-    })?;
+/// after an overflow), with the core's policy ([`arpa_core::gpu::batch::trace_waiting`]).
+/// Returns the most raw footprints, progressive photons and photon sort items a batch
+/// appended.
+fn trace_waiting(ctx: &GpuContext, maps: &mut PhotonMaps, st: &mut Loaded, stats: &mut IterationStats, setup: &PhotonPassSetup) -> Result<[u32; 3], WgpuError> {
+    let (limits, mut batch_photons) = (st.limits, st.batch_photons);
+    let settings = StoreSettings::for_iteration(setup, &st.prepared);
+    let mut w = Waiting { ctx, maps, st, setup, settings };
+    let (batches, most) = batch::trace_waiting(&mut w, setup.photon_count(), &mut batch_photons, &limits, stats)?;
     st.batch_photons = batch_photons;
     st.batches = batches;
     st.photon_counts_pending = false;
     Ok(most)
 }
 
-/// Traces batch `k` (the photons `range` of the iteration `setup`) and stores it, then
-/// waits for its counters: on overflow the batch's records are dropped, the buffers grow
-/// and the same photons are traced again. `Ok(Ok(counters))`: the batch is kept and its
-/// counts are in `stats`; `Ok(Err(B))`: it needs more than one storage binding of this
-/// adapter holds, and the caller traces the iteration again with B photons per batch.
-#[allow(clippy::too_many_arguments)]
-fn trace_batch(
-    ctx: &GpuContext,
-    maps: &mut PhotonMaps,
-    st: &mut Loaded,
-    stats: &mut IterationStats,
-    setup: &PhotonPassSetup,
-    range: std::ops::Range<u32>,
-    k: u32,
-    last: bool,
-) -> Result<Result<BatchCounts, u32>, WgpuError> {
-    let photons = range.end - range.start;
-    let limits = st.limits;
-    let settings = StoreSettings::for_iteration(setup, &st.prepared);
-    loop {
+/// The tracer's batches traced with one wait each ([`trace_waiting`]).
+struct Waiting<'a> {
+    ctx: &'a GpuContext,
+    maps: &'a mut PhotonMaps,
+    st: &'a mut Loaded,
+    setup: &'a PhotonPassSetup,
+    settings: StoreSettings,
+}
+
+impl WaitingBatches for Waiting<'_> {
+    type Error = WgpuError;
+
+    fn begin(&mut self, batches: u32) -> Result<(), WgpuError> {
+        self.maps.begin_iteration(self.ctx, batches);
+        Ok(())
+    }
+
+    fn trace(&mut self, range: std::ops::Range<u32>, k: u32, last: bool) -> Result<BatchCounts, WgpuError> {
         // Every earlier batch fitted: the status word only tells of this one.
-        submit_batch(ctx, maps, st, setup, &settings, range.clone(), k, last, true)?;
-        let bytes = read_buffer(ctx, "photon_pass", maps.batch_counts(), (u64::from(k) + 1) * BATCH_COUNTS_BYTES)?;
-        let batch: BatchCounts = bytemuck::pod_read_unaligned(&bytes[(k as usize) * BATCH_COUNTS_BYTES as usize..]);
-        let BatchCounts { photon: c, store: counts } = batch;
-        if c.overflowed() == 0 {
-            if counts.overflowed == 0 {
-                stats.add_photon_batch(&c, &counts);
-                return Ok(Ok(batch));
-            }
-            // The photon sort items (the pass's photons plus the footprints' fallbacks)
-            // overflowed: more room, within one binding of sorted photons.
-            stats.overflowed += u64::from(counts.overflowed);
-            if u64::from(counts.photon_items) > limits.sorted_photons {
-                if photons <= 1 {
-                    return Err(WgpuError::Size(format!("one photon stores {} progressive photons; adapter {:?} binds at most {}", counts.photon_items, ctx.info.name, limits.sorted_photons)));
-                }
-                return Ok(Err(shrink(photons, limits.sorted_photons as f64 / f64::from(counts.photon_items.max(1)))));
-            }
-            resize(ctx, maps, st, st.allocated.with_sorted_photons_for(counts.photon_items, &limits))?;
-            continue;
-        }
-        stats.overflowed += c.overflowed();
-        let caps = (st.allocated.raw_footprints, st.allocated.photons);
-        match after_overflow(&limits, photons, c.footprint_appends, c.photon_appends, caps) {
-            Overflow::Grow(f, p) => {
-                // Room for every record of the grown buffers as a sorted photon.
-                let sorted = st.allocated.sorted_photons.max(f.saturating_add(p).min(u32::try_from(limits.sorted_photons).unwrap_or(u32::MAX)));
-                resize(ctx, maps, st, Capacities { raw_footprints: f, photons: p, sorted_photons: sorted })?
-            }
-            Overflow::Shrink(b) => return Ok(Err(b)),
-            Overflow::TooLarge => {
-                return Err(WgpuError::Size(format!(
-                    "one photon stores {} raw footprints and {} progressive photons; adapter {:?} binds at most {} and {}",
-                    c.footprint_appends, c.photon_appends, ctx.info.name, limits.raw_footprints, limits.photons
-                )));
-            }
-        }
+        submit_batch(self.ctx, self.maps, self.st, self.setup, &self.settings, range, k, last, true)?;
+        let bytes = read_buffer(self.ctx, "photon_pass", self.maps.batch_counts(), (u64::from(k) + 1) * BATCH_COUNTS_BYTES)?;
+        Ok(bytemuck::pod_read_unaligned(&bytes[(k as usize) * BATCH_COUNTS_BYTES as usize..]))
+    }
+
+    fn resize(&mut self, capacities: Capacities) -> Result<(), WgpuError> {
+        resize(self.ctx, self.maps, self.st, capacities)
+    }
+
+    fn allocated(&self) -> Capacities {
+        self.st.allocated
+    }
+
+    fn too_large(&self, batch: &BatchCounts, limits: &RecordLimits) -> WgpuError {
+        let (c, s) = (&batch.photon, &batch.store);
+        WgpuError::Size(format!(
+            "one photon stores {} raw footprints, {} progressive photons and {} sorted progressive photons; adapter {:?} binds at most {}, {} and {}",
+            c.footprint_appends, c.photon_appends, s.photon_items, self.ctx.info.name, limits.raw_footprints, limits.photons, limits.sorted_photons
+        ))
     }
 }
 
@@ -575,7 +539,7 @@ impl Tracer for WgpuTracer {
             // the capacities every iteration of the render starts on (and B).
             let setup = PhotonPassSetup::new(&st.prepared, &st.settings, 0);
             let mut stats = IterationStats::default();
-            let (fp, ph, items) = trace_waiting(ctx, &mut self.maps, &mut st, &mut stats, &setup)?;
+            let [fp, ph, items] = trace_waiting(ctx, &mut self.maps, &mut st, &mut stats, &setup)?;
             st.capacities = Capacities::calibrated(fp, ph, items, &limits);
             self.maps.begin_iteration(ctx, 1);
             // The first iteration finds its buffers allocated.

@@ -219,6 +219,115 @@ impl Capacities {
     }
 }
 
+/// What to do with a photon batch traced with one wait, once its counters are read
+/// ([`after_batch`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BatchOutcome {
+    /// Nothing was dropped: keep the batch.
+    Kept,
+    /// Records were dropped: trace the batch again with these capacities.
+    Grow(Capacities),
+    /// The batch needs more than one binding holds: trace the iteration again with this
+    /// many photons per batch.
+    Shrink(u32),
+    /// One photon's records exceed one binding.
+    TooLarge,
+}
+
+/// The outcome of a batch of `photons` photons traced into buffers of `allocated`
+/// capacities, whose counters are `batch`, within `limits`: appends past the photon pass's
+/// buffers grow them ([`after_overflow`]; the sorted photons keep room for every record of
+/// the grown buffers), photon sort items past the store's capacity grow that
+/// ([`Capacities::with_sorted_photons_for`]) or, past one binding, shrink the batch.
+pub fn after_batch(limits: &RecordLimits, photons: u32, batch: &crate::gpu::layout::BatchCounts, allocated: Capacities) -> BatchOutcome {
+    let (c, s) = (&batch.photon, &batch.store);
+    if c.overflowed() > 0 {
+        return match after_overflow(limits, photons, c.footprint_appends, c.photon_appends, (allocated.raw_footprints, allocated.photons)) {
+            Overflow::Grow(f, p) => {
+                let sorted = allocated.sorted_photons.max(Capacities::sorted_within(f.saturating_add(p), limits));
+                BatchOutcome::Grow(Capacities { raw_footprints: f, photons: p, sorted_photons: sorted })
+            }
+            Overflow::Shrink(b) => BatchOutcome::Shrink(b),
+            Overflow::TooLarge => BatchOutcome::TooLarge,
+        };
+    }
+    if s.overflowed == 0 {
+        return BatchOutcome::Kept;
+    }
+    if u64::from(s.photon_items) > limits.sorted_photons {
+        return if photons <= 1 { BatchOutcome::TooLarge } else { BatchOutcome::Shrink(shrink(photons, limits.sorted_photons as f64 / f64::from(s.photon_items.max(1)))) };
+    }
+    BatchOutcome::Grow(allocated.with_sorted_photons_for(s.photon_items, limits))
+}
+
+/// A backend's photon batches traced with one wait each, for [`trace_waiting`].
+#[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
+pub trait WaitingBatches {
+    /// The backend's error.
+    type Error;
+    /// Starts an iteration of `batches` batches (batch 0 follows).
+    fn begin(&mut self, batches: u32) -> Result<(), Self::Error>;
+    /// Traces and stores batch `k` (the photons `range`; `last`: the iteration's last
+    /// batch) into the buffers allocated now, waits, and returns its counters.
+    fn trace(&mut self, range: Range<u32>, k: u32, last: bool) -> Result<crate::gpu::layout::BatchCounts, Self::Error>;
+    /// Reallocates the buffers for `capacities`.
+    fn resize(&mut self, capacities: Capacities) -> Result<(), Self::Error>;
+    /// The capacities allocated now.
+    fn allocated(&self) -> Capacities;
+    /// The error for a photon whose records alone exceed one binding (`batch`, `limits`).
+    fn too_large(&self, batch: &crate::gpu::layout::BatchCounts, limits: &RecordLimits) -> Self::Error;
+}
+
+/// Traces an iteration of `photons` photons in batches of `*batch_photons` with one wait
+/// each (the calibration, or an iteration traced again after an overflow): each batch is
+/// checked as soon as it ran ([`after_batch`]) and traced again into grown buffers when it
+/// dropped records; a batch too large for one binding shrinks `*batch_photons` and starts
+/// the iteration again ([`for_each_batch`]). The batches' counts go into `stats` (its
+/// photon counts and `overflowed` reset first). Returns the number of batches and the most
+/// raw footprints, progressive photons and photon sort items a batch appended.
+#[cfg(feature = "alloc")]
+#[cfg_attr(docsrs, doc(cfg(feature = "alloc")))]
+pub fn trace_waiting<W: WaitingBatches>(
+    w: &mut W,
+    photons: u32,
+    batch_photons: &mut u32,
+    limits: &RecordLimits,
+    stats: &mut crate::render::tracer::IterationStats,
+) -> Result<(u32, [u32; 3]), W::Error> {
+    stats.overflowed = 0;
+    let mut most = [0u32; 3];
+    let batches = for_each_batch(photons, batch_photons, |range, k, batches| {
+        if k == 0 {
+            stats.reset_photon_counts();
+            w.begin(batches)?;
+            most = [0; 3];
+        }
+        let n = range.end - range.start;
+        loop {
+            let batch = w.trace(range.clone(), k, k + 1 == batches)?;
+            match after_batch(limits, n, &batch, w.allocated()) {
+                BatchOutcome::Kept => {
+                    stats.add_photon_batch(&batch.photon, &batch.store);
+                    let appended = [batch.photon.footprint_appends, batch.photon.photon_appends, batch.store.photon_items];
+                    most = core::array::from_fn(|i| most[i].max(appended[i]));
+                    return Ok(None);
+                }
+                BatchOutcome::Grow(c) => {
+                    stats.overflowed += batch.dropped();
+                    w.resize(c)?;
+                }
+                BatchOutcome::Shrink(b) => {
+                    stats.overflowed += batch.dropped();
+                    return Ok(Some(b));
+                }
+                BatchOutcome::TooLarge => return Err(w.too_large(&batch, limits)),
+            }
+        }
+    })?;
+    Ok((batches, most))
+}
+
 /// Records each append buffer starts with for batches of `batch` photons (`forced`: a
 /// caller's choice), at least 1 and at most `max`.
 pub fn initial_capacity(batch: u32, forced: Option<u32>, max: u32) -> u32 {
@@ -292,5 +401,26 @@ mod tests {
         assert_eq!((c.raw_footprints, c.photons, c.sorted_photons), (1506, 268, 706));
         assert_eq!(c.with_sorted_photons_for(800, &l).sorted_photons, 1412);
         assert_eq!(c.with_sorted_photons_for(700, &l), c);
+    }
+
+    #[test]
+    fn batches_grow_what_overflowed() {
+        use crate::gpu::layout::{BatchCounts, PhotonCounters, StoreCounts};
+        let l = RecordLimits::new(96 * 1000);
+        let caps = Capacities { raw_footprints: 200, photons: 200, sorted_photons: 300 };
+        let batch = |fp: u32, ph: u32, items: u32, dropped: u32| BatchCounts {
+            photon: PhotonCounters { footprint_appends: fp, photon_appends: ph, footprint_overflowed: fp.saturating_sub(200), photon_overflowed: ph.saturating_sub(200), ..Default::default() },
+            store: StoreCounts { photon_items: items, overflowed: dropped, ..Default::default() },
+        };
+        assert_eq!(after_batch(&l, 100, &batch(150, 10, 100, 0), caps), BatchOutcome::Kept);
+        // Appends: the append buffer grows, the sorted photons keep room for both.
+        assert_eq!(after_batch(&l, 100, &batch(300, 10, 100, 0), caps), BatchOutcome::Grow(Capacities { raw_footprints: 400, photons: 200, sorted_photons: 600 }));
+        assert_eq!(after_batch(&l, 100, &batch(2000, 10, 100, 0), caps), BatchOutcome::Shrink(45));
+        assert_eq!(after_batch(&l, 1, &batch(2000, 10, 100, 0), caps), BatchOutcome::TooLarge);
+        // Photon sort items past the store's capacity: that grows, or past a binding
+        // (2000 sorted photons here) the batch shrinks.
+        assert_eq!(after_batch(&l, 100, &batch(150, 150, 350, 50), caps), BatchOutcome::Grow(Capacities { sorted_photons: 600, ..caps }));
+        assert_eq!(after_batch(&l, 100, &batch(150, 150, 4000, 3700), caps), BatchOutcome::Shrink(45));
+        assert_eq!(after_batch(&l, 1, &batch(150, 150, 4000, 3700), caps), BatchOutcome::TooLarge);
     }
 }
