@@ -237,14 +237,17 @@ pub const RADIX: WgslFile = WgslFile { name: "path/radix.wgsl", source: include_
 /// states its contract).
 pub const GATHER: WgslFile = WgslFile { name: "path/gather.wgsl", source: include_str!("../../shaders/path/gather.wgsl"), deps: &[&KERNEL, &FOOTPRINT, &BANDWIDTH, &RECORDS] };
 
-/// `path/schedule.wgsl`: entry point `store_schedule` (one invocation; group 0: the photon
-/// pass's [`crate::gpu::layout::PhotonCounters`], the store's
-/// [`crate::gpu::layout::StoreParams`], six words of indirect dispatch arguments): the
-/// store half's record counts and dispatch sizes from the device's counters, so that no
-/// readback sits between the photon pass and the store.
+/// `path/schedule.wgsl`: entry points `store_schedule` and `store_check` (one invocation
+/// each; group 0: the photon pass's [`crate::gpu::layout::PhotonCounters`], the store's
+/// [`crate::gpu::layout::StoreParams`], six words of indirect dispatch arguments, the
+/// iteration's status word, the store's [`crate::gpu::layout::StoreCounts`]): the store's
+/// record counts and dispatch sizes from the device's counters, so that no readback sits
+/// between the photon pass and the store, and the status word that tells the accumulation
+/// the iteration dropped records.
 pub const SCHEDULE: WgslFile = WgslFile { name: "path/schedule.wgsl", source: include_str!("../../shaders/path/schedule.wgsl"), deps: &[] };
 
-/// `path/accumulate.wgsl`: entry point `accumulate` ([`crate::gpu::layout::AccumPixel`]).
+/// `path/accumulate.wgsl`: entry point `accumulate` ([`crate::gpu::layout::AccumPixel`];
+/// binding 2: the iteration's status word, which leaves the sums alone when set).
 pub const ACCUMULATE: WgslFile = WgslFile { name: "path/accumulate.wgsl", source: include_str!("../../shaders/path/accumulate.wgsl"), deps: &[&MATH] };
 
 /// The twin files: every one is a function-level twin of the core, checked against it by
