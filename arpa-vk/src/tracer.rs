@@ -197,6 +197,9 @@ struct Loaded {
     /// A photon pass ran without waiting and its counters have not been read (accumulate's
     /// wait reads them).
     photon_counts_pending: bool,
+    /// The last photon batch's submission (the photon pass reads the emitter tables the
+    /// next one rewrites from the host).
+    photon_submission: Option<crate::submission::Submission>,
     clock: StageClock,
 }
 
@@ -351,6 +354,11 @@ fn begin_iteration(ctx: &VkContext, st: &mut Loaded, setup: &PhotonPassSetup, ba
     for b in &mut st.batches {
         b.accel = None;
     }
+    // The emitter tables are host-visible: a photon pass run again before an accumulate
+    // waits for the earlier one's batches (free once a wait has retired them).
+    if let Some(last) = st.photon_submission.take() {
+        ctx.wait_for(last)?;
+    }
     if st.batch_counts.size() < batches as u64 * BATCH_COUNTS_BYTES {
         st.batch_counts = batch_counts_buffer(ctx, batches)?;
     }
@@ -375,7 +383,7 @@ fn submit_batch(ctx: &VkContext, st: &mut Loaded, setup: &PhotonPassSetup, setti
     let (photon, status, counts) = (&st.photon, &st.status, &st.batch_counts);
     let device = ctx.device();
     let at = k as u64 * BATCH_COUNTS_BYTES;
-    let (recorded, _) = ctx.submit(vec![Box::new(Arc::clone(&prepared))], |cmd| {
+    let (recorded, submission) = ctx.submit(vec![Box::new(Arc::clone(&prepared))], |cmd| {
         if clear_status {
             crate::compute::record_fill(device, cmd, status, 0);
         }
@@ -391,6 +399,7 @@ fn submit_batch(ctx: &VkContext, st: &mut Loaded, setup: &PhotonPassSetup, setti
         crate::compute::record_compute_barrier(device, cmd);
         Ok::<(), VkError>(())
     })?;
+    st.photon_submission = Some(submission);
     recorded
 }
 
@@ -591,6 +600,7 @@ impl Tracer for VkTracer {
             status,
             batch_counts: batch_counts_buffer(ctx, 1)?,
             photon_counts_pending: false,
+            photon_submission: None,
             clock: StageClock::new(),
         });
         if self.initial_capacity.is_none() {
