@@ -374,8 +374,9 @@ impl VkContext {
     /// any-hit shader must run exactly once per box a ray reaches (an opaque geometry, or the
     /// opaque ray flag, would skip any-hit and collect nothing). Vulkan makes a box whose
     /// min x is NaN an inactive primitive, but lavapipe mishandles them: with inactive boxes
-    /// after the real ones, traversal misses many real boxes. So build over the active boxes
-    /// only, or keep inactive boxes out of lavapipe's BLASes. (Unchecked on a GPU.)
+    /// after the real ones, traversal misses many real boxes. Unused slots therefore get
+    /// degenerate boxes outside the scene instead ([`arpa_core::base::aabb::inactive_point`]),
+    /// which lavapipe traverses without losing real boxes. (Unchecked on a GPU.)
     ///
     /// Errors: [`VkError::InvalidInput`] for no boxes or more than `maxPrimitiveCount`.
     pub fn build_aabb_blas(&self, label: &str, boxes: &[[f32; 6]]) -> Result<AccelerationStructure, VkError> {

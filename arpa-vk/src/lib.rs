@@ -7,15 +7,16 @@
 //! The crate opens the Vulkan loader at run time (`ash` with `loaded`), so it builds everywhere
 //! without a Vulkan SDK; where there is no Vulkan, [`VkContext::new`] returns an error.
 //!
-//! The iteration, module by module (each stage one submission the host waits for, see
-//! [`VkTracer`]):
+//! The iteration, module by module (each stage submits without waiting; the accumulate's
+//! wait is the iteration's one, see [`VkTracer`]):
 //! - [`scene`]: the scene's triangle structures (Morton-ordered bottom levels per mesh,
 //!   [`SceneAccel`]) and the core's scene tables, descriptor set 0 of the traces;
 //! - [`camera`]: the camera pass, ray generation over the core's `camera_pass.wgsl`;
 //! - [`photons`]: emission and propagation, ray generation over the core's `photon_pass.wgsl`,
 //!   keyed records appended to [`photons::PhotonOutputs`];
 //! - [`maps`]: storing footprints — the core's keyed store (heuristics, progressive fallbacks),
-//!   bitonic sort and compaction into sorted records and boxes ([`MapStore`]);
+//!   radix sort over the capacities and compaction into sorted records and boxes
+//!   ([`MapStore`]);
 //! - [`map_accel`]: building the structure over the sorted boxes ([`MapAccel`]: AABB bottom
 //!   levels per record kind over the store's capacities, not opaque, no duplicate any-hit;
 //!   one top level);
@@ -40,9 +41,9 @@
 //! ([`VkTracer::new`]). naga's polyfill of WGSL's workgroup-memory zero initialisation made the
 //! sort's shared-memory kernels take minutes to compile there, so the sort is compiled without
 //! it ([`shaders::compile_wgsl_with`]; the kernels write every shared element before reading).
-//! Box bottom levels are built over exactly the stored records, not over the full capacity
-//! with inactive (NaN) boxes: on lavapipe those lose real boxes in traversal (see
-//! [`VkContext::build_aabb_blas`]), hence the count readback that sizes them.
+//! Box bottom levels are built over the store's whole capacity, the slots past the records
+//! holding degenerate boxes outside the scene, not NaN boxes: on lavapipe NaN boxes lose
+//! real boxes in traversal (see [`VkContext::build_aabb_blas`]).
 
 #![warn(missing_docs)]
 
