@@ -267,7 +267,7 @@ impl VkTracer {
     fn kept_counts(&self, st: &Loaded) -> Result<Vec<BatchCounts>, VkTracerError> {
         self.ctx.finish()?;
         let counts = read_batch_counts(st)?;
-        if dropped(&counts) {
+        if BatchCounts::dropped_in(&counts) > 0 {
             return Err(self.size_error("the last photon pass dropped records for lack of buffer space; its accumulate traces the iteration again with larger buffers".into()));
         }
         Ok(counts)
@@ -483,16 +483,6 @@ fn read_batch_counts(st: &Loaded) -> Result<Vec<BatchCounts>, VkError> {
     Ok(crate::buffer::pod_vec(&st.batch_counts.read(0, st.batch_count as u64 * BATCH_COUNTS_BYTES)?))
 }
 
-/// Whether the batches' counters show a dropped record (the iteration must be traced again).
-fn dropped(counts: &[BatchCounts]) -> bool {
-    counts.iter().any(|c| c.dropped() > 0)
-}
-
-/// Records dropped in `counts`.
-fn lost(counts: &[BatchCounts]) -> u64 {
-    counts.iter().map(BatchCounts::dropped).sum()
-}
-
 /// Builds every batch's structure over its store's capacities (not waited for).
 fn build_batches(ctx: &VkContext, st: &mut Loaded) -> Result<(), VkError> {
     for b in &mut st.batches[..st.batch_count] {
@@ -685,13 +675,14 @@ impl Tracer for VkTracer {
             let iteration = clock.completed();
             let stats = clock.stats_mut();
             if let Some(counts) = accumulate_and_wait(ctx, st, stats)? {
-                if dropped(&counts) {
+                let lost = BatchCounts::dropped_in(&counts);
+                if lost > 0 {
                     let setup = PhotonPassSetup::new(&st.prepared, &st.settings, iteration);
                     {
                         let _scope = StageScope::enter(&ledger, Stage::PhotonPass, iteration);
                         trace_waiting(ctx, &adapter, st, stats, &setup)?;
                     }
-                    stats.overflowed += lost(&counts);
+                    stats.overflowed += lost;
                     setup.record_plan(stats);
                     {
                         let _scope = StageScope::enter(&ledger, Stage::BuildAccelerationStructure, iteration);
@@ -788,7 +779,6 @@ impl Tracer for VkTracer {
             self.ctx.finish()?;
             let counts = read_batch_counts(st)?;
             stats.add_photon_batches(&counts);
-            stats.overflowed += lost(&counts);
         }
         if st.gather_counts_pending {
             self.ctx.finish()?;

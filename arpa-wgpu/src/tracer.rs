@@ -239,7 +239,7 @@ impl WgpuTracer {
     /// pass dropped records (its accumulate traces the iteration again).
     fn kept_counts(&self, st: &Loaded) -> Result<Vec<BatchCounts>, WgpuError> {
         let counts = read_batch_counts(&self.ctx, &self.maps, st)?;
-        if dropped(&counts) {
+        if BatchCounts::dropped_in(&counts) > 0 {
             return Err(WgpuError::Size("the last photon pass dropped records for lack of buffer space; its accumulate traces the iteration again with larger buffers".into()));
         }
         Ok(counts)
@@ -390,11 +390,6 @@ impl WaitingBatches for Waiting<'_> {
 /// The counters of the iteration's batches, read back (a wait).
 fn read_batch_counts(ctx: &GpuContext, maps: &PhotonMaps, st: &Loaded) -> Result<Vec<BatchCounts>, WgpuError> {
     Ok(bytemuck::pod_collect_to_vec(&read_buffer(ctx, "photon counters", maps.batch_counts(), u64::from(st.batches) * BATCH_COUNTS_BYTES)?))
-}
-
-/// Whether the batches' counters show a dropped record (the iteration must be traced again).
-fn dropped(counts: &[BatchCounts]) -> bool {
-    counts.iter().any(|c| c.dropped() > 0)
 }
 
 /// Records and submits the accumulation of the iteration image (left out on the device when
@@ -616,13 +611,13 @@ impl Tracer for WgpuTracer {
             let Some(counts) = accumulate_and_wait(ctx, maps, st, clock.stats_mut())? else {
                 return Ok(());
             };
-            if !dropped(&counts) {
+            let lost = BatchCounts::dropped_in(&counts);
+            if lost == 0 {
                 clock.stats_mut().add_photon_batches(&counts);
                 return Ok(());
             }
             let iteration = clock.completed();
             let stats = clock.stats_mut();
-            let lost: u64 = counts.iter().map(BatchCounts::dropped).sum();
             let setup = PhotonPassSetup::new(&st.prepared, &st.settings, iteration);
             timed_as(ctx, Stage::PhotonPass, Stage::Accumulate, iteration, || trace_waiting(ctx, maps, st, stats, &setup))?;
             stats.overflowed += lost;
@@ -695,7 +690,6 @@ impl Tracer for WgpuTracer {
         if st.photon_counts_pending {
             let counts = read_batch_counts(&self.ctx, &self.maps, st)?;
             stats.add_photon_batches(&counts);
-            stats.overflowed += counts.iter().map(BatchCounts::dropped).sum::<u64>();
         }
         if st.gather_counts_pending {
             set_gather_counts(&mut stats, &read_buffer(&self.ctx, "gather counts", self.maps.gathered_buffer(), GATHER_COUNTS_BYTES)?);

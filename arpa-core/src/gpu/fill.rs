@@ -128,11 +128,12 @@ impl CameraParams {
 /// they read, so the renderer layer does not depend on the device layouts).
 impl IterationStats {
     /// Adds the GPU photon batches `batches` ([`add_photon_batch`](Self::add_photon_batch)
-    /// each).
+    /// each) and the records they dropped to [`IterationStats::overflowed`].
     pub fn add_photon_batches(&mut self, batches: &[crate::gpu::layout::BatchCounts]) {
         for b in batches {
             self.add_photon_batch(&b.photon, &b.store);
         }
+        self.overflowed += crate::gpu::layout::BatchCounts::dropped_in(batches);
     }
 
     /// Adds one GPU photon batch: what its photon pass counted and what its store kept.

@@ -317,6 +317,12 @@ impl BatchCounts {
     pub fn dropped(&self) -> u64 {
         self.photon.overflowed() + u64::from(self.store.overflowed)
     }
+
+    /// Records the batches `batches` dropped together ([`BatchCounts::dropped`]): an
+    /// iteration with any is traced again.
+    pub fn dropped_in(batches: &[Self]) -> u64 {
+        batches.iter().map(Self::dropped).sum()
+    }
 }
 
 /// Irradiance gathered at one query point (`ArpaGatherResult` of `gather.wgsl`, 112 bytes;
